@@ -1,0 +1,69 @@
+"""The `axiscal` command line. Each subcommand lives in campaign/commands/<name>.py and has
+`register(subparsers)`, which adds its parser and sets `func(args) -> int`.
+
+Bad input ends with exit status 2 and one line on stderr, `error: <what and where>`; never a
+traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+
+from campaign import __version__
+from campaign.errors import InputError
+
+COMMANDS = ("analyze", "plan", "run", "demo", "compensate", "correction", "verify", "refine",
+            "discover", "guide", "resume", "replay", "import_stream", "report")
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse, but a usage error is one `error:` line and exit status 2."""
+
+    def error(self, message):  # noqa: D102 - argparse API
+        raise InputError(f"{self.prog}: {message}")
+
+
+def build_parser() -> Parser:
+    parser = Parser(prog="axiscal", description="Pitch-error measurement campaigns to ISO 230-2.")
+    parser.add_argument("--version", action="version", version=f"axiscal {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
+    for name in COMMANDS:
+        try:
+            module = importlib.import_module(f"campaign.commands.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name == f"campaign.commands.{name}":
+                continue  # not built yet
+            raise
+        module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        if not getattr(args, "func", None):
+            parser.print_help()
+            return 2
+        return int(args.func(args) or 0)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("error: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        return 0
+    except Exception as exc:  # a bug: one line for the user, the traceback on request
+        if os.environ.get("AXISCAL_DEBUG"):
+            raise
+        print(f"error: internal error: {type(exc).__name__}: {exc} (AXISCAL_DEBUG=1 shows the traceback)",
+              file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

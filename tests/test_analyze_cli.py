@@ -1,0 +1,155 @@
+"""`axiscal analyze`: JSON output, the plot, standards, and one-line errors for every bad input."""
+
+import json
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+
+import pytest
+
+from tests.conftest import PAPER, assert_one_line_error
+
+HORIZONTAL = PAPER / "horizontal_before.csv"
+KEYS = ("A", "A_up", "A_down", "E", "E_up", "E_down", "M", "B", "B_mean", "R", "R_up", "R_down")
+
+
+def test_json_has_every_key(cli):
+    result = cli("analyze", HORIZONTAL, "--json")
+    assert result.code == 0
+    data = json.loads(result.out)
+    for key in KEYS + ("standard", "unit", "runs", "targets"):
+        assert key in data, key
+    assert data["A"] == pytest.approx(9.152, abs=5e-4)
+    assert data["unit"] == "um" and data["runs"] == 3 and len(data["targets"]) == 11
+
+
+def test_default_output_is_tables_with_units(cli):
+    result = cli("analyze", HORIZONTAL)
+    assert result.code == 0
+    assert "9.152" in result.out and "value (um)" in result.out and "target mm" in result.out
+
+
+@pytest.mark.parametrize("name", ["GB/T 17421.2", "JIS B 6190-2", "iso230-2"])
+def test_aliases_give_iso_2014(cli, name):
+    data = json.loads(cli("analyze", HORIZONTAL, "--json", "--standard", name).out)
+    assert data["standard"] == "ISO 230-2:2014" and data["A"] == pytest.approx(9.152, abs=5e-4)
+
+
+def test_1988_uses_three_sigma(cli):
+    data = json.loads(cli("analyze", HORIZONTAL, "--json", "--standard", "ISO230-2:1988").out)
+    t0 = data["targets"][0]
+    assert data["R_up"] == pytest.approx(max(6 * t["s_up"] for t in data["targets"]))
+    assert data["A"] > 9.152 and t0["R_up"] == pytest.approx(6 * t0["s_up"])
+
+
+def test_vdi3441_keys(cli):
+    data = json.loads(cli("analyze", HORIZONTAL, "--json", "--standard", "VDI 3441").out)
+    for key in ("Pa", "Ps_max", "U_max", "P"):
+        assert isinstance(data[key], float), key
+    assert data["U_max"] == pytest.approx(data["B"])
+    assert data["Pa"] == pytest.approx(data["M"])
+    assert data["P"] >= data["Pa"]
+
+
+def test_unknown_standard(cli):
+    assert_one_line_error(cli("analyze", HORIZONTAL, "--standard", "ASME"), "unknown standard")
+
+
+def test_png_plot_is_valid(cli, tmp_path):
+    out = tmp_path / "plot.png"
+    assert cli("analyze", HORIZONTAL, "--plot", out).code == 0
+    head = out.read_bytes()[:24]
+    assert head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR"
+    assert int.from_bytes(head[16:20], "big") > 300
+
+
+def test_svg_plot_is_valid(cli, tmp_path):
+    out = tmp_path / "plot.svg"
+    assert cli("analyze", HORIZONTAL, "--plot", out, "--json").code == 0
+    root = ET.parse(out).getroot()
+    assert root.tag.endswith("svg")
+    assert "9.152" in out.read_text()
+
+
+def test_bad_plot_extension(cli, tmp_path):
+    assert_one_line_error(cli("analyze", HORIZONTAL, "--plot", tmp_path / "x.jpg"), ".jpg")
+
+
+def _write(tmp_path, content, name="t.csv", binary=False):
+    path = tmp_path / name
+    if binary:
+        path.write_bytes(content)
+    else:
+        path.write_text(content, encoding="utf-8", newline="")
+    return path
+
+
+GOOD_HEADER = "run,direction,target_mm,deviation_um\n"
+BAD_INPUTS = {
+    "empty": ("", ["empty"]),
+    "blank lines only": ("\n\n  \n", ["empty"]),
+    "header only": (GOOD_HEADER, ["no data rows"]),
+    "comments only": ("# just a comment\n", ["no header"]),
+    "wrong delimiter": ("run;direction;target_mm;deviation_um\n1;+;0;1\n", ["delimiter", ":1"]),
+    "missing column": ("run,direction,target_mm\n1,+,0\n", ["missing column 'deviation_um'"]),
+    "non-numeric": (GOOD_HEADER + "1,+,0,1.0\n1,+,10,abc\n", [":3", "deviation_um", "abc"]),
+    "nan": (GOOD_HEADER + "1,+,0,nan\n", [":2", "deviation_um", "finite"]),
+    "inf": (GOOD_HEADER + "1,+,0,1\n1,+,5,-inf\n", [":3", "finite"]),
+    "unknown direction": (GOOD_HEADER + "1,up,0,1\n", [":2", "direction", "up"]),
+    "run zero": (GOOD_HEADER + "0,+,0,1\n", [":2", "run"]),
+    "run fraction": (GOOD_HEADER + "1.5,+,0,1\n", [":2", "run"]),
+    "short row": (GOOD_HEADER + "1,+,0\n", [":2", "expected 4 fields"]),
+    "directions mismatch": (GOOD_HEADER + "1,+,0,1\n1,+,10,1\n1,-,10,1\n", ["directions do not match", "0"]),
+    "duplicate point": (GOOD_HEADER + "1,+,0,1\n1,+,0,2\n", [":3", "duplicate"]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_INPUTS))
+def test_bad_input_one_line_exit_2(cli, tmp_path, case):
+    content, fragments = BAD_INPUTS[case]
+    path = _write(tmp_path, content)
+    assert_one_line_error(cli("analyze", path), str(path), *fragments)
+
+
+def test_binary_garbage(cli, tmp_path):
+    path = _write(tmp_path, bytes(range(256)) * 8, binary=True)
+    assert_one_line_error(cli("analyze", path), "binary")
+
+
+def test_not_utf8(cli, tmp_path):
+    path = _write(tmp_path, GOOD_HEADER.encode() + "1,+,0,\xe9\n".encode("latin-1"), binary=True)
+    assert_one_line_error(cli("analyze", path), "UTF-8")
+
+
+def test_missing_file_and_directory(cli, tmp_path):
+    assert_one_line_error(cli("analyze", tmp_path / "nope.csv"), "no such file")
+    assert_one_line_error(cli("analyze", tmp_path), "directory")
+
+
+def test_bom_crlf_comments_and_unicode_minus(cli, tmp_path):
+    text = "\ufeff# machine: press\r\n" + GOOD_HEADER.replace("\n", "\r\n")
+    for run in (1, 2):
+        text += f"{run},+,0,\u22121.5\r\n{run},+,10,2\r\n{run},\u2212,10,2.5\r\n{run},-,0,\u22121\r\n"
+    path = _write(tmp_path, text)
+    data = json.loads(cli("analyze", path, "--json").out)
+    assert data["targets"][0]["mean_up"] == pytest.approx(-1.5)
+    assert data["targets"][0]["mean_down"] == pytest.approx(-1.0)
+    assert data["runs"] == 2
+
+
+def test_few_runs_warn_and_one_run_has_no_repeatability(cli, tmp_path):
+    path = _write(tmp_path, GOOD_HEADER + "1,+,0,1\n1,+,10,2\n1,-,10,2\n1,-,0,1\n")
+    result = cli("analyze", path, "--json")
+    data = json.loads(result.out)
+    assert result.code == 0 and "warning: 1 run(s)" in result.err
+    assert data["R"] is None and data["R_up"] is None and data["targets"][0]["s_up"] is None
+    assert data["E"] == pytest.approx(1.0) and data["B"] == pytest.approx(0.0)
+
+
+def test_subprocess_entry_points_no_traceback(tmp_path):
+    """The installed console script and `python -m campaign` behave the same on bad input."""
+    path = _write(tmp_path, GOOD_HEADER + "1,+,0,x\n")
+    for cmd in ([sys.executable, "-m", "campaign"],):
+        proc = subprocess.run([*cmd, "analyze", str(path)], capture_output=True, text=True, timeout=60)
+        assert proc.returncode == 2 and proc.stderr.startswith("error: ") and "Traceback" not in proc.stderr
+        assert len(proc.stderr.strip().splitlines()) == 1
