@@ -22,7 +22,7 @@ COMMANDS = ("analyze", "plan", "run", "demo", "compensate", "correction", "verif
 class Parser(argparse.ArgumentParser):
     """argparse, but a usage error is one `error:` line and exit status 2."""
 
-    def error(self, message):  # noqa: D102 - argparse API
+    def error(self, message):
         raise InputError(f"{self.prog}: {message}")
 
 

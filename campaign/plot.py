@@ -7,12 +7,12 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from campaign.errors import InputError  # noqa: E402
-from campaign.iso230 import Evaluation  # noqa: E402
-from campaign.pointtable import PointTable  # noqa: E402
+from campaign.errors import InputError
+from campaign.iso230 import Evaluation
+from campaign.pointtable import PointTable
 
 FORMATS = (".png", ".svg")
 DIRECTION_STYLE = {1: ("+ (forward)", "tab:blue"), -1: ("- (reverse)", "tab:red")}

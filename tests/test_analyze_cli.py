@@ -4,6 +4,7 @@ import json
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import pytest
 
@@ -149,7 +150,9 @@ def test_few_runs_warn_and_one_run_has_no_repeatability(cli, tmp_path):
 def test_subprocess_entry_points_no_traceback(tmp_path):
     """The installed console script and `python -m campaign` behave the same on bad input."""
     path = _write(tmp_path, GOOD_HEADER + "1,+,0,x\n")
-    for cmd in ([sys.executable, "-m", "campaign"],):
-        proc = subprocess.run([*cmd, "analyze", str(path)], capture_output=True, text=True, timeout=60)
+    script = Path(sys.executable).with_name("axiscal")
+    for cmd in ([sys.executable, "-m", "campaign"], [str(script)]):
+        proc = subprocess.run([*cmd, "analyze", str(path)], check=False, capture_output=True, text=True,
+                              timeout=60)
         assert proc.returncode == 2 and proc.stderr.startswith("error: ") and "Traceback" not in proc.stderr
         assert len(proc.stderr.strip().splitlines()) == 1
