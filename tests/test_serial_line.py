@@ -85,12 +85,11 @@ def test_bad_lines_raise_line_error(text):
 def _readings(fmt: LineFormat):
     finite = st.floats(allow_nan=False, allow_infinity=False, min_value=-1e6, max_value=1e6)
     optional = st.none() | finite
-    return st.builds(
-        lambda t, pos, sig, a, p, h, m: Reading(
-            t, pos, sig >= fmt.signal_threshold_pct, sig, a, p, h, m
-        ),
-        finite, finite, st.floats(0, 100), optional, optional, optional, optional,
-    )
+
+    def reading(time_s, position, signal_pct, *env):
+        return Reading(time_s, position, signal_pct >= fmt.signal_threshold_pct, signal_pct, *env)
+
+    return st.builds(reading, finite, finite, st.floats(0, 100), *[optional] * 4)
 
 
 @given(_readings(DEFAULT))
