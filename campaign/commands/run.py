@@ -1,0 +1,68 @@
+"""`axiscal run CONFIG [--out DIR] [--speed N] [--json] [--plot OUT]`: run a campaign."""
+
+from __future__ import annotations
+
+from campaign.config import load_config
+from campaign.errors import InputError
+from campaign.executor import DEVIATION_SCALE
+from campaign.plot import check_plot_path, plot_evaluation
+from campaign.progress import RichProgress
+from campaign.session import analyse_dir, start_campaign
+from campaign.views import make_console, print_evaluation, print_json
+
+
+def register(sub) -> None:
+    p = sub.add_parser("run", help="run a measurement campaign from a config",
+                       description="Run the campaign of CONFIG, record it, then print the ISO 230-2 summary.")
+    p.add_argument("config", help="campaign TOML (see docs/config.md)")
+    add_run_options(p)
+    p.set_defaults(func=run)
+
+
+def add_run_options(p) -> None:
+    p.add_argument("--out", metavar="DIR", help="campaign directory (default runs/MACHINE-AXIS-TIME)")
+    p.add_argument("--speed", type=float, metavar="N",
+                   help="simulated machine: N times real time (default: as fast as possible)")
+    p.add_argument("--json", action="store_true", help="print one JSON object at the end")
+    p.add_argument("--plot", metavar="OUT", help="write the ISO 230-2 plot (.png or .svg)")
+
+
+def finish(outcome, args, extra: dict | None = None) -> int:
+    """Print the outcome and the evaluation; exit 0 when completed, 3 when interrupted."""
+    result = {"dir": str(outcome.dir), "status": outcome.status, "points": outcome.points,
+              "planned": outcome.planned, "duration_s": round(outcome.duration_s, 3), **(extra or {})}
+    if outcome.points:
+        table, ev = analyse_dir(outcome.dir)
+        result.update({k: v for k, v in ev.summary.items()})
+        result["unit"] = ev.unit
+        if args.plot:
+            plot_evaluation(table, ev, args.plot, title=f"{outcome.dir}")
+    if args.json:
+        print_json(result)
+    else:
+        console = make_console()
+        if outcome.points:
+            print_evaluation(ev, console, per_target=False)
+        console.print(f"campaign {outcome.status}: {outcome.points}/{outcome.planned} points in "
+                      f"{outcome.duration_s / 60:.1f} min (campaign time), recorded in {outcome.dir}")
+        if outcome.status != "completed":
+            console.print(f"[red]stopped:[/] {outcome.message}. Continue with: axiscal resume {outcome.dir}")
+        if args.plot:
+            console.print(f"plot written to {args.plot}")
+    return 0 if outcome.status == "completed" else 3
+
+
+def run_config(config, args, extra=None) -> int:
+    if args.plot:
+        check_plot_path(args.plot)
+    if args.speed is not None and args.speed <= 0:
+        raise InputError("--speed: must be > 0")
+    unit = config["axis"]["unit"]
+    observer = RichProgress(unit, DEVIATION_SCALE[unit], "µm" if unit == "mm" else "arcsec")
+    with observer:
+        outcome = start_campaign(config, args.out, speed=args.speed, observer=observer)
+    return finish(outcome, args, extra)
+
+
+def run(args) -> int:
+    return run_config(load_config(args.config), args)

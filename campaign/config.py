@@ -1,0 +1,269 @@
+"""The campaign configuration: one TOML file per campaign.
+
+The schema below is the documentation: `docs/config.md` is generated from it
+(`python -m campaign.config > docs/config.md`, checked by a test). An unknown key or an
+out-of-range value raises InputError naming the key.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from campaign.errors import InputError
+
+REQUIRED = object()
+
+
+@dataclass(frozen=True)
+class Key:
+    """One config key: its type, default (REQUIRED if none), meaning with unit, and bounds."""
+
+    type: type
+    default: Any
+    doc: str
+    min: float | None = None
+    max: float | None = None
+    choices: tuple = ()
+
+
+SCHEMA: dict[str, dict[str, Key]] = {
+    "campaign": {
+        "machine": Key(str, "machine", "machine id, recorded in the metadata"),
+        "operator": Key(str, "", "operator name, recorded in the metadata"),
+        "description": Key(str, "", "free text, recorded in the metadata"),
+        "tolerance": Key(float, 0.0, "pass/fail tolerance on A, deviation unit (µm or arcsec); 0 = none",
+                         min=0),
+    },
+    "axis": {
+        "name": Key(str, "X", "axis name"),
+        "kind": Key(str, "linear", "linear or rotary", choices=("linear", "rotary")),
+        "unit": Key(str, "mm", "position unit: mm (linear) or deg (rotary)", choices=("mm", "deg")),
+        "soft_limit_min": Key(float, REQUIRED, "lowest position any motion may command, axis unit"),
+        "soft_limit_max": Key(float, REQUIRED, "highest position any motion may command, axis unit"),
+        "max_velocity": Key(float, REQUIRED, "highest velocity any motion may command, axis unit/s",
+                            min=1e-6),
+        "max_acceleration": Key(float, 500.0, "axis acceleration (simulated machine), axis unit/s²",
+                                min=1e-6),
+        "in_position_window": Key(float, 0.01, "|actual - target| allowed when a move is done, axis unit",
+                                  min=0),
+    },
+    "plan": {
+        "targets": Key(list, None, "explicit target list, axis unit (instead of start/length/count)"),
+        "start": Key(float, 0.0, "first target, axis unit"),
+        "length": Key(float, None, "distance from the first to the last target, axis unit", min=1e-9),
+        "count": Key(int, None, "number of targets (>= 2)", min=2, max=10000),
+        "overrun": Key(float, 2.0, "overrun L1 beyond both ends, axis unit", min=0),
+        "cycles": Key(int, 5, "number of runs (cycles); ISO 230-2 asks for 5", min=1, max=50),
+        "dwell_s": Key(float, 4.0, "dwell at each target, s", min=0.1, max=600),
+        "velocity": Key(float, REQUIRED, "positioning velocity, axis unit/s", min=1e-9),
+        "cycle": Key(str, "linear", "linear (ISO 230-2) or pilgrim (step cycle, annex)",
+                     choices=("linear", "pilgrim")),
+        "offsets": Key(str, "none", "per-target offsets to sample periodic errors: none, random, golden",
+                       choices=("none", "random", "golden")),
+        "offset_fraction": Key(float, 0.1, "largest offset as a fraction of the target spacing",
+                               min=0, max=0.45),
+        "seed": Key(int, 1, "seed of the random offsets (recorded)", min=0),
+    },
+    "axis_driver": {
+        "type": Key(str, "sim", "sim (simulated machine over loopback ADS) or ads (a real PLC)",
+                    choices=("sim", "ads")),
+        "ams_net_id": Key(str, "127.0.0.1.1.1", "the PLC's AMS net id"),
+        "ams_port": Key(int, 851, "the PLC runtime's ADS port", min=1, max=65535),
+        "ip": Key(str, "127.0.0.1", "the PLC's IP address"),
+        "axis_index": Key(int, 1, "index n of GVL_Axiscal.astAxes[n]", min=1, max=64),
+        "timeout_s": Key(float, 2.0, "ADS call timeout, s", min=0.01, max=60),
+        "move_timeout_s": Key(float, 300.0, "longest a single move may take, s", min=0.1),
+        "read_only": Key(bool, False, "dry run: talk to the PLC read-only, command nothing"),
+    },
+    "instrument": {
+        "type": Key(str, "sim", "sim (simulated interferometer over a pty) or serial",
+                    choices=("sim", "serial")),
+        "port": Key(str, "", "serial port, e.g. /dev/ttyUSB0"),
+        "baudrate": Key(int, 115200, "serial baud rate", min=50, max=4000000),
+        "mode": Key(str, "stream", "stream (instrument sends continuously) or query",
+                    choices=("stream", "query")),
+        "rate_hz": Key(float, 10.0, "sample rate, Hz (stream) or query rate", min=0.1, max=1000),
+        "timeout_s": Key(float, 1.0, "serial read timeout, s", min=0.01, max=60),
+    },
+    "environment": {
+        "air_correction": Key(str, "none", "none (instrument corrects for air) or edlen (axiscal "
+                              "corrects vacuum readings with the updated Edlén equation)",
+                              choices=("none", "edlen")),
+        "wavelength_nm": Key(float, 633.0, "laser vacuum wavelength, nm", min=100, max=2000),
+        "co2_ppm": Key(float, 450.0, "CO2 content of the air, ppm", min=0, max=10000),
+        "air_temp_c": Key(float, None, "air temperature when the instrument gives none, °C", min=-20, max=60),
+        "air_pressure_hpa": Key(float, None, "air pressure when the instrument gives none, hPa",
+                                min=500, max=1200),
+        "humidity_pct": Key(float, None, "relative humidity when the instrument gives none, %", min=0, max=100),
+        "normalise_to_20c": Key(bool, False, "normalise readings to 20 °C with the material temperature"),
+        "expansion_ppm_per_k": Key(float, 11.5, "material expansion coefficient, µm/m per K", min=0, max=100),
+    },
+    "capture": {
+        "method": Key(str, "dwell", "dwell (average the end of a fixed dwell) or stable (capture when "
+                      "the reading is stable)", choices=("dwell", "stable")),
+        "average_s": Key(float, 1.0, "dwell method: averaging window at the end of the dwell, s", min=0.01),
+        "stable_tolerance": Key(float, 0.5, "stable method: band the reading must stay in, deviation unit",
+                                min=0),
+        "stable_window_s": Key(float, 0.5, "stable method: how long the reading must stay in the band, s",
+                               min=0.01),
+        "stable_timeout_s": Key(float, 10.0, "stable method: longest wait after arrival, s", min=0.1),
+        "retries": Key(int, 2, "captures retried at a point after beam loss before the campaign stops",
+                       min=0, max=20),
+    },
+    "sim": {
+        "speed": Key(float, None, "run N times faster than real time; absent = as fast as possible",
+                     min=1e-3),
+        "seed": Key(int, 1, "seed of the simulated noise", min=0),
+        "model": Key(str, "", "error-model TOML file (relative to this config); or [sim.effects.NAME]"),
+        "ads_port": Key(int, 48898, "loopback TCP port of the simulated PLC's ADS server", min=1, max=65535),
+    },
+}
+
+TABLES = {("instrument", "line"), ("sim", "effects"), ("sim", "faults")}
+"""Sub-tables validated elsewhere: the serial line format, the error model, the faults."""
+
+
+@dataclass
+class Config:
+    """A validated config: `sections[name][key]` with every default filled in."""
+
+    sections: dict[str, dict[str, Any]]
+    source: str
+    text: str
+
+    def __getitem__(self, section: str) -> dict[str, Any]:
+        return self.sections[section]
+
+    @property
+    def base_dir(self) -> Path:
+        return Path(self.source).resolve().parent
+
+
+def _check_value(name: str, key: Key, value: Any, where: str) -> Any:
+    if key.type is float and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if key.type is list:
+        if not isinstance(value, list) or not value or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value):
+            raise InputError(f"{where}: key '{name}': must be a non-empty list of numbers")
+        return [float(v) for v in value]
+    if not isinstance(value, key.type) or (key.type is int and isinstance(value, bool)):
+        raise InputError(f"{where}: key '{name}': must be {key.type.__name__}, found {value!r}"[:200])
+    if key.type is float and not math.isfinite(value):
+        raise InputError(f"{where}: key '{name}': must be a finite number")
+    if key.min is not None and value < key.min or key.max is not None and value > key.max:
+        raise InputError(f"{where}: key '{name}': {value!r} is out of range "
+                         f"[{key.min if key.min is not None else '-inf'}, {key.max if key.max is not None else 'inf'}]")
+    if key.choices and value not in key.choices:
+        raise InputError(f"{where}: key '{name}': '{value}' is not one of {', '.join(key.choices)}")
+    return value
+
+
+def config_from_dict(data: dict, source: str = "<config>", text: str = "") -> Config:
+    sections: dict[str, dict[str, Any]] = {}
+    for section in data:
+        if section not in SCHEMA:
+            raise InputError(f"{source}: unknown section '[{section}]' (known: {', '.join(SCHEMA)})")
+        if not isinstance(data[section], dict):
+            raise InputError(f"{source}: '{section}' must be a table")
+    for section, keys in SCHEMA.items():
+        given = data.get(section, {})
+        values: dict[str, Any] = {}
+        for name, value in given.items():
+            if (section, name) in TABLES:
+                if not isinstance(value, dict):
+                    raise InputError(f"{source}: key '{section}.{name}': must be a table")
+                values[name] = value
+                continue
+            if name not in keys:
+                raise InputError(f"{source}: unknown key '{section}.{name}'")
+            values[name] = _check_value(f"{section}.{name}", keys[name], value, source)
+        for name, key in keys.items():
+            if name not in values:
+                if key.default is REQUIRED:
+                    raise InputError(f"{source}: missing key '{section}.{name}' ({key.doc})")
+                values[name] = key.default
+        sections[section] = values
+    config = Config(sections, source, text)
+    _check_consistency(config)
+    return config
+
+
+def _check_consistency(config: Config) -> None:
+    src = config.source
+    axis, plan = config["axis"], config["plan"]
+    if (axis["kind"] == "linear") != (axis["unit"] == "mm"):
+        raise InputError(f"{src}: key 'axis.unit': '{axis['unit']}' does not fit kind '{axis['kind']}' "
+                         "(linear uses mm, rotary uses deg)")
+    if axis["soft_limit_min"] >= axis["soft_limit_max"]:
+        raise InputError(f"{src}: key 'axis.soft_limit_max': must be above axis.soft_limit_min")
+    if plan["targets"] is None and (plan["length"] is None or plan["count"] is None):
+        raise InputError(f"{src}: key 'plan.targets': give plan.targets, or plan.length and plan.count")
+    if plan["targets"] is not None and (plan["length"] is not None or plan["count"] is not None):
+        raise InputError(f"{src}: key 'plan.targets': give either targets or length/count, not both")
+    if plan["targets"] is not None:
+        t = plan["targets"]
+        if len(t) < 2 or any(b <= a for a, b in zip(t, t[1:])):
+            raise InputError(f"{src}: key 'plan.targets': needs at least 2 strictly increasing targets")
+    if config["axis_driver"]["type"] == "ads" and config["instrument"]["type"] == "sim":
+        raise InputError(f"{src}: key 'instrument.type': a real axis needs a real instrument (serial)")
+    if config["instrument"]["type"] == "serial" and not config["instrument"]["port"]:
+        raise InputError(f"{src}: key 'instrument.port': required for a serial instrument")
+
+
+def parse_config(text: str, source: str = "<config>") -> Config:
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{source}: not valid TOML ({exc})") from None
+    return config_from_dict(data, source, text)
+
+
+def load_config(path: str | Path) -> Config:
+    """Read and validate a config file. InputError (exit 2) names the file and the key."""
+    name = str(path)
+    try:
+        raw = Path(path).read_bytes()
+    except FileNotFoundError:
+        raise InputError(f"{name}: no such file") from None
+    except IsADirectoryError:
+        raise InputError(f"{name}: is a directory, not a config file") from None
+    except OSError as exc:
+        raise InputError(f"{name}: cannot read ({exc.strerror})") from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise InputError(f"{name}: not UTF-8 text") from None
+    return parse_config(text, name)
+
+
+def schema_markdown() -> str:
+    """docs/config.md: every section and key with type, default and meaning."""
+    out = ["# Campaign configuration (TOML)", "",
+           "Generated from `campaign/config.py` by `python -m campaign.config`. Examples are in",
+           "`data/configs/`. An unknown key or an out-of-range value stops the command with exit status 2",
+           "and one line naming the key.", ""]
+    for section, keys in SCHEMA.items():
+        out += [f"## [{section}]", "", "| key | type | default | meaning |", "|---|---|---|---|"]
+        for name, key in keys.items():
+            default = "required" if key.default is REQUIRED else ("—" if key.default is None else repr(key.default))
+            extra = f" One of: {', '.join(key.choices)}." if key.choices else ""
+            rng = ""
+            if key.min is not None or key.max is not None:
+                rng = f" Range [{key.min if key.min is not None else '−∞'}, {key.max if key.max is not None else '∞'}]."
+            out.append(f"| `{name}` | {key.type.__name__} | {default} | {key.doc}.{extra}{rng} |")
+        out.append("")
+    out += ["## Sub-tables", "",
+            "- `[instrument.line]`: the serial line format (see `docs/serial-line.md`).",
+            "- `[sim.effects.NAME]`: the simulated machine's error model, one table per effect "
+            "(see `docs/error-model.md`).",
+            "- `[sim.faults]`: faults injected into the simulated machine (see `docs/faults.md`).", ""]
+    return "\n".join(out)
+
+
+if __name__ == "__main__":
+    print(schema_markdown(), end="")

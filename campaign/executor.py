@@ -1,0 +1,228 @@
+"""The executor: interprets a plan's steps on an Axis, an Interferometer and a Clock.
+
+It runs a tick loop at the instrument's sample period: every tick it lets time pass, takes the
+readings that arrived, records them in the raw stream, and (while moving) polls the axis. Every
+motion is checked against the soft limits and the velocity limit before it is sent. On any fault
+or Ctrl-C the axis is halted, the event is logged and the recording is flushed; the campaign is
+marked interrupted and can be resumed from the first missing point.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from campaign.capture import BeamLost, Captured, NotStable, capture_dwell, capture_stable
+from campaign.config import Config
+from campaign.edlen import air_correction_factor, air_correction_um, thermal_normalisation_um
+from campaign.interfaces import Axis, AxisError, Clock, InstrumentError, Interferometer, Reading
+from campaign.plan import Capture, Checkpoint, Move, Plan, Point, Settle, Step, check_motion
+from campaign.recording import Recorder
+
+DEVIATION_SCALE = {"mm": 1000.0, "deg": 3600.0}
+"""Axis unit -> deviation unit factor (mm -> µm, deg -> arcsec)."""
+
+
+class CampaignStopped(Exception):
+    """The campaign stopped before the end (fault or abort); the directory is resumable."""
+
+
+class Observer:
+    """Receives progress from the executor. The default does nothing; the CLI shows rich bars."""
+
+    def started(self, plan: Plan, first_point: int) -> None: ...
+    def reading(self, t_s: float, reading: Reading, target: float | None) -> None: ...
+    def point_done(self, point: Point, deviation: float, t_s: float) -> None: ...
+    def event(self, kind: str, message: str) -> None: ...
+
+
+@dataclass
+class Hardware:
+    """What a campaign runs on. `close()` releases everything (halting the axis first)."""
+
+    axis: Axis
+    interferometer: Interferometer
+    clock: Clock
+    closers: list = field(default_factory=list)
+
+    def close(self) -> None:
+        for close in reversed(self.closers):
+            close()
+        self.closers.clear()
+
+
+def resume_steps(plan: Plan, first_point: int, overrun: float) -> list[tuple[int, Step]]:
+    """The steps (with their plan index) from point `first_point` on, preceded by a re-approach
+    from the overrun so that the point is approached in its own direction."""
+    steps = list(enumerate(plan.steps))
+    if first_point == 0:
+        return steps
+    capture_at = next(i for i, s in steps if isinstance(s, Capture) and s.point.index == first_point)
+    move_at = max(i for i, s in steps[:capture_at] if isinstance(s, Move))
+    point = plan.steps[capture_at].point
+    approach = Move(point.target - point.direction * overrun, plan.steps[move_at].velocity, overrun=True)
+    return [(move_at, approach)] + steps[move_at:]
+
+
+class Executor:
+    """Runs one plan. Positions in axis unit, deviations in µm (linear) or arcsec (rotary)."""
+
+    def __init__(self, plan: Plan, config: Config, hardware: Hardware, recorder: Recorder,
+                 observer: Observer | None = None, t0: float | None = None):
+        self.plan, self.config, self.hw, self.rec = plan, config, hardware, recorder
+        self.obs = observer or Observer()
+        self.tick_s = 1.0 / config["instrument"]["rate_hz"]
+        self.scale = DEVIATION_SCALE[config["axis"]["unit"]]
+        self.t0 = hardware.clock.now() if t0 is None else t0
+        self.step_index = 0
+        self.point_index: int | None = None
+        self.axis_position: float | None = None
+        self.target: float | None = None
+        self.arrival_s = 0.0
+        self.readings: list[Reading] = []
+        self.halted = False
+
+    def now(self) -> float:
+        """Seconds since campaign start."""
+        return self.hw.clock.now() - self.t0
+
+    def run(self, first_point: int = 0) -> None:
+        """Run from point `first_point` to the end. Raises CampaignStopped after halting on a fault,
+        and re-raises KeyboardInterrupt after halting on Ctrl-C."""
+        self.obs.started(self.plan, first_point)
+        try:
+            for index, step in resume_steps(self.plan, first_point, self.config["plan"]["overrun"]):
+                self.step_index = index
+                self._do(step)
+        except KeyboardInterrupt:
+            self._halt("interrupted", "Ctrl-C: axis halted, recording flushed")
+            raise
+        except (AxisError, InstrumentError, BeamLost, NotStable) as exc:
+            self._halt("fault", f"{type(exc).__name__}: {exc}")
+            raise CampaignStopped(str(exc)) from exc
+
+    def _halt(self, kind: str, message: str) -> None:
+        try:
+            self.hw.axis.halt()
+            self.halted = True
+        except AxisError as exc:
+            message += f"; halt failed: {exc}"
+        self.rec.event(self.now(), kind, message)
+        self.obs.event(kind, message)
+
+    def _do(self, step: Step) -> None:
+        if isinstance(step, Move):
+            self._move(step)
+        elif isinstance(step, Settle):
+            self._wait(step.seconds)
+        elif isinstance(step, Capture):
+            self._capture(step)
+        elif isinstance(step, Checkpoint):
+            self._checkpoint(step)
+
+    def _tick(self) -> None:
+        """Let one sample period pass and record the readings that arrived."""
+        self.hw.clock.sleep(self.tick_s)
+        t = self.now()
+        for reading in self.hw.interferometer.poll():
+            self.rec.sample(t, self.step_index, self.point_index, self.axis_position, reading)
+            self.readings.append(reading)
+            self.obs.reading(t, reading, self.target)
+
+    def _wait(self, seconds: float) -> None:
+        end = self.now() + seconds - 1e-9
+        while self.now() < end:
+            self._tick()
+
+    def _move(self, step: Move) -> None:
+        check_motion(step.position, step.velocity, self.config)
+        axis = self.hw.axis
+        self.target = None if step.overrun else step.position
+        self.point_index = None
+        axis.start_move(step.position, step.velocity)
+        start = self.now()
+        window = self.config["axis"]["in_position_window"]
+        timeout = self.config["axis_driver"]["move_timeout_s"]
+        while True:
+            self._tick()
+            status = axis.status()
+            self.axis_position = status.actual_position
+            if status.error:
+                raise AxisError(f"axis error {status.error_id} during the move to {step.position:g}",
+                                status.error_id)
+            if status.done and not status.busy and abs(status.actual_position - step.position) <= window:
+                break
+            if self.now() - start > timeout:
+                raise AxisError(f"move to {step.position:g} not done after {timeout:g} s")
+        self.arrival_s = self.now()
+        self.readings = []
+
+    def _capture(self, step: Capture) -> None:
+        self.point_index = step.point.index
+        capture = self.config["capture"]
+        for attempt in range(capture["retries"] + 1):
+            try:
+                self.captured = self._capture_once(step)
+                return
+            except BeamLost as exc:
+                if attempt == capture["retries"]:
+                    raise
+                self.rec.event(self.now(), "beam", f"point {step.point.index}: {exc}; capture retried")
+                self.obs.event("beam", f"beam lost at point {step.point.index}; retrying")
+                self._wait_for_beam(capture["stable_timeout_s"])
+
+    def _wait_for_beam(self, timeout_s: float) -> None:
+        end = self.now() + timeout_s
+        while self.now() < end:
+            self._tick()
+            if self.readings and self.readings[-1].signal_ok:
+                return
+        raise BeamLost(f"beam not back within {timeout_s:g} s")
+
+    def _capture_once(self, step: Capture) -> Captured:
+        self.readings = []
+        if self.config["capture"]["method"] == "dwell":
+            self._wait(step.window_s)
+            return capture_dwell(self.readings, self.now() - self.arrival_s)
+        tolerance = self.config["capture"]["stable_tolerance"] / self.scale
+        end = self.now() + step.timeout_s
+        while self.now() < end:
+            self._tick()
+            got = capture_stable(self.readings, step.window_s, tolerance, self.now() - self.arrival_s)
+            if got is not None:
+                return got
+        if any(not r.signal_ok for r in self.readings):
+            raise BeamLost("beam not OK long enough for a stable capture")
+        raise NotStable(f"reading not stable within {step.timeout_s:g} s at point {step.point.index}")
+
+    def _corrections_um(self, position: float, env: dict) -> tuple[float, float]:
+        """(air correction, material normalisation) in µm for a reading at `position` (mm)."""
+        envc = self.config["environment"]
+        air = material = 0.0
+        if envc["air_correction"] == "edlen":
+            t = env.get("air_temp_c") if env.get("air_temp_c") is not None else envc["air_temp_c"]
+            p = env.get("air_pressure_hpa") if env.get("air_pressure_hpa") is not None else envc["air_pressure_hpa"]
+            h = env.get("humidity_pct") if env.get("humidity_pct") is not None else envc["humidity_pct"]
+            if None in (t, p, h):
+                raise InstrumentError("air correction needs air temperature, pressure and humidity")
+            factor = air_correction_factor(t, p * 100.0, h, 1.0, envc["wavelength_nm"], envc["co2_ppm"])
+            air = air_correction_um(position, factor)
+        if envc["normalise_to_20c"]:
+            if env.get("material_temp_c") is None:
+                raise InstrumentError("normalisation to 20 °C needs the material temperature")
+            material = thermal_normalisation_um(position, env["material_temp_c"], envc["expansion_ppm_per_k"])
+        return air, material
+
+    def _checkpoint(self, step: Checkpoint) -> None:
+        point, got = step.point, self.captured
+        air, material = self._corrections_um(got.position, got.env)
+        corrected = got.position + (air + material) / 1000.0
+        if self.config["axis"]["unit"] == "deg":
+            corrected = got.position  # corrections are for linear lengths only
+            air = material = 0.0
+        deviation = (corrected - point.target) * self.scale
+        t = self.now()
+        self.rec.point(point.run, point.direction, point.target, deviation, t, got.env,
+                       {"point": point.index, "reading": got.position, "air_correction_um": air,
+                        "material_correction_um": material, "capture_wait_s": got.wait_s,
+                        "samples": got.samples})
+        self.obs.point_done(point, deviation, t)

@@ -1,0 +1,159 @@
+"""The axis error model: a set of named effects (reference.md §5).
+
+The simulated machine uses it to decide where the axis really is, and discovery fits it to a
+measured point table. Both read and write the same TOML form, one table per effect:
+
+    [effects.linear_scale]
+    ppm = -10.5            # µm per m of travel
+
+The deviation e (µm, measured - commanded) is the sum of the effects, evaluated at the commanded
+position x (mm), approach direction d (+1 or -1), time t since campaign start (s) and the wait
+since arrival at the target, w (s). For a rotary axis read mm as degree and µm as arcsec.
+`noise` is not a deterministic effect: its sigmas are used by the simulator only.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from campaign.errors import InputError
+
+EFFECT_PARAMS: dict[str, dict[str, str]] = {
+    "linear_scale": {"ppm": "cumulative lead error, µm/m"},
+    "backlash": {"b_um": "lost motion at reversal, µm (e = -d*b/2)"},
+    "periodic_lead": {"amplitude_um": "amplitude, µm", "period_mm": "period (screw lead), mm",
+                      "phase_rad": "phase at x = 0, rad"},
+    "thermal_drift": {"growth_ppm": "steady-state screw growth, µm/m", "tau_s": "time constant, s",
+                      "pivot_mm": "fixed bearing position, mm"},
+    "nonlinear_lead": {"p2_um": "Legendre P2 coefficient, µm", "p3_um": "Legendre P3 coefficient, µm",
+                       "start_mm": "start of the travel the polynomials span, mm",
+                       "end_mm": "end of that travel, mm"},
+    "position_dependent_backlash": {"b0_um": "backlash at x = 0, µm", "k_ppm": "growth along the axis, µm/m"},
+    "settling": {"e0_um": "deviation left at arrival, µm (decays)", "tau_s": "settling time constant, s"},
+    "noise": {"sigma_um": "per-approach positioning scatter, µm",
+              "reading_sigma_um": "per-sample instrument noise, µm"},
+}
+"""Effect name -> parameter name -> meaning with unit."""
+
+DEFAULTS: dict[str, dict[str, float]] = {
+    "periodic_lead": {"phase_rad": 0.0},
+    "thermal_drift": {"pivot_mm": 0.0},
+    "nonlinear_lead": {"p3_um": 0.0},
+    "position_dependent_backlash": {"b0_um": 0.0},
+    "noise": {"reading_sigma_um": 0.0},
+}
+
+
+def _legendre(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return (3 * u**2 - 1) / 2, (5 * u**3 - 3 * u) / 2
+
+
+def effect_um(name: str, p: dict[str, float], x, d, t, w) -> np.ndarray:
+    """The deviation one effect adds, µm, at commanded position x (mm), direction d (±1), time t
+    (s) and wait since arrival w (s). Arguments broadcast as numpy arrays."""
+    x, d, t, w = (np.asarray(a, dtype=float) for a in (x, d, t, w))
+    if name == "linear_scale":
+        return p["ppm"] * x * 1e-3
+    if name == "backlash":
+        return -d * p["b_um"] / 2
+    if name == "periodic_lead":
+        return p["amplitude_um"] * np.sin(2 * np.pi * x / p["period_mm"] + p["phase_rad"])
+    if name == "thermal_drift":
+        return p["growth_ppm"] * 1e-3 * (x - p["pivot_mm"]) * (1 - np.exp(-t / p["tau_s"]))
+    if name == "nonlinear_lead":
+        u = 2 * (x - p["start_mm"]) / (p["end_mm"] - p["start_mm"]) - 1
+        p2, p3 = _legendre(u)
+        return p["p2_um"] * p2 + p["p3_um"] * p3
+    if name == "position_dependent_backlash":
+        return -d * (p["b0_um"] + p["k_ppm"] * x * 1e-3) / 2
+    if name == "settling":
+        return -d * p["e0_um"] * np.exp(-w / p["tau_s"])
+    if name == "noise":
+        return np.zeros(np.broadcast(x, d, t, w).shape)
+    raise KeyError(name)
+
+
+@dataclass
+class ErrorModel:
+    """Effect name -> its parameters (see EFFECT_PARAMS for names and units)."""
+
+    effects: dict[str, dict[str, float]] = field(default_factory=dict)
+
+    def deviation_um(self, x, d, t=0.0, w=math.inf) -> np.ndarray:
+        """The deterministic deviation, µm (noise excluded). See `effect_um` for the arguments."""
+        total = np.zeros(np.broadcast(np.asarray(x), np.asarray(d), np.asarray(t), np.asarray(w)).shape)
+        for name, params in self.effects.items():
+            total = total + effect_um(name, params, x, d, t, w)
+        return total
+
+    @property
+    def sigma_um(self) -> float:
+        return self.effects.get("noise", {}).get("sigma_um", 0.0)
+
+    @property
+    def reading_sigma_um(self) -> float:
+        return self.effects.get("noise", {}).get("reading_sigma_um", 0.0)
+
+    def to_toml(self) -> str:
+        lines = []
+        for name, params in self.effects.items():
+            lines.append(f"[effects.{name}]")
+            for key, value in params.items():
+                lines.append(f"{key} = {float(value)!r}  # {EFFECT_PARAMS[name][key]}")
+            lines.append("")
+        return "\n".join(lines)
+
+
+def model_from_dict(data: dict, where: str, require_all: bool = True) -> ErrorModel:
+    """Build a model from a parsed `{"effects": {...}}` table. With `require_all=False` a parameter
+    left out is allowed (discovery fits it) and simply absent from the result."""
+    effects_table = data.get("effects", {})
+    extra = set(data) - {"effects"}
+    if extra:
+        raise InputError(f"{where}: unknown key '{sorted(extra)[0]}' (expected [effects.NAME] tables)")
+    if not isinstance(effects_table, dict):
+        raise InputError(f"{where}: 'effects' must be a table of [effects.NAME] tables")
+    effects: dict[str, dict[str, float]] = {}
+    for name, params in effects_table.items():
+        if name not in EFFECT_PARAMS:
+            raise InputError(f"{where}: unknown effect 'effects.{name}' (known: {', '.join(EFFECT_PARAMS)})")
+        if not isinstance(params, dict):
+            raise InputError(f"{where}: 'effects.{name}' must be a table")
+        merged = dict(DEFAULTS.get(name, {}))
+        for key, value in params.items():
+            if key not in EFFECT_PARAMS[name]:
+                raise InputError(f"{where}: unknown key 'effects.{name}.{key}' "
+                                 f"(known: {', '.join(EFFECT_PARAMS[name])})")
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise InputError(f"{where}: 'effects.{name}.{key}' must be a finite number")
+            merged[key] = float(value)
+        missing = [k for k in EFFECT_PARAMS[name] if k not in merged]
+        if require_all and missing:
+            raise InputError(f"{where}: 'effects.{name}' is missing '{missing[0]}'")
+        for key in ("period_mm", "tau_s"):
+            if key in merged and merged[key] <= 0:
+                raise InputError(f"{where}: 'effects.{name}.{key}' must be > 0")
+        if name == "nonlinear_lead" and {"start_mm", "end_mm"} <= set(merged) \
+                and merged["end_mm"] <= merged["start_mm"]:
+            raise InputError(f"{where}: 'effects.{name}.end_mm' must be > start_mm")
+        if name == "noise" and any(v < 0 for v in merged.values()):
+            raise InputError(f"{where}: 'effects.noise' sigmas must be >= 0")
+        effects[name] = merged
+    return ErrorModel(effects)
+
+
+def read_model(path: str | Path, require_all: bool = True) -> ErrorModel:
+    """Read a model TOML file; InputError with the file and key on any problem."""
+    name = str(path)
+    try:
+        data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{name}: no such file") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"{name}: not valid TOML ({exc})") from None
+    return model_from_dict(data, name, require_all)

@@ -1,0 +1,172 @@
+"""The campaign directory: crash-safe, append-only recording.
+
+    config.toml   snapshot of the config the campaign ran with
+    meta.json     software version, machine, axis, operator, start time, plan seed, status
+    raw.csv       every sample: time, step, point, axis actual position, reading, beam, environment
+    points.csv    the point table (docs/point-table.md) plus capture columns, one row per point
+    events.log    faults, halts, resumes: one line each
+
+Every point row is written with one write() and fsynced, after the raw samples before it are
+fsynced, so a crash or power cut loses at most the point in progress. A torn last line (power cut
+in the middle of a write) is cut off when the directory is opened again. `meta.json` is replaced
+atomically; its `status` is running, completed, interrupted or failed. A directory left `running`
+by a killed process is treated as interrupted.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import os
+import platform
+from pathlib import Path
+
+from campaign import __version__
+from campaign.capture import ENV_FIELDS
+from campaign.interfaces import Reading
+from campaign.pointtable import AXIS_KINDS, format_row
+
+RAW_COLUMNS = ("t_s", "step", "point", "axis_position", "reading", "signal_ok", "signal_pct",
+               "instrument_time_s", *ENV_FIELDS)
+EXTRA_POINT_COLUMNS = ("point", "reading", "air_correction_um", "material_correction_um",
+                       "capture_wait_s", "samples")
+
+
+def _fsync_dir(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def write_json_atomic(path: Path, data: dict) -> None:
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    with open(tmp, "w", encoding="utf-8") as f:
+        json.dump(data, f, indent=1)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+    _fsync_dir(path.parent)
+
+
+def cut_torn_tail(path: Path) -> int:
+    """Cut an incomplete last line (no newline) off a file; returns the bytes removed."""
+    if not path.exists():
+        return 0
+    data = path.read_bytes()
+    keep = data.rfind(b"\n") + 1
+    if keep == len(data):
+        return 0
+    with open(path, "r+b") as f:
+        f.truncate(keep)
+        f.flush()
+        os.fsync(f.fileno())
+    return len(data) - keep
+
+
+def _cell(value) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "1" if value else "0"
+    if isinstance(value, float):
+        return repr(round(value, 9))
+    return str(value)
+
+
+class Recorder:
+    """Writes one campaign directory. Use `Recorder.create` for a new campaign and
+    `Recorder.reopen` to append to an interrupted one."""
+
+    def __init__(self, directory: Path, meta: dict, kind: str):
+        self.dir = directory
+        self.meta = meta
+        self.kind = kind
+        self._raw = open(directory / "raw.csv", "a", encoding="utf-8", newline="")
+        self._points_fd = os.open(directory / "points.csv", os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        self._events = open(directory / "events.log", "a", encoding="utf-8")
+        self.env_columns: tuple[str, ...] | None = None
+        self.points_written = 0
+
+    @classmethod
+    def create(cls, directory: str | Path, config_text: str, meta: dict, kind: str) -> Recorder:
+        path = Path(directory)
+        path.mkdir(parents=True, exist_ok=True)
+        if (path / "points.csv").exists() and (path / "points.csv").stat().st_size:
+            from campaign.errors import InputError
+            raise InputError(f"{path}: already holds a campaign (use `axiscal resume {path}` or another --out)")
+        for name in ("raw.csv", "points.csv", "events.log"):
+            (path / name).unlink(missing_ok=True)
+        (path / "config.toml").write_text(config_text, encoding="utf-8")
+        full = {"software": f"axiscal {__version__}", "host": platform.node(),
+                "start_time": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
+                "status": "running", **meta}
+        write_json_atomic(path / "meta.json", full)
+        rec = cls(path, full, kind)
+        rec._raw.write(",".join(RAW_COLUMNS) + "\n")
+        rec._raw.flush()
+        return rec
+
+    @classmethod
+    def reopen(cls, directory: str | Path) -> Recorder:
+        """Open an interrupted campaign to append to it (torn tails are cut first)."""
+        path = Path(directory)
+        meta = json.loads((path / "meta.json").read_text(encoding="utf-8"))
+        for name in ("raw.csv", "points.csv", "events.log"):
+            cut_torn_tail(path / name)
+        rec = cls(path, meta, meta.get("kind", "linear"))
+        lines = [ln for ln in (path / "points.csv").read_text(encoding="utf-8").splitlines()
+                 if ln and not ln.startswith("#")]
+        if lines:
+            header = lines[0].split(",")
+            rec.env_columns = tuple(c for c in header if c in ("time_s", *ENV_FIELDS) and c != "time_s")
+            rec.points_written = len(lines) - 1
+        rec.set_status("running")
+        return rec
+
+    def sample(self, t_s: float, step: int, point: int | None, axis_position: float | None,
+               reading: Reading) -> None:
+        """Append one raw sample (buffered; made durable at the next point)."""
+        cells = (t_s, step, point, axis_position, reading.position, reading.signal_ok, reading.signal_pct,
+                 reading.time_s, *(getattr(reading, f) for f in ENV_FIELDS))
+        self._raw.write(",".join(_cell(c) for c in cells) + "\n")
+
+    def point(self, run: int, direction: int, target: float, deviation: float, time_s: float,
+              env: dict[str, float | None], extra: dict[str, float]) -> None:
+        """Append one point row durably: raw stream fsynced first, then the row in one write + fsync."""
+        self._raw.flush()
+        os.fsync(self._raw.fileno())
+        if self.env_columns is None:
+            self.env_columns = tuple(f for f in ENV_FIELDS if env.get(f) is not None)
+            header = ["run", "direction", *AXIS_KINDS[self.kind], "time_s", *self.env_columns,
+                      *EXTRA_POINT_COLUMNS]
+            comments = "".join(f"# {k}: {self.meta[k]}\n" for k in ("machine", "axis", "operator", "plan_seed")
+                               if k in self.meta)
+            os.write(self._points_fd, (comments + ",".join(header) + "\n").encode())
+        values = (time_s, *(env.get(c) if env.get(c) is not None else float("nan") for c in self.env_columns),
+                  *(extra[c] for c in EXTRA_POINT_COLUMNS))
+        row = format_row(run, direction, target, deviation, tuple(float(v) for v in values))
+        os.write(self._points_fd, row.encode())
+        os.fsync(self._points_fd)
+        self.points_written += 1
+
+    def event(self, t_s: float, kind: str, message: str) -> None:
+        stamp = dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
+        self._events.write(f"{stamp} t={t_s:.3f}s {kind}: {message}\n")
+        self._events.flush()
+        os.fsync(self._events.fileno())
+
+    def set_status(self, status: str, **extra) -> None:
+        self.meta.update(status=status, **extra)
+        write_json_atomic(self.dir / "meta.json", self.meta)
+
+    def close(self) -> None:
+        for f in (self._raw, self._events):
+            if not f.closed:
+                f.flush()
+                os.fsync(f.fileno())
+                f.close()
+        if self._points_fd >= 0:
+            os.close(self._points_fd)
+            self._points_fd = -1

@@ -1,0 +1,98 @@
+"""Builds the hardware a config asks for: a real PLC and instrument, or the simulated machine.
+
+This is the one place where the campaign's protocols meet pyads and pyserial.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from campaign.clock import RealClock
+from campaign.config import Config
+from campaign.errors import InputError
+from campaign.executor import Hardware
+from campaign.model import ErrorModel, model_from_dict, read_model
+from drivers.ads_axis import AdsAxis
+from drivers.serial_interferometer import SerialInterferometer
+from protocols.serial_line import LineFormat
+
+
+@dataclass
+class SimParts:
+    """The simulated machine's parts, for tests and fault injection."""
+
+    clock: object
+    plc: object
+    server: object
+    instrument: object
+    physics: object
+
+
+def sim_model(config: Config) -> ErrorModel:
+    """The simulated machine's error model: `sim.model` file and/or inline [sim.effects]."""
+    sim = config["sim"]
+    model = ErrorModel()
+    if sim["model"]:
+        path = config.base_dir / sim["model"]
+        model = read_model(path)
+    if "effects" in sim:
+        inline = model_from_dict({"effects": sim["effects"]}, f"{config.source}: [sim.effects]")
+        model.effects.update(inline.effects)
+    return model
+
+
+def line_format(config: Config) -> LineFormat:
+    return LineFormat.from_dict(config["instrument"].get("line", {}), f"{config.source}: [instrument.line]")
+
+
+def open_hardware(config: Config, speed: float | None = None, model: ErrorModel | None = None,
+                  start_position: float | None = None) -> tuple[Hardware, SimParts | None]:
+    """Open the axis, instrument and clock of `config`. For the simulated machine also return
+    its parts. `speed` overrides `sim.speed`; `model` overrides the config's error model."""
+    fmt = line_format(config)
+    inst, drv = config["instrument"], config["axis_driver"]
+    if drv["type"] == "ads":
+        clock = RealClock()
+        axis = AdsAxis(drv["ams_net_id"], drv["ip"], drv["axis_index"], drv["ams_port"],
+                       read_only=drv["read_only"], timeout_s=drv["timeout_s"])
+        hw = Hardware(axis, None, clock, [axis.close])
+        try:
+            hw.interferometer = SerialInterferometer(inst["port"], inst["baudrate"], fmt, inst["mode"],
+                                                     inst["timeout_s"])
+        except Exception as exc:
+            hw.close()
+            raise InputError(f"{config.source}: instrument.port: cannot open {inst['port']}: {exc}") from None
+        hw.closers.append(hw.interferometer.close)
+        return hw, None
+    return _open_sim(config, fmt, speed, model, start_position)
+
+
+def _open_sim(config, fmt, speed, model, start_position):
+    from drivers.sim.ads_server import SimAdsServer
+    from drivers.sim.interferometer import SimInterferometer
+    from drivers.sim.machine import SimAxisPhysics, make_clock
+    from drivers.sim.plc import SimPLC
+
+    axis_cfg, drv, inst = config["axis"], config["axis_driver"], config["instrument"]
+    clock = make_clock(speed if speed is not None else config["sim"]["speed"])
+    start = config["plan"]["start"] if start_position is None else start_position
+    plc = SimPLC(drv["axis_index"], axis_cfg["max_velocity"], axis_cfg["max_acceleration"], position=start)
+    clock.attach(plc.scan)
+    physics = SimAxisPhysics(plc, model or sim_model(config), axis_cfg["unit"], config["sim"]["seed"],
+                             vacuum_readings=config["environment"]["air_correction"] == "edlen")
+    hw = Hardware(None, None, clock, [])
+    server = SimAdsServer(plc)
+    server.start()
+    hw.closers.append(server.stop)
+    try:
+        instrument = SimInterferometer(clock, physics.measure, fmt, inst["rate_hz"], inst["mode"])
+        hw.closers.append(instrument.close)
+        hw.axis = AdsAxis("127.0.0.1.1.1", "127.0.0.1", drv["axis_index"], 851, timeout_s=drv["timeout_s"])
+        hw.closers.append(hw.axis.close)
+        hw.interferometer = SerialInterferometer(instrument.port_name, inst["baudrate"], fmt, inst["mode"],
+                                                 inst["timeout_s"])
+        hw.closers.append(hw.interferometer.close)
+    except BaseException:
+        hw.close()
+        raise
+    return hw, SimParts(clock, plc, server, instrument, physics)

@@ -1,0 +1,68 @@
+"""The simulated machine: a PLC served over loopback ADS, an axis with a physics model of named
+effects, and a laser interferometer behind a pty, all running in simulated time.
+
+Where the axis really is: the PLC's motor setpoint x (including any compensation correction) plus
+the error model's deviation at x, the approach direction, the time and the wait since arrival,
+plus a per-approach scatter drawn at each arrival and a per-sample reading noise. Everything is
+seeded and deterministic. Positions in axis unit (mm or deg); deviations in µm (arcsec for a
+rotary axis).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from campaign.edlen import refractive_index
+from campaign.model import ErrorModel
+from drivers.sim.clock import SimClock
+from drivers.sim.plc import SimPLC
+
+DEVIATION_PER_UNIT = {"mm": 1000.0, "deg": 3600.0}
+
+
+class SimAxisPhysics:
+    """Turns the PLC's motor setpoint into the true position the interferometer sees.
+
+    air: (air temperature °C, pressure hPa, humidity %) of the simulated room; material_temp_c: the
+    machine's temperature, °C. vacuum_readings: the instrument reports vacuum lengths (true × n),
+    for a campaign that corrects for air itself.
+    """
+
+    def __init__(self, plc: SimPLC, model: ErrorModel, unit: str = "mm", seed: int = 1,
+                 air: tuple[float, float, float] = (20.0, 1013.25, 50.0), material_temp_c: float = 20.0,
+                 vacuum_readings: bool = False):
+        self.plc, self.model, self.unit = plc, model, unit
+        self.rng = np.random.default_rng(seed)
+        self.air = air
+        self.material_temp_c = material_temp_c
+        self.vacuum_readings = vacuum_readings
+        self._arrival: float | None = None
+        self._scatter_um = 0.0
+
+    def true_position(self, t: float, with_reading_noise: bool = True) -> float:
+        """Where the carriage really is at simulated time t (s), axis unit."""
+        x = self.plc.setpoint_position(t)
+        arrival = self.plc.arrival_time
+        if arrival is not None and arrival != self._arrival:
+            self._arrival = arrival
+            self._scatter_um = float(self.rng.normal(0.0, self.model.sigma_um)) if self.model.sigma_um else 0.0
+        wait = 0.0 if arrival is None else max(0.0, t - arrival)
+        e_um = float(self.model.deviation_um(x, self.plc.last_direction, t, wait))
+        if arrival is not None:
+            e_um += self._scatter_um
+        if with_reading_noise and self.model.reading_sigma_um:
+            e_um += float(self.rng.normal(0.0, self.model.reading_sigma_um))
+        return x + e_um / DEVIATION_PER_UNIT[self.unit]
+
+    def measure(self, t: float) -> dict:
+        """What the simulated interferometer reads at t: position (axis unit), signal and environment."""
+        position = self.true_position(t)
+        temp, pressure, humidity = self.air
+        if self.vacuum_readings:
+            position *= refractive_index(temp, pressure * 100.0, humidity)
+        return {"position": position, "signal_pct": 90.0, "air_temp_c": temp, "air_pressure_hpa": pressure,
+                "humidity_pct": humidity, "material_temp_c": self.material_temp_c}
+
+
+def make_clock(speed: float | None) -> SimClock:
+    return SimClock(0.0, speed)
