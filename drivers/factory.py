@@ -11,6 +11,7 @@ from campaign.clock import RealClock
 from campaign.config import Config
 from campaign.errors import InputError
 from campaign.executor import Hardware
+from campaign.interfaces import InstrumentError
 from campaign.model import ErrorModel, model_from_dict, read_model
 from drivers.ads_axis import AdsAxis
 from drivers.serial_interferometer import SerialInterferometer
@@ -59,7 +60,7 @@ def open_hardware(config: Config, speed: float | None = None, model: ErrorModel 
         try:
             hw.interferometer = SerialInterferometer(inst["port"], inst["baudrate"], fmt, inst["mode"],
                                                      inst["timeout_s"])
-        except Exception as exc:
+        except InstrumentError as exc:
             hw.close()
             raise InputError(f"{config.source}: instrument.port: cannot open {inst['port']}: {exc}") from None
         hw.closers.append(hw.interferometer.close)

@@ -9,7 +9,7 @@ campaign runs N times faster than real time (slow enough to interrupt by hand).
 from __future__ import annotations
 
 import time
-from typing import Callable
+from collections.abc import Callable
 
 Listener = Callable[[float], None]
 """Called with the new simulated time, s, after each advance."""

@@ -1,0 +1,265 @@
+"""An axis owned by a TwinCAT PLC (FB_AxiscalAxis), commanded over ADS with pyads.
+
+The PC only writes the symbols of `protocols.plc_contract.writable_symbols(n)`: every write goes
+through `AdsAxis._write`, which refuses anything else. Positions are in the axis unit (mm or deg),
+velocities in axis unit/s, times in s.
+
+Connection handling (pyads on Linux, where `Connection.open()` adds the route to the PLC and
+`close()` deletes it again):
+- every ADS call has a timeout (`timeout_s`);
+- a read that returns None (pyads does so without an error when its port is not open) counts as a
+  failed call;
+- after a failed call the connection is closed (deleting the route) and a new one is opened
+  (re-adding the route), and the call is tried again, up to `retries` more times with
+  `retry_wait_s` between tries. Once pyads has lost the TCP connection, every call on that
+  Connection fails at once, even after the PLC is back; only a new route reconnects. A call
+  therefore fails after at most (retries + 1) * timeout_s + retries * retry_wait_s, and then
+  raises AxisError (error_id 0).
+The PLC needs a route back to this PC (set up once on the PLC, or with pyads.add_route_to_plc).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import replace
+from typing import Any, TypeVar
+
+import pyads
+
+from campaign.interfaces import AxisError, AxisStatus
+from protocols import plc_contract
+from protocols.plc_contract import Command, CompTable, Symbol
+
+T = TypeVar("T")
+
+TWINCAT3_PLC_PORT = 851
+"""AMS port of the first PLC runtime of TwinCAT 3."""
+
+_PLC_TYPES = {
+    "BOOL": pyads.PLCTYPE_BOOL,
+    "INT": pyads.PLCTYPE_INT,
+    "UINT": pyads.PLCTYPE_UINT,
+    "UDINT": pyads.PLCTYPE_UDINT,
+    "LREAL": pyads.PLCTYPE_LREAL,
+}
+"""IEC type name -> pyads type."""
+
+
+def _plc_type(symbol: Symbol) -> Any:
+    base = _PLC_TYPES[symbol.iec_type]
+    return base if symbol.array_length is None else base * symbol.array_length
+
+
+class _BadAnswer(Exception):
+    """A read gave None or an error text instead of a value (port not open, broken connection)."""
+
+
+class AdsAxis:
+    """Axis n of `GVL_Axiscal` on the PLC at ams_net_id / ip_address (implements campaign's Axis).
+
+    read_only: a dry run against a real PLC. Status and table reads work, every write (including
+        halt and reset) raises AxisError.
+    timeout_s: timeout of each ADS call, s. retries, retry_wait_s (s): see the module docstring.
+    Opening the connection fails with AxisError when the PLC cannot be reached.
+    """
+
+    def __init__(
+        self,
+        ams_net_id: str,
+        ip_address: str,
+        axis: int = 1,
+        ams_port: int = TWINCAT3_PLC_PORT,
+        *,
+        read_only: bool = False,
+        timeout_s: float = 1.0,
+        retries: int = 2,
+        retry_wait_s: float = 0.2,
+    ):
+        self.axis = axis
+        self.read_only = read_only
+        self._address = (ams_net_id, ams_port, ip_address)
+        self._timeout_ms = max(1, round(timeout_s * 1000))
+        self._retries = retries
+        self._retry_wait_s = retry_wait_s
+        self._control = plc_contract.control_symbols(axis)
+        self._status = plc_contract.status_symbols(axis)
+        self._comp = plc_contract.comp_symbols(axis)
+        writable = plc_contract.writable_symbols(axis)
+        self._writable = {
+            s.name: s for s in (*self._control.values(), *self._comp.values()) if s.name in writable
+        }
+        self._connection: pyads.Connection | None = None
+        self._closed = False
+        self._call(lambda connection: None, "open the connection")
+
+    # --- Axis --------------------------------------------------------------------------------
+
+    def status(self) -> AxisStatus:
+        """One sum read of the status symbols."""
+        v = self._read_list(self._status)
+        return AxisStatus(
+            busy=bool(v["bBusy"]),
+            done=bool(v["bDone"]),
+            error=bool(v["bError"]),
+            error_id=int(v["nErrorId"]),
+            actual_position=float(v["fActPosition"]),
+            enabled=bool(v["bEnabled"]),
+            homed=bool(v["bHomed"]),
+        )
+
+    def start_move(self, position: float, velocity: float) -> None:
+        """Send an absolute move to `position` (axis unit) at `velocity` (axis unit/s).
+
+        Raises AxisError with the PLC's error id when the axis is in error (the PLC would ignore
+        the move until a reset), and AxisError when the command cannot be sent.
+        """
+        if not (math.isfinite(position) and math.isfinite(velocity)):
+            raise ValueError(f"position and velocity must be finite, got {position}, {velocity}")
+        status = self.status()
+        if status.error:
+            raise AxisError(
+                f"axis {self.axis} is in error {status.error_id:#x}; reset it first", status.error_id
+            )
+        self._write_member("fPosition", position)
+        self._write_member("fVelocity", velocity)
+        self._write_member("eCommand", int(Command.MOVE_ABSOLUTE))
+        self._write_member("bExecute", False)
+        self._write_member("bExecute", True)
+
+    def halt(self) -> None:
+        """Ask for a controlled stop (bHalt). Harmless when the axis is at rest."""
+        self._write_member("bHalt", True)
+
+    def reset(self) -> None:
+        """Ask the PLC to clear the axis error (bReset)."""
+        self._write_member("bReset", True)
+
+    def close(self) -> None:
+        """Halt the axis if it is moving (not in read-only mode), then close the connection."""
+        if self._closed:
+            return
+        try:
+            if not self.read_only and self.status().busy:
+                self.halt()
+        finally:
+            self._disconnect()
+            self._closed = True
+
+    # --- compensation tables -----------------------------------------------------------------
+
+    def write_comp_table(self, table: CompTable) -> None:
+        """Write GVL_Axiscal.astComp[n], read it back and compare; then enable it if asked.
+
+        The PLC's bEnable is cleared first, so a half-written table is never applied.
+        Raises AxisError when the read-back differs.
+        """
+        pad = [0.0] * (plc_contract.MAX_COMP_POINTS - table.points)
+        self._write_member("bEnable", False)
+        self._write_member("afForward", list(table.forward) + pad)
+        self._write_member("afReverse", list(table.reverse) + pad)
+        self._write_member("fStart", table.start)
+        self._write_member("fSpacing", table.spacing)
+        self._write_member("nPoints", table.points)
+        self._write_member("fOverrun", table.overrun)
+        self._write_member("fMaxRate", table.max_rate)
+        self._write_member("fMaxAccel", table.max_accel)
+        stored = self.read_comp_table()
+        if stored != replace(table, enabled=False):
+            raise AxisError(
+                f"compensation table of axis {self.axis} reads back different from what was written"
+            )
+        if table.enabled:
+            self._write_member("bEnable", True)
+            if self.read_comp_table() != table:
+                raise AxisError(f"compensation table of axis {self.axis} did not stay as written")
+
+    def read_comp_table(self) -> CompTable | None:
+        """GVL_Axiscal.astComp[n] in one sum read; None when the PLC holds no table (nPoints 0)."""
+        v = self._read_list(self._comp)
+        points = int(v["nPoints"])
+        if points == 0:
+            return None
+        try:
+            return CompTable(
+                forward=tuple(v["afForward"][:points]),
+                reverse=tuple(v["afReverse"][:points]),
+                start=v["fStart"],
+                spacing=v["fSpacing"],
+                overrun=v["fOverrun"],
+                max_rate=v["fMaxRate"],
+                max_accel=v["fMaxAccel"],
+                enabled=bool(v["bEnable"]),
+            )
+        except ValueError as e:
+            raise AxisError(f"the PLC holds an invalid compensation table for axis {self.axis}: {e}") from e
+
+    # --- ADS ---------------------------------------------------------------------------------
+
+    def _write_member(self, member: str, value: Any) -> None:
+        symbol = self._control.get(member) or self._comp[member]
+        self._write(symbol.name, value)
+
+    def _write(self, name: str, value: Any) -> None:
+        """The only way anything is written to the PLC."""
+        symbol = self._writable.get(name)
+        if symbol is None:
+            raise ValueError(f"{name} is not a symbol the PC may write for axis {self.axis}")
+        if self.read_only:
+            raise AxisError(f"read-only connection: refusing to write {name}")
+        plc_type = _plc_type(symbol)
+        self._call(lambda connection: connection.write_by_name(name, value, plc_type), f"write {name}")
+
+    def _read_list(self, symbols: dict[str, Symbol]) -> dict[str, Any]:
+        """Sum read of `symbols`, keyed by member name."""
+        names = [s.name for s in symbols.values()]
+
+        def read(connection: pyads.Connection) -> dict[str, Any]:
+            values = connection.read_list_by_name(names)
+            if values is None:
+                raise _BadAnswer("no answer")
+            for name in names:
+                if values.get(name) is None or isinstance(values[name], str):
+                    raise _BadAnswer(f"{name}: {values.get(name)!r}")
+            return values
+
+        values = self._call(read, "status read" if symbols is self._status else "table read")
+        return {member: values[s.name] for member, s in symbols.items()}
+
+    def _call(self, action: Callable[[pyads.Connection], T], what: str) -> T:
+        """Run `action` on the connection; on failure reconnect and retry (bounded)."""
+        if self._closed:
+            raise AxisError(f"axis {self.axis}: connection closed")
+        error: Exception | None = None
+        for attempt in range(self._retries + 1):
+            if attempt:
+                time.sleep(self._retry_wait_s)
+            try:
+                if self._connection is None:
+                    self._connect()
+                return action(self._connection)
+            except (pyads.ADSError, _BadAnswer) as e:
+                error = e
+                self._disconnect()
+        raise AxisError(
+            f"axis {self.axis}: {what} failed {self._retries + 1} times, last: {error}"
+        ) from error
+
+    def _connect(self) -> None:
+        connection = pyads.Connection(*self._address)
+        connection.open()
+        try:
+            connection.set_timeout(self._timeout_ms)
+        except pyads.ADSError:
+            connection.close()
+            raise
+        self._connection = connection
+
+    def _disconnect(self) -> None:
+        connection, self._connection = self._connection, None
+        if connection is not None:
+            try:
+                connection.close()
+            except pyads.ADSError:
+                pass
