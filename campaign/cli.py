@@ -14,6 +14,7 @@ import sys
 
 from campaign import __version__
 from campaign.errors import InputError
+from campaign.interfaces import AxisError, InstrumentError
 
 COMMANDS = ("analyze", "plan", "run", "demo", "compensate", "correction", "verify", "refine",
             "discover", "guide", "resume", "replay", "import_stream", "report")
@@ -52,6 +53,9 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except (AxisError, InstrumentError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 3
     except KeyboardInterrupt:
         print("error: interrupted", file=sys.stderr)
         return 130

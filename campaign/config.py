@@ -7,6 +7,7 @@ out-of-range value raises InputError naming the key.
 
 from __future__ import annotations
 
+import itertools
 import math
 import tomllib
 from dataclasses import dataclass
@@ -14,6 +15,8 @@ from pathlib import Path
 from typing import Any
 
 from campaign.errors import InputError
+from campaign.model import model_from_dict
+from protocols.serial_line import LineFormat
 
 REQUIRED = object()
 
@@ -165,10 +168,10 @@ def _check_value(name: str, key: Key, value: Any, where: str) -> Any:
 
 def config_from_dict(data: dict, source: str = "<config>", text: str = "") -> Config:
     sections: dict[str, dict[str, Any]] = {}
-    for section in data:
+    for section, table in data.items():
         if section not in SCHEMA:
             raise InputError(f"{source}: unknown section '[{section}]' (known: {', '.join(SCHEMA)})")
-        if not isinstance(data[section], dict):
+        if not isinstance(table, dict):
             raise InputError(f"{source}: '{section}' must be a table")
     for section, keys in SCHEMA.items():
         given = data.get(section, {})
@@ -207,12 +210,15 @@ def _check_consistency(config: Config) -> None:
         raise InputError(f"{src}: key 'plan.targets': give either targets or length/count, not both")
     if plan["targets"] is not None:
         t = plan["targets"]
-        if len(t) < 2 or any(b <= a for a, b in zip(t, t[1:])):
+        if len(t) < 2 or any(b <= a for a, b in itertools.pairwise(t)):
             raise InputError(f"{src}: key 'plan.targets': needs at least 2 strictly increasing targets")
     if config["axis_driver"]["type"] == "ads" and config["instrument"]["type"] == "sim":
         raise InputError(f"{src}: key 'instrument.type': a real axis needs a real instrument (serial)")
     if config["instrument"]["type"] == "serial" and not config["instrument"]["port"]:
         raise InputError(f"{src}: key 'instrument.port': required for a serial instrument")
+    LineFormat.from_dict(config["instrument"].get("line", {}), f"{src}: [instrument.line]")
+    if "effects" in config["sim"]:
+        model_from_dict({"effects": config["sim"]["effects"]}, f"{src}: [sim.effects]")
 
 
 def parse_config(text: str, source: str = "<config>") -> Config:
@@ -259,8 +265,8 @@ def schema_markdown() -> str:
         out.append("")
     out += ["## Sub-tables", "",
             "- `[instrument.line]`: the serial line format (see `docs/serial-line.md`).",
-            "- `[sim.effects.NAME]`: the simulated machine's error model, one table per effect "
-            "(see `docs/error-model.md`).",
+            ("- `[sim.effects.NAME]`: the simulated machine's error model, one table per effect "
+            "(see `docs/error-model.md`)."),
             "- `[sim.faults]`: faults injected into the simulated machine (see `docs/faults.md`).", ""]
     return "\n".join(out)
 

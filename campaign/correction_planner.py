@@ -23,11 +23,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-
-LANDING_SLACK = 1.0 + 1e-9
-"""Landing on the desired value is allowed when the last step to it is within the acceleration
-bound up to this factor: it absorbs the rounding of the braking sum, which would otherwise leave
-an overshoot of a few ulp and one more cycle."""
+SLACK = 1.0 + 1e-9
+"""Braking and the last step onto the desired value may exceed the acceleration bound by this
+factor (one part in 1e9). It absorbs the rounding of value + step, which would otherwise leave an
+overshoot of a few ulp at the end of a long braking phase and one more cycle."""
 
 
 @dataclass(frozen=True)
@@ -90,10 +89,10 @@ def plan_cycle(state: PlannerState, desired: float, limits: PlannerLimits) -> Pl
     sign = 1.0 if gap > 0.0 or (gap == 0.0 and state.step >= 0.0) else -1.0
     toward = sign * state.step  # last step, positive when it went towards desired
     wanted = stopping_step(abs(gap), accel_step)
-    step = min(max(wanted, toward - accel_step), toward + accel_step)
+    step = min(max(wanted, toward - accel_step * SLACK), toward + accel_step)
     step = min(max(step, -max_step), max_step)
     reach = abs(gap)
-    if step >= reach and toward - accel_step * LANDING_SLACK <= reach <= accel_step * LANDING_SLACK:
+    if step >= reach and reach <= accel_step * SLACK:
         return PlannerState(desired, gap)  # land exactly on the desired value, then stop
     return PlannerState(state.value + sign * step, sign * step)
 

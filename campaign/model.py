@@ -115,7 +115,7 @@ def model_from_dict(data: dict, where: str, require_all: bool = True) -> ErrorMo
     effects_table = data.get("effects", {})
     extra = set(data) - {"effects"}
     if extra:
-        raise InputError(f"{where}: unknown key '{sorted(extra)[0]}' (expected [effects.NAME] tables)")
+        raise InputError(f"{where}: unknown key '{min(extra)}' (expected [effects.NAME] tables)")
     if not isinstance(effects_table, dict):
         raise InputError(f"{where}: 'effects' must be a table of [effects.NAME] tables")
     effects: dict[str, dict[str, float]] = {}

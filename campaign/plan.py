@@ -10,6 +10,7 @@ Positions are in the axis unit (mm or deg), velocities in axis unit/s, times in 
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -106,7 +107,7 @@ def target_offsets(nominal: list[float], kind: str, fraction: float, seed: int) 
     n = len(nominal)
     if kind == "none" or n < 2:
         return [0.0] * n
-    spacing = min(b - a for a, b in zip(nominal, nominal[1:]))
+    spacing = min(b - a for a, b in itertools.pairwise(nominal))
     if kind == "random":
         phases = np.random.default_rng(seed).uniform(0, 1, n)
     else:

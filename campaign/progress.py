@@ -23,13 +23,14 @@ class RichProgress(Observer):
         self._last_reading_t = -1.0
 
     def __enter__(self):
-        self.progress.start()
         return self
 
     def __exit__(self, *exc):
-        self.progress.stop()
+        if self.overall is not None:
+            self.progress.stop()
 
     def started(self, plan: Plan, first_point: int) -> None:
+        self.progress.start()
         points = plan.points
         runs = max(p.run for p in points)
         self.per_run = len(points) // runs

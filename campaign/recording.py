@@ -83,9 +83,10 @@ class Recorder:
         self.dir = directory
         self.meta = meta
         self.kind = kind
-        self._raw = open(directory / "raw.csv", "a", encoding="utf-8", newline="")
+        # long-lived append handles, closed by close()
+        self._raw = open(directory / "raw.csv", "a", encoding="utf-8", newline="")  # noqa: SIM115
         self._points_fd = os.open(directory / "points.csv", os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
-        self._events = open(directory / "events.log", "a", encoding="utf-8")
+        self._events = open(directory / "events.log", "a", encoding="utf-8")  # noqa: SIM115
         self.env_columns: tuple[str, ...] | None = None
         self.points_written = 0
 
@@ -100,7 +101,7 @@ class Recorder:
             (path / name).unlink(missing_ok=True)
         (path / "config.toml").write_text(config_text, encoding="utf-8")
         full = {"software": f"axiscal {__version__}", "host": platform.node(),
-                "start_time": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
+                "start_time": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
                 "status": "running", **meta}
         write_json_atomic(path / "meta.json", full)
         rec = cls(path, full, kind)
@@ -152,7 +153,7 @@ class Recorder:
         self.points_written += 1
 
     def event(self, t_s: float, kind: str, message: str) -> None:
-        stamp = dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
+        stamp = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
         self._events.write(f"{stamp} t={t_s:.3f}s {kind}: {message}\n")
         self._events.flush()
         os.fsync(self._events.fileno())

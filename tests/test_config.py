@@ -1,0 +1,62 @@
+"""The campaign config: unknown keys and out-of-range values give one line naming the key."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from campaign.config import schema_markdown
+from tests.conftest import ROOT, assert_one_line_error
+from tests.test_plan import BASE
+
+BAD = {
+    "unknown key": (BASE + "colour = 1\n", "capture.colour"),
+    "unknown section": (BASE + "[nope]\nx = 1\n", "[nope]"),
+    "out of range": (BASE.replace("cycles = 2", "cycles = 0"), "plan.cycles"),
+    "wrong type": (BASE.replace("cycles = 2", 'cycles = "five"'), "plan.cycles"),
+    "bad choice": (BASE + 'method = "magic"\n', "capture.method"),
+    "missing required": (BASE.replace("max_velocity = 20.0\n", ""), "axis.max_velocity"),
+    "limits inverted": (BASE.replace("soft_limit_min = -10.0", "soft_limit_min = 200.0"), "axis.soft_limit_max"),
+    "unit vs kind": (BASE.replace("[axis]", '[axis]\nunit = "deg"'), "axis.unit"),
+    "targets not increasing": (BASE.replace("[0.0, 60.0, 120.0]", "[0.0, 60.0, 30.0]"), "plan.targets"),
+    "not toml": ("[axis\nfoo", "not valid TOML"),
+    "bad line format": (BASE + '[instrument.line]\nseparator = 5\n', "separator"),
+    "bad sim effect": (BASE + '[sim.effects.warp]\nx = 1\n', "effects.warp"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_config_one_line(cli, tmp_path, case):
+    text, key = BAD[case]
+    path = tmp_path / "c.toml"
+    path.write_text(text)
+    assert_one_line_error(cli("plan", path), str(path), key)
+
+
+def test_missing_config_file(cli, tmp_path):
+    assert_one_line_error(cli("plan", tmp_path / "none.toml"), "no such file")
+
+
+def test_example_configs_are_valid(cli):
+    paths = sorted((ROOT / "data" / "configs").glob("*.toml"))
+    assert len(paths) >= 4
+    for path in paths:
+        result = cli("plan", path, "--json")
+        assert result.code == 0, (path, result.err)
+
+
+def test_docs_config_is_generated_from_the_schema():
+    assert (ROOT / "docs" / "config.md").read_text() == schema_markdown()
+
+
+def test_campaign_never_imports_pyads_or_serial():
+    code = ("import sys, importlib, pkgutil, campaign\n"
+            "for m in pkgutil.iter_modules(campaign.__path__):\n"
+            "    if m.name != '__main__': importlib.import_module('campaign.' + m.name)\n"
+            "import campaign.commands.run, campaign.commands.demo\n"
+            "bad = [m for m in ('pyads', 'serial') if m in sys.modules]\n"
+            "print(bad); sys.exit(1 if bad else 0)\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=Path(ROOT),
+                          check=False, timeout=60)
+    assert proc.returncode == 0, proc.stdout + proc.stderr

@@ -1,0 +1,58 @@
+"""Crash safety: a campaign killed with SIGKILL, or stopped with Ctrl-C (SIGINT), leaves only
+whole, fsynced point rows; Ctrl-C halts the axis and marks the campaign interrupted."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+from campaign.pointtable import read_points
+from tests.conftest import ROOT
+
+
+def start_slow_demo(out):
+    # --speed 100: the 20-minute campaign takes about 12 s of wall time, slow enough to interrupt
+    return subprocess.Popen([sys.executable, "-m", "campaign", "demo", "--speed", "100", "--out", str(out)],
+                            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+
+
+def wait_for_points(path, n, proc, limit_s=60.0):
+    end = time.monotonic() + limit_s
+    while time.monotonic() < end:
+        if path.exists() and path.read_text().count("\n") >= n + 5:
+            return
+        assert proc.poll() is None, proc.stderr.read()
+        time.sleep(0.05)
+    raise AssertionError(f"fewer than {n} points after {limit_s} s")
+
+
+def test_kill_9_leaves_only_whole_rows(tmp_path):
+    out = tmp_path / "k"
+    proc = start_slow_demo(out)
+    wait_for_points(out / "points.csv", 8, proc)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait(timeout=10)
+    data = (out / "points.csv").read_bytes()
+    assert data.endswith(b"\n")
+    table = read_points(out / "points.csv")
+    assert 8 <= len(table) < 110
+    assert list(table.optional) == ["time_s", "air_temp_c", "air_pressure_hpa", "humidity_pct", "material_temp_c"]
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["status"] == "running"  # never marked completed
+
+
+def test_ctrl_c_halts_flushes_and_marks_interrupted(tmp_path):
+    out = tmp_path / "c"
+    proc = start_slow_demo(out)
+    wait_for_points(out / "points.csv", 5, proc)
+    os.kill(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["status"] == "interrupted"
+    events = (out / "events.log").read_text()
+    assert "interrupted: Ctrl-C: axis halted" in events
+    assert 5 <= len(read_points(out / "points.csv")) < 110

@@ -1,0 +1,73 @@
+"""End to end: `axiscal demo` and `axiscal run` on the simulated machine, through the real pyads
+client against the loopback ADS test server and the real pyserial over a pty."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from campaign.pointtable import read_points
+from tests.conftest import ROOT
+
+AXISCAL = [sys.executable, "-m", "campaign"]
+
+
+def axiscal(*args, timeout=120):
+    return subprocess.run([*AXISCAL, *map(str, args)], capture_output=True, text=True, timeout=timeout,
+                          cwd=ROOT, check=False)
+
+
+def test_demo_runs_the_paper_campaign(tmp_path):
+    out = tmp_path / "demo"
+    proc = axiscal("demo", "--out", out, "--json", "--plot", tmp_path / "demo.png")
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    assert data["dir"] == str(out) and data["status"] == "completed"
+    assert data["points"] == 110
+    assert 1100 < data["duration_s"] < 1400  # about 20 simulated minutes
+    for key in ("A", "E", "M", "B", "R", "A_up", "A_down"):
+        assert isinstance(data[key], float), key
+    # seed 000's horizontal model: about -12.4 um/m over 600 mm, scatter 0.34 um
+    assert 5.0 < data["E"] < 10.0 and data["R"] < 3.0
+    table = read_points(out / "points.csv")
+    assert len(table) == 110 and sorted(set(table.run)) == [1, 2, 3, 4, 5]
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["status"] == "completed" and meta["plan_seed"] == 1
+    assert (out / "config.toml").read_text().startswith("# The embedded demo")
+    raw_lines = (out / "raw.csv").read_text().splitlines()
+    assert len(raw_lines) > 10000  # every sample of 20 minutes at 10 Hz
+    assert (tmp_path / "demo.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_stable_capture_waits_less_than_the_dwell(tmp_path):
+    proc = axiscal("demo", "--out", tmp_path / "s", "--capture", "stable", "--json")
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    assert data["points"] == 110
+    lines = (tmp_path / "s" / "points.csv").read_text().splitlines()
+    header = next(ln for ln in lines if ln.startswith("run,")).split(",")
+    waits = [float(ln.split(",")[header.index("capture_wait_s")]) for ln in lines[lines.index(",".join(header)) + 1:]]
+    assert max(waits) < 4.0 and min(waits) > 0.5  # stable before a 4 s dwell, after the 0.5 s window
+
+
+def test_run_refuses_plan_outside_limits_before_moving(tmp_path):
+    config = (ROOT / "data/configs/vertical-sim.toml").read_text().replace("overrun = 5.0", "overrun = 50.0")
+    path = tmp_path / "c.toml"
+    path.write_text(config.replace('model = "../models/', f'model = "{ROOT}/data/models/'))
+    proc = axiscal("run", path, "--out", tmp_path / "never")
+    assert proc.returncode == 2 and proc.stderr.startswith("error: ") and "soft limits" in proc.stderr
+    assert not (tmp_path / "never").exists()
+
+
+@pytest.mark.parametrize("name", ["rotary-sim.toml", "vertical-sim.toml"])
+def test_run_example_configs(tmp_path, name):
+    proc = axiscal("run", ROOT / "data/configs" / name, "--out", tmp_path / "r", "--json")
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    assert data["status"] == "completed" and data["points"] == data["planned"]
+    if name == "vertical-sim.toml":
+        assert data["B"] > 350  # the vertical axis' large reversal
+        assert data["unit"] == "um"
+    else:
+        assert data["unit"] == "arcsec"
