@@ -92,7 +92,7 @@ def plan_cycle(state: PlannerState, desired: float, limits: PlannerLimits) -> Pl
     step = min(max(wanted, toward - accel_step * SLACK), toward + accel_step)
     step = min(max(step, -max_step), max_step)
     reach = abs(gap)
-    if step >= reach and reach <= accel_step * SLACK:
+    if step >= reach and toward - accel_step * SLACK <= reach <= accel_step * SLACK:
         return PlannerState(desired, gap)  # land exactly on the desired value, then stop
     return PlannerState(state.value + sign * step, sign * step)
 

@@ -26,13 +26,54 @@ class CampaignStopped(Exception):
     """The campaign stopped before the end (fault or abort); the directory is resumable."""
 
 
+FAULTS = (AxisError, InstrumentError, BeamLost, NotStable)
+
+
 class Observer:
-    """Receives progress from the executor. The default does nothing; the CLI shows rich bars."""
+    """Receives progress from the executor. The default does nothing and aborts on a fault; the
+    CLI shows rich bars, the guided session asks the operator."""
 
     def started(self, plan: Plan, first_point: int) -> None: ...
     def reading(self, t_s: float, reading: Reading, target: float | None) -> None: ...
     def point_done(self, point: Point, deviation: float, t_s: float) -> None: ...
     def event(self, kind: str, message: str) -> None: ...
+
+    def fault(self, exc: Exception, point: int) -> str:
+        """A fault at point `point` (the axis is already halted): return "retry", "skip" or "abort"."""
+        return "abort"
+
+
+class Control:
+    """Operator requests, set from another thread (keys, signals): pause between points, abort."""
+
+    def __init__(self):
+        import threading
+
+        self._pause = threading.Event()
+        self._abort = threading.Event()
+        self._wake = threading.Event()
+
+    def pause_requested(self) -> bool:
+        return self._pause.is_set()
+
+    def abort_requested(self) -> bool:
+        return self._abort.is_set()
+
+    def request_pause(self) -> None:
+        self._pause.set()
+
+    def request_resume(self) -> None:
+        self._pause.clear()
+        self._wake.set()
+
+    def request_abort(self) -> None:
+        self._abort.set()
+        self._wake.set()
+
+    def wait(self, seconds: float) -> None:
+        """Wait up to `seconds` of real time, or until resume/abort is requested."""
+        self._wake.wait(seconds)
+        self._wake.clear()
 
 
 @dataclass
@@ -67,9 +108,11 @@ class Executor:
     """Runs one plan. Positions in axis unit, deviations in µm (linear) or arcsec (rotary)."""
 
     def __init__(self, plan: Plan, config: Config, hardware: Hardware, recorder: Recorder,
-                 observer: Observer | None = None, t0: float | None = None):
+                 observer: Observer | None = None, t0: float | None = None, control: Control | None = None):
         self.plan, self.config, self.hw, self.rec = plan, config, hardware, recorder
         self.obs = observer or Observer()
+        self.control = control or Control()
+        self.next_point = 0
         self.tick_s = 1.0 / config["instrument"]["rate_hz"]
         self.scale = DEVIATION_SCALE[config["axis"]["unit"]]
         self.t0 = hardware.clock.now() if t0 is None else t0
@@ -86,19 +129,61 @@ class Executor:
         return self.hw.clock.now() - self.t0
 
     def run(self, first_point: int = 0) -> None:
-        """Run from point `first_point` to the end. Raises CampaignStopped after halting on a fault,
-        and re-raises KeyboardInterrupt after halting on Ctrl-C."""
+        """Run from point `first_point` to the end. On a fault the observer decides: retry the
+        point, skip it, or abort (CampaignStopped, after halting). Ctrl-C or an abort request
+        halts, flushes and re-raises KeyboardInterrupt."""
         self.obs.started(self.plan, first_point)
+        point: int | None = first_point
         try:
-            for index, step in resume_steps(self.plan, first_point, self.config["plan"]["overrun"]):
-                self.step_index = index
-                self._do(step)
+            while point is not None:
+                point = self._run_from(point)
         except KeyboardInterrupt:
             self._halt("interrupted", "Ctrl-C: axis halted, recording flushed")
             raise
-        except (AxisError, InstrumentError, BeamLost, NotStable) as exc:
-            self._halt("fault", f"{type(exc).__name__}: {exc}")
-            raise CampaignStopped(str(exc)) from exc
+
+    def _run_from(self, first_point: int) -> int | None:
+        """Run the steps from `first_point`; returns the point to restart from after a fault
+        the observer chose to retry or skip, or None at the end."""
+        self.next_point = first_point
+        total = len(self.plan.points)
+        for index, step in resume_steps(self.plan, first_point, self.config["plan"]["overrun"]):
+            self.step_index = index
+            try:
+                self._do(step)
+            except FAULTS as exc:
+                self._halt("fault", f"point {self.next_point}: {type(exc).__name__}: {exc}")
+                decision = self.obs.fault(exc, self.next_point) if self.next_point < total else "abort"
+                if decision == "abort":
+                    raise CampaignStopped(str(exc)) from exc
+                self._recover(exc)
+                if decision == "skip":
+                    self.rec.event(self.now(), "skip", f"point {self.next_point} skipped by the operator")
+                    return self.next_point + 1 if self.next_point + 1 < total else None
+                self.rec.event(self.now(), "retry", f"point {self.next_point} retried")
+                return self.next_point
+            if isinstance(step, Checkpoint):
+                self.next_point = step.point.index + 1
+                self._maybe_pause()
+        return None
+
+    def _recover(self, exc: Exception) -> None:
+        if isinstance(exc, AxisError):
+            try:
+                self.hw.axis.reset()
+            except AxisError as again:
+                raise CampaignStopped(f"axis reset failed: {again}") from again
+
+    def _maybe_pause(self) -> None:
+        """Between points: hold while the control asks for a pause; abort when it asks to."""
+        if self.control.pause_requested() and not self.control.abort_requested():
+            self.rec.event(self.now(), "pause", f"paused after point {self.next_point - 1}")
+            self.obs.event("pause", "paused: press r to resume, a to abort")
+            while self.control.pause_requested() and not self.control.abort_requested():
+                self.control.wait(0.05)
+            self.rec.event(self.now(), "resume", "resumed by the operator")
+            self.obs.event("resume", "resumed")
+        if self.control.abort_requested():
+            raise KeyboardInterrupt
 
     def _halt(self, kind: str, message: str) -> None:
         try:
@@ -121,6 +206,8 @@ class Executor:
 
     def _tick(self) -> None:
         """Let one sample period pass and record the readings that arrived."""
+        if self.control.abort_requested():
+            raise KeyboardInterrupt
         self.hw.clock.sleep(self.tick_s)
         t = self.now()
         for reading in self.hw.interferometer.poll():

@@ -7,11 +7,12 @@ The hardware factory is imported lazily: `campaign/` itself never imports pyads 
 from __future__ import annotations
 
 import datetime as dt
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
 from campaign.config import Config
-from campaign.executor import CampaignStopped, Executor, Observer
+from campaign.executor import CampaignStopped, Control, Executor, Observer
 from campaign.iso230 import Evaluation, evaluate
 from campaign.model import ErrorModel
 from campaign.plan import Plan, build_plan, check_plan
@@ -52,11 +53,12 @@ def _open(config: Config, speed: float | None, model: ErrorModel | None, start: 
 
 def execute(config: Config, plan: Plan, recorder: Recorder, first_point: int, *, speed=None, model=None,
             observer: Observer | None = None, t_offset: float = 0.0, start: float | None = None,
-            on_open=None) -> Outcome:
+            on_open=None, control: Control | None = None) -> Outcome:
     """Run `plan` from `first_point` into `recorder`, then mark the directory completed or
     interrupted. Re-raises KeyboardInterrupt after the axis is halted and the recording flushed."""
     hardware, sim = _open(config, speed, model, start)
-    executor = Executor(plan, config, hardware, recorder, observer, t0=hardware.clock.now() - t_offset)
+    executor = Executor(plan, config, hardware, recorder, observer, t0=hardware.clock.now() - t_offset,
+                        control=control)
     if on_open:
         on_open(hardware, sim, executor)
     status, message = "completed", ""
@@ -75,13 +77,78 @@ def execute(config: Config, plan: Plan, recorder: Recorder, first_point: int, *,
     return Outcome(recorder.dir, status, recorder.points_written, len(plan.points), duration, message)
 
 
+SIM_MODEL_FILE = "sim-model.toml"
+"""The simulated machine's effective error model, kept in the campaign directory for resume."""
+
+
 def start_campaign(config: Config, out: str | Path | None = None, **kwargs) -> Outcome:
     """A new campaign from `config` into `out` (a new directory)."""
     plan = build_plan(config)
     check_plan(plan, config)
+    if config["axis_driver"]["type"] == "sim" and kwargs.get("model") is None:
+        from drivers.factory import sim_model
+
+        kwargs["model"] = sim_model(config)
     directory = Path(out) if out else default_out_dir(config)
     recorder = Recorder.create(directory, config.text, campaign_meta(config, plan), config["axis"]["kind"])
+    if kwargs.get("model") is not None:
+        (directory / SIM_MODEL_FILE).write_text(kwargs["model"].to_toml(), encoding="utf-8")
     return execute(config, plan, recorder, 0, **kwargs)
+
+
+def last_raw_state(directory: Path) -> tuple[float, float | None]:
+    """(campaign time of the last raw sample in s, last known axis position or None)."""
+    t, position = 0.0, None
+    with open(directory / "raw.csv", encoding="utf-8") as f:
+        next(f, None)
+        for line in f:
+            cells = line.rstrip("\n").split(",")
+            if len(cells) >= 4:
+                t = float(cells[0])
+                position = float(cells[3]) if cells[3] else position
+    return t, position
+
+
+def resume_campaign(directory: str | Path, **kwargs) -> Outcome:
+    """Continue an interrupted campaign in `directory` from the point after the last recorded one,
+    re-approaching it from the overrun in its own direction, appending to the same files."""
+    from campaign.config import load_config
+    from campaign.errors import InputError
+    from campaign.model import read_model
+
+    path = Path(directory)
+    if not (path / "meta.json").is_file() or not (path / "config.toml").is_file():
+        raise InputError(f"{path}: not a campaign directory (no meta.json / config.toml)")
+    config = load_config(path / "config.toml")
+    if json.loads((path / "meta.json").read_text(encoding="utf-8")).get("status") == "completed":
+        raise InputError(f"{path}: the campaign is already completed")
+    recorder = Recorder.reopen(path)
+    plan = build_plan(config)
+    check_plan(plan, config)
+    if recorder.meta.get("points_planned") != len(plan.points):
+        recorder.close()
+        raise InputError(f"{path}: config.toml no longer gives the recorded plan")
+    done = recorded_point_indices(path)
+    first = max(done) + 1 if done else 0
+    if first >= len(plan.points):
+        recorder.set_status("completed")
+        recorder.close()
+        return Outcome(path, "completed", len(done), len(plan.points), 0.0, "nothing left to measure")
+    t_last, position = last_raw_state(path)
+    if (path / SIM_MODEL_FILE).exists() and kwargs.get("model") is None:
+        kwargs["model"] = read_model(path / SIM_MODEL_FILE)
+    recorder.event(t_last, "resume", f"resumed at point {first} of {len(plan.points)}")
+    return execute(config, plan, recorder, first, t_offset=t_last, start=position, **kwargs)
+
+
+def recorded_point_indices(directory: Path) -> list[int]:
+    """The plan indices of the points recorded in points.csv (its `point` column)."""
+    lines = [ln for ln in (directory / "points.csv").read_text(encoding="utf-8").splitlines()
+             if ln and not ln.startswith("#")]
+    if not lines:
+        return []
+    column = lines[0].split(",").index("point")
+    return [int(float(ln.split(",")[column])) for ln in lines[1:]]
 
 
 def analyse_dir(directory: str | Path) -> tuple[object, Evaluation]:

@@ -1,0 +1,32 @@
+"""`axiscal resume DIR [--speed N] [--json] [--plot OUT]`: continue an interrupted campaign."""
+
+from __future__ import annotations
+
+from campaign.commands.run import finish
+from campaign.errors import InputError
+from campaign.executor import DEVIATION_SCALE
+from campaign.plot import check_plot_path
+from campaign.progress import RichProgress
+from campaign.session import resume_campaign
+
+
+def register(sub) -> None:
+    p = sub.add_parser("resume", help="continue an interrupted campaign from the first missing point",
+                       description="Continue the campaign in DIR: re-approach the first missing point from "
+                                   "the overrun in its direction, append to the same directory.")
+    p.add_argument("dir", help="campaign directory")
+    p.add_argument("--speed", type=float, metavar="N", help="simulated machine: N times real time")
+    p.add_argument("--json", action="store_true", help="print one JSON object at the end")
+    p.add_argument("--plot", metavar="OUT", help="write the ISO 230-2 plot (.png or .svg)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    if args.plot:
+        check_plot_path(args.plot)
+    if args.speed is not None and args.speed <= 0:
+        raise InputError("--speed: must be > 0")
+    observer = RichProgress("mm", DEVIATION_SCALE["mm"])
+    with observer:
+        outcome = resume_campaign(args.dir, speed=args.speed, observer=observer)
+    return finish(outcome, args)

@@ -1,0 +1,86 @@
+"""`axiscal resume`: after kill -9 or Ctrl-C the final point table equals that of an uninterrupted
+run with the same seed, in count and order; the first missing point is re-approached from the
+overrun in its own direction."""
+
+import json
+import os
+import signal
+
+import pytest
+
+from tests.test_crash_safety import start_slow_demo, wait_for_points
+from tests.test_demo_e2e import axiscal
+from tests.conftest import assert_one_line_error
+
+
+def point_keys(path):
+    rows = [ln.split(",") for ln in path.read_text().splitlines() if ln[:1].isdigit()]
+    return [(r[0], r[1], r[2]) for r in rows]
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory):
+    out = tmp_path_factory.mktemp("full") / "demo"
+    assert axiscal("demo", "--out", out).returncode == 0
+    return point_keys(out / "points.csv")
+
+
+@pytest.mark.parametrize("how", ["kill -9", "ctrl-c"])
+def test_resume_gives_the_uninterrupted_point_table(tmp_path, uninterrupted, how):
+    out = tmp_path / "r"
+    proc = start_slow_demo(out)
+    wait_for_points(out / "points.csv", 7, proc)
+    if how == "kill -9":
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=10)
+    else:
+        os.kill(proc.pid, signal.SIGINT)
+        proc.communicate(timeout=30)
+        assert json.loads((out / "meta.json").read_text())["status"] == "interrupted"
+    before = point_keys(out / "points.csv")
+    assert 7 <= len(before) < 110
+    result = axiscal("resume", out, "--json")
+    assert result.returncode == 0, result.stderr
+    data = json.loads(result.stdout)
+    assert data["status"] == "completed" and data["points"] == 110
+    after = point_keys(out / "points.csv")
+    assert after == uninterrupted  # no point lost, none duplicated, same order
+    assert after[: len(before)] == before  # appended, not rewritten
+    events = (out / "events.log").read_text()
+    assert f"resumed at point {len(before)} of 110" in events
+    assert json.loads((out / "meta.json").read_text())["status"] == "completed"
+
+
+def test_resume_reapproaches_from_the_overrun(tmp_path):
+    out = tmp_path / "r"
+    proc = start_slow_demo(out)
+    wait_for_points(out / "points.csv", 3, proc)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait(timeout=10)
+    done = len(point_keys(out / "points.csv"))
+    raw_before = len((out / "raw.csv").read_text().splitlines())
+    assert axiscal("resume", out).returncode == 0
+    raw = [ln.split(",") for ln in (out / "raw.csv").read_text().splitlines()[raw_before:]]
+    first_capture = next(i for i, r in enumerate(raw) if r[2] == str(done))
+    positions = [float(r[3]) for r in raw[:first_capture] if r[3]]
+    # run 1 goes up through 11 targets, so the next point is approached in +: from target - L1 (5 mm)
+    target = 60.0 * done
+    assert done < 11
+    at_overrun = [i for i, p in enumerate(positions) if abs(p - (target - 5.0)) < 0.01]
+    assert at_overrun, positions[-40:]
+    approach = positions[at_overrun[-1]:]
+    assert approach == sorted(approach) and approach[-1] == pytest.approx(target, abs=0.01)
+
+
+def test_resume_refuses_completed_and_non_campaign(cli, tmp_path):
+    assert_one_line_error(cli("resume", tmp_path), "not a campaign directory")
+    out = tmp_path / "done"
+    assert axiscal("demo", "--out", out).returncode == 0
+    assert_one_line_error(cli("resume", out), "already completed")
+
+
+def test_demo_refuses_to_overwrite_a_campaign(tmp_path):
+    out = tmp_path / "d"
+    assert axiscal("demo", "--out", out).returncode == 0
+    again = axiscal("demo", "--out", out)
+    assert again.returncode == 2 and again.stderr.startswith("error: ") and "resume" in again.stderr
