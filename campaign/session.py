@@ -45,18 +45,22 @@ def campaign_meta(config: Config, plan: Plan) -> dict:
             "capture": config["capture"]["method"], "driver": config["axis_driver"]["type"]}
 
 
-def _open(config: Config, speed: float | None, model: ErrorModel | None, start: float | None):
-    from drivers.factory import open_hardware
+def open_hardware(config: Config, speed: float | None = None, model: ErrorModel | None = None,
+                  start: float | None = None):
+    """The config's hardware: (Hardware, SimParts or None). Lazy import: see the module docstring."""
+    from drivers.factory import open_hardware as factory_open
 
-    return open_hardware(config, speed=speed, model=model, start_position=start)
+    return factory_open(config, speed=speed, model=model, start_position=start)
 
 
 def execute(config: Config, plan: Plan, recorder: Recorder, first_point: int, *, speed=None, model=None,
             observer: Observer | None = None, t_offset: float = 0.0, start: float | None = None,
-            on_open=None, control: Control | None = None) -> Outcome:
+            on_open=None, control: Control | None = None, opened=None) -> Outcome:
     """Run `plan` from `first_point` into `recorder`, then mark the directory completed or
-    interrupted. Re-raises KeyboardInterrupt after the axis is halted and the recording flushed."""
-    hardware, sim = _open(config, speed, model, start)
+    interrupted. Re-raises KeyboardInterrupt after the axis is halted and the recording flushed.
+    `opened`: a (Hardware, SimParts | None) pair from `open_hardware` to use instead of opening
+    new hardware (it is closed at the end either way)."""
+    hardware, sim = opened if opened is not None else open_hardware(config, speed, model, start)
     executor = Executor(plan, config, hardware, recorder, observer, t0=hardware.clock.now() - t_offset,
                         control=control)
     if on_open:
