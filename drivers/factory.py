@@ -5,6 +5,9 @@ This is the one place where the campaign's protocols meet pyads and pyserial.
 
 from __future__ import annotations
 
+import os
+import random
+import time
 from dataclasses import dataclass
 
 from campaign.clock import RealClock
@@ -68,8 +71,25 @@ def open_hardware(config: Config, speed: float | None = None, model: ErrorModel 
     return _open_sim(config, fmt, speed, model, start_position)
 
 
-def _open_sim(config, fmt, speed, model, start_position):
+def serve_on_free_loopback(plc):
+    """Serve `plc` over ADS on a free loopback address 127.0.x.y (every ADS client connects to TCP
+    port 48898, so simulated machines running side by side, e.g. CI and a demo, each get their own
+    address)."""
     from drivers.sim.ads_server import SimAdsServer
+
+    rng = random.Random(os.getpid() * 1_000_003 + time.time_ns())
+    for _ in range(64):
+        ip = f"127.0.{rng.randint(0, 255)}.{rng.randint(2, 254)}"
+        server = SimAdsServer(plc, ip)
+        try:
+            server.start()
+        except OSError:
+            continue
+        return server
+    raise OSError("no free loopback address for the simulated PLC's ADS server")
+
+
+def _open_sim(config, fmt, speed, model, start_position):
     from drivers.sim.interferometer import SimInterferometer
     from drivers.sim.machine import SimAxisPhysics, make_clock
     from drivers.sim.plc import SimPLC
@@ -82,13 +102,12 @@ def _open_sim(config, fmt, speed, model, start_position):
     physics = SimAxisPhysics(plc, model or sim_model(config), axis_cfg["unit"], config["sim"]["seed"],
                              vacuum_readings=config["environment"]["air_correction"] == "edlen")
     hw = Hardware(None, None, clock, [])
-    server = SimAdsServer(plc)
-    server.start()
+    server = serve_on_free_loopback(plc)
     hw.closers.append(server.stop)
     try:
         instrument = SimInterferometer(clock, physics.measure, fmt, inst["rate_hz"], inst["mode"])
         hw.closers.append(instrument.close)
-        hw.axis = AdsAxis("127.0.0.1.1.1", "127.0.0.1", drv["axis_index"], 851, timeout_s=drv["timeout_s"])
+        hw.axis = AdsAxis(f"{server.ip}.1.1", server.ip, drv["axis_index"], 851, timeout_s=drv["timeout_s"])
         hw.closers.append(hw.axis.close)
         hw.interferometer = SerialInterferometer(instrument.port_name, inst["baudrate"], fmt, inst["mode"],
                                                  inst["timeout_s"])
