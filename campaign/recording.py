@@ -71,7 +71,7 @@ def _cell(value) -> str:
     if isinstance(value, bool):
         return "1" if value else "0"
     if isinstance(value, float):
-        return repr(round(value, 9))
+        return repr(value)  # shortest round-trip form: replay recomputes bit-identical means
     return str(value)
 
 

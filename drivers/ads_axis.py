@@ -21,7 +21,10 @@ The PLC needs a route back to this PC (set up once on the PLC, or with pyads.add
 from __future__ import annotations
 
 import math
+import os
+import sys
 import time
+from contextlib import contextmanager
 from collections.abc import Callable
 from dataclasses import replace
 from typing import Any, TypeVar
@@ -50,6 +53,23 @@ _PLC_TYPES = {
 def _plc_type(symbol: Symbol) -> Any:
     base = _PLC_TYPES[symbol.iec_type]
     return base if symbol.array_length is None else base * symbol.array_length
+
+
+@contextmanager
+def _native_stderr_silenced():
+    """The ADS library's C++ code logs "connection closed by remote" to stderr when a connection
+    closes; keep that line out of the command's output (an error must be one line)."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 2)
+        yield
+    finally:
+        time.sleep(0.01)  # the library logs from its receive thread as the socket closes
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(devnull)
 
 
 class _BadAnswer(Exception):
@@ -260,6 +280,7 @@ class AdsAxis:
         connection, self._connection = self._connection, None
         if connection is not None:
             try:
-                connection.close()
+                with _native_stderr_silenced():
+                    connection.close()
             except pyads.ADSError:
                 pass
