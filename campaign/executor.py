@@ -22,6 +22,35 @@ DEVIATION_SCALE = {"mm": 1000.0, "deg": 3600.0}
 """Axis unit -> deviation unit factor (mm -> µm, deg -> arcsec)."""
 
 
+def corrections_um(config: Config, position: float, env: dict) -> tuple[float, float]:
+    """(air correction, material normalisation to 20 °C) in µm for a reading at `position` (mm),
+    from the environment `env` (instrument values first, the config's fixed values otherwise)."""
+    envc = config["environment"]
+    air = material = 0.0
+    if envc["air_correction"] == "edlen":
+        t, p, h = (env.get(k) if env.get(k) is not None else envc[k]
+                   for k in ("air_temp_c", "air_pressure_hpa", "humidity_pct"))
+        if None in (t, p, h):
+            raise InstrumentError("air correction needs air temperature, pressure and humidity")
+        factor = air_correction_factor(t, p * 100.0, h, 1.0, envc["wavelength_nm"], envc["co2_ppm"])
+        air = air_correction_um(position, factor)
+    if envc["normalise_to_20c"]:
+        if env.get("material_temp_c") is None:
+            raise InstrumentError("normalisation to 20 °C needs the material temperature")
+        material = thermal_normalisation_um(position, env["material_temp_c"], envc["expansion_ppm_per_k"])
+    return air, material
+
+
+def point_deviation(config: Config, target: float, got: Captured) -> tuple[float, float, float]:
+    """(deviation in µm or arcsec, air correction µm, material correction µm) of a capture.
+    The corrections apply to linear lengths only; a rotary axis gets none."""
+    if config["axis"]["unit"] == "deg":
+        return (got.position - target) * DEVIATION_SCALE["deg"], 0.0, 0.0
+    air, material = corrections_um(config, got.position, got.env)
+    corrected = got.position + (air + material) / 1000.0
+    return (corrected - target) * DEVIATION_SCALE["mm"], air, material
+
+
 class CampaignStopped(Exception):
     """The campaign stopped before the end (fault or abort); the directory is resumable."""
 
@@ -224,7 +253,7 @@ class Executor:
         check_motion(step.position, step.velocity, self.config)
         axis = self.hw.axis
         self.target = None if step.overrun else step.position
-        self.point_index = None
+        self.point_index = None if step.overrun else self.next_point
         axis.start_move(step.position, step.velocity)
         start = self.now()
         window = self.config["axis"]["in_position_window"]
@@ -281,32 +310,9 @@ class Executor:
             raise BeamLost("beam not OK long enough for a stable capture")
         raise NotStable(f"reading not stable within {step.timeout_s:g} s at point {step.point.index}")
 
-    def _corrections_um(self, position: float, env: dict) -> tuple[float, float]:
-        """(air correction, material normalisation) in µm for a reading at `position` (mm)."""
-        envc = self.config["environment"]
-        air = material = 0.0
-        if envc["air_correction"] == "edlen":
-            t = env.get("air_temp_c") if env.get("air_temp_c") is not None else envc["air_temp_c"]
-            p = env.get("air_pressure_hpa") if env.get("air_pressure_hpa") is not None else envc["air_pressure_hpa"]
-            h = env.get("humidity_pct") if env.get("humidity_pct") is not None else envc["humidity_pct"]
-            if None in (t, p, h):
-                raise InstrumentError("air correction needs air temperature, pressure and humidity")
-            factor = air_correction_factor(t, p * 100.0, h, 1.0, envc["wavelength_nm"], envc["co2_ppm"])
-            air = air_correction_um(position, factor)
-        if envc["normalise_to_20c"]:
-            if env.get("material_temp_c") is None:
-                raise InstrumentError("normalisation to 20 °C needs the material temperature")
-            material = thermal_normalisation_um(position, env["material_temp_c"], envc["expansion_ppm_per_k"])
-        return air, material
-
     def _checkpoint(self, step: Checkpoint) -> None:
         point, got = step.point, self.captured
-        air, material = self._corrections_um(got.position, got.env)
-        corrected = got.position + (air + material) / 1000.0
-        if self.config["axis"]["unit"] == "deg":
-            corrected = got.position  # corrections are for linear lengths only
-            air = material = 0.0
-        deviation = (corrected - point.target) * self.scale
+        deviation, air, material = point_deviation(self.config, point.target, got)
         t = self.now()
         self.rec.point(point.run, point.direction, point.target, deviation, t, got.env,
                        {"point": point.index, "reading": got.position, "air_correction_um": air,

@@ -1,0 +1,102 @@
+"""`axiscal replay DIR [--speed N] [--capture dwell|stable] [capture options] [--json]`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from rich.table import Table
+
+from campaign.errors import InputError
+from campaign.iso230 import evaluate
+from campaign.pointtable import PointTable, read_points
+from campaign.replay import replay
+from campaign.views import fmt, make_console, print_json
+
+DIGITS = 4
+"""The point table records deviations to 1e-4 µm (arcsec): 'identical' means equal at that."""
+
+
+def register(sub) -> None:
+    p = sub.add_parser("replay", help="re-run a recorded campaign offline through the capture code",
+                       description="Replay DIR's raw stream through the capture and analysis code. With the "
+                                   "recorded settings it reproduces the point table; with others it shows "
+                                   "what would change.")
+    p.add_argument("dir", help="campaign directory")
+    p.add_argument("--speed", type=float, metavar="N", help="pace the timeline at N times real time")
+    p.add_argument("--capture", choices=("dwell", "stable"), help="capture method (default: as recorded)")
+    p.add_argument("--average-s", type=float, help="dwell: averaging window, s")
+    p.add_argument("--stable-tolerance", type=float, help="stable: band, µm (arcsec)")
+    p.add_argument("--stable-window-s", type=float, help="stable: window, s")
+    p.add_argument("--stable-timeout-s", type=float, help="stable: timeout after arrival, s")
+    p.add_argument("--json", action="store_true", help="one JSON object")
+    p.set_defaults(func=run)
+
+
+def _overrides(args) -> dict:
+    out = {"method": args.capture} if args.capture else {}
+    for key in ("average_s", "stable_tolerance", "stable_window_s", "stable_timeout_s"):
+        value = getattr(args, key)
+        if value is not None:
+            if not np.isfinite(value) or value <= 0:
+                raise InputError(f"--{key.replace('_', '-')}: must be a number > 0")
+            out[key] = value
+    return out
+
+
+def run(args) -> int:
+    if args.speed is not None and args.speed <= 0:
+        raise InputError("--speed: must be > 0")
+    overrides = _overrides(args)
+    directory = Path(args.dir)
+    if not (directory / "meta.json").is_file():
+        raise InputError(f"{directory}: not a campaign directory (no meta.json)")
+    recorded = read_points(directory / "points.csv")
+    config, plan, points = replay(directory, overrides, args.speed)
+    rec_dev = {}
+    with open(directory / "points.csv", encoding="utf-8") as f:
+        rows = [ln.rstrip("\n").split(",") for ln in f if ln.strip() and not ln.startswith("#")]
+    col = rows[0].index("point")
+    for row, dev in zip(rows[1:], recorded.deviation):
+        rec_dev[int(float(row[col]))] = float(dev)
+    diffs = []
+    for p in points:
+        before = rec_dev.get(p.index)
+        same = before is not None and p.deviation is not None and \
+            f"{before:.{DIGITS}f}" == f"{p.deviation:.{DIGITS}f}"
+        if not same and (before is not None or p.deviation is not None):
+            diffs.append({"point": p.index, "run": p.run, "direction": "+" if p.direction > 0 else "-",
+                          "target": p.target, "recorded": before, "replayed": p.deviation,
+                          "difference": None if before is None or p.deviation is None else p.deviation - before,
+                          "wait_s": p.wait_s, "note": p.reason})
+    got = [p for p in points if p.deviation is not None]
+    new = PointTable(recorded.kind, np.array([p.run for p in got]), np.array([p.direction for p in got]),
+                     np.array([p.target for p in got]),
+                     np.array([round(p.deviation, DIGITS) for p in got]))
+    new_summary = evaluate(new).summary if got else {}
+    old_summary = evaluate(recorded).summary
+    result = {"dir": str(directory), "capture": config["capture"]["method"], "points": len(got),
+              "recorded_points": len(recorded), "identical": not diffs, "differences": diffs,
+              "summary_recorded": old_summary, "summary_replayed": new_summary}
+    if args.json:
+        print_json(result)
+        return 0
+    console = make_console()
+    if not diffs:
+        console.print(f"replay with {config['capture']['method']} capture reproduces the recorded point table: "
+                      f"{len(got)}/{len(recorded)} points identical to {DIGITS} decimals")
+    else:
+        table = Table(title=f"{len(diffs)} point(s) change with {config['capture']['method']} capture")
+        for head in ("point", "run", "dir", "target", "recorded", "replayed", "difference", "wait s", "note"):
+            table.add_column(head, justify="right")
+        for d in diffs:
+            table.add_row(str(d["point"]), str(d["run"]), d["direction"], f"{d['target']:g}", fmt(d["recorded"]),
+                          fmt(d["replayed"]), fmt(d["difference"]), fmt(d["wait_s"], 2), d["note"])
+        console.print(table)
+    summary = Table(title=f"ISO 230-2 summary ({recorded.deviation_unit})")
+    for head in ("parameter", "recorded", "replayed"):
+        summary.add_column(head, justify="right")
+    for key in ("A", "E", "M", "B", "R"):
+        summary.add_row(key, fmt(old_summary.get(key)), fmt(new_summary.get(key)))
+    console.print(summary)
+    return 0

@@ -1,0 +1,135 @@
+"""Replay: re-run a recorded campaign's timeline offline from its raw stream.
+
+Every raw sample carries the plan step and the point it belongs to, so the samples of each point's
+approach, settle and capture are known. Replay feeds them, tick by tick, through the same capture
+code (campaign.capture) and the same corrections (campaign.executor.point_deviation) as the live
+campaign. With the recorded capture settings it reproduces the recorded point table; with other
+settings it shows what would change. Times in s, positions in axis unit, deviations in µm
+(arcsec for a rotary axis).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+from campaign.capture import BeamLost, Captured, capture_dwell, capture_stable
+from campaign.config import Config, load_config
+from campaign.errors import InputError
+from campaign.executor import DEVIATION_SCALE, point_deviation
+from campaign.interfaces import Reading
+from campaign.plan import Capture, Move, Plan, build_plan
+
+TICK_EPSILON_S = 1e-6
+"""Times closer than this are the same tick, s (far below the sample period)."""
+
+
+@dataclass
+class ReplayedPoint:
+    """One point replayed: its deviation (None when it could not be captured, see `reason`)."""
+
+    index: int
+    run: int
+    direction: int
+    target: float
+    deviation: float | None
+    wait_s: float | None
+    samples: int
+    time_s: float | None
+    reason: str = ""
+
+
+def load_raw(directory: Path) -> pd.DataFrame:
+    path = directory / "raw.csv"
+    if not path.is_file():
+        raise InputError(f"{directory}: not a campaign directory (no raw.csv)")
+    try:
+        raw = pd.read_csv(path, dtype={"step": "Int64", "point": "Int64"})
+    except (ValueError, pd.errors.ParserError) as exc:
+        raise InputError(f"{path}: cannot read the raw stream ({exc})") from None
+    return raw
+
+
+def _readings(rows: pd.DataFrame) -> list[Reading]:
+    def value(v):
+        return None if pd.isna(v) else float(v)
+
+    return [Reading(r.instrument_time_s, r.reading, bool(r.signal_ok), value(r.signal_pct), value(r.air_temp_c),
+                    value(r.air_pressure_hpa), value(r.humidity_pct), value(r.material_temp_c))
+            for r in rows.itertuples(index=False)]
+
+
+def _point_steps(plan: Plan) -> dict[int, tuple[int, int]]:
+    """Point index -> (index of its approach Move step, index of its Capture step)."""
+    out, last_move = {}, 0
+    for i, step in enumerate(plan.steps):
+        if isinstance(step, Move):
+            last_move = i
+        elif isinstance(step, Capture):
+            out[step.point.index] = (last_move, i)
+    return out
+
+
+def _capture(config: Config, rows: pd.DataFrame, capture_step: int, arrival: float) -> Captured:
+    """Capture one point from its samples after arrival, with `config`'s capture settings."""
+    c = config["capture"]
+    if c["method"] == "dwell":
+        recorded = rows[rows.step == capture_step]
+        if recorded.empty:
+            raise BeamLost("no capture-window samples recorded")
+        end = float(recorded.t_s.max())
+        if end - arrival < c["average_s"] - TICK_EPSILON_S:
+            raise BeamLost(f"the recording holds only {end - arrival:.2f} s after arrival")
+        window = rows[rows.t_s > end - c["average_s"] + TICK_EPSILON_S]
+        return capture_dwell(_readings(window), end - arrival)
+    tolerance = c["stable_tolerance"] / DEVIATION_SCALE[config["axis"]["unit"]]
+    readings: list[Reading] = []
+    for t, tick in rows.groupby("t_s", sort=True):
+        if t - arrival > c["stable_timeout_s"] + TICK_EPSILON_S:
+            break
+        readings.extend(_readings(tick))
+        got = capture_stable(readings, c["stable_window_s"], tolerance, float(t) - arrival)
+        if got is not None:
+            return got
+    raise BeamLost("never stable within the recorded samples and the timeout")
+
+
+def replay(directory: str | Path, capture_overrides: dict | None = None, speed: float | None = None,
+           ) -> tuple[Config, Plan, list[ReplayedPoint]]:
+    """Replay `directory` with its recorded config, the [capture] keys in `capture_overrides`
+    replaced. `speed`: pace the timeline at N times real time (None: as fast as possible)."""
+    path = Path(directory)
+    if not (path / "config.toml").is_file():
+        raise InputError(f"{path}: not a campaign directory (no config.toml)")
+    config = load_config(path / "config.toml")
+    plan = build_plan(config)  # the recorded plan: its step indices are those in raw.csv
+    config.sections["capture"] = {**config["capture"], **(capture_overrides or {})}
+    raw = load_raw(path)
+    steps = _point_steps(plan)
+    results, last_t = [], 0.0
+    for point in plan.points:
+        rows = raw[raw.point == point.index]
+        move_step, capture_step = steps[point.index]
+        moves = rows[rows.step == move_step]
+        if moves.empty:
+            results.append(ReplayedPoint(point.index, point.run, point.direction, point.target, None, None, 0,
+                                         None, "not recorded"))
+            continue
+        arrival = float(moves.t_s.max())
+        after = rows[(rows.t_s > arrival + TICK_EPSILON_S) & (rows.step != move_step)]
+        if speed:
+            time.sleep(max(0.0, arrival - last_t) / speed)
+            last_t = arrival
+        try:
+            got = _capture(config, after, capture_step, arrival)
+        except BeamLost as exc:
+            results.append(ReplayedPoint(point.index, point.run, point.direction, point.target, None, None,
+                                         len(after), None, str(exc)))
+            continue
+        deviation, _, _ = point_deviation(config, point.target, got)
+        results.append(ReplayedPoint(point.index, point.run, point.direction, point.target, deviation,
+                                     got.wait_s, got.samples, arrival + got.wait_s))
+    return config, plan, results

@@ -1,0 +1,47 @@
+"""`axiscal replay`: the recorded timeline through the same capture code, offline."""
+
+import json
+
+import pytest
+
+from tests.conftest import assert_one_line_error
+from tests.test_demo_e2e import axiscal
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    base = tmp_path_factory.mktemp("replay")
+    for method in ("dwell", "stable"):
+        assert axiscal("demo", "--out", base / method, "--capture", method).returncode == 0
+    return base
+
+
+@pytest.mark.parametrize("method", ["dwell", "stable"])
+def test_recorded_settings_reproduce_the_point_table(cli, recorded, method):
+    result = cli("replay", recorded / method, "--json")
+    data = json.loads(result.out)
+    assert result.code == 0
+    assert data["identical"] and data["differences"] == [] and data["points"] == 110
+    assert data["summary_replayed"] == pytest.approx(data["summary_recorded"])
+
+
+def test_other_capture_settings_show_what_changes(cli, recorded):
+    data = json.loads(cli("replay", recorded / "dwell", "--capture", "stable", "--json").out)
+    assert not data["identical"] and data["capture"] == "stable"
+    assert len(data["differences"]) > 50
+    assert all(d["wait_s"] < 4.0 for d in data["differences"] if d["wait_s"] is not None)
+    # captured earlier, while the axis still settles: the summary moves
+    assert data["summary_replayed"]["A"] != pytest.approx(data["summary_recorded"]["A"], abs=1e-3)
+    text = cli("replay", recorded / "dwell", "--average-s", "2.0").out
+    assert "change with dwell capture" in text and "recorded" in text
+
+
+def test_window_longer_than_the_recording_is_reported(cli, recorded):
+    data = json.loads(cli("replay", recorded / "dwell", "--average-s", "9", "--json").out)
+    assert data["points"] == 0
+    assert all("holds only" in d["note"] for d in data["differences"])
+
+
+def test_replay_bad_input(cli, tmp_path):
+    assert_one_line_error(cli("replay", tmp_path), str(tmp_path))
+    assert_one_line_error(cli("replay", tmp_path, "--average-s", "-1"), "--average-s")
