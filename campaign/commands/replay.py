@@ -52,7 +52,7 @@ def run(args) -> int:
     if not (directory / "meta.json").is_file():
         raise InputError(f"{directory}: not a campaign directory (no meta.json)")
     recorded = read_points(directory / "points.csv")
-    config, plan, points = replay(directory, overrides, args.speed)
+    config, _, points = replay(directory, overrides, args.speed)
     rec_dev = {}
     with open(directory / "points.csv", encoding="utf-8") as f:
         rows = [ln.rstrip("\n").split(",") for ln in f if ln.strip() and not ln.startswith("#")]
