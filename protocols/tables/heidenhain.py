@@ -1,0 +1,29 @@
+"""Heidenhain TNC nonlinear axis error compensation table (.COM), assigned to the axis in a
+.CMA file. Columns: NR, AXISPOS (mm or degree), the correction of the common table (mm or
+degree) and BACKLASH = reverse - forward correction per point. At most 256 entries.
+
+Verified from reference.md only: the AXISPOS/correction/BACKLASH columns and the 256 limit.
+NOT verified: the exact header and end lines and the sign of the correction column (written
+here as the correction to add, i.e. -error). Check with a test move before use.
+"""
+
+from __future__ import annotations
+
+from campaign.errors import InputError
+from protocols.tables import FormatOptions, Rendered
+
+MAX_POINTS = 256
+
+
+def render(table, options: FormatOptions) -> Rendered:
+    n = len(table.forward)
+    if n > MAX_POINTS:
+        raise InputError(f"heidenhain takes at most {MAX_POINTS} entries, the table has {n}")
+    f = table.unit_factor
+    axis = options.axis_name
+    lines = [f"BEGIN {axis}.COM", f"NR AXISPOS D{axis} BACKLASH"]
+    for i, (p, c, fw, rv) in enumerate(zip(table.positions, table.common, table.forward, table.reverse)):
+        lines.append(f"{i} {p:.4f} {c * f:+.5f} {(rv - fw) * f:+.5f}")
+    lines.append("[END]")
+    return Rendered("\n".join(lines) + "\n", [f"assign {axis}.COM to axis {axis} in the .CMA file",
+                                               "UNVERIFIED sign of the correction column: test first"])

@@ -1,0 +1,36 @@
+"""Turbo PMAC leadscrew compensation: `DEFINE COMP {entries},{count length}` then the entries,
+integers in 1/16 count with the sign of the correction (opposite to the error), then I51=1.
+
+The first entry is the correction one spacing above motor zero; the table rolls over, so the
+last entry is the value at count length, which is also the value at 0. The table must start at
+motor zero. One table only: uni mode (a backlash B̄ is reported for Ixx86).
+"""
+
+from __future__ import annotations
+
+from campaign.errors import InputError
+from protocols.tables import FormatOptions, Rendered
+
+
+def render(table, options: FormatOptions) -> Rendered:
+    cpu = options.counts_per_unit
+    if cpu is None or cpu <= 0:
+        raise InputError("pmac needs --counts-per-unit (encoder counts per mm or degree)")
+    if table.mode != "uni":
+        raise InputError("pmac writes one leadscrew table; use --mode uni")
+    if abs(table.start) > 1e-9 * max(1.0, table.spacing):
+        raise InputError(f"pmac tables start at motor zero; the grid starts at {table.start:g} "
+                         "(use --reference 0)")
+    spacing_counts = table.spacing * cpu
+    if abs(spacing_counts - round(spacing_counts)) > 1e-6:
+        raise InputError(f"the spacing {table.spacing:g} is {spacing_counts:g} counts, not a whole number")
+    sixteenths = [round(c * table.unit_factor * cpu * 16) for c in table.common]
+    entries = sixteenths[1:] + sixteenths[:1]
+    count_length = round(spacing_counts) * len(entries)
+    notes = [f"motor #{options.motor}: define tables from the highest-numbered motor down"]
+    if table.backlash is not None:
+        notes.append(f"backlash: I{options.motor}86 = {round(-table.backlash * table.unit_factor * cpu * 16)} "
+                     "(1/16 count, lost motion = -B̄)")
+    text = (f"#{options.motor}\nDEFINE COMP {len(entries)},{count_length}\n"
+            + " ".join(str(e) for e in entries) + "\nI51=1\n")
+    return Rendered(text, notes)

@@ -1,0 +1,137 @@
+"""Every table format against a hand-worked example (values worked out by hand in comments).
+
+Input tables (ControllerTable: positions mm, corrections µm, correction = added to the command,
+≈ -error):
+  BI: points 0, 10, 20 mm; forward [-5, 3, 0] µm; reverse [-7, 1, 2] µm (bidirectional).
+  UNI: the same points; common [-6, 2, 1] µm, backlash B̄ = +2 µm, so forward = common - 1 =
+       [-7, 1, 0] and reverse = common + 1 = [-5, 3, 2]; reference 0.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from campaign.compensation import corrections
+from campaign.compensation_grid import ControllerTable, resample
+from campaign.errors import InputError
+from campaign.pointtable import read_points
+from protocols.tables import FormatOptions, render
+from tests.conftest import DATA
+
+BI = ControllerTable("linear", 0.0, 10.0, np.array([-5.0, 3.0, 0.0]), np.array([-7.0, 1.0, 2.0]),
+                     np.array([-6.0, 2.0, 1.0]), "bi", None, reference=10.0)
+UNI = ControllerTable("linear", 0.0, 10.0, np.array([-7.0, 1.0, 0.0]), np.array([-5.0, 3.0, 2.0]),
+                      np.array([-6.0, 2.0, 1.0]), "uni", 2.0, reference=0.0)
+
+
+def test_linuxcnc_type0_triplets():
+    # actual = nominal - correction: 0 - (-0.005) = 0.005, 0 - (-0.007) = 0.007;
+    # 10 - 0.003 = 9.997, 10 - 0.001 = 9.999; 20 - 0 = 20, 20 - 0.002 = 19.998
+    out = render("linuxcnc", BI, FormatOptions(joint=2))
+    assert out.text == ("0.000000 0.005000 0.007000\n"
+                        "10.000000 9.997000 9.999000\n"
+                        "20.000000 20.000000 19.998000\n")
+    assert out.notes == ["[JOINT_2]", "COMP_FILE = <this file>", "COMP_FILE_TYPE = 0"]
+
+
+def test_linuxcnc_point_limit():
+    n = 257
+    big = ControllerTable("linear", 0.0, 1.0, np.zeros(n), np.zeros(n), np.zeros(n), "bi", None)
+    with pytest.raises(InputError, match="256"):
+        render("linuxcnc", big)
+
+
+def test_pmac_hand_worked():
+    # 1000 counts/mm, 1/16 count: common 2 µm = 2 counts = 32; 1 µm = 16; -6 µm = -96.
+    # entries start one spacing (10000 counts) above zero and end with the value at zero:
+    # 32 16 -96; count length 3 * 10000. Backlash I186 = lost motion -B̄ = -2 µm = -32.
+    out = render("pmac", UNI, FormatOptions(counts_per_unit=1000))
+    assert out.text == "#1\nDEFINE COMP 3,30000\n32 16 -96\nI51=1\n"
+    assert any("I186 = -32" in n for n in out.notes)
+    with pytest.raises(InputError, match="mode uni"):
+        render("pmac", BI, FormatOptions(counts_per_unit=1000))
+
+
+def test_pmac_paper_turntable():
+    # seed 003: the paper's table 3 is round(-error_counts * 16) at 10..90 deg, 0 at 0 deg (the
+    # simple method), 1000 counts per degree, 10 entries of 10000 counts
+    table = read_points(DATA / "paper-2012-pmac-turntable" / "forward_errors.csv")
+    ctable = resample(corrections(table, "auto", "simple"), 256)
+    text = render("pmac", ctable, FormatOptions(counts_per_unit=1000)).text
+    lines = text.splitlines()
+    assert lines[1] == "DEFINE COMP 10,100000"
+    assert lines[2] == "84 55 66 41 100 59 66 40 135 0"
+    assert lines[3] == "I51=1"
+
+
+def test_twincat_cnc_hand_worked():
+    # 0.1 µm units: setpoints 0, 100000, 200000; value = actual - programmed = -correction:
+    # pos = [50, -30, 0], neg = [70, -10, -20]
+    text = render("twincat_cnc", BI).text
+    fields = dict(line.split(None, 1) for line in text.splitlines())
+    assert fields["kw.ssfk.interval"] == "100000"
+    assert fields["kw.ssfk.kw_startpos"] == "0"
+    assert fields["kw.ssfk.kw_nr_max"] == "3"
+    assert fields["kw.ssfk.unit"] == "1" and fields["kw.ssfk.bilateral"] == "1"
+    assert [fields[f"kw.ssfk.table[{i}].setpoint"] for i in range(3)] == ["0", "100000", "200000"]
+    assert [fields[f"kw.ssfk.table[{i}].pos"] for i in range(3)] == ["50", "-30", "0"]
+    assert [fields[f"kw.ssfk.table[{i}].neg"] for i in range(3)] == ["70", "-10", "-20"]
+
+
+def test_siemens_hand_worked():
+    # positive value moves the axis negative: value = -correction in mm: 0.006, -0.002, -0.001
+    out = render("siemens", UNI, FormatOptions(axis_name="AX1"))
+    assert out.text.splitlines() == [
+        "%_N_AX_EEC_INI", "CHANDATA(1)",
+        "$AA_ENC_COMP[0,0,AX1]=0.006000", "$AA_ENC_COMP[0,1,AX1]=-0.002000", "$AA_ENC_COMP[0,2,AX1]=-0.001000",
+        "$AA_ENC_COMP_STEP[0,AX1]=10.000000", "$AA_ENC_COMP_MIN[0,AX1]=0.000000",
+        "$AA_ENC_COMP_MAX[0,AX1]=20.000000", "$AA_ENC_COMP_IS_MODULO[0,AX1]=0", "M17"]
+    assert "MD32450 BACKLASH = -0.002000 (lost motion = -B̄)" in out.notes
+    with pytest.raises(InputError):
+        render("siemens", BI)
+
+
+def test_fanuc_unidirectional_hand_worked():
+    # detection unit 1 µm (1000 per mm): cumulative [-6, 2, 1] -> increments [0, 8, -1];
+    # reference at point 0, interval 10 mm = 10000; backlash 1851 = -B̄ = -2
+    text = render("fanuc", UNI, FormatOptions(counts_per_unit=1000)).text
+    assert text.splitlines() == ["3620 = 0", "3621 = 0", "3622 = 2", "3623 = 1", "3624 = 10000", "1851 = -2",
+                                 "pitch[0] = 0", "pitch[1] = 8", "pitch[2] = -1"]
+
+
+def test_fanuc_bidirectional_hand_worked():
+    # forward [-5, 3, 0] -> [0, 8, -3]; reverse [-7, 1, 2] -> [0, 8, 1] at points 3..5;
+    # reference 10 mm = point 1; 3627 = reverse correction at the reference = 1
+    text = render("fanuc", BI, FormatOptions(counts_per_unit=1000)).text
+    lines = text.splitlines()
+    assert lines[:8] == ["3620 = 1", "3621 = 0", "3622 = 2", "3623 = 1", "3624 = 10000",
+                         "3605#0 = 1", "3626 = 3", "3627 = 1"]
+    assert lines[8:] == [f"pitch[{i}] = {v}" for i, v in enumerate([0, 8, -3, 0, 8, 1])]
+
+
+def test_fanuc_magnification():
+    # increments of 300 detection units exceed 127: magnification ceil(301/127) = 3, 300/3 = 100
+    t = ControllerTable("linear", 0.0, 10.0, np.array([0.0, 300.0]), np.array([0.0, 300.0]),
+                        np.array([0.0, 300.0]), "uni", None, reference=0.0)
+    lines = render("fanuc", t, FormatOptions(counts_per_unit=1000)).text.splitlines()
+    assert "3623 = 3" in lines and lines[-1] == "pitch[1] = 100"
+
+
+def test_heidenhain_hand_worked():
+    # common in mm: -0.006, 0.002, 0.001; BACKLASH = reverse - forward: -0.002, -0.002, 0.002
+    text = render("heidenhain", BI, FormatOptions(axis_name="X")).text
+    assert text.splitlines() == ["BEGIN X.COM", "NR AXISPOS DX BACKLASH",
+                                 "0 0.0000 -0.00600 -0.00200", "1 10.0000 +0.00200 -0.00200",
+                                 "2 20.0000 +0.00100 +0.00200", "[END]"]
+
+
+def test_csv_and_json():
+    assert render("csv", BI).text.splitlines() == [
+        "position_mm,correction_forward_um,correction_reverse_um",
+        "0.000000,-5.0000,-7.0000", "10.000000,3.0000,1.0000", "20.000000,0.0000,2.0000"]
+    doc = json.loads(render("json", UNI).text)
+    assert doc["forward"] == [-7.0, 1.0, 0.0] and doc["backlash"] == 2.0
+    assert doc["positions"] == [0.0, 10.0, 20.0] and doc["correction_unit"] == "um"
