@@ -24,7 +24,7 @@ import numpy as np
 
 from campaign.config import Config
 from campaign.model import ErrorModel
-from campaign.plan import Capture, Move, Settle, build_plan, move_time_s
+from campaign.plan import Capture, Move, build_plan, move_time_s
 from campaign.pointtable import PointTable
 
 SAMPLE_PERIOD_META = "sample_period_s"
@@ -81,20 +81,17 @@ def simulate_campaign(config: Config, model: ErrorModel, seed: int = 1, dwell_ji
         raise ValueError(f"dwells_s has {len(dwells_s)} entries for {n_points} points")
 
     rows: list[tuple] = []
-    t, here, settle = 0.0, None, 0.0
+    t, here = 0.0, None
     for step in plan.steps:
         if isinstance(step, Move):
             if here is not None:
                 t += move_time_s(step.position - here, step.velocity, accel)
             here = step.position
-            settle = 0.0
-        elif isinstance(step, Settle):
-            settle = step.seconds
-        elif isinstance(step, Capture):
+        elif isinstance(step, Capture):  # the plan's Settle is the dwell minus the window
             point = step.point
             window = step.window_s
             settle = max(dwells_s[point.index], window) - window
-            count = max(int(round(window / period)), 1)
+            count = max(round(window / period), 1)
             t += settle + window
             rows.append((point.run, point.direction, point.target, t, settle + window, count))
     run, direction, target, end, wait, count = (np.array(c) for c in zip(*rows))

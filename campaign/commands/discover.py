@@ -1,0 +1,152 @@
+"""`axiscal discover POINTS.csv [--model MODEL.toml] [--json] [--plot OUT] [--save NEW.toml]`:
+name the effects the model is missing (campaign/discovery.py, docs/discovery.md)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from campaign.discovery import Discovery, discover
+from campaign.discovery_data import read_campaign, read_start_model
+from campaign.errors import InputError
+from campaign.model import EFFECT_PARAMS
+from campaign.plot import check_plot_path
+from campaign.views import make_console, print_json
+
+
+def register(sub) -> None:
+    p = sub.add_parser("discover", help="name the effects an error model is missing",
+                       description="Fit MODEL to a measured point table, then name, add and refit the "
+                                   "effects the residual shows, until what is left is noise.")
+    p.add_argument("file", help="point table CSV (see docs/point-table.md)")
+    p.add_argument("--model", metavar="MODEL.toml",
+                   help="starting model, [effects.NAME] tables; a parameter left out is fitted "
+                        "(default: linear_scale only)")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+    p.add_argument("--plot", metavar="OUT", help="write the residual before and after each step (.png or .svg)")
+    p.add_argument("--save", metavar="NEW.toml", help="write the final model in the model TOML format")
+    p.set_defaults(func=run)
+
+
+def unit_of(effect: str, key: str, time_unit: str) -> str:
+    """The unit of a model parameter, from its description in EFFECT_PARAMS."""
+    if key == "tau_s" and effect == "thermal_drift" and time_unit != "s":
+        return time_unit
+    return EFFECT_PARAMS[effect][key].rsplit(", ", 1)[-1]
+
+
+def rounded(params: dict[str, float]) -> dict[str, float]:
+    return {k: round(float(v), 4) for k, v in params.items()}
+
+
+def drift_rate(effect: str, params: dict[str, float]) -> dict[str, float]:
+    """For thermal drift, the initial rate of the slope change, µm/m per hour (per point without a
+    time column: then it is per 3600 points)."""
+    if effect != "thermal_drift":
+        return {}
+    return {"initial_rate_ppm_per_h": round(params["growth_ppm"] / params["tau_s"] * 3600, 4)}
+
+
+def as_json(result: Discovery) -> dict:
+    """The JSON object: added, gap_before_um, gap_after_um, steps, and the details."""
+    return {
+        "added": result.added,
+        "gap_before_um": round(result.gap_before_um, 4),
+        "gap_after_um": round(result.gap_after_um, 4),
+        "noise_um": round(result.noise_um, 4),
+        "time_source": result.time_source,
+        "steps": [{"effect": s.effect, "params": rounded(s.params),
+                   **drift_rate(s.effect, s.params), "gap_before_um": round(s.gap_before_um, 4),
+                   "gap_after_um": round(s.gap_after_um, 4),
+                   "ranking": [{"effect": c.name, "explained_pct": round(c.explained_pct, 2),
+                                "delta_bic": round(c.delta_bic, 2), "p_value": float(f"{c.p_value:.3g}"),
+                                "cv_before_um": round(c.cv_before_um, 4), "cv_after_um": round(c.cv_after_um, 4),
+                                "verdict": c.verdict} for c in s.ranking]} for s in result.steps],
+        "model": {name: rounded(p) for name, p in result.final.params().items()},
+        "offset_um": round(result.final.offset_um, 4),
+        "disagreement_before": result.disagreement_before,
+        "disagreement_after": result.disagreement_after,
+        "notes": result.notes,
+    }
+
+
+def print_text(result: Discovery, time_unit: str) -> None:
+    console = make_console()
+    before = result.disagreement_before
+    console.print(f"start: gap {result.gap_before_um:.3f} µm RMS (measured - simulated), of which by position "
+                  f"{before['by_position_rms_um']:.3f} µm RMS, by direction "
+                  + ", ".join(f"{k} {v:+.3f}" for k, v in before["by_direction_um"].items()) + " µm, by run "
+                  + ", ".join(f"{r}: {v['mean_um']:+.3f} µm, {v['slope_ppm']:+.2f} µm/m"
+                              for r, v in before["by_run"].items()))
+    if not result.steps:
+        console.print("no effect is named: none of the vocabulary explains the residual significantly")
+    for i, step in enumerate(result.steps, 1):
+        params = ", ".join(f"{k} = {v:.4g} {unit_of(step.effect, k, time_unit)}" for k, v in step.params.items())
+        if step.effect == "thermal_drift" and time_unit == "s":
+            params += f"; initially {drift_rate(step.effect, step.params)['initial_rate_ppm_per_h']:.3g} µm/m per hour"
+        console.print(f"step {i}: add [bold]{step.effect}[/] ({params}); gap {step.gap_before_um:.3f} -> "
+                      f"{step.gap_after_um:.3f} µm")
+        for c in step.ranking:
+            console.print(f"    {c.name:28s} explains {c.explained_pct:5.1f} %  ΔBIC {c.delta_bic:8.1f}  "
+                          f"p {c.p_value:.2g}  CV {c.cv_before_um:.3f} -> {c.cv_after_um:.3f} µm  {c.verdict}")
+    verdict = "noise" if result.gap_after_um <= 1.3 * result.noise_um else "more than noise"
+    console.print(f"final gap {result.gap_after_um:.3f} µm RMS against a noise estimate of {result.noise_um:.3f} µm "
+                  f"(run-to-run scatter): what is left is {verdict}")
+    for note in result.notes:
+        console.print(f"note: {note}")
+
+
+def plot_steps(result: Discovery, x: np.ndarray, d: np.ndarray, y: np.ndarray, out: Path) -> None:
+    """One panel per step: the residual (µm) vs position (mm) before (grey) and after the step, by
+    direction. Without a step, one panel with the starting model's residual."""
+    import matplotlib.pyplot as plt  # campaign.plot has set the Agg backend
+
+    start = y - result.start.prediction
+    panels = [(f"add {s.effect}", s.residual_before, s.residual_after) for s in result.steps]
+    panels = panels or [("nothing added: residual of the starting model", None, start)]
+    fig, axes = plt.subplots(len(panels), 1, figsize=(9, 3.2 * len(panels)), squeeze=False)
+    for ax, (title, before, after) in zip(axes[:, 0], panels):
+        if before is not None:
+            ax.plot(x, before, ".", color="grey", ms=4, alpha=0.6, label="before")
+            title += f": gap {np.sqrt(np.mean(before**2)):.3f} -> {np.sqrt(np.mean(after**2)):.3f} µm"
+        for direction, colour in ((1, "tab:blue"), (-1, "tab:red")):
+            pick = d == direction
+            ax.plot(x[pick], after[pick], ".", color=colour, ms=4, label=f"after, {'+' if direction > 0 else '-'}")
+        ax.set_title(title, fontsize=10)
+        ax.axhline(0, color="grey", lw=0.6)
+        ax.set_xlabel("target (mm)")
+        ax.set_ylabel("measured - simulated (µm)")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
+def run(args) -> int:
+    plot_path = check_plot_path(args.plot) if args.plot else None
+    if args.save and Path(args.save).suffix.lower() != ".toml":
+        raise InputError(f"--save: {args.save}: the model file must end in .toml")
+    data = read_campaign(args.file)
+    model, given = read_start_model(args.model)
+    if len(data) < 4:
+        raise InputError(f"{args.file}: {len(data)} points are too few to fit a model")
+    result = discover(data, model, given)
+    if plot_path:
+        plot_steps(result, data.x, data.d, data.y, plot_path)
+    if args.save:
+        noise = model.effects.get("noise") if "sigma_um" in model.effects.get("noise", {}) else None
+        header = f"# Error model found by `axiscal discover {args.file}`; the datum offset is left out.\n"
+        if data.time_source != "time_s":
+            header += "# No time column: time constants are in points (point order), not seconds.\n"
+        Path(args.save).write_text(header + result.final_model(noise).to_toml(), encoding="utf-8")
+    if args.json:
+        print_json(as_json(result))
+    else:
+        print_text(result, data.time_unit)
+        for path, what in ((plot_path, "plot"), (args.save, "model")):
+            if path:
+                make_console().print(f"{what} written to {path}")
+    return 0

@@ -1,0 +1,297 @@
+"""Discovery: find where the simulated and the measured campaign disagree, name the effect the
+model is missing, add it, refit, and repeat until what is left is noise (issue 4, reference §5).
+
+1. Fit the current model (campaign.discovery_fit) and simulate the campaign with it; the
+   residual is measured - simulated (µm). An offset is always fitted (the laser datum is arbitrary).
+2. Summarise where they disagree: by position, by direction, by run.
+3. Rank every effect not in the model by how much of the residual it explains, penalised for
+   its parameters (the BIC change).
+4. Accept the best-ranked one that passes all of: BIC lower by more than BIC_MARGIN; a nested
+   F-test with p < ALPHA (times the number of independent periods searched, for a periodic
+   error); and a lower cross-validated RMS (leave one run out for time effects, one target out
+   for spatial ones). Then refit every shape parameter and go back to 1.
+5. An effect whose columns the model already spans is not named: it is reported as confounded.
+6. Without a time column, time is the point order (time constants in points), and it says so.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from campaign.discovery_data import CampaignData
+from campaign.discovery_effects import FORMS, SHAPE_KEYS, fixed_shape
+from campaign.discovery_fit import (
+    Fit,
+    Term,
+    bic,
+    confounders,
+    cv_rms_um,
+    drop_collinear,
+    f_test_p,
+    independent_periods,
+    linear_fit,
+    periodogram_periods,
+    refine,
+)
+from campaign.model import EFFECT_PARAMS, ErrorModel
+
+ALPHA = 0.001
+"""Largest p-value of the F-test (after the look-elsewhere factor) for an effect to be named."""
+BIC_MARGIN = 2.0
+"""How much lower the BIC must be to name an effect ("positive evidence")."""
+MAX_STEPS = len(FORMS)
+DWELL_SPREAD = 0.05
+"""Relative spread of the wait since arrival below which settling is not looked for."""
+
+
+@dataclass
+class Candidate:
+    """An effect tried at one step: its fit, the residual share it explains (%), and the tests."""
+
+    name: str
+    fit: Fit | None
+    explained_pct: float = 0.0
+    delta_bic: float = 0.0
+    p_value: float = 1.0
+    cv_before_um: float = 0.0
+    cv_after_um: float = 0.0
+    verdict: str = ""
+
+    @property
+    def accepted(self) -> bool:
+        return self.verdict == "accepted"
+
+
+@dataclass
+class Step:
+    """One named effect: its parameters and the gap (RMS of measured - simulated, µm) before and
+    after; `ranking`: every candidate tried at this step; residuals µm per point."""
+
+    effect: str
+    params: dict[str, float]
+    gap_before_um: float
+    gap_after_um: float
+    ranking: list[Candidate]
+    residual_before: np.ndarray
+    residual_after: np.ndarray
+
+
+@dataclass
+class Discovery:
+    """The result. gaps µm; noise_um: pooled run-to-run scatter of the final residual per target
+    and direction (µm); offset_um: the fitted datum offset; notes: confounding and caveats."""
+
+    steps: list[Step]
+    start: Fit
+    final: Fit
+    gap_before_um: float
+    gap_after_um: float
+    noise_um: float
+    time_source: str
+    notes: list[str] = field(default_factory=list)
+    disagreement_before: dict = field(default_factory=dict)
+    disagreement_after: dict = field(default_factory=dict)
+
+    @property
+    def added(self) -> list[str]:
+        return [s.effect for s in self.steps]
+
+    def final_model(self, noise: dict[str, float] | None = None) -> ErrorModel:
+        """The final model (the offset is left out: it belongs to the datum, not the axis)."""
+        effects = {name: {k: params[k] for k in EFFECT_PARAMS[name]} for name, params in self.final.params().items()}
+        effects["noise"] = noise or {"sigma_um": round(self.noise_um, 4)}
+        return ErrorModel(effects)
+
+
+def start_terms(model: ErrorModel, given: dict[str, set[str]], data: CampaignData,
+                notes: list[str]) -> list[Term]:
+    """Terms for the starting model: an effect with all parameters given is fixed; otherwise its
+    shape parameters given are held and the rest is fitted."""
+    terms = []
+    for name, params in model.effects.items():
+        if name == "noise":
+            continue
+        keys = given.get(name, set())
+        fixed = set(EFFECT_PARAMS[name]) <= keys
+        if name == "settling" and data.w is None:
+            _note(notes, "the model's settling is left out: without a capture_wait_s column the wait since "
+                         "arrival is unknown (the captures are taken as settled)")
+            continue
+        held = {k: v for k, v in params.items() if fixed or k in SHAPE_KEYS}
+        shape = {**fixed_shape(name, data, held), **{k: held[k] for k in FORMS[name].shape if k in held}}
+        for key in FORMS[name].shape:
+            if key not in shape:
+                shape[key] = default_shape(name, key, data)
+        terms.append(Term(name, held, fixed, shape))
+    return terms
+
+
+def default_shape(name: str, key: str, data: CampaignData) -> float:
+    """A starting shape parameter for an effect in the starting model: the middle of its grid."""
+    if key == "period_mm":
+        return 10.0
+    grid = FORMS[name].shape_grid(data, {})
+    return grid[len(grid) // 2]["tau_s"]
+
+
+def disagreement(data: CampaignData, residual: np.ndarray) -> dict:
+    """Where the residual (µm) lives: per target the mean; per direction the mean; per run the mean
+    and the slope (µm/m); RMS values µm."""
+    targets = np.unique(np.round(data.x, 6))
+    by_target = [float(residual[np.isclose(data.x, t)].mean()) for t in targets]
+    by_run = {}
+    for r in np.unique(data.run):
+        pick = data.run == r
+        slope = np.polyfit(data.x[pick] * 1e-3, residual[pick], 1)[0] if np.ptp(data.x[pick]) > 0 else 0.0
+        by_run[int(r)] = {"mean_um": round(float(residual[pick].mean()), 4), "slope_ppm": round(float(slope), 4)}
+    by_dir = {("+" if d > 0 else "-"): round(float(residual[data.d == d].mean()), 4) for d in (1, -1)
+              if np.any(data.d == d)}
+    return {"by_position_rms_um": round(float(np.sqrt(np.mean(np.square(by_target)))), 4),
+            "by_target_um": {f"{t:g}": round(m, 4) for t, m in zip(targets, by_target)},
+            "by_direction_um": by_dir, "by_run": by_run}
+
+
+def pooled_scatter_um(data: CampaignData, residual: np.ndarray) -> float:
+    """Run-to-run scatter of the residual, pooled over (target, direction) groups, µm."""
+    keys = data.target_index * 2 + (data.d > 0)
+    ss, dof = 0.0, 0
+    for k in np.unique(keys):
+        r = residual[keys == k]
+        ss += float(np.sum((r - r.mean()) ** 2))
+        dof += len(r) - 1
+    return float(np.sqrt(ss / dof)) if dof > 0 else float(np.sqrt(np.mean(residual**2)))
+
+
+def candidate_names(data: CampaignData, terms: list[Term], notes: list[str]) -> list[str]:
+    """Effects not in the model that this data can show; notes say why others are not tried."""
+    present = {t.name for t in terms}
+    names = [n for n in FORMS if n not in present]
+    if "settling" in names:
+        if data.w is None:
+            names.remove("settling")
+            _note(notes, "settling is not looked for: the table has no capture_wait_s column, and at a "
+                         "constant wait settling looks exactly like backlash")
+        else:
+            waits = np.nanmean(data.w, axis=1)
+            if np.ptp(waits) < DWELL_SPREAD * max(float(np.mean(waits)), 1e-9):
+                names.remove("settling")
+                _note(notes, "settling is confounded with backlash: the dwell does not vary, so settling "
+                             "is not looked for (vary the dwell to separate them)")
+    targets = np.unique(np.round(data.x, 6))
+    if "periodic_lead" in names and len(targets) > 2 and np.ptp(np.diff(targets)) < 1e-3 * np.ptp(targets):
+        names.remove("periodic_lead")
+        _note(notes, "periodic_lead is not looked for: the targets are evenly spaced, so a screw-lead period "
+                     "aliases into a smooth bow or vanishes (plan with offsets = \"golden\" or \"random\")")
+    if "thermal_drift" in names and len(np.unique(data.run)) < 2:
+        names.remove("thermal_drift")
+        _note(notes, "thermal_drift is not looked for: one run cannot show a run-to-run change")
+    return names
+
+
+def _note(notes: list[str], text: str) -> None:
+    if text not in notes:
+        notes.append(text)
+
+
+def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str]) -> Candidate:
+    """Fit the model plus `name` (best shape from a grid or periodogram) and test it."""
+    n = len(data)
+    held = fixed_shape(name, data, {})
+    starts = [{}]
+    if name == "periodic_lead":
+        starts = [{"period_mm": p} for p in periodogram_periods(data, current)]
+    elif FORMS[name].shape_grid is not None:
+        starts = FORMS[name].shape_grid(data, {})
+    best: Fit | None = None
+    for shape in starts:
+        term = drop_collinear(data, current.terms, Term(name, {}, False, {**held, **shape}))
+        if not any(term.keep):
+            continue
+        fit = linear_fit(data, [*current.terms, term])
+        if best is None or fit.rss < best.rss:
+            best = fit
+    if best is None:
+        others = confounders(data, current.terms, Term(name, {}, False, {**held, **(starts[0] if starts else {})}))
+        _note(notes, f"{name} is confounded with {' + '.join(others) or 'the model'} on this data: not named")
+        return Candidate(name, None, verdict="confounded")
+    if FORMS[name].shape:
+        best = refine(data, best.terms)
+    cand = Candidate(name, best, explained_pct=100 * (1 - best.rss / current.rss) if current.rss > 0 else 0.0)
+    cand.delta_bic = bic(best, n) - bic(current, n)
+    look_elsewhere = independent_periods(data) if name == "periodic_lead" else 1.0
+    cand.p_value = min(1.0, f_test_p(current, best, n) * look_elsewhere)
+    groups = data.run if FORMS[name].group == "run" else data.target_index
+    cand.cv_before_um = cv_rms_um(data, current.terms, groups)
+    cand.cv_after_um = cv_rms_um(data, best.terms, groups)
+    failed = [why for ok, why in ((cand.delta_bic < -BIC_MARGIN, "BIC"), (cand.p_value < ALPHA, "F-test"),
+                                  (cand.cv_after_um < cand.cv_before_um, "cross-validation")) if not ok]
+    cand.verdict = "accepted" if not failed else "not significant (" + ", ".join(failed) + ")"
+    return cand
+
+
+def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) -> Discovery:
+    """Run discovery on a campaign from a starting model (`given`: the parameters the user gave
+    per effect; the others are fitted)."""
+    notes: list[str] = []
+    if data.time_source != "time_s":
+        notes.append("the table has no time column: time effects use the point order (time constants "
+                     "are in points, not seconds)")
+    start = refine(data, start_terms(model, given, data, notes))
+    current, steps = start, []
+    for _ in range(MAX_STEPS):
+        ranking = [try_candidate(data, current, name, notes)
+                   for name in candidate_names(data, current.terms, notes)]
+        ranking.sort(key=lambda c: (c.fit is None, c.delta_bic))
+        accepted = [c for c in ranking if c.accepted]
+        chosen = accepted[0] if accepted else None
+        for cand in accepted[1:]:
+            cand.verdict = "significant, but explains less: tried again at the next step"
+        if chosen is None:
+            if ranking:
+                steps_ranking_note(notes, ranking)
+            break
+        after = refine(data, chosen.fit.terms)
+        steps.append(Step(chosen.name, after.params()[chosen.name], current.rms_um(data.y), after.rms_um(data.y),
+                          ranking, data.y - current.prediction, data.y - after.prediction))
+        current = after
+    add_confounding_notes(data, current, notes)
+    residual = data.y - current.prediction
+    return Discovery(steps, start, current, start.rms_um(data.y), current.rms_um(data.y),
+                     pooled_scatter_um(data, residual), data.time_source, notes,
+                     disagreement(data, data.y - start.prediction), disagreement(data, residual))
+
+
+def steps_ranking_note(notes: list[str], ranking: list[Candidate]) -> None:
+    best = ranking[0]
+    if best.fit is not None:
+        _note(notes, f"nothing more is named: the best remaining candidate, {best.name}, explains "
+                     f"{best.explained_pct:.1f} % of the residual but fails {best.verdict.split('(')[-1].rstrip(')')}")
+
+
+def add_confounding_notes(data: CampaignData, fit: Fit, notes: list[str]) -> None:
+    """Say which named effects cannot be told from others on this data."""
+    params = fit.params()
+    env = {k for k, v in data.env.items() if np.ptp(v) > 0}
+    if "linear_scale" in params:
+        _note(notes, "linear_scale also holds any cosine error (always negative, < 1 µm/m) and, without an "
+                     "environment log, a constant air refractive-index or material-expansion error: "
+                     "they are confounded with it")
+    if "thermal_drift" in params:
+        pivot = params["thermal_drift"]["pivot_mm"]
+        datum = float(data.x.min())
+        near = abs(pivot - datum) < 0.1 * (np.ptp(data.x) or 1.0)
+        air = {"air_temp_c", "air_pressure_hpa"} & env
+        if near and not air:
+            _note(notes, f"thermal_drift pivots at {pivot:.0f} mm, near the laser datum ({datum:g} mm): screw "
+                         "growth is confounded with a drift of the air's refractive index here (no air log)")
+        elif abs(pivot - datum) > 2 * np.ptp(data.x):
+            _note(notes, f"thermal_drift pivots at {pivot:.0f} mm, far outside the travel: mostly a drift of "
+                         "the datum over time (e.g. the laser, its mount or the air warming), not screw growth")
+        elif not near:
+            _note(notes, f"thermal_drift pivots at {pivot:.0f} mm, away from the laser datum ({datum:g} mm): "
+                         "screw growth about a fixed bearing, not air refractive index (which pivots at the datum)")
+        if air:
+            _note(notes, f"the air log varies ({', '.join(sorted(air))}): compare its refractive-index change "
+                         "with the thermal_drift slope change before blaming the screw")

@@ -1,0 +1,135 @@
+"""What discovery knows about a measured campaign: where, from which side, when, and how long after
+arrival each point was captured; and the starting model with the parameters the user gave.
+
+Units: positions mm (deg), deviations µm (arcsec), times s; without a time column the time is the
+point order (one unit per point).
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from campaign.errors import InputError
+from campaign.model import ErrorModel, model_from_dict
+from campaign.pointtable import PointTable, read_points
+from campaign.simulate import SAMPLE_PERIOD_META, sample_times
+
+CAPTURE_COLUMNS = ("capture_wait_s", "samples")
+"""Point-table columns the recorder writes that discovery uses when present."""
+
+
+@dataclass
+class CampaignData:
+    """One measured campaign, one entry per point (rows of t and w: one column per sample).
+
+    x: target, mm. d: approach direction, ±1. run: run number. y: deviation, µm.
+    t: sample times, s since start (or point order). w: sample waits since arrival, s (None when
+    unknown). time_source: "time_s" or "point order". env: environment columns present.
+    """
+
+    x: np.ndarray
+    d: np.ndarray
+    run: np.ndarray
+    y: np.ndarray
+    t: np.ndarray
+    w: np.ndarray | None
+    time_source: str
+    env: dict[str, np.ndarray]
+
+    def __len__(self) -> int:
+        return len(self.y)
+
+    @property
+    def target_index(self) -> np.ndarray:
+        """Index of each point's target among the distinct targets."""
+        return np.unique(np.round(self.x, 6), return_inverse=True)[1]
+
+    @property
+    def time_unit(self) -> str:
+        return "s" if self.time_source == "time_s" else "points"
+
+
+def campaign_data(table: PointTable, capture: dict[str, np.ndarray] | None = None,
+                  sample_period_s: float | None = None) -> CampaignData:
+    """CampaignData from a point table. `capture`: capture_wait_s (s) and samples per point, if
+    known (a table from campaign.simulate carries them in `optional`); sample_period_s: the
+    instrument's sample period, s (default: table metadata, else one sample per point)."""
+    capture = dict(capture or {})
+    for name in CAPTURE_COLUMNS:
+        if name in table.optional:
+            capture.setdefault(name, table.optional[name])
+    if sample_period_s is None and SAMPLE_PERIOD_META in table.meta:
+        sample_period_s = float(table.meta[SAMPLE_PERIOD_META])
+    n = len(table)
+    if "time_s" in table.optional:
+        end, source = table.optional["time_s"], "time_s"
+    else:
+        end, source = np.arange(n, dtype=float), "point order"
+    wait = capture.get("capture_wait_s")
+    samples = capture.get("samples") if sample_period_s and source == "time_s" else None
+    if samples is None:
+        samples, period = np.ones(n), 1.0
+    else:
+        period = sample_period_s
+    t, w = sample_times(end, wait if wait is not None else np.zeros(n), samples, period)
+    env = {k: v for k, v in table.optional.items() if k not in ("time_s", *CAPTURE_COLUMNS)}
+    return CampaignData(x=table.target.astype(float), d=table.direction.astype(float), run=table.run,
+                        y=table.deviation.astype(float), t=t, w=w if wait is not None else None,
+                        time_source=source, env=env)
+
+
+def read_capture_columns(path: Path) -> dict[str, np.ndarray]:
+    """The capture_wait_s and samples columns of a point-table file, if it has them (read_points
+    keeps only the columns every tool evaluates)."""
+    lines = [ln.strip() for ln in path.read_text(encoding="utf-8-sig").splitlines()]
+    lines = [ln for ln in lines if ln and not ln.startswith("#")]
+    header = lines[0].split(",")
+    found = {}
+    for name in CAPTURE_COLUMNS:
+        if name in header:
+            i = header.index(name)
+            try:
+                found[name] = np.array([float(ln.split(",")[i]) for ln in lines[1:]])
+            except (ValueError, IndexError):
+                raise InputError(f"{path}: column '{name}' is not numeric on every row") from None
+    return found
+
+
+def read_campaign(path: str | Path) -> CampaignData:
+    """Read a point table for discovery: the table itself, its capture columns, and the sample
+    period from the campaign's config.toml next to it (1/instrument.rate_hz) when there is one."""
+    path = Path(path)
+    table = read_points(path)
+    capture = read_capture_columns(path)
+    period = None
+    config = path.parent / "config.toml"
+    if "samples" in capture and config.is_file() and SAMPLE_PERIOD_META not in table.meta:
+        try:
+            rate = tomllib.loads(config.read_text(encoding="utf-8")).get("instrument", {}).get("rate_hz", 10.0)
+            period = 1.0 / float(rate)
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError, ValueError, TypeError, ZeroDivisionError):
+            period = None
+    return campaign_data(table, capture, period)
+
+
+def read_start_model(path: str | Path | None) -> tuple[ErrorModel, dict[str, set[str]]]:
+    """The starting model and, per effect, the parameter names the file gives (the rest is fitted).
+    Without a file: linear_scale with its slope to fit."""
+    if path is None:
+        return ErrorModel({"linear_scale": {}}), {"linear_scale": set()}
+    name = str(path)
+    try:
+        data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{name}: no such file") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"{name}: not valid TOML ({exc})") from None
+    model = model_from_dict(data, name, require_all=False)
+    given = {effect: set(params) for effect, params in data.get("effects", {}).items()}
+    model.effects = {effect: {k: v for k, v in params.items() if k in given[effect]}
+                     for effect, params in model.effects.items()}
+    return model, given

@@ -1,0 +1,156 @@
+"""The effects discovery can name, as least-squares forms (reference.md §5).
+
+Each effect is linear in some coefficients once its shape parameters (a period, a time constant,
+a pivot or a span) are fixed: `columns` gives those coefficients' regressors averaged over each
+capture's samples, `params` turns fitted coefficients back into the model's parameters, and
+`shape_grid` gives starting values for the shape parameters that are searched.
+
+Units: x mm, deviations µm, t s (or point order), w s; ppm = µm/m.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from campaign.discovery_data import CampaignData
+from campaign.model import _legendre
+
+PERIOD_RANGE_MM = (2.0, 100.0)
+"""Plausible screw leads searched for a periodic error, mm (at most half the travel)."""
+
+
+def _mean_samples(values: np.ndarray) -> np.ndarray:
+    return np.nanmean(values, axis=1)
+
+
+def _span(data: CampaignData, held: dict) -> tuple[float, float]:
+    return held.get("start_mm", float(data.x.min())), held.get("end_mm", float(data.x.max()))
+
+
+def _linear_scale(data, shape, held):
+    return (data.x * 1e-3)[:, None]
+
+
+def _backlash(data, shape, held):
+    return (-data.d / 2)[:, None]
+
+
+def _periodic(data, shape, held):
+    angle = 2 * np.pi * data.x / shape["period_mm"]
+    return np.column_stack([np.sin(angle), np.cos(angle)])
+
+
+def _periodic_params(c, shape, held):
+    return {"amplitude_um": float(math.hypot(c[0], c[1])), "period_mm": shape["period_mm"],
+            "phase_rad": float(math.atan2(c[1], c[0]))}
+
+
+def _warming(data, tau_s):
+    return _mean_samples(1 - np.exp(-data.t / tau_s))
+
+
+def _thermal(data, shape, held):
+    f = _warming(data, shape["tau_s"])
+    if "pivot_mm" in held:
+        return ((data.x - held["pivot_mm"]) * 1e-3 * f)[:, None]
+    return np.column_stack([data.x * 1e-3 * f, -1e-3 * f])
+
+
+def _thermal_params(c, shape, held):
+    if "pivot_mm" in held:
+        return {"growth_ppm": float(c[0]), "tau_s": shape["tau_s"], "pivot_mm": held["pivot_mm"]}
+    pivot = float(c[1] / c[0]) if abs(c[0]) > 1e-12 else 0.0
+    return {"growth_ppm": float(c[0]), "tau_s": shape["tau_s"], "pivot_mm": pivot}
+
+
+def _nonlinear(data, shape, held):
+    start, end = _span(data, held)
+    p2, p3 = _legendre(2 * (data.x - start) / (end - start) - 1)
+    return np.column_stack([p2, p3])
+
+
+def _nonlinear_params(c, shape, held):
+    return {"p2_um": float(c[0]), "p3_um": float(c[1]), "start_mm": shape["start_mm"], "end_mm": shape["end_mm"]}
+
+
+def _pd_backlash(data, shape, held):
+    return np.column_stack([-data.d / 2, -data.d * data.x * 1e-3 / 2])
+
+
+def _settling(data, shape, held):
+    return (-data.d * _mean_samples(np.exp(-data.w / shape["tau_s"])))[:, None]
+
+
+def _duration(data):
+    return float(np.nanmax(data.t) - np.nanmin(data.t)) or 1.0
+
+
+def _tau_grid(low, high, count=24):
+    return [{"tau_s": float(v)} for v in np.geomspace(low, high, count)]
+
+
+def _thermal_grid(data, held):
+    span = _duration(data)
+    return _tau_grid(span / 30, span * 3)
+
+
+def _settling_grid(data, held):
+    waits = data.w[np.isfinite(data.w)]
+    return _tau_grid(max(waits.min() / 10, 1e-3), waits.max() * 2)
+
+
+def period_limits(data: CampaignData) -> tuple[float, float]:
+    """The range of periods searched, mm."""
+    travel = float(np.ptp(data.x)) or 1.0
+    return PERIOD_RANGE_MM[0], min(PERIOD_RANGE_MM[1], travel / 2)
+
+
+@dataclass(frozen=True)
+class EffectForm:
+    """One effect's least-squares form. coefficients: names of the linear coefficients (model
+    parameter names where they are one). shape: the shape parameters that may be searched.
+    group: "target" (spatial: cross-validated leaving one target out) or "run" (time: one run
+    out)."""
+
+    name: str
+    coefficients: tuple[str, ...]
+    shape: tuple[str, ...]
+    group: str
+    columns: Callable
+    to_params: Callable | None = None
+    shape_grid: Callable | None = None
+
+    def params(self, coefs: np.ndarray, shape: dict, held: dict) -> dict[str, float]:
+        if self.to_params is not None:
+            return self.to_params(coefs, shape, held)
+        return {**{k: float(v) for k, v in zip(self.coefficients, coefs)}, **shape}
+
+
+FORMS: dict[str, EffectForm] = {f.name: f for f in (
+    EffectForm("linear_scale", ("ppm",), (), "target", _linear_scale),
+    EffectForm("backlash", ("b_um",), (), "target", _backlash),
+    EffectForm("periodic_lead", ("sin_um", "cos_um"), ("period_mm",), "target", _periodic,
+               _periodic_params),
+    EffectForm("thermal_drift", ("growth_ppm", "growth_pivot"), ("tau_s",), "run", _thermal,
+               _thermal_params, _thermal_grid),
+    EffectForm("nonlinear_lead", ("p2_um", "p3_um"), (), "target", _nonlinear, _nonlinear_params),
+    EffectForm("position_dependent_backlash", ("b0_um", "k_ppm"), (), "target", _pd_backlash),
+    EffectForm("settling", ("e0_um",), ("tau_s",), "target", _settling, None, _settling_grid),
+)}
+"""Effect name -> its form, in the order candidates are listed."""
+
+SHAPE_KEYS = ("period_mm", "tau_s", "pivot_mm", "start_mm", "end_mm")
+"""Parameters held when the model file gives them although the effect is refitted."""
+
+
+def fixed_shape(name: str, data: CampaignData, held: dict) -> dict[str, float]:
+    """Shape parameters that are not searched: the span of the nonlinear lead (default: the
+    targets' range)."""
+    if name == "nonlinear_lead":
+        start, end = _span(data, held)
+        return {"start_mm": start, "end_mm": end}
+    return {}

@@ -1,0 +1,230 @@
+"""Least-squares fitting of a model of effect terms to a campaign, and the tests discovery uses.
+
+The deviation is offset + Σ (free terms' columns · coefficients) + Σ (fixed terms' deviations).
+Shape parameters (periods, time constants) are found by variable projection: for given shapes the
+coefficients are a linear least-squares solution; the shapes are refined with
+scipy.optimize.least_squares (in log space, within bounds) from a grid or periodogram start.
+
+Units: deviations and RMS values µm; everything else as in campaign.discovery_effects.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy import optimize, stats
+
+from campaign.discovery_data import CampaignData
+from campaign.discovery_effects import FORMS, period_limits
+from campaign.model import effect_um
+
+COLLINEAR = 1e-3
+"""A column whose part outside the model's span is below this fraction of its norm adds nothing."""
+
+
+@dataclass
+class Term:
+    """One effect in the model. held: parameters given by the user and kept. fixed: every
+    parameter given, so the effect's deviation is fixed. shape: current shape parameters.
+    keep: which of the form's columns are fitted (a column collinear with the model is dropped and
+    its coefficient is 0)."""
+
+    name: str
+    held: dict[str, float] = field(default_factory=dict)
+    fixed: bool = False
+    shape: dict[str, float] = field(default_factory=dict)
+    keep: tuple[bool, ...] | None = None
+
+    @property
+    def searched(self) -> list[str]:
+        return [] if self.fixed else [k for k in FORMS[self.name].shape if k not in self.held]
+
+    def columns(self, data: CampaignData) -> np.ndarray:
+        cols = FORMS[self.name].columns(data, self.shape, self.held)
+        return cols if self.keep is None else cols[:, list(self.keep)]
+
+
+@dataclass
+class Fit:
+    """Fitted terms: coefficients per free term (in the form's full column order), offset µm,
+    prediction µm per point, residual sum of squares µm², number of fitted parameters."""
+
+    terms: list[Term]
+    coefs: list[np.ndarray]
+    offset_um: float
+    prediction: np.ndarray
+    rss: float
+    n_params: int
+
+    def params(self) -> dict[str, dict[str, float]]:
+        """Effect name -> model parameters (physical units, see model.EFFECT_PARAMS)."""
+        out = {}
+        for term, coefs in zip(self.terms, self.coefs):
+            out[term.name] = dict(term.held) if term.fixed else FORMS[term.name].params(coefs, term.shape, term.held)
+        return out
+
+    def rms_um(self, y: np.ndarray) -> float:
+        return float(np.sqrt(np.mean((y - self.prediction) ** 2)))
+
+
+def fixed_deviation(data: CampaignData, terms: list[Term]) -> np.ndarray:
+    """The capture-averaged deviation of the fixed terms, µm."""
+    total = np.zeros(len(data))
+    w = data.w if data.w is not None else np.full(data.t.shape, np.inf)
+    for term in terms:
+        if term.fixed:
+            values = effect_um(term.name, term.held, data.x[:, None], data.d[:, None], data.t, w)
+            total += np.nanmean(np.where(np.isnan(data.t), np.nan, values), axis=1)
+    return total
+
+
+def design(data: CampaignData, terms: list[Term]) -> tuple[np.ndarray, list[slice]]:
+    """The regressors: a column of ones (the offset), then each free term's kept columns."""
+    blocks, slices, start = [np.ones((len(data), 1))], [], 1
+    for term in terms:
+        cols = np.zeros((len(data), 0)) if term.fixed else term.columns(data)
+        blocks.append(cols)
+        slices.append(slice(start, start + cols.shape[1]))
+        start += cols.shape[1]
+    return np.hstack(blocks), slices
+
+
+def _solve(a: np.ndarray, y: np.ndarray) -> np.ndarray:
+    return np.linalg.lstsq(a, y, rcond=None)[0]
+
+
+def linear_fit(data: CampaignData, terms: list[Term]) -> Fit:
+    """Fit the coefficients for the terms' current shapes."""
+    base = fixed_deviation(data, terms)
+    a, slices = design(data, terms)
+    beta = _solve(a, data.y - base)
+    prediction = base + a @ beta
+    coefs = []
+    for term, sl in zip(terms, slices):
+        full = np.zeros(FORMS[term.name].columns(data, term.shape, term.held).shape[1]) if not term.fixed \
+            else np.zeros(0)
+        if not term.fixed:
+            keep = term.keep if term.keep is not None else (True,) * len(full)
+            full[list(np.flatnonzero(keep))] = beta[sl]
+        coefs.append(full)
+    n_params = a.shape[1] + sum(len(t.searched) for t in terms)
+    return Fit(terms, coefs, float(beta[0]), prediction, float(np.sum((data.y - prediction) ** 2)), n_params)
+
+
+def _shape_bounds(data: CampaignData, name: str, key: str) -> tuple[float, float]:
+    if key == "period_mm":
+        return period_limits(data)
+    grid = FORMS[name].shape_grid(data, {})
+    return grid[0]["tau_s"] / 3, grid[-1]["tau_s"] * 3
+
+
+def refine(data: CampaignData, terms: list[Term]) -> Fit:
+    """Refine every searched shape parameter from its current value (least_squares on logs)."""
+    slots = [(i, key) for i, term in enumerate(terms) for key in term.searched]
+    if not slots:
+        return linear_fit(data, terms)
+    lower = np.log([_shape_bounds(data, terms[i].name, k)[0] for i, k in slots])
+    upper = np.log([_shape_bounds(data, terms[i].name, k)[1] for i, k in slots])
+    start = np.clip(np.log([terms[i].shape[k] for i, k in slots]), lower + 1e-9, upper - 1e-9)
+
+    def with_shapes(logs) -> list[Term]:
+        new = [replace(t, shape=dict(t.shape)) for t in terms]
+        for (i, key), value in zip(slots, logs):
+            new[i].shape[key] = float(math.exp(value))
+        return new
+
+    def residual(logs):
+        f = linear_fit(data, with_shapes(logs))
+        return data.y - f.prediction
+
+    result = optimize.least_squares(residual, start, bounds=(lower, upper), x_scale=0.1, diff_step=1e-4)
+    best = linear_fit(data, with_shapes(result.x))
+    first = linear_fit(data, terms)
+    return best if best.rss <= first.rss else first
+
+
+def drop_collinear(data: CampaignData, terms: list[Term], term: Term) -> Term:
+    """`term` with its columns that the model's columns already span dropped (keep mask)."""
+    base, _ = design(data, terms)
+    q, _ = np.linalg.qr(base)
+    cols = FORMS[term.name].columns(data, term.shape, term.held)
+    outside = cols - q @ (q.T @ cols)
+    norms = np.linalg.norm(cols, axis=0)
+    keep = tuple(bool(n > 0 and np.linalg.norm(o) > COLLINEAR * n) for o, n in zip(outside.T, norms))
+    return replace(term, keep=keep)
+
+
+def confounders(data: CampaignData, terms: list[Term], term: Term) -> list[str]:
+    """The model's effects whose columns (with the offset) span `term`'s columns on this data."""
+    cols = FORMS[term.name].columns(data, term.shape, term.held)
+    names = []
+    for other in terms:
+        if other.name == term.name:
+            continue
+        q, _ = np.linalg.qr(design(data, [replace(other, fixed=False, keep=None)])[0])
+        outside = cols - q @ (q.T @ cols)
+        if np.linalg.norm(outside) <= COLLINEAR * max(np.linalg.norm(cols), 1e-300):
+            names.append(other.name)
+    return names
+
+
+def periodogram_periods(data: CampaignData, fit: Fit, top: int = 3) -> list[float]:
+    """Periods (mm) where a sine of the residual, fitted beside the model, explains most: a
+    Lomb-Scargle-like periodogram over the plausible screw leads with the model projected out."""
+    low, high = period_limits(data)
+    travel = float(np.ptp(data.x)) or 1.0
+    freqs = np.arange(1 / high, 1 / low, 1 / (8 * travel))
+    a, _ = design(data, fit.terms)
+    q, _ = np.linalg.qr(a)
+    r = data.y - fit.prediction
+    angle = 2 * np.pi * np.outer(data.x, freqs)
+    power = np.zeros(len(freqs))
+    s, c = np.sin(angle), np.cos(angle)
+    s -= q @ (q.T @ s)
+    c -= q @ (q.T @ c)
+    ss, cc, sc = (s * s).sum(0), (c * c).sum(0), (s * c).sum(0)
+    rs, rc = r @ s, r @ c
+    det = ss * cc - sc * sc
+    ok = det > 1e-9 * np.maximum(ss * cc, 1e-300)
+    power[ok] = (cc * rs**2 - 2 * sc * rs * rc + ss * rc**2)[ok] / det[ok]
+    peaks = [i for i in range(len(power)) if power[i] > 0 and (i == 0 or power[i] >= power[i - 1])
+             and (i == len(power) - 1 or power[i] >= power[i + 1])]
+    peaks.sort(key=lambda i: -power[i])
+    return [float(1 / freqs[i]) for i in peaks[:top]]
+
+
+def independent_periods(data: CampaignData) -> float:
+    """About how many independent periods the periodogram tries (for the look-elsewhere effect)."""
+    low, high = period_limits(data)
+    return max(1.0, float(np.ptp(data.x)) * (1 / low - 1 / high))
+
+
+def cv_rms_um(data: CampaignData, terms: list[Term], groups: np.ndarray) -> float:
+    """Cross-validated RMS, µm: each group (a target or a run) predicted from the others, shapes
+    held at their fitted values."""
+    base = fixed_deviation(data, terms)
+    a, _ = design(data, terms)
+    y = data.y - base
+    errors = np.zeros(len(y))
+    for g in np.unique(groups):
+        out = groups == g
+        beta = _solve(a[~out], y[~out])
+        errors[out] = y[out] - a[out] @ beta
+    return float(np.sqrt(np.mean(errors**2)))
+
+
+def bic(fit: Fit, n: int) -> float:
+    """Bayesian information criterion of a fit with Gaussian residuals (dimensionless)."""
+    return n * math.log(max(fit.rss, 1e-300) / n) + fit.n_params * math.log(n)
+
+
+def f_test_p(before: Fit, after: Fit, n: int) -> float:
+    """p-value of the nested-model F-test that the added parameters explain nothing."""
+    q = after.n_params - before.n_params
+    dof = n - after.n_params
+    if q <= 0 or dof <= 0 or after.rss <= 0:
+        return 1.0
+    f_value = (before.rss - after.rss) / q / (after.rss / dof)
+    return float(stats.f.sf(f_value, q, dof)) if f_value > 0 else 1.0

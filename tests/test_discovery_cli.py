@@ -1,0 +1,164 @@
+"""`axiscal discover` on files: JSON, plot, saved model, bad input, seed 000's horizontal axis, and
+agreement of the fast simulator (campaign/simulate.py) with the real simulated machine (`axiscal
+run`: real pyads against the loopback ADS server, one campaign at a time)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from campaign.config import parse_config
+from campaign.model import model_from_dict, read_model
+from campaign.pointtable import write_points
+from campaign.simulate import simulate_campaign
+from tests.conftest import PAPER, ROOT, assert_one_line_error
+
+REAL_PLAN = """
+[axis]
+soft_limit_min = -10.0
+soft_limit_max = 610.0
+max_velocity = 50.0
+max_acceleration = 200.0
+
+[plan]
+length = 600.0
+count = 21
+overrun = 5.0
+cycles = 4
+dwell_s = 1.0
+velocity = 40.0
+offsets = "golden"
+offset_fraction = 0.45
+
+[capture]
+average_s = 0.5
+
+[sim]
+seed = 7
+
+[sim.effects.linear_scale]
+ppm = -12.4
+
+[sim.effects.noise]
+sigma_um = 0.3
+reading_sigma_um = 0.05
+"""
+
+SPATIAL_AND_TIME = """
+[sim.effects.backlash]
+b_um = 4.0
+
+[sim.effects.periodic_lead]
+amplitude_um = 1.5
+period_mm = 10.0
+phase_rad = 0.7
+
+[sim.effects.thermal_drift]
+growth_ppm = 10.0
+tau_s = 120.0
+pivot_mm = 300.0
+"""
+
+REVERSAL_AND_SETTLING = """
+[sim.effects.position_dependent_backlash]
+b0_um = 3.0
+k_ppm = 10.0
+
+[sim.effects.nonlinear_lead]
+p2_um = 2.0
+p3_um = -1.5
+start_mm = 0.0
+end_mm = 600.0
+
+[sim.effects.settling]
+e0_um = 1.0
+tau_s = 0.5
+"""
+
+
+def discover_json(cli, *args) -> dict:
+    result = cli("discover", *args, "--json")
+    assert result.code == 0, result.err
+    return json.loads(result.out)
+
+
+def test_seed_000_horizontal_axis(cli, tmp_path):
+    data = discover_json(cli, PAPER / "horizontal_before.csv", "--save", tmp_path / "h.toml",
+                         "--plot", tmp_path / "h.png")
+    assert data["time_source"] == "point order"
+    assert any("point order" in note for note in data["notes"])
+    assert any("evenly spaced" in note for note in data["notes"])  # no periodic search on a 60 mm grid
+    assert data["added"] == ["nonlinear_lead"]
+    assert data["gap_after_um"] < data["gap_before_um"]
+    saved = read_model(tmp_path / "h.toml")
+    assert set(saved.effects) == {"linear_scale", "nonlinear_lead", "noise"}
+    assert saved.effects["linear_scale"]["ppm"] == pytest.approx(data["model"]["linear_scale"]["ppm"], abs=1e-3)
+    assert (tmp_path / "h.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_text_output_names_steps_units_and_noise(cli, tmp_path):
+    config = parse_config(REAL_PLAN + SPATIAL_AND_TIME)
+    table = simulate_campaign(config, model_from_dict({"effects": config["sim"]["effects"]}, "t"), seed=2)
+    write_points(tmp_path / "points.csv", table)
+    model = tmp_path / "start.toml"
+    model.write_text("[effects.linear_scale]\n[effects.backlash]\n")
+    result = cli("discover", tmp_path / "points.csv", "--model", model)
+    assert result.code == 0, result.err
+    assert "add periodic_lead" in result.out and "period_mm = " in result.out and " mm" in result.out
+    assert "add thermal_drift" in result.out and "µm/m per hour" in result.out
+    assert "noise estimate" in result.out
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["missing.csv"], "no such file"),
+    ([PAPER / "horizontal_before.csv", "--model", "nope.toml"], "no such file"),
+    ([PAPER / "horizontal_before.csv", "--plot", "x.jpg"], "unsupported plot format"),
+    ([PAPER / "horizontal_before.csv", "--save", "x.json"], "--save"),
+])
+def test_bad_input_is_one_error_line(cli, args, fragment):
+    assert_one_line_error(cli("discover", *args), fragment)
+
+
+def test_bad_model_names_the_key(cli, tmp_path):
+    model = tmp_path / "m.toml"
+    model.write_text("[effects.wobble]\n")
+    assert_one_line_error(cli("discover", PAPER / "horizontal_before.csv", "--model", model), "effects.wobble")
+
+
+def run_real_campaign(tmp_path, effects: str) -> tuple:
+    """Run the campaign on the real simulated machine, and the same on the fast simulator."""
+    path = tmp_path / "c.toml"
+    path.write_text(REAL_PLAN + effects)
+    proc = subprocess.run([sys.executable, "-m", "campaign", "run", path, "--out", tmp_path / "real", "--json"],
+                          capture_output=True, text=True, timeout=300, cwd=ROOT, check=False)
+    assert proc.returncode == 0, proc.stderr
+    config = parse_config(REAL_PLAN + effects)
+    fast = simulate_campaign(config, model_from_dict({"effects": config["sim"]["effects"]}, "t"), seed=7)
+    write_points(tmp_path / "fast.csv", fast)
+    return tmp_path / "real" / "points.csv", tmp_path / "fast.csv"
+
+
+def test_fast_simulator_agrees_with_the_machine_on_spatial_and_time_effects(cli, tmp_path):
+    real, fast = run_real_campaign(tmp_path, SPATIAL_AND_TIME)
+    model = tmp_path / "start.toml"
+    model.write_text("[effects.linear_scale]\n[effects.backlash]\n")
+    found = [discover_json(cli, path, "--model", model) for path in (real, fast)]
+    for data in found:
+        assert data["added"] == ["periodic_lead", "thermal_drift"], data["notes"]
+        assert data["model"]["periodic_lead"]["period_mm"] == pytest.approx(10.0, rel=0.15)
+        assert data["model"]["thermal_drift"]["growth_ppm"] == pytest.approx(10.0, rel=0.15)
+        assert data["gap_after_um"] <= 1.3 * 0.3
+    assert found[0]["gap_before_um"] == pytest.approx(found[1]["gap_before_um"], rel=0.15)
+
+
+def test_fast_simulator_agrees_with_the_machine_on_reversal_and_settling(cli, tmp_path):
+    real, fast = run_real_campaign(tmp_path, REVERSAL_AND_SETTLING)
+    for path in (real, fast):
+        data = discover_json(cli, path)
+        assert sorted(data["added"]) == ["nonlinear_lead", "position_dependent_backlash"], data["notes"]
+        assert data["model"]["position_dependent_backlash"]["k_ppm"] == pytest.approx(10.0, rel=0.15)
+        # a constant dwell: settling is the part of the reversal that is not named
+        assert any("settling is confounded with backlash" in note for note in data["notes"])
