@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from campaign.errors import InputError
+from campaign.faults import parse_faults
 from campaign.model import model_from_dict
 from protocols.serial_line import LineFormat
 
@@ -40,6 +41,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "description": Key(str, "", "free text, recorded in the metadata"),
         "tolerance": Key(float, 0.0, "pass/fail tolerance on A, deviation unit (µm or arcsec); 0 = none",
                          min=0),
+        "on_fault": Key(str, "retry", "without an operator: retry a point after a fault, or abort at once",
+                        choices=("retry", "abort")),
+        "fault_retries": Key(int, 3, "faults retried at one point before the campaign stops", min=0, max=20),
     },
     "axis": {
         "name": Key(str, "X", "axis name"),
@@ -80,6 +84,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "axis_index": Key(int, 1, "index n of GVL_Axiscal.astAxes[n]", min=1, max=64),
         "timeout_s": Key(float, 2.0, "ADS call timeout, s", min=0.01, max=60),
         "move_timeout_s": Key(float, 300.0, "longest a single move may take, s", min=0.1),
+        "reconnect_s": Key(float, 30.0, "how long to wait for a lost ADS connection to come back, s", min=0),
         "read_only": Key(bool, False, "dry run: talk to the PLC read-only, command nothing"),
     },
     "instrument": {
@@ -217,6 +222,7 @@ def _check_consistency(config: Config) -> None:
     if config["instrument"]["type"] == "serial" and not config["instrument"]["port"]:
         raise InputError(f"{src}: key 'instrument.port': required for a serial instrument")
     LineFormat.from_dict(config["instrument"].get("line", {}), f"{src}: [instrument.line]")
+    parse_faults(config["sim"].get("faults", {}), src)
     if "effects" in config["sim"]:
         model_from_dict({"effects": config["sim"]["effects"]}, f"{src}: [sim.effects]")
 

@@ -9,14 +9,15 @@ marked interrupted and can be resumed from the first missing point.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from campaign.capture import BeamLost, Captured, NotStable, capture_dwell, capture_stable
 from campaign.config import Config
 from campaign.edlen import air_correction_factor, air_correction_um, thermal_normalisation_um
+from campaign.env_check import EnvironmentGuard
 from campaign.interfaces import Axis, AxisError, Clock, InstrumentError, Interferometer, Reading
 from campaign.plan import Capture, Checkpoint, Move, Plan, Point, Settle, Step, check_motion
-from campaign.recording import Recorder
+from campaign.recording import Recorder, RecordingError
 
 DEVIATION_SCALE = {"mm": 1000.0, "deg": 3600.0}
 """Axis unit -> deviation unit factor (mm -> µm, deg -> arcsec)."""
@@ -67,9 +68,10 @@ class Observer:
     def point_done(self, point: Point, deviation: float, t_s: float) -> None: ...
     def event(self, kind: str, message: str) -> None: ...
 
-    def fault(self, exc: Exception, point: int) -> str:
-        """A fault at point `point` (the axis is already halted): return "retry", "skip" or "abort"."""
-        return "abort"
+    def fault(self, exc: Exception, point: int) -> str | None:
+        """A fault at point `point` (the axis is already halted): "retry", "skip" or "abort"; None
+        leaves it to the config's policy ([campaign] on_fault, fault_retries)."""
+        return None
 
 
 class Control:
@@ -142,6 +144,9 @@ class Executor:
         self.obs = observer or Observer()
         self.control = control or Control()
         self.next_point = 0
+        self.retries: dict[int, int] = {}
+        self.env_guard = EnvironmentGuard()
+        self.skipped_seen = 0
         self.tick_s = 1.0 / config["instrument"]["rate_hz"]
         self.scale = DEVIATION_SCALE[config["axis"]["unit"]]
         self.t0 = hardware.clock.now() if t0 is None else t0
@@ -179,9 +184,12 @@ class Executor:
             self.step_index = index
             try:
                 self._do(step)
+            except RecordingError as exc:
+                self._halt("fault", f"point {self.next_point}: recording failed: {exc}")
+                raise CampaignStopped(f"recording failed: {exc}") from exc
             except FAULTS as exc:
                 self._halt("fault", f"point {self.next_point}: {type(exc).__name__}: {exc}")
-                decision = self.obs.fault(exc, self.next_point) if self.next_point < total else "abort"
+                decision = self._decide(exc, total)
                 if decision == "abort":
                     raise CampaignStopped(str(exc)) from exc
                 self._recover(exc)
@@ -195,12 +203,48 @@ class Executor:
                 self._maybe_pause()
         return None
 
+    def _decide(self, exc: Exception, total: int) -> str:
+        """The operator's decision, or without one the config's policy: retry a point up to
+        `campaign.fault_retries` times after an axis fault, a lost connection or beam loss; a
+        vanished instrument port cannot be retried in this process (resume later)."""
+        if self.next_point >= total:
+            return "abort"
+        decision = self.obs.fault(exc, self.next_point)
+        if decision is not None:
+            return decision
+        c = self.config["campaign"]
+        used = self.retries.get(self.next_point, 0)
+        if c["on_fault"] == "abort" or isinstance(exc, InstrumentError) or used >= c["fault_retries"]:
+            return "abort"
+        self.retries[self.next_point] = used + 1
+        return "retry"
+
     def _recover(self, exc: Exception) -> None:
-        if isinstance(exc, AxisError):
-            try:
+        """Get the axis ready again: wait for a lost connection to return, then clear the error."""
+        if not isinstance(exc, AxisError):
+            return
+        if exc.error_id == 0:
+            self._wait_for_connection(self.config["axis_driver"]["reconnect_s"])
+        try:
+            if self.hw.axis.status().error:
                 self.hw.axis.reset()
-            except AxisError as again:
-                raise CampaignStopped(f"axis reset failed: {again}") from again
+                self._wait(self.tick_s)
+        except AxisError as again:
+            raise CampaignStopped(f"axis reset failed: {again}") from again
+
+    def _wait_for_connection(self, limit_s: float) -> None:
+        end = self.now() + limit_s
+        while True:
+            try:
+                self.hw.axis.status()
+            except AxisError:
+                if self.now() >= end:
+                    raise CampaignStopped(f"the PLC connection did not come back within {limit_s:g} s") from None
+                self._wait(1.0)
+                continue
+            self.rec.event(self.now(), "reconnect", "PLC connection back")
+            self.obs.event("reconnect", "PLC connection back")
+            return
 
     def _maybe_pause(self) -> None:
         """Between points: hold while the control asks for a pause; abort when it asks to."""
@@ -311,9 +355,19 @@ class Executor:
         raise NotStable(f"reading not stable within {step.timeout_s:g} s at point {step.point.index}")
 
     def _checkpoint(self, step: Checkpoint) -> None:
-        point, got = step.point, self.captured
+        point, t = step.point, self.now()
+        env, messages = self.env_guard.check(self.captured.env, t)
+        got = replace(self.captured, env=env)
+        for message in messages:
+            self.rec.event(t, "environment", f"point {point.index}: {message}")
+            self.obs.event("environment", message)
+        skipped = self.hw.interferometer.skipped_lines
+        if skipped > self.skipped_seen:
+            text = f"{skipped - self.skipped_seen} garbage or partial serial line(s) skipped, not recorded"
+            self.rec.event(t, "serial", text)
+            self.obs.event("serial", text)
+            self.skipped_seen = skipped
         deviation, air, material = point_deviation(self.config, point.target, got)
-        t = self.now()
         self.rec.point(point.run, point.direction, point.target, deviation, t, got.env,
                        {"point": point.index, "reading": got.position, "air_correction_um": air,
                         "material_correction_um": material, "capture_wait_s": got.wait_s,

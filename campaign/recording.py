@@ -16,6 +16,7 @@ by a killed process is treated as interrupted.
 from __future__ import annotations
 
 import datetime as dt
+import errno
 import json
 import os
 import platform
@@ -75,6 +76,10 @@ def _cell(value) -> str:
     return str(value)
 
 
+class RecordingError(Exception):
+    """Writing to the campaign directory failed (disk full, I/O error)."""
+
+
 class Recorder:
     """Writes one campaign directory. Use `Recorder.create` for a new campaign and
     `Recorder.reopen` to append to an interrupted one."""
@@ -89,6 +94,8 @@ class Recorder:
         self._events = open(directory / "events.log", "a", encoding="utf-8")  # noqa: SIM115
         self.env_columns: tuple[str, ...] | None = None
         self.points_written = 0
+        self.fail_next_point_write = False
+        """Fault injection: the next point row is cut short by ENOSPC, like a full disk."""
 
     @classmethod
     def create(cls, directory: str | Path, config_text: str, meta: dict, kind: str) -> Recorder:
@@ -135,7 +142,14 @@ class Recorder:
 
     def point(self, run: int, direction: int, target: float, deviation: float, time_s: float,
               env: dict[str, float | None], extra: dict[str, float]) -> None:
-        """Append one point row durably: raw stream fsynced first, then the row in one write + fsync."""
+        """Append one point row durably: raw stream fsynced first, then the row in one write + fsync.
+        Raises RecordingError when the disk refuses; a row cut short is removed on reopen."""
+        try:
+            self._point(run, direction, target, deviation, time_s, env, extra)
+        except OSError as exc:
+            raise RecordingError(f"{self.dir}: {exc.strerror or exc}") from exc
+
+    def _point(self, run, direction, target, deviation, time_s, env, extra) -> None:
         self._raw.flush()
         os.fsync(self._raw.fileno())
         if self.env_columns is None:
@@ -147,8 +161,12 @@ class Recorder:
             os.write(self._points_fd, (comments + ",".join(header) + "\n").encode())
         values = (time_s, *(env.get(c) if env.get(c) is not None else float("nan") for c in self.env_columns),
                   *(extra[c] for c in EXTRA_POINT_COLUMNS))
-        row = format_row(run, direction, target, deviation, tuple(float(v) for v in values))
-        os.write(self._points_fd, row.encode())
+        row = format_row(run, direction, target, deviation, tuple(float(v) for v in values)).encode()
+        if self.fail_next_point_write:
+            self.fail_next_point_write = False
+            os.write(self._points_fd, row[: len(row) // 2])
+            raise OSError(errno.ENOSPC, "No space left on device")
+        os.write(self._points_fd, row)
         os.fsync(self._points_fd)
         self.points_written += 1
 

@@ -24,8 +24,8 @@ import math
 import os
 import sys
 import time
-from contextlib import contextmanager
 from collections.abc import Callable
+from contextlib import contextmanager
 from dataclasses import replace
 from typing import Any, TypeVar
 

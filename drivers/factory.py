@@ -30,6 +30,7 @@ class SimParts:
     server: object
     instrument: object
     physics: object
+    faults: object = None
 
 
 def sim_model(config: Config) -> ErrorModel:
@@ -90,6 +91,8 @@ def serve_on_free_loopback(plc):
 
 
 def _open_sim(config, fmt, speed, model, start_position):
+    from campaign.faults import parse_faults
+    from drivers.sim.faults import FaultScheduler
     from drivers.sim.interferometer import SimInterferometer
     from drivers.sim.machine import SimAxisPhysics, make_clock
     from drivers.sim.plc import SimPLC
@@ -115,4 +118,7 @@ def _open_sim(config, fmt, speed, model, start_position):
     except BaseException:
         hw.close()
         raise
-    return hw, SimParts(clock, plc, server, instrument, physics)
+    scheduler = FaultScheduler(parse_faults(config["sim"].get("faults", {}), config.source), plc, server,
+                               instrument, physics)
+    clock.attach(scheduler.tick)
+    return hw, SimParts(clock, plc, server, instrument, physics, scheduler)

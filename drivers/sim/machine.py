@@ -38,6 +38,9 @@ class SimAxisPhysics:
         self.vacuum_readings = vacuum_readings
         self._arrival: float | None = None
         self._scatter_um = 0.0
+        self.air_temp_override: float | None = None
+        """A faulty air temperature sensor's reading, °C (None: the sensor is fine)."""
+        self._frozen_at: float | None = None
 
     def true_position(self, t: float, with_reading_noise: bool = True) -> float:
         """Where the carriage really is at simulated time t (s), axis unit."""
@@ -54,14 +57,31 @@ class SimAxisPhysics:
             e_um += float(self.rng.normal(0.0, self.model.reading_sigma_um))
         return x + e_um / DEVIATION_PER_UNIT[self.unit]
 
+    def environment(self, t: float) -> tuple[float, float, float, float]:
+        """The room at t (s): air °C, hPa, % RH and material °C. A slow, small daily-like swing
+        (0.1 K, 0.3 hPa, 1 % over 30 min) around the set values, so a stuck sensor shows."""
+        phase = 2 * np.pi * t / 1800.0
+        temp, pressure, humidity = self.air
+        return (temp + 0.1 * np.sin(phase), pressure + 0.3 * np.cos(phase), humidity + 1.0 * np.sin(phase),
+                self.material_temp_c + 0.05 * np.sin(phase))
+
+    def freeze_environment(self, t: float) -> None:
+        """The environment sensors stick at their values of time t (s)."""
+        self._frozen_at = t
+
     def measure(self, t: float) -> dict:
         """What the simulated interferometer reads at t: position (axis unit), signal and environment."""
         position = self.true_position(t)
-        temp, pressure, humidity = self.air
+        temp, pressure, humidity, material = self.environment(t)
         if self.vacuum_readings:
             position *= refractive_index(temp, pressure * 100.0, humidity)
-        return {"position": position, "signal_pct": 90.0, "air_temp_c": temp, "air_pressure_hpa": pressure,
-                "humidity_pct": humidity, "material_temp_c": self.material_temp_c}
+        if self._frozen_at is not None:
+            temp, pressure, humidity, material = self.environment(self._frozen_at)
+        if self.air_temp_override is not None:
+            temp = self.air_temp_override
+        return {"position": position, "signal_pct": 90.0, "air_temp_c": round(float(temp), 3),
+                "air_pressure_hpa": round(float(pressure), 2), "humidity_pct": round(float(humidity), 2),
+                "material_temp_c": round(float(material), 3)}
 
 
 def make_clock(speed: float | None) -> SimClock:
