@@ -64,7 +64,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "length": Key(float, None, "distance from the first to the last target, axis unit", min=1e-9),
         "count": Key(int, None, "number of targets (>= 2)", min=2, max=10000),
         "overrun": Key(float, 2.0, "overrun L1 beyond both ends, axis unit", min=0),
-        "cycles": Key(int, 5, "number of runs (cycles); ISO 230-2 asks for 5", min=1, max=50),
+        "cycles": Key(int, 5, "number of runs (cycles); ISO 230-2 asks for 5", min=1, max=1000),
         "dwell_s": Key(float, 4.0, "dwell at each target, s", min=0.1, max=600),
         "velocity": Key(float, REQUIRED, "positioning velocity, axis unit/s", min=1e-9),
         "cycle": Key(str, "linear", "linear (ISO 230-2) or pilgrim (step cycle, annex)",

@@ -147,6 +147,7 @@ class Executor:
         self.retries: dict[int, int] = {}
         self.env_guard = EnvironmentGuard()
         self.skipped_seen = 0
+        self.beam_ok = True
         self.tick_s = 1.0 / config["instrument"]["rate_hz"]
         self.scale = DEVIATION_SCALE[config["axis"]["unit"]]
         self.t0 = hardware.clock.now() if t0 is None else t0
@@ -172,7 +173,7 @@ class Executor:
             while point is not None:
                 point = self._run_from(point)
         except KeyboardInterrupt:
-            self._halt("interrupted", "Ctrl-C: axis halted, recording flushed")
+            self._halt("interrupted", "Ctrl-C: recording flushed")
             raise
 
     def _run_from(self, first_point: int) -> int | None:
@@ -262,6 +263,7 @@ class Executor:
         try:
             self.hw.axis.halt()
             self.halted = True
+            message += "; axis halted"
         except AxisError as exc:
             message += f"; halt failed: {exc}"
         self.rec.event(self.now(), kind, message)
@@ -287,6 +289,11 @@ class Executor:
             self.rec.sample(t, self.step_index, self.point_index, self.axis_position, reading)
             self.readings.append(reading)
             self.obs.reading(t, reading, self.target)
+            if reading.signal_ok != self.beam_ok:
+                self.beam_ok = reading.signal_ok
+                text = "beam back" if reading.signal_ok else f"beam lost (signal {reading.signal_pct} %)"
+                self.rec.event(t, "beam", text)
+                self.obs.event("beam", text)
 
     def _wait(self, seconds: float) -> None:
         end = self.now() + seconds - 1e-9

@@ -95,7 +95,6 @@ class Recorder:
         self.env_columns: tuple[str, ...] | None = None
         self.points_written = 0
         self.fail_next_point_write = False
-        """Fault injection: the next point row is cut short by ENOSPC, like a full disk."""
 
     @classmethod
     def create(cls, directory: str | Path, config_text: str, meta: dict, kind: str) -> Recorder:
@@ -169,6 +168,10 @@ class Recorder:
         os.write(self._points_fd, row)
         os.fsync(self._points_fd)
         self.points_written += 1
+
+    def inject_disk_full(self) -> None:
+        """Fault injection: the next point row is cut short by ENOSPC, as on a full disk."""
+        self.fail_next_point_write = True
 
     def event(self, t_s: float, kind: str, message: str) -> None:
         stamp = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")

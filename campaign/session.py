@@ -15,7 +15,7 @@ from campaign.config import Config
 from campaign.executor import CampaignStopped, Control, Executor, Observer
 from campaign.iso230 import Evaluation, evaluate
 from campaign.model import ErrorModel
-from campaign.plan import Plan, build_plan, check_plan
+from campaign.plan import Move, Plan, build_plan, check_plan
 from campaign.pointtable import read_points
 from campaign.recording import Recorder
 
@@ -63,6 +63,8 @@ def execute(config: Config, plan: Plan, recorder: Recorder, first_point: int, *,
     hardware, sim = opened if opened is not None else open_hardware(config, speed, model, start)
     executor = Executor(plan, config, hardware, recorder, observer, t0=hardware.clock.now() - t_offset,
                         control=control)
+    if sim is not None and sim.faults is not None:
+        sim.faults.on_disk_full = recorder.inject_disk_full
     if on_open:
         on_open(hardware, sim, executor)
     status, message = "completed", ""
@@ -76,8 +78,11 @@ def execute(config: Config, plan: Plan, recorder: Recorder, first_point: int, *,
     finally:
         duration = executor.now()
         hardware.close()
-        recorder.set_status(status, duration_s=round(duration, 3), message=message)
-        recorder.close()
+        try:
+            recorder.set_status(status, duration_s=round(duration, 3), message=message)
+            recorder.close()
+        except OSError as exc:  # e.g. the disk is full: the directory stays "running", resumable
+            message = f"{message}; could not update meta.json: {exc}"
     return Outcome(recorder.dir, status, recorder.points_written, len(plan.points), duration, message)
 
 
@@ -124,6 +129,7 @@ def resume_campaign(directory: str | Path, **kwargs) -> Outcome:
     if not (path / "meta.json").is_file() or not (path / "config.toml").is_file():
         raise InputError(f"{path}: not a campaign directory (no meta.json / config.toml)")
     config = load_config(path / "config.toml")
+    config.sections["sim"].pop("faults", None)  # rehearsed faults are not injected again on resume
     if json.loads((path / "meta.json").read_text(encoding="utf-8")).get("status") == "completed":
         raise InputError(f"{path}: the campaign is already completed")
     recorder = Recorder.reopen(path)
@@ -159,3 +165,33 @@ def analyse_dir(directory: str | Path) -> tuple[object, Evaluation]:
     """Read a campaign directory's point table and evaluate it to ISO 230-2:2014."""
     table = read_points(Path(directory) / "points.csv")
     return table, evaluate(table)
+
+
+def dry_run(config: Config, ticks: int = 10, opened=None) -> dict:
+    """Talk to the controller read-only and walk the plan: nothing is commanded.
+
+    Reads the axis status, checks every move of the plan against the limits, and reads `ticks`
+    sample periods of the interferometer. Returns what it saw (positions in axis unit).
+    `opened`: hardware already opened read-only (tests inspect the simulated PLC afterwards)."""
+    from campaign.plan import estimate_duration_s
+
+    plan = build_plan(config)
+    check_plan(plan, config)
+    config.sections["axis_driver"] = {**config["axis_driver"], "read_only": True}
+    hardware, _ = opened if opened is not None else open_hardware(config)
+    try:
+        status = hardware.axis.status()
+        readings = []
+        for _ in range(ticks):
+            hardware.clock.sleep(1.0 / config["instrument"]["rate_hz"])
+            readings.extend(hardware.interferometer.poll())
+    finally:
+        hardware.close()
+    last = readings[-1] if readings else None
+    return {"read_only": True, "axis_enabled": status.enabled, "axis_homed": status.homed,
+            "axis_error": status.error, "axis_error_id": status.error_id,
+            "axis_position": status.actual_position, "readings": len(readings),
+            "beam_ok": bool(last and last.signal_ok), "reading": last.position if last else None,
+            "points": len(plan.points), "moves": sum(isinstance(s, Move) for s in plan.steps),
+            "travel": plan.travel(), "estimated_duration_s": estimate_duration_s(plan, config),
+            "plan_within_limits": True}

@@ -257,7 +257,9 @@ class AdsAxis:
                 time.sleep(self._retry_wait_s)
             try:
                 if self._connection is None:
-                    self._connect()
+                    with _native_stderr_silenced():  # the library logs every failed connect
+                        self._connect()
+                        return action(self._connection)
                 return action(self._connection)
             except (pyads.ADSError, _BadAnswer) as e:
                 error = e

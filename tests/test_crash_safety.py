@@ -54,5 +54,5 @@ def test_ctrl_c_halts_flushes_and_marks_interrupted(tmp_path):
     meta = json.loads((out / "meta.json").read_text())
     assert meta["status"] == "interrupted"
     events = (out / "events.log").read_text()
-    assert "interrupted: Ctrl-C: axis halted" in events
+    assert "interrupted: Ctrl-C: recording flushed; axis halted" in events
     assert 5 <= len(read_points(out / "points.csv")) < 110

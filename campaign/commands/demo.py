@@ -9,8 +9,12 @@ from __future__ import annotations
 
 from importlib import resources
 
-from campaign.commands.run import add_run_options, run_config
+from campaign.commands.run import add_run_options, finish, run_config
 from campaign.config import parse_config
+from campaign.executor import DEVIATION_SCALE
+from campaign.faults import parse_inject
+from campaign.progress import RichProgress
+from campaign.session import resume_campaign, start_campaign
 
 
 def demo_config_text() -> str:
@@ -22,12 +26,46 @@ def register(sub) -> None:
                        description="Run seed 000's horizontal-axis campaign on the simulated machine.")
     add_run_options(p)
     p.add_argument("--capture", choices=("dwell", "stable"), help="capture method (default dwell)")
+    p.add_argument("--inject", metavar="NAME[@S],...",
+                   help="rehearse faults at simulated times, e.g. beam_break@300,ads_lost@500 "
+                        "(names: see docs/faults.md); the campaign resumes by itself where needed")
     p.set_defaults(func=run)
+
+
+MAX_RESUMES = 3
 
 
 def run(args) -> int:
     text = demo_config_text()
     if args.capture:
         text = text.replace('method = "dwell"', f'method = "{args.capture}"')
-    config = parse_config(text, "demo.toml")
-    return run_config(config, args)
+    if not args.inject:
+        return run_config(parse_config(text, "demo.toml"), args)
+    faults = parse_inject(args.inject)
+    text += "\n[sim.faults]\n" + "".join(f"{name} = {{ at_s = {p['at_s']!r} }}\n" for name, p in faults.items())
+    return rehearse(parse_config(text, "demo.toml"), args)
+
+
+def rehearse(config, args) -> int:
+    """Run with faults injected; resume (without faults) as often as needed, then report."""
+    fired: list = []
+
+    def keep_log(hardware, sim, executor):
+        fired.append(sim.faults.log)
+
+    def progress():
+        unit = config["axis"]["unit"]
+        return RichProgress(unit, DEVIATION_SCALE[unit])
+
+    with progress() as observer:
+        outcome = start_campaign(config, args.out, speed=args.speed, observer=observer, on_open=keep_log)
+    resumes = 0
+    while outcome.status != "completed" and resumes < MAX_RESUMES:
+        resumes += 1
+        with progress() as observer:
+            outcome = resume_campaign(outcome.dir, speed=args.speed, observer=observer)
+    events = [ln.split(" ", 2)[2] for ln in (outcome.dir / "events.log").read_text().splitlines()]
+    survived = outcome.status == "completed" and outcome.points == outcome.planned
+    extra = {"faults": [{"name": name, "at_s": round(t, 3), "what": what} for t, name, what in fired[0]],
+             "resumes": resumes, "survived": survived, "events": events}
+    return finish(outcome, args, extra)

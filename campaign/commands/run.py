@@ -7,7 +7,7 @@ from campaign.errors import InputError
 from campaign.executor import DEVIATION_SCALE
 from campaign.plot import check_plot_path, plot_evaluation
 from campaign.progress import RichProgress
-from campaign.session import analyse_dir, start_campaign
+from campaign.session import analyse_dir, dry_run, start_campaign
 from campaign.views import make_console, print_evaluation, print_json
 
 
@@ -16,6 +16,9 @@ def register(sub) -> None:
                        description="Run the campaign of CONFIG, record it, then print the ISO 230-2 summary.")
     p.add_argument("config", help="campaign TOML (see docs/config.md)")
     add_run_options(p)
+    p.add_argument("--dry-run", action="store_true",
+                   help="talk to the controller read-only, walk the plan, command nothing "
+                        "(also when axis_driver.read_only = true)")
     p.set_defaults(func=run)
 
 
@@ -65,4 +68,15 @@ def run_config(config, args, extra=None) -> int:
 
 
 def run(args) -> int:
-    return run_config(load_config(args.config), args)
+    config = load_config(args.config)
+    if args.dry_run or config["axis_driver"]["read_only"]:
+        report = dry_run(config)
+        if args.json:
+            print_json(report)
+        else:
+            console = make_console()
+            for key, value in report.items():
+                console.print(f"{key:22s} {value}")
+            console.print("dry run: nothing was commanded")
+        return 0
+    return run_config(config, args)

@@ -183,25 +183,25 @@ class SimPLC:
         with self._lock:
             taken_at = min(self._t, t)
             self._finish_motion(taken_at)
-            request = self._take_requests()
-            self._apply(request, taken_at)
+            for request in self._take_requests():
+                self._apply(request, taken_at)
             self._t = t
             self._finish_motion(t)
             self._write_status()
 
-    def _take_requests(self) -> int:
-        """Read and clear the request flags, like FB_AxiscalAxis; a halt wins over the rest."""
-        request = Command.NONE
-        if self._get("bExecute"):
-            self._set("bExecute", False)
-            request = self._get("eCommand")
-        if self._get("bReset"):
-            self._set("bReset", False)
-            request = Command.RESET
-        if self._get("bHalt"):
-            self._set("bHalt", False)
-            request = Command.HALT
-        return request
+    def _take_requests(self) -> list[int]:
+        """Read and clear the request flags, like FB_AxiscalAxis (separate MC_Reset and MC_Halt):
+        a reset is applied first, and a halt wins over a move requested in the same cycle."""
+        flags = {name: bool(self._get(name)) for name in ("bExecute", "bReset", "bHalt")}
+        for name, raised in flags.items():
+            if raised:
+                self._set(name, False)
+        requests = [Command.RESET] if flags["bReset"] else []
+        if flags["bHalt"]:
+            requests.append(Command.HALT)
+        elif flags["bExecute"]:
+            requests.append(self._get("eCommand"))
+        return requests
 
     def _apply(self, request: int, t: float) -> None:
         if request == Command.NONE:

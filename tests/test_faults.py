@@ -1,0 +1,74 @@
+"""Fault injection on the simulated machine: for each fault the campaign pauses or retries as
+designed, halts the axis when it should, records no corrupt point, logs the event, and completes
+(after resume where needed) with the same point set as a fault-free run."""
+
+import json
+
+import pytest
+
+from campaign.pointtable import read_points
+from tests.conftest import assert_one_line_error
+from tests.test_demo_e2e import axiscal
+from tests.test_resume import point_keys
+
+# fault -> (event that must be logged, resumes needed, whether a halt must be logged)
+FAULTS = {
+    "ads_lost@300": ("reconnect: PLC connection back", 0, True),
+    "axis_error@200": ("AxisError: axis error 17744", 0, True),
+    "beam_break@300": ("beam: beam lost (signal 0.0 %)", 0, False),
+    "serial_garbage@100": ("garbage or partial serial line(s) skipped, not recorded", 0, False),
+    "serial_gone@400": ("InstrumentError", 1, True),
+    "env_stuck@100": ("sensor stuck?", 0, False),
+    "env_out_of_range@100": ("air_temp_c = 85 is outside [10, 35]: last plausible value used", 0, False),
+    "disk_full@200": ("recording failed", 1, True),
+}
+
+
+@pytest.fixture(scope="module")
+def fault_free(tmp_path_factory):
+    out = tmp_path_factory.mktemp("free") / "demo"
+    assert axiscal("demo", "--out", out).returncode == 0
+    return point_keys(out / "points.csv")
+
+
+@pytest.mark.parametrize("fault", sorted(FAULTS))
+def test_fault_is_survived(tmp_path, fault_free, fault):
+    event, resumes, halted = FAULTS[fault]
+    out = tmp_path / "f"
+    proc = axiscal("demo", "--out", out, "--inject", fault, "--json", timeout=180)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    data = json.loads(proc.stdout)
+    name = fault.split("@")[0]
+    assert data["survived"] and data["status"] == "completed" and data["resumes"] == resumes
+    assert data["faults"][0]["name"] == name and data["faults"][0]["what"] == "injected"
+    events = (out / "events.log").read_text()
+    assert event in events
+    if halted:
+        assert "; axis halted" in events or "halt failed" in events
+    # no corrupt point: the strict reader accepts the table, every value is a plausible deviation
+    table = read_points(out / "points.csv")
+    assert abs(table.deviation).max() < 20.0
+    assert all(10 <= t <= 35 for t in table.optional["air_temp_c"])
+    assert point_keys(out / "points.csv") == fault_free
+
+
+def test_faults_from_the_config(tmp_path):
+    from tests.conftest import ROOT
+
+    text = (ROOT / "campaign" / "demo.toml").read_text() + "\n[sim.faults]\nbeam_break = { at_s = 50.0, duration_s = 2.0 }\n"
+    path = tmp_path / "c.toml"
+    path.write_text(text)
+    proc = axiscal("run", path, "--out", tmp_path / "r", "--json")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert json.loads(proc.stdout)["points"] == 110
+    assert "beam" in (tmp_path / "r" / "events.log").read_text()
+
+
+def test_bad_inject_and_fault_tables(cli, tmp_path):
+    assert_one_line_error(cli("demo", "--inject", "meteor@5"), "unknown fault 'meteor'")
+    assert_one_line_error(cli("demo", "--inject", "beam_break@soon"), "beam_break@soon")
+    path = tmp_path / "c.toml"
+    from tests.test_plan import BASE
+
+    path.write_text(BASE + "[sim.faults]\nbeam_break = { at_s = -1 }\n")
+    assert_one_line_error(cli("plan", path), "sim.faults.beam_break.at_s")
