@@ -13,7 +13,7 @@ import os
 import sys
 
 from campaign import __version__
-from campaign.errors import InputError
+from campaign.errors import InputError, one_line
 from campaign.interfaces import AxisError, InstrumentError
 
 COMMANDS = ("analyze", "plan", "run", "demo", "compensate", "correction", "verify", "refine",
@@ -54,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except (AxisError, InstrumentError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"error: {one_line(exc)}", file=sys.stderr)
         return 3
     except KeyboardInterrupt:
         print("error: interrupted", file=sys.stderr)
@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # a bug: one line for the user, the traceback on request
         if os.environ.get("AXISCAL_DEBUG"):
             raise
-        print(f"error: internal error: {type(exc).__name__}: {exc} (AXISCAL_DEBUG=1 shows the traceback)",
+        print(f"error: internal error: {type(exc).__name__}: {one_line(exc)} (AXISCAL_DEBUG=1 shows the traceback)",
               file=sys.stderr)
         return 1
 

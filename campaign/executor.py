@@ -83,6 +83,7 @@ class Control:
         self._pause = threading.Event()
         self._abort = threading.Event()
         self._wake = threading.Event()
+        self.abort_reason = ""
 
     def pause_requested(self) -> bool:
         return self._pause.is_set()
@@ -97,7 +98,9 @@ class Control:
         self._pause.clear()
         self._wake.set()
 
-    def request_abort(self) -> None:
+    def request_abort(self, reason: str = "abort requested") -> None:
+        """Abort at the next tick; `reason` goes into the event log (e.g. "key a")."""
+        self.abort_reason = reason
         self._abort.set()
         self._wake.set()
 
@@ -173,7 +176,7 @@ class Executor:
             while point is not None:
                 point = self._run_from(point)
         except KeyboardInterrupt:
-            self._halt("interrupted", "Ctrl-C: recording flushed")
+            self._halt("interrupted", f"{self.control.abort_reason or 'Ctrl-C'}: recording flushed")
             raise
 
     def _run_from(self, first_point: int) -> int | None:
@@ -221,17 +224,24 @@ class Executor:
         return "retry"
 
     def _recover(self, exc: Exception) -> None:
-        """Get the axis ready again: wait for a lost connection to return, then clear the error."""
-        if not isinstance(exc, AxisError):
-            return
-        if exc.error_id == 0:
+        """Get the axis ready again before anything else is commanded: wait for a lost connection
+        to return, wait until the halt has brought the axis to rest, then clear any error."""
+        if isinstance(exc, AxisError) and exc.error_id == 0:
             self._wait_for_connection(self.config["axis_driver"]["reconnect_s"])
+        end = self.now() + self.config["axis_driver"]["move_timeout_s"]
         try:
-            if self.hw.axis.status().error:
+            self._wait(self.tick_s)
+            status = self.hw.axis.status()
+            while status.busy and self.now() < end:
+                self._wait(self.tick_s)
+                status = self.hw.axis.status()
+            if status.busy:
+                raise CampaignStopped("the axis did not come to rest after the halt")
+            if status.error:
                 self.hw.axis.reset()
                 self._wait(self.tick_s)
         except AxisError as again:
-            raise CampaignStopped(f"axis reset failed: {again}") from again
+            raise CampaignStopped(f"axis not ready after the fault: {again}") from again
 
     def _wait_for_connection(self, limit_s: float) -> None:
         end = self.now() + limit_s

@@ -1,0 +1,242 @@
+"""`axiscal guide [CONFIG] [--out DIR] [--speed N] [--yes] [--on-fault retry|skip|abort] [--json]`.
+
+The guided session for a technician: a setup checklist, a confirmation before the axis moves, the
+laser alignment check, the campaign on a live dashboard with keys, a prompt on faults, and at the
+end the ISO 230-2 summary with pass or fail and the next steps. Without CONFIG: the embedded demo
+on the simulated machine. For scripts every prompt has a flag (--yes, --on-fault); a failed check
+ends with exit status 2 and one `error:` line. See docs/guide.md.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from contextlib import ExitStack
+from pathlib import Path
+
+from rich.console import Console
+
+from campaign.commands.demo import demo_config_text
+from campaign.config import load_config, parse_config
+from campaign.errors import InputError
+from campaign.executor import Control
+from campaign.guide_dashboard import Dashboard
+from campaign.guide_keys import CtrlC, Keys
+from campaign.guide_session import (
+    CheckItem,
+    alignment_item,
+    checklist_table,
+    failures,
+    hardware_items,
+    plan_ends,
+    plan_preview,
+    record_item,
+    soft_limit_item,
+)
+from campaign.interfaces import AxisError, InstrumentError
+from campaign.plan import build_plan
+from campaign.session import (
+    Outcome,
+    analyse_dir,
+    default_out_dir,
+    open_hardware,
+    recorded_point_indices,
+    start_campaign,
+)
+from campaign.views import make_console, print_json, summary_table
+
+COMPENSATE_FORMATS = "twincat, csv, json"
+
+
+def register(sub) -> None:
+    p = sub.add_parser("guide", help="guided campaign for the technician: checklist, dashboard, keys",
+                       description="Check the set-up, ask before moving, run the campaign on a live "
+                                   "dashboard (keys: p pause, r resume, a abort) and judge the result.")
+    p.add_argument("config", nargs="?", help="campaign TOML (default: the embedded demo, simulated machine)")
+    p.add_argument("--out", metavar="DIR", help="campaign directory (default runs/MACHINE-AXIS-TIME)")
+    p.add_argument("--speed", type=float, metavar="N", help="simulated machine: N times real time")
+    p.add_argument("--yes", action="store_true", help="start the motion without asking (scripts)")
+    p.add_argument("--on-fault", choices=("retry", "skip", "abort"),
+                   help="answer every fault without asking; retry at most campaign.fault_retries times per "
+                        "point (default: ask on a terminal, else the config's [campaign] on_fault)")
+    p.add_argument("--json", action="store_true", help="print one JSON object at the end (the rest to stderr)")
+    p.set_defaults(func=run)
+
+
+def run(args, on_hardware=None) -> int:
+    """The whole session. `on_hardware(hw, sim)`: called right after the hardware is opened (tests
+    use it to inject faults into the simulated machine)."""
+    if args.speed is not None and args.speed <= 0:
+        raise InputError("--speed: must be > 0")
+    config = load_config(args.config) if args.config else parse_config(demo_config_text(), "demo.toml")
+    interactive = sys.stdin.isatty()
+    console = Console(stderr=True) if args.json else make_console()
+    plan = build_plan(config)
+    out = Path(args.out) if args.out else default_out_dir(config)
+    c = config["campaign"]
+    console.print(f"[bold]axiscal guide[/]: machine {c['machine']}, axis {config['axis']['name']}, "
+                  f"operator {c['operator'] or '-'}, config {config.source}")
+    console.print(plan_preview(plan, config, args.speed))
+    offline = [soft_limit_item(plan, config), record_item(out)]
+    if failures(offline):
+        console.print(checklist_table(offline))
+        stop_on(failures(offline)[0])
+    model = None
+    if config["axis_driver"]["type"] == "sim":
+        from drivers.factory import sim_model
+
+        model = sim_model(config)
+    hw, sim = open_and_check(config, args, model, offline, console, interactive, on_hardware)
+    try:
+        confirm(args, console, interactive, plan, config)
+        outcome = measure(config, plan, args, out, (hw, sim), model, console, interactive)
+    finally:
+        hw.close()
+    return conclude(outcome, config, args, console)
+
+
+def stop_on(item: CheckItem):
+    raise InputError(f"setup check failed: {item.name}: {item.value}")
+
+
+def open_and_check(config, args, model, offline, console, interactive, on_hardware):
+    """Open the hardware and run the checklist until it passes; on a failure ask to retry
+    (interactive) or stop with InputError (scripts). Nothing moves here. The hardware is closed
+    again when this ends without a pass."""
+    hw = sim = None
+    try:
+        while True:
+            if hw is None:
+                try:
+                    hw, sim = open_hardware(config, args.speed, model)
+                except (AxisError, InstrumentError, InputError, OSError) as exc:
+                    items = [CheckItem("controller", False, f"cannot open the hardware: {exc}")]
+                else:
+                    if on_hardware:
+                        on_hardware(hw, sim)
+            if hw is not None:
+                items = hardware_items(hw, config)
+            items += offline
+            console.print(checklist_table(items))
+            if not failures(items):
+                return hw, sim
+            answer = "q"
+            if interactive:
+                answer = console.input("Fix it, then press Enter to check again (q and Enter quits): ")
+            if answer.strip().lower() in ("q", "quit"):
+                stop_on(failures(items)[0])
+    except BaseException:
+        if hw is not None:
+            hw.close()
+        raise
+
+
+def confirm(args, console, interactive, plan, config) -> None:
+    lo, hi = plan_ends(plan)
+    unit = config["axis"]["unit"]
+    console.print(f"[bold]The axis will move[/]: alignment check to {hi:g} {unit} and back to {lo:g} {unit}, "
+                  f"then the campaign ({len(plan.points)} points). Keep clear of the machine.")
+    if args.yes:
+        console.print("Motion confirmed by --yes.")
+        return
+    if not interactive:
+        raise InputError("confirmation needed before the axis moves: run with --yes")
+    if console.input("Start the motion? Type y and Enter: ").strip().lower() not in ("y", "yes"):
+        raise InputError("not confirmed: nothing moved")
+
+
+def measure(config, plan, args, out: Path, opened, model, console, interactive) -> Outcome:
+    """The motion phase: alignment check (retried on request), then the campaign on the dashboard.
+    Keys and Ctrl-C are live throughout; the terminal and SIGINT are restored at the end."""
+    hw, _ = opened
+    control = Control()
+    with ExitStack() as stack:
+        dashboard = Dashboard(console, config, plan, control, args.on_fault or ("ask" if interactive else None), hw)
+        if interactive:
+            dashboard.keys = stack.enter_context(Keys(dashboard.on_key))
+        stack.enter_context(CtrlC(dashboard, hw))
+        try:
+            check_alignment(hw, plan, config, control, console, dashboard.keys)
+        except KeyboardInterrupt:
+            return Outcome(out, "interrupted", 0, len(plan.points), 0.0,
+                           "aborted during the alignment check: the axis is halted, nothing was recorded")
+        try:
+            with dashboard:
+                return start_campaign(config, out, speed=args.speed, model=model, observer=dashboard,
+                                      control=control, opened=opened)
+        except KeyboardInterrupt:
+            return recorded_outcome(out, len(plan.points), dashboard.abort_reason)
+
+
+def check_alignment(hw, plan, config, control, console, keys: Keys | None) -> None:
+    while True:
+        console.print(f"Alignment check: the axis moves to both ends at {config['plan']['velocity']:g} "
+                      f"{config['axis']['unit']}/s ...")
+        item = alignment_item(hw, plan, config, control)
+        console.print(checklist_table([item]))
+        if item.ok:
+            return
+        if keys is None:
+            stop_on(item)
+        console.print("Fix the alignment, then press r to check again (the axis moves again), or q to quit.")
+        if keys.ask({"r": "retry", "q": "quit"}, control) != "retry":
+            stop_on(item)
+
+
+def recorded_outcome(directory: Path, planned: int, reason: str | None) -> Outcome:
+    """The outcome of a campaign that ended with an abort, from its directory."""
+    meta = json.loads((directory / "meta.json").read_text(encoding="utf-8"))
+    return Outcome(directory, meta.get("status", "interrupted"), len(recorded_point_indices(directory)),
+                   planned, float(meta.get("duration_s", 0.0)), reason or meta.get("message", "aborted"))
+
+
+def judge(ev, outcome: Outcome, tolerance: float) -> tuple[str, str]:
+    """(PASS | FAIL | NOT JUDGED, the reason in one sentence with units)."""
+    unit = "µm" if ev is None or ev.unit == "um" else ev.unit
+    if outcome.points < outcome.planned:
+        return "NOT JUDGED", f"{outcome.planned - outcome.points} of {outcome.planned} points are missing"
+    a = ev.summary.get("A")
+    if not tolerance:
+        return "NOT JUDGED", "the config gives no tolerance (campaign.tolerance)"
+    if a is None:
+        return "NOT JUDGED", "the accuracy A could not be computed"
+    if a <= tolerance:
+        return "PASS", f"accuracy A = {a:.2f} {unit} is within the tolerance of {tolerance:g} {unit}"
+    return "FAIL", f"accuracy A = {a:.2f} {unit} is above the tolerance of {tolerance:g} {unit}"
+
+
+def conclude(outcome: Outcome, config, args, console) -> int:
+    """The ISO 230-2 summary, the verdict, where the record is and what comes next. Exit 0 when
+    the campaign completed, 3 when it was interrupted (resumable)."""
+    d = outcome.dir
+
+    def say(text: str) -> None:  # paths and commands: never wrapped, never read as markup
+        console.print(text, soft_wrap=True, markup=False, highlight=False)
+
+    if not (d / "meta.json").exists():
+        say(f"Stopped: {outcome.message}.")
+        return 3
+    ev = analyse_dir(d)[1] if outcome.points else None
+    tolerance = config["campaign"]["tolerance"]
+    verdict, reason = judge(ev, outcome, tolerance)
+    if ev is not None:
+        console.print(summary_table(ev))
+    console.print(f"Campaign {outcome.status}: {outcome.points} of {outcome.planned} points in "
+                  f"{outcome.duration_s / 60:.1f} min of campaign time.")
+    colour = {"PASS": "bold green", "FAIL": "bold red"}.get(verdict, "bold yellow")
+    console.print(f"[{colour}]{verdict}[/]: {reason}.")
+    if outcome.status == "completed":
+        say(f"Record: {d} (points.csv, raw.csv, events.log, meta.json).")
+        say(f"Report for quality:\n  axiscal report {d} -o {d}/report.html")
+        say(f"Next step, compensation (FMT: {COMPENSATE_FORMATS}):\n"
+            f"  axiscal compensate {d}/points.csv --format FMT -o FILE")
+    else:
+        say(f"Stopped: {outcome.message}. Record: {d}.\nContinue with:\n  axiscal resume {d}")
+    if args.json:
+        result = {"dir": str(d), "status": outcome.status, "points": outcome.points, "planned": outcome.planned,
+                  "duration_s": round(outcome.duration_s, 3), "verdict": verdict, "reason": reason,
+                  "tolerance": tolerance}
+        if ev is not None:
+            result.update(ev.summary, unit=ev.unit)
+        print_json(result)
+    return 0 if outcome.status == "completed" else 3

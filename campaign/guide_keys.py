@@ -1,0 +1,98 @@
+"""The operator's keys for `axiscal guide`: single keys from the terminal, and Ctrl-C.
+
+`Keys` puts the terminal in cbreak mode (no Enter needed, no echo; Ctrl-C still sends SIGINT) and
+reads one key at a time on a background thread; the terminal mode is restored on exit. `CtrlC`
+turns SIGINT into an abort, and a second one into an immediate halt.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import queue
+import select
+import signal
+import termios
+import threading
+import tty
+from collections.abc import Callable
+from typing import Self
+
+from campaign.executor import Control
+
+
+class Keys:
+    """Single keys from terminal `fd` in cbreak mode, read on a daemon thread; the terminal mode is
+    restored on exit. Keys go to `on_key`, or to `ask` while a prompt waits for one."""
+
+    def __init__(self, on_key: Callable[[str], None], fd: int = 0):
+        self.on_key, self.fd = on_key, fd
+        self._answers: queue.Queue[str] | None = None
+        self._wake_r, self._wake_w = os.pipe()
+        self._saved = termios.tcgetattr(fd)
+        self._thread = threading.Thread(target=self._read, name="guide-keys", daemon=True)
+
+    def __enter__(self) -> Self:
+        tty.setcbreak(self.fd)
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        os.write(self._wake_w, b"x")
+        self._thread.join(timeout=1.0)
+        termios.tcsetattr(self.fd, termios.TCSADRAIN, self._saved)
+        os.close(self._wake_r)
+        os.close(self._wake_w)
+
+    def _read(self) -> None:
+        while True:
+            ready, _, _ = select.select([self.fd, self._wake_r], [], [])
+            if self._wake_r in ready:
+                return
+            key = os.read(self.fd, 1).decode("latin-1").lower()
+            answers = self._answers
+            if answers is not None:
+                answers.put(key)
+            else:
+                self.on_key(key)
+
+    def ask(self, choices: dict[str, str], control: Control) -> str:
+        """Wait for one of the keys in `choices` and return its meaning; "abort" when an abort is
+        requested meanwhile (Ctrl-C)."""
+        self._answers = queue.Queue()
+        try:
+            while not control.abort_requested():
+                try:
+                    key = self._answers.get(timeout=0.1)
+                except queue.Empty:
+                    continue
+                if key in choices:
+                    return choices[key]
+            return "abort"
+        finally:
+            self._answers = None
+
+
+class CtrlC:
+    """SIGINT while the axis may move: the first aborts like `a` (halt at the next tick, flush,
+    mark interrupted); the second halts the axis at once and stops."""
+
+    def __init__(self, dashboard, hw):
+        self.dashboard, self.hw, self.count = dashboard, hw, 0
+
+    def __enter__(self) -> Self:
+        self.previous = signal.signal(signal.SIGINT, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        signal.signal(signal.SIGINT, self.previous)
+
+    def _handle(self, signum, frame) -> None:
+        self.count += 1
+        if self.count == 1:
+            self.dashboard.abort("Ctrl-C")
+            return
+        with contextlib.suppress(Exception):  # the connection may be gone: the PLC stops the axis itself
+            self.hw.axis.halt()
+        self.dashboard.say("second Ctrl-C: axis halted at once")
+        raise KeyboardInterrupt

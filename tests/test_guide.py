@@ -1,0 +1,300 @@
+"""`axiscal guide`: the checklist, the confirmation, the keys in a real pseudo-terminal, faults and
+the verdict, all on the simulated machine (real pyads client, loopback ADS server, pty serial)."""
+
+import io
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pexpect
+import pytest
+
+from campaign.cli import build_parser
+from campaign.commands import guide
+from campaign.errors import InputError
+from campaign.executor import Control
+from campaign.guide_dashboard import sparkline
+from campaign.guide_keys import CtrlC, Keys
+from tests.conftest import ROOT, assert_one_line_error
+
+SMALL = """
+[campaign]
+machine = "sim-test"
+operator = "tester"
+tolerance = {tolerance}
+
+[axis]
+name = "X"
+soft_limit_min = -10.0
+soft_limit_max = 110.0
+max_velocity = 50.0
+max_acceleration = 200.0
+
+[plan]
+length = 100.0
+count = 6
+overrun = 2.0
+cycles = 5
+dwell_s = 1.0
+velocity = 20.0
+
+[axis_driver]
+type = "sim"
+
+[instrument]
+type = "sim"
+
+[capture]
+average_s = 0.5
+retries = 0
+
+[sim.effects.linear_scale]
+ppm = -12.4
+
+[sim.effects.noise]
+sigma_um = 0.3
+reading_sigma_um = 0.05
+"""
+"""60 points over 100 mm, about 2 min of machine time; A is about 3 µm."""
+
+
+@pytest.fixture
+def small_config(tmp_path):
+    def write(tolerance=10.0):
+        path = tmp_path / f"small-{tolerance:g}.toml"
+        path.write_text(SMALL.format(tolerance=tolerance))
+        return path
+
+    return write
+
+
+def guide_args(*argv):
+    return build_parser().parse_args(["guide", *map(str, argv)])
+
+
+def count_points(out):
+    """Complete point rows in out/points.csv so far (a row being written is not counted)."""
+    path = out / "points.csv"
+    rows = path.read_text().split("\n")[:-1] if path.exists() else []
+    return sum(row[:1].isdigit() for row in rows)
+
+
+def spy_on_moves(moves):
+    """An on_hardware hook that records every move the guide commands."""
+    def hook(hw, sim):
+        start_move = hw.axis.start_move
+        hw.axis.start_move = lambda pos, vel: (moves.append(pos), start_move(pos, vel))[1]
+    return hook
+
+
+# -- scripts -----------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("tolerance, verdict", [(10.0, "PASS"), (1.0, "FAIL")])
+def test_a_script_runs_the_whole_session(tmp_path, small_config, tolerance, verdict):
+    out = tmp_path / "run"
+    proc = subprocess.run([sys.executable, "-m", "campaign", "guide", small_config(tolerance), "--out", out,
+                           "--yes"], stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=120,
+                          cwd=ROOT, check=False)
+    assert proc.returncode == 0, proc.stderr
+    assert "Setup checklist" in proc.stdout and "FAIL " not in proc.stdout.split("Axis summary")[0]
+    assert f"{verdict}: accuracy A = " in proc.stdout
+    assert f"axiscal report {out} -o {out}/report.html" in proc.stdout
+    assert f"axiscal compensate {out}/points.csv --format" in proc.stdout
+    assert json.loads((out / "meta.json").read_text())["status"] == "completed"
+    assert count_points(out) == 60
+
+
+def test_a_script_must_confirm_with_yes(tmp_path, small_config, cli):
+    result = cli("guide", small_config(), "--out", tmp_path / "never")
+    assert_one_line_error(result, "confirmation needed", "--yes")
+    assert not (tmp_path / "never" / "meta.json").exists()
+
+
+def test_a_failed_check_stops_before_any_motion(tmp_path, small_config):
+    moves = []
+
+    def not_homed(hw, sim):
+        spy_on_moves(moves)(hw, sim)
+        sim.plc.homed = False
+
+    with pytest.raises(InputError, match="setup check failed: controller: .*homed NO"):
+        guide.run(guide_args(small_config(), "--out", tmp_path / "r", "--yes"), on_hardware=not_homed)
+    assert moves == [] and not (tmp_path / "r").exists()
+
+
+def test_a_plan_outside_the_soft_limits_fails_before_opening_hardware(tmp_path, small_config, cli):
+    path = small_config()
+    path.write_text(path.read_text().replace("overrun = 2.0", "overrun = 20.0"))
+    result = cli("guide", path, "--out", tmp_path / "r", "--yes")
+    assert_one_line_error(result, "soft limits", "outside")
+
+
+def test_the_alignment_check_fails_on_a_beam_break(tmp_path, small_config):
+    moves = []
+
+    def break_the_beam(hw, sim):
+        spy_on_moves(moves)(hw, sim)
+        sim.instrument.beam_break(sim.clock.now() + 2.0, sim.clock.now() + 4.0)  # during the first move
+
+    with pytest.raises(InputError, match="laser alignment: .*beam LOST"):
+        guide.run(guide_args(small_config(), "--out", tmp_path / "r", "--yes"), on_hardware=break_the_beam)
+    assert moves == [102.0, -2.0]  # to both ends of the plan, then stopped before the campaign
+    assert not (tmp_path / "r" / "meta.json").exists()
+
+
+def test_on_fault_skip_skips_the_points_without_beam(tmp_path, small_config, capsys):
+    out = tmp_path / "r"
+
+    def break_the_beam_mid_campaign(hw, sim):
+        sim.instrument.beam_break(40.0, 46.0)  # machine time s; the campaign starts at about 15 s
+
+    code = guide.run(guide_args(small_config(), "--out", out, "--yes", "--on-fault", "skip", "--json"),
+                     on_hardware=break_the_beam_mid_campaign)
+    result = json.loads(capsys.readouterr().out)
+    assert code == 0 and result["status"] == "completed"
+    assert 0 < result["points"] < result["planned"] == 60
+    assert result["verdict"] == "NOT JUDGED"
+    events = (out / "events.log").read_text()
+    assert events.count("skipped by the operator") == 60 - result["points"]
+    assert "BeamLost" in events
+
+
+def test_the_fault_prompt_takes_one_key_from_the_terminal():
+    master, slave = os.openpty()
+    try:
+        with Keys(lambda key: None, fd=slave) as keys:
+            os.write(master, b"xs")  # an unknown key is ignored
+            assert keys.ask({"r": "retry", "s": "skip", "a": "abort"}, Control()) == "skip"
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+def test_sparkline_scales_between_the_lowest_and_highest_value():
+    assert sparkline([0.0, None, 5.0, 10.0], 0.0, 10.0) == "▁·▅█"
+    assert sparkline([1.0, 2.0], 0.0, 10.0, width=2) == "▂▂▂▂"
+
+
+# -- a technician at a real terminal -----------------------------------------------------------
+
+def spawn_guide(config, out, speed="10"):
+    env = dict(os.environ, TERM="xterm")
+    env.pop("NO_COLOR", None)
+    child = pexpect.spawn(sys.executable, ["-m", "campaign", "guide", str(config), "--out", str(out),
+                                           "--speed", speed], cwd=str(ROOT), env=env, dimensions=(40, 120),
+                          encoding="utf-8", timeout=30)
+    child.logfile_read = io.StringIO()
+    return child
+
+
+def keep_reading_until(child, condition, timeout=30.0) -> bool:
+    """Read the screen (so the program never blocks on a full pty) until condition() holds."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if condition():
+            return True
+        try:
+            child.read_nonblocking(1 << 16, timeout=0.1)
+        except pexpect.TIMEOUT:
+            pass
+    return condition()
+
+
+def confirm_and_wait_for_points(child, out, n):
+    child.expect("Start the motion")
+    child.sendline("y")
+    child.expect("RUNNING")
+    assert keep_reading_until(child, lambda: count_points(out) >= n)
+
+
+def test_keys_pause_resume_and_abort_in_a_terminal(tmp_path, small_config):
+    out = tmp_path / "run"
+    child = spawn_guide(small_config(), out)
+    try:
+        confirm_and_wait_for_points(child, out, 2)
+        child.send("p")
+        child.expect("PAUSED")
+        paused_at = count_points(out)
+        keep_reading_until(child, lambda: False, timeout=2.0)  # 2 s real = 20 s of machine time
+        assert count_points(out) == paused_at
+        child.send("r")
+        assert keep_reading_until(child, lambda: count_points(out) > paused_at + 1)
+        child.send("a")
+        child.expect(pexpect.EOF)
+    finally:
+        child.close(force=True)
+    screen = child.logfile_read.getvalue()
+    assert child.exitstatus == 3, screen[-2000:]
+    assert "Traceback" not in screen
+    assert f"axiscal resume {out}" in screen and "aborted by the operator (a pressed)" in screen
+    assert json.loads((out / "meta.json").read_text())["status"] == "interrupted"
+    events = (out / "events.log").read_text()
+    assert "pause: paused after point" in events and "resume: resumed by the operator" in events
+    assert "axis halted" in events
+    assert count_points(out) < 60
+
+
+def test_ctrl_c_aborts_like_a(tmp_path, small_config):
+    out = tmp_path / "run"
+    child = spawn_guide(small_config(), out)
+    try:
+        confirm_and_wait_for_points(child, out, 1)
+        child.sendintr()
+        child.expect(pexpect.EOF)
+    finally:
+        child.close(force=True)
+    screen = child.logfile_read.getvalue()
+    assert child.exitstatus == 3 and "Traceback" not in screen
+    assert "aborted by the operator (Ctrl-C)" in screen
+    assert json.loads((out / "meta.json").read_text())["status"] == "interrupted"
+    assert "axis halted" in (out / "events.log").read_text()
+
+
+def test_a_second_ctrl_c_halts_at_once():
+    calls = []
+
+    class FakeDashboard:
+        def abort(self, why):
+            calls.append(f"abort: {why}")
+
+        def say(self, message):
+            calls.append(message)
+
+    class FakeAxis:
+        def halt(self):
+            calls.append("halt")
+
+    hw = type("FakeHardware", (), {"axis": FakeAxis()})()
+    before = signal.getsignal(signal.SIGINT)
+    with CtrlC(FakeDashboard(), hw):
+        os.kill(os.getpid(), signal.SIGINT)
+        assert calls == ["abort: Ctrl-C"]  # the first only asks the campaign to stop
+        with pytest.raises(KeyboardInterrupt):
+            os.kill(os.getpid(), signal.SIGINT)
+    assert calls[1:] == ["halt", "second Ctrl-C: axis halted at once"]
+    assert signal.getsignal(signal.SIGINT) is before  # restored
+
+
+def test_a_fault_asks_the_operator_in_a_terminal(tmp_path, small_config):
+    config = small_config()
+    config.write_text(config.read_text() + "\n[sim.faults]\nbeam_break = { at_s = 40.0, duration_s = 1.0 }\n")
+    out = tmp_path / "run"
+    child = spawn_guide(config, out)
+    try:
+        child.expect("Start the motion")
+        child.sendline("y")
+        child.expect("Press r to retry the point, s to skip it, a to abort")
+        skipped_at = count_points(out)
+        child.send("s")
+        assert keep_reading_until(child, lambda: count_points(out) > skipped_at + 1)
+        child.send("a")  # aborts, or answers a second fault prompt with abort
+        child.expect(pexpect.EOF)
+    finally:
+        child.close(force=True)
+    screen = child.logfile_read.getvalue()
+    assert child.exitstatus == 3 and "Traceback" not in screen
+    assert "beam lost" in screen
+    assert f"point {skipped_at} skipped by the operator" in (out / "events.log").read_text()

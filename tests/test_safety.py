@@ -1,0 +1,85 @@
+"""Nothing unsafe is commanded: limits before every motion (also on resume), read-only dry run,
+writes limited to the PLC contract."""
+
+import json
+
+import pytest
+
+from campaign.config import parse_config
+from campaign.errors import SafetyError
+from campaign.executor import Executor
+from campaign.plan import Move, build_plan
+from campaign.recording import Recorder
+from campaign.session import dry_run, open_hardware
+from protocols import plc_contract
+from tests.conftest import ROOT
+from tests.test_crash_safety import start_slow_demo, wait_for_points
+from tests.test_demo_e2e import axiscal
+
+DEMO = (ROOT / "campaign" / "demo.toml").read_text()
+
+
+def control_values(plc):
+    return {member: plc.value(symbol.name) for member, symbol in plc_contract.control_symbols(1).items()}
+
+
+def test_dry_run_commands_nothing():
+    config = parse_config(DEMO, "demo.toml")
+    hardware, sim = open_hardware(parse_config(DEMO.replace('type = "sim"\n', 'type = "sim"\nread_only = true\n', 1),
+                                               "ro.toml"))
+    before = control_values(sim.plc)
+    report = dry_run(config, opened=(hardware, sim))
+    assert report["read_only"] and report["points"] == 110 and report["readings"] >= 9
+    assert report["axis_enabled"] and report["beam_ok"]
+    assert control_values(sim.plc) == before  # no symbol written
+    assert sim.plc.setpoint_position(sim.clock.now()) == 0.0  # the axis never moved
+
+
+def test_dry_run_command(tmp_path):
+    proc = axiscal("run", ROOT / "data/configs/vertical-sim.toml", "--dry-run", "--json")
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    assert data["read_only"] and data["plan_within_limits"] and data["axis_position"] == 0.0
+
+
+@pytest.mark.parametrize("position, velocity, why", [(700.0, 8.0, "soft limits"), (100.0, 80.0, "velocity")])
+def test_every_motion_is_checked_before_it_is_sent(tmp_path, position, velocity, why):
+    config = parse_config(DEMO, "demo.toml")
+    plan = build_plan(config)
+    hardware, sim = open_hardware(config)
+    recorder = Recorder.create(tmp_path / "c", DEMO, {}, "linear")
+    executor = Executor(plan, config, hardware, recorder)
+    try:
+        with pytest.raises(SafetyError, match=why):
+            executor._move(Move(position, velocity))
+        sent = control_values(sim.plc)
+        assert sent["fPosition"] == 0.0 and sent["bExecute"] is False
+        assert sim.plc.setpoint_position(sim.clock.now()) == 0.0
+    finally:
+        hardware.close()
+        recorder.close()
+
+
+def test_resume_checks_the_limits_before_moving(tmp_path, cli):
+    out = tmp_path / "r"
+    proc = start_slow_demo(out)
+    wait_for_points(out / "points.csv", 3, proc)
+    proc.kill()
+    proc.wait(timeout=10)
+    config = out / "config.toml"
+    config.write_text(config.read_text().replace("soft_limit_min = -10.0", "soft_limit_min = -1.0"))
+    size = (out / "raw.csv").stat().st_size
+    result = cli("resume", out)
+    assert result.code == 2 and "soft limits" in result.err
+    assert (out / "raw.csv").stat().st_size == size  # nothing ran
+
+
+def test_hardware_type_is_a_closed_set():
+    """No config key names an ADS symbol: the axis driver writes only the contract's symbols."""
+    from campaign.config import SCHEMA
+
+    keys = {k for section in SCHEMA.values() for k in section}
+    assert not any("symbol" in k or "gvl" in k.lower() for k in keys)
+    assert plc_contract.writable_symbols(1) == {s.name for s in (*plc_contract.control_symbols(1).values(),
+                                                                   *plc_contract.comp_symbols(1).values())}
+    assert not plc_contract.writable_symbols(1) & {s.name for s in plc_contract.status_symbols(1).values()}
