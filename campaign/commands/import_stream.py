@@ -1,0 +1,48 @@
+"""`axiscal import-stream STREAM.csv --config CONFIG -o POINTS.csv [--still-tolerance T]`: find the
+dwells in another program's continuous log, match them to the plan and write the point table."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from campaign.config import load_config
+from campaign.errors import InputError
+from campaign.plan import build_plan
+from campaign.pointtable import write_points
+from campaign.stream_csv import read_stream
+from campaign.stream_import import extract_points
+
+
+def register(sub) -> None:
+    p = sub.add_parser("import-stream", help="turn a continuous position log into a point table",
+                       description="Find the dwells in a continuous log (CSV with time_s and a reading), "
+                                   "match them to the config's plan and write the point table.")
+    p.add_argument("stream", help="CSV with time_s (s) and reading_mm / position_mm / reading / position "
+                                  "(or _deg for a rotary axis); see docs/import-stream.md")
+    p.add_argument("--config", required=True, help="the campaign config (TOML) the log was measured with")
+    p.add_argument("-o", "--out", required=True, help="point table CSV to write")
+    p.add_argument("--still-tolerance", type=float, default=5.0, metavar="T",
+                   help="band the reading stays in while the axis dwells, µm or arcsec (default 5)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    if not args.still_tolerance > 0:
+        raise InputError(f"--still-tolerance: must be a positive number, found {args.still_tolerance:g}")
+    config = load_config(args.config)
+    plan = build_plan(config)
+    stream = read_stream(args.stream, config["axis"]["unit"])
+    result = extract_points(stream, plan, config, args.still_tolerance)
+    out = Path(args.out)
+    try:
+        write_points(out, result.table)
+    except OSError as exc:
+        raise InputError(f"{out}: cannot write ({exc.strerror})") from None
+    for warning in result.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    print(f"{len(result.table)} points from {result.dwells} dwells in {args.stream} "
+          f"(column '{stream.column}'); {result.overrun_stops} overrun stops skipped, "
+          f"{result.ignored_stops} stops after the last point ignored")
+    print(f"point table written to {out}")
+    return 0

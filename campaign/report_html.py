@@ -1,0 +1,160 @@
+"""HTML building blocks of the report (campaign/report.py): the page with its inline CSS, tables and
+the pass/fail box. Every text that comes from a file is escaped."""
+
+from __future__ import annotations
+
+from html import escape
+
+import numpy as np
+
+from campaign.iso230 import Evaluation
+from campaign.views import SUMMARY_ROWS, fmt
+
+ENVIRONMENT = (("air_temp_c", "Air temperature", "°C", 2), ("air_pressure_hpa", "Air pressure", "hPa", 1),
+               ("humidity_pct", "Relative humidity", "%", 1),
+               ("material_temp_c", "Material temperature", "°C", 2))
+"""points.csv column, name, unit, decimals."""
+
+CSS = """
+body { font-family: "DejaVu Sans", "Liberation Sans", Arial, sans-serif; color: #1d2630; margin: 0;
+       background: #eef1f4; font-size: 15px; line-height: 1.4; }
+main { max-width: 1120px; margin: 0 auto; padding: 24px 28px 40px; background: #fff; }
+h1 { font-size: 26px; margin: 0 0 4px; }
+h2 { font-size: 18px; margin: 0 0 8px; padding-bottom: 4px; border-bottom: 2px solid #d5dbe1; }
+.subtitle { color: #52606d; margin: 0 0 18px; }
+section { margin: 0 0 22px; break-inside: avoid; }
+.columns { display: flex; gap: 28px; }
+.columns > section { flex: 1; }
+table { border-collapse: collapse; width: 100%; font-size: 14px; }
+th, td { padding: 4px 8px; border-bottom: 1px solid #e3e7eb; text-align: left; vertical-align: top; }
+th { background: #f4f6f8; font-weight: 600; }
+td.num, th.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
+table.facts th { width: 34%; background: none; color: #52606d; font-weight: normal; }
+.verdict { display: flex; align-items: center; gap: 20px; padding: 14px 20px; border-radius: 8px;
+           margin: 0 0 22px; border: 2px solid; }
+.verdict .word { font-size: 34px; font-weight: 700; letter-spacing: 2px; }
+.verdict p { margin: 0; font-size: 17px; }
+.pass { background: #e6f4ea; border-color: #2e7d32; color: #1b5e20; }
+.fail { background: #fdecea; border-color: #c62828; color: #8e1b1b; }
+.none { background: #f4f6f8; border-color: #9aa5b1; color: #3e4c59; }
+img.plot { width: 100%; height: auto; border: 1px solid #e3e7eb; margin-top: 10px; }
+.figures { display: flex; gap: 14px; margin: 0 0 22px; }
+.figures div { flex: 1; border: 1px solid #d5dbe1; border-radius: 8px; padding: 8px 14px; }
+.figures .key { display: block; color: #52606d; font-size: 13px; }
+.figures .value { font-size: 26px; font-weight: 700; margin-right: 6px; font-variant-numeric: tabular-nums; }
+.figures .unit { color: #52606d; }
+.lead { font-size: 16px; margin: 0 0 10px; }
+.better { color: #1b5e20; } .worse { color: #8e1b1b; }
+ul.warnings { margin: 0; padding-left: 20px; color: #8a5a00; }
+footer { color: #7b8794; font-size: 12px; margin-top: 28px; }
+@media print { body { background: #fff; } main { padding: 0; } .columns { display: block; } }
+"""
+
+
+def unit_label(unit: str) -> str:
+    """A deviation unit as printed: µm or arcsec."""
+    return {"um": "µm"}.get(unit, unit)
+
+
+def page(title: str, body: str, subtitle: str = "") -> str:
+    """A complete HTML document with the CSS inline."""
+    return (f"<!DOCTYPE html>\n<html lang='en'>\n<head>\n<meta charset='utf-8'>\n"
+            f"<meta name='viewport' content='width=device-width, initial-scale=1'>\n"
+            f"<title>{escape(title)}</title>\n<style>{CSS}</style>\n</head>\n<body>\n<main>\n"
+            f"<h1>{escape(title)}</h1>\n<p class='subtitle'>{escape(subtitle)}</p>\n{body}\n"
+            f"<footer>Made by axiscal. Deviation = measured − target (ISO 230-2 sign).</footer>\n"
+            f"</main>\n</body>\n</html>\n")
+
+
+def section(title: str, body: str) -> str:
+    return f"<section>\n<h2>{escape(title)}</h2>\n{body}\n</section>\n"
+
+
+def _table(head: list[str], rows: list[list[str]], numeric_from: int = 1, css: str = "") -> str:
+    """A table; columns from `numeric_from` on are right-aligned. Cells are escaped here."""
+    def cells(tag: str, values: list[str]) -> str:
+        return "".join(f"<{tag}{' class=num' if i >= numeric_from else ''}>{escape(str(v))}</{tag}>"
+                       for i, v in enumerate(values))
+    body = "".join(f"<tr>{cells('td', r)}</tr>" for r in rows)
+    return f"<table class='{css}'><thead><tr>{cells('th', head)}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def facts_table(rows: list[tuple[str, str]]) -> str:
+    body = "".join(f"<tr><th>{escape(str(k))}</th><td>{escape(str(v))}</td></tr>" for k, v in rows)
+    return f"<table class='facts'><tbody>{body}</tbody></table>"
+
+
+def environment_table(optional: dict[str, np.ndarray]) -> str:
+    """Mean, minimum and maximum of each environment column present in points.csv."""
+    rows = [[name, f"{np.mean(optional[col]):.{d}f}", f"{np.min(optional[col]):.{d}f}",
+             f"{np.max(optional[col]):.{d}f}", unit]
+            for col, name, unit, d in ENVIRONMENT if col in optional]
+    if not rows:
+        return "<p>No environment readings in points.csv.</p>"
+    return _table(["Quantity", "Mean", "Minimum", "Maximum", "Unit"], rows)
+
+
+def summary_table(ev: Evaluation) -> str:
+    unit = unit_label(ev.unit)
+    rows = [[key, meaning, fmt(ev.summary[key]), unit] for key, meaning in SUMMARY_ROWS if key in ev.summary]
+    return _table(["Parameter", "Meaning", "Value", "Unit"], rows, numeric_from=2)
+
+
+def target_table(ev: Evaluation) -> str:
+    u = unit_label(ev.unit)
+    head = [f"Target ({ev.position_unit})", "n↑", "n↓", f"x̄↑ ({u})", f"x̄↓ ({u})", f"s↑ ({u})", f"s↓ ({u})",
+            f"B ({u})", f"R↑ ({u})", f"R↓ ({u})", f"R ({u})", f"x̄ ({u})"]
+    rows = [[f"{t.target:g}", t.n_up, t.n_down, fmt(t.mean_up), fmt(t.mean_down), fmt(t.s_up), fmt(t.s_down),
+             fmt(t.B), fmt(t.R_up), fmt(t.R_down), fmt(t.R), fmt(t.mean)] for t in ev.targets]
+    return _table(head, rows, numeric_from=0)
+
+
+def _change(before: float | None, after: float | None) -> tuple[str, str]:
+    """(text, css class) of the change from before to after; smaller is better."""
+    if before is None or after is None or before == 0:
+        return "–", ""
+    ratio = after / before
+    word = "smaller" if ratio <= 1 else "larger"
+    return f"× {ratio:.2f} ({abs(1 - ratio) * 100:.0f} % {word})", "better" if ratio <= 1 else "worse"
+
+
+def comparison_table(before: Evaluation, after: Evaluation) -> str:
+    """The summary parameters before and after, with the ratio after / before."""
+    unit = unit_label(after.unit)
+    rows = []
+    for key, meaning in SUMMARY_ROWS:
+        if key not in after.summary or (before.summary.get(key) is None and after.summary[key] is None):
+            continue
+        text, css = _change(before.summary.get(key), after.summary[key])
+        rows.append(f"<tr><td>{key}</td><td>{escape(meaning)}</td>"
+                    f"<td class=num>{fmt(before.summary.get(key))}</td>"
+                    f"<td class=num>{fmt(after.summary[key])}</td><td class=num>{unit}</td>"
+                    f"<td class='num {css}'>{escape(text)}</td></tr>")
+    head = "".join(f"<th{' class=num' if i > 1 else ''}>{h}</th>" for i, h in
+                   enumerate(["Parameter", "Meaning", "Before", "After", "Unit", "Change"]))
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(rows)}</tbody></table>"
+
+
+def key_figures(ev: Evaluation) -> str:
+    """The main parameters in large type: A, E, B and R (or their one-direction values)."""
+    unit = unit_label(ev.unit)
+    keys = ("A", "E", "B", "R") if ev.summary.get("A") is not None or ev.summary.get("E") is not None else \
+        ("A_up", "E_up", "R_up", "A_down", "E_down", "R_down")
+    cells = "".join(f"<div><span class='key'>{k}</span><span class='value'>{fmt(ev.summary.get(k), 2)}</span>"
+                    f"<span class='unit'>{unit}</span></div>" for k in keys if k in ev.summary)
+    return f"<div class='figures'>{cells}</div>"
+
+
+def verdict_box(name: str, value: float | None, tolerance: float | None, unit: str) -> str:
+    """PASS or FAIL of the accuracy `name` against the tolerance; a neutral box without one."""
+    if value is None:
+        css, word, text = "none", "NOT ASSESSED", f"{name} is unavailable (one run only?)."
+    elif tolerance is None:
+        css, word, text = "none", "NO TOLERANCE", f"{name} = {value:.2f} {unit}. No tolerance set."
+    elif value <= tolerance:
+        css, word = "pass", "PASS"
+        text = f"{name} = {value:.2f} {unit}, within the tolerance of {tolerance:g} {unit}."
+    else:
+        css, word = "fail", "FAIL"
+        text = f"{name} = {value:.2f} {unit}, above the tolerance of {tolerance:g} {unit}."
+    return f"<div class='verdict {css}'><span class='word'>{word}</span><p>{escape(text)}</p></div>"

@@ -1,0 +1,180 @@
+"""Turn a continuous position log from another program into a point table.
+
+The stream (campaign/stream_csv.py) holds sample times (s) and readings in the axis unit (mm or
+deg); its environment columns are averaged like the reading. Readings are taken as they are: no
+air or material correction is applied.
+
+1. Dwells: a sample is still when the reading is within `still_tolerance` of the reading a quarter
+   of the planned dwell earlier; a dwell is a run of still samples (extended back by that quarter)
+   that lasts at least half the planned dwell and does not begin at the start of the stream.
+2. Matching: the dwells are matched in order to the plan's move endpoints. Every measured point
+   needs a dwell at its target; overrun stops may be missing (they are motion only); stops after the
+   last point are ignored.
+3. Capture: like the fixed-dwell method, the mean of the last `capture.average_s` of each dwell.
+
+Everything per sample is vectorised numpy/pandas; only the dwells are walked in Python.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from campaign.config import Config
+from campaign.errors import InputError
+from campaign.plan import Checkpoint, Move, Plan, Point
+from campaign.pointtable import PointTable
+from campaign.stream_csv import Stream, locate
+
+SCALE = {"mm": 1000.0, "deg": 3600.0}
+"""Axis unit -> deviation unit factor (mm -> µm, deg -> arcsec)."""
+
+
+@dataclass
+class Dwells:
+    """Dwells as sample index ranges [start, end] (inclusive) into the stream."""
+
+    start: np.ndarray
+    end: np.ndarray
+
+
+@dataclass
+class StreamImport:
+    """The result: the point table and what was found on the way."""
+
+    table: PointTable
+    dwells: int
+    overrun_stops: int
+    ignored_stops: int
+    warnings: list[str]
+
+
+def sample_interval(time: np.ndarray) -> float:
+    """The typical time between samples (s): the median over up to 100 000 evenly spread pairs."""
+    if len(time) < 2:
+        return 0.0
+    pick = np.unique(np.linspace(0, len(time) - 2, min(len(time) - 1, 100_000)).astype(int))
+    return float(np.median(time[pick + 1] - time[pick]))
+
+
+def find_dwells(time: np.ndarray, reading: np.ndarray, tolerance: float, dwell_s: float) -> Dwells:
+    """The dwells of a stream. A sample is still when it is within `tolerance` (axis unit) of the
+    reading a quarter of `dwell_s` (s) earlier; a dwell is a run of still samples, extended back by
+    that quarter, that lasts at least half of `dwell_s` and does not begin at the first sample."""
+    dt = sample_interval(time) or 1e-9
+    lag = int(min(len(time), max(1.0, np.ceil(dwell_s / 4 / dt))))  # samples
+    still = np.zeros(len(time) + 2, dtype=np.int8)
+    with np.errstate(all="ignore"):
+        still[lag + 1:-1] = np.abs(reading[lag:] - reading[:-lag]) <= tolerance
+    edges = np.diff(still)
+    first = np.flatnonzero(edges == 1)
+    last = np.flatnonzero(edges == -1) - 1
+    long = time[last] - time[first] >= dwell_s / 4 - dt  # drops noise flickers at a dwell's edges
+    first, last = first[long], last[long]
+    start = first - lag
+    start[1:] = np.maximum(start[1:], last[:-1] + 1)  # a run may reach back into the previous one
+    keep = (start > 0) & (time[last] - time[np.maximum(start, 0)] >= dwell_s / 2 - dt / 2)
+    return Dwells(start[keep], last[keep])
+
+
+def _window_means(values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Mean of values[lo:hi] for each pair (hi > lo), vectorised."""
+    bounds = np.column_stack([lo, hi]).ravel()
+    with np.errstate(all="ignore"):  # absurd readings overflow to inf, which matches no target
+        sums = np.add.reduceat(values, bounds[:-1] if bounds[-1] == len(values) else bounds)[::2]
+        return sums / (hi - lo)
+
+
+def capture_windows(stream: Stream, dwells: Dwells, average_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Sample index ranges [lo, hi) of the last `average_s` (s) of each dwell."""
+    hi = dwells.end + 1
+    half = sample_interval(stream.time) / 2  # s
+    lo = np.searchsorted(stream.time, stream.time[dwells.end] - average_s + half, side="left")
+    return np.clip(lo, dwells.start, dwells.end), hi  # at least the last sample
+
+
+def plan_stops(plan: Plan) -> list[tuple[float, Point | None]]:
+    """The plan's move endpoints in order: (position, the point measured there or None)."""
+    stops: list[tuple[float, Point | None]] = []
+    for step in plan.steps:
+        if isinstance(step, Move):
+            if stops and stops[-1] == (step.position, None):
+                stops.pop()  # a zero-length move after an overrun stop: one stop
+            stops.append((step.position, None))
+        elif isinstance(step, Checkpoint):
+            stops[-1] = (stops[-1][0], step.point)
+    return stops
+
+
+def match_tolerance(stops: list[tuple[float, Point | None]]) -> float:
+    """A quarter of the smallest distance between two planned stop positions (axis unit)."""
+    positions = np.unique([p for p, _ in stops])
+    return float(np.min(np.diff(positions))) / 4 if len(positions) > 1 else float("inf")
+
+
+def _describe(point: Point, unit: str, total: int) -> str:
+    sign = "+" if point.direction > 0 else "-"
+    return (f"point {point.index + 1} of {total} (run {point.run}, direction {sign}, "
+            f"target {point.target:g} {unit})")
+
+
+def assign_dwells(stream: Stream, dwells: Dwells, positions: np.ndarray, plan: Plan, unit: str,
+                  ) -> tuple[list[int], int, int]:
+    """Match dwells to the plan: (dwell index per point, overrun stops seen, stops ignored)."""
+    stops = plan_stops(plan)
+    tol = match_tolerance(stops)
+    total = len(plan.points)
+    assigned: list[int] = []
+    overruns = 0
+    j = 0
+    for d, pos in enumerate(positions):
+        while j < len(stops) and stops[j][1] is None and abs(pos - stops[j][0]) > tol:
+            j += 1  # an overrun without a stop
+        if j == len(stops):
+            return assigned, overruns, len(positions) - d
+        target, point = stops[j]
+        if not abs(pos - target) <= tol:
+            where = locate(stream.source, int(dwells.start[d]), stream.time)
+            raise InputError(f"{where}: dwell {d + 1} of {len(positions)} is at {pos:.4f} {unit}, "
+                             f"but the plan expects {_describe(point, unit, total)}; "
+                             f"the stream has {len(positions)} dwells for {total} points")
+        if point is None:
+            overruns += 1
+        else:
+            assigned.append(d)
+        j += 1
+    if len(assigned) < total:
+        missing = plan.points[len(assigned)]
+        after = ("" if not assigned else
+                 f" after the dwell at {locate(stream.source, int(dwells.end[assigned[-1]]), stream.time)}")
+        raise InputError(f"{stream.source}: the stream has {len(positions)} dwells "
+                         f"({len(assigned)} match the plan) for {total} points; "
+                         f"{_describe(missing, unit, total)} has no dwell{after}")
+    return assigned, overruns, 0
+
+
+def extract_points(stream: Stream, plan: Plan, config: Config, still_tolerance: float) -> StreamImport:
+    """Segment the stream, match it to the plan and capture each point. `still_tolerance` in the
+    deviation unit (µm or arcsec)."""
+    unit, kind = config["axis"]["unit"], config["axis"]["kind"]
+    tolerance = still_tolerance / SCALE[unit]  # axis unit
+    dwells = find_dwells(stream.time, stream.reading, tolerance, config["plan"]["dwell_s"])
+    lo, hi = capture_windows(stream, dwells, config["capture"]["average_s"])
+    positions = _window_means(stream.reading, lo, hi) if len(lo) else np.zeros(0)
+    assigned, overruns, ignored = assign_dwells(stream, dwells, positions, plan, unit)
+    pick = np.array(assigned, dtype=int)
+    points = plan.points
+    target = np.array([p.target for p in points])
+    optional = {"time_s": stream.time[dwells.end[pick]]}
+    for name, values in stream.env.items():
+        optional[name] = _window_means(values, lo, hi)[pick]
+    optional["reading"] = positions[pick]
+    optional["samples"] = (hi - lo)[pick].astype(float)
+    meta = {"machine": config["campaign"]["machine"], "axis": config["axis"]["name"],
+            "plan_seed": str(plan.seed), "source": stream.source}
+    table = PointTable(kind=kind, run=np.array([p.run for p in points]),
+                       direction=np.array([p.direction for p in points]), target=target,
+                       deviation=(positions[pick] - target) * SCALE[unit], optional=optional, meta=meta,
+                       source=stream.source)
+    return StreamImport(table, len(dwells.start), overruns, ignored, stream.warnings)

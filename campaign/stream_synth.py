@@ -1,0 +1,70 @@
+"""A synthetic continuous stream for a plan, as another program would log it: trapezoidal moves between
+the plan's endpoints, a dwell at each target, noise. Used by the import-stream tests and bench.
+
+Positions in the axis unit (mm or deg), times in s. The machine error is a scale error
+(`ppm` of the position), a reversal value (`backlash` in the axis unit, split ± by approach
+direction) and a per-visit scatter; the readings add white noise of `noise` (axis unit).
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pandas as pd
+
+from campaign.config import Config
+from campaign.plan import Checkpoint, Move, Plan, move_time_s
+
+
+def _stops(plan: Plan, config: Config, overrun_dwell_s: float, skip_point: int | None):
+    """(position, dwell s, point index or -1) per move endpoint; `skip_point` gets no stop at all."""
+    dwell = config["plan"]["dwell_s"]
+    stops: list[list] = []
+    for step in plan.steps:
+        if isinstance(step, Move):
+            stops.append([step.position, overrun_dwell_s, -1])
+        elif isinstance(step, Checkpoint):
+            stops[-1][1:] = [dwell, step.point.index]
+    return [s for s in stops if s[2] != skip_point or skip_point is None]
+
+
+def _trapezoid(tau: np.ndarray, distance: np.ndarray, velocity: float, accel: float) -> np.ndarray:
+    """Distance covered `tau` s into a trapezoidal (or triangular) move of `distance`."""
+    ramp = np.minimum(velocity / accel, np.sqrt(distance / accel))
+    peak = accel * ramp
+    total = distance / np.maximum(peak, 1e-12) + ramp
+    return np.where(tau < ramp, accel * tau**2 / 2,
+                    np.where(tau < total - ramp, accel * ramp**2 / 2 + peak * (tau - ramp),
+                             distance - accel * np.maximum(total - tau, 0) ** 2 / 2))
+
+
+def synthetic_stream(plan: Plan, config: Config, rate_hz: float, seed: int = 0, noise: float = 0.3e-3,
+                     ppm: float = -12.0, backlash: float = 2e-3, scatter: float = 0.5e-3,
+                     overrun_dwell_s: float = 0.0, skip_point: int | None = None,
+                     ) -> tuple[pd.DataFrame, np.ndarray]:
+    """The stream (columns time_s and reading_mm or reading_deg) and the true error of each plan
+    point (axis unit; NaN for a skipped point). The stream starts moving at t = 0 from the first
+    target."""
+    rng = np.random.default_rng(seed)
+    velocity, accel = config["plan"]["velocity"], config["axis"]["max_acceleration"]
+    stops = _stops(plan, config, overrun_dwell_s, skip_point)
+    positions = np.array([plan.targets[0]] + [s[0] for s in stops])
+    moves = np.array([move_time_s(b - a, velocity, accel) for a, b in itertools.pairwise(positions)])
+    dwells = np.array([s[1] for s in stops])
+    direction = np.sign(np.diff(positions))
+    error = positions[1:] * ppm * 1e-6 + direction * backlash / 2 + rng.normal(0, scatter, len(stops))
+    # segment k: move to stop k during [arrive_k - moves_k, arrive_k), then dwell until leave_k
+    leave = np.cumsum(moves + dwells)
+    arrive = leave - dwells
+    t = np.arange(1, int(leave[-1] * rate_hz) + 1) / rate_hz
+    k = np.minimum(np.searchsorted(leave, t, side="right"), len(stops) - 1)
+    start = np.concatenate([[positions[0]], positions[1:-1] + error[:-1]])
+    travel = positions[1:] + error - start
+    covered = _trapezoid(np.clip(t - (arrive[k] - moves[k]), 0, moves[k]), np.abs(travel[k]), velocity, accel)
+    reading = start[k] + np.sign(travel[k]) * covered + rng.normal(0, noise, len(t))
+    truth = np.full(len(plan.points), np.nan)
+    measured = np.array([s[2] for s in stops])
+    truth[measured[measured >= 0]] = error[measured >= 0]
+    column = "reading_mm" if config["axis"]["unit"] == "mm" else "reading_deg"
+    return pd.DataFrame({"time_s": t, column: reading}), truth

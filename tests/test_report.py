@@ -1,0 +1,146 @@
+"""`axiscal report`: a self-contained HTML report, rendered in real headless Chromium; before and after
+side by side; pass/fail against the tolerance; bad directories end with one `error:` line."""
+
+import base64
+import json
+import re
+import shutil
+import subprocess
+
+import matplotlib.image
+import numpy as np
+import pytest
+
+from campaign.iso230 import evaluate
+from campaign.pointtable import read_points
+from tests.conftest import assert_one_line_error
+from tests.test_demo_e2e import axiscal
+
+CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+WINDOW = (1200, 1600)  # px
+
+
+@pytest.fixture(scope="module")
+def demo_dir(tmp_path_factory):
+    out = tmp_path_factory.mktemp("demo") / "after"
+    proc = axiscal("demo", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    return out
+
+
+def scaled_copy(source, target, factor):
+    """A copy of a campaign whose deviations are `factor` times larger (a 'before' campaign)."""
+    shutil.copytree(source, target)
+    lines = []
+    for line in (target / "points.csv").read_text().splitlines(keepends=True):
+        if line[:1].isdigit():
+            cells = line.split(",")
+            cells[3] = f"{float(cells[3]) * factor:.4f}"
+            line = ",".join(cells)
+        lines.append(line)
+    (target / "points.csv").write_text("".join(lines))
+    return target
+
+
+def chromium(*args, tmp_path):
+    if not shutil.which(CHROMIUM):
+        pytest.fail("chromium is missing: run `bash tests/setup_system.sh` (make test does)")
+    flags = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+             "--disable-background-networking", "--disable-component-update", "--disable-sync",
+             f"--user-data-dir={tmp_path / 'chromium-profile'}", "--virtual-time-budget=5000"]
+    proc = subprocess.run([CHROMIUM, *flags, *args], capture_output=True, text=True, timeout=120, check=False)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return proc.stdout
+
+
+def test_the_report_renders_in_headless_chromium(demo_dir, tmp_path, cli):
+    report = tmp_path / "report.html"
+    result = cli("report", demo_dir, "-o", report)
+    assert result.code == 0, result.err
+    shot = tmp_path / "shot.png"
+    size = f"--window-size={WINDOW[0]},{WINDOW[1]}"
+    chromium(f"--screenshot={shot}", size, report.as_uri(), tmp_path=tmp_path)
+    pixels = matplotlib.image.imread(shot)
+    assert pixels.shape[:2] == (WINDOW[1], WINDOW[0])
+    grey = pixels[..., :3].mean(axis=2)
+    assert grey.std() > 0.05  # not a blank page
+    assert (grey < 0.9).mean() > 0.03  # text, tables and the verdict box are drawn
+    dom = chromium("--dump-dom", report.as_uri(), tmp_path=tmp_path)
+    ev = evaluate(read_points(demo_dir / "points.csv"))
+    for key in ("A", "E", "B", "R"):
+        assert f"{ev.summary[key]:.3f}" in dom, key
+    for text in ("PASS", "sim-press", "µm", "°C", "1013.2", "mean of the last 1 s", "Per target"):
+        assert text in dom, text
+
+
+def test_the_report_is_self_contained(demo_dir, tmp_path, cli):
+    assert cli("report", demo_dir, "-o", tmp_path / "r.html").code == 0
+    html = (tmp_path / "r.html").read_text()
+    assert "http:" not in html and "https:" not in html and "<script" not in html and "<link" not in html
+    assert "url(" not in html and "@import" not in html
+    sources = re.findall(r"src='([^']*)'", html)
+    assert sources and all(s.startswith("data:image/png;base64,") for s in sources)
+    for source in sources:
+        assert base64.b64decode(source.split(",", 1)[1], validate=True)[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_before_and_after_side_by_side_from_meta_and_from_the_option(demo_dir, tmp_path, cli):
+    before = scaled_copy(demo_dir, tmp_path / "before", 3.0)
+    after = shutil.copytree(demo_dir, tmp_path / "after")
+    meta = json.loads((after / "meta.json").read_text())
+    (after / "meta.json").write_text(json.dumps({**meta, "baseline_dir": "../before"}))
+    a_before = evaluate(read_points(before / "points.csv")).summary["A"]
+    a_after = evaluate(read_points(after / "points.csv")).summary["A"]
+    assert cli("report", after, "-o", tmp_path / "auto.html").code == 0
+    auto = (tmp_path / "auto.html").read_text()
+    assert "Before and after" in auto
+    assert f"A went from {a_before:.2f} µm to {a_after:.2f} µm" in auto
+    assert f"× {a_after / a_before:.2f} ({(1 - a_after / a_before) * 100:.0f} % smaller)" in auto
+    assert auto.count("<img") == 2  # before|after side by side, and the result plot
+    assert cli("report", demo_dir, "-o", tmp_path / "opt.html", "--before", before).code == 0
+    assert "Before and after" in (tmp_path / "opt.html").read_text()
+    assert cli("report", demo_dir, "-o", tmp_path / "alone.html").code == 0
+    assert "Before and after" not in (tmp_path / "alone.html").read_text()
+
+
+@pytest.mark.parametrize("tolerance, word", [("1.0", "FAIL"), ("0.0", "NO TOLERANCE"), ("10.0", "PASS")])
+def test_pass_or_fail_against_the_tolerance(demo_dir, tmp_path, cli, tolerance, word):
+    campaign = shutil.copytree(demo_dir, tmp_path / "c")
+    config = (campaign / "config.toml").read_text()
+    (campaign / "config.toml").write_text(re.sub(r"tolerance = [0-9.]+", f"tolerance = {tolerance}", config))
+    assert cli("report", campaign, "-o", tmp_path / "r.html").code == 0
+    html = (tmp_path / "r.html").read_text()
+    verdict = re.search(r"<span class='word'>([A-Z ]+)</span>", html).group(1)
+    assert verdict == word
+
+
+def test_the_default_output_is_in_the_campaign_directory(demo_dir, tmp_path, cli):
+    campaign = shutil.copytree(demo_dir, tmp_path / "c")
+    result = cli("report", campaign)
+    assert result.code == 0 and (campaign / "report.html").is_file()
+    assert str(campaign / "report.html") in result.out
+
+
+def test_environment_summary_uses_points_csv(demo_dir, tmp_path, cli):
+    campaign = shutil.copytree(demo_dir, tmp_path / "c")
+    table = read_points(campaign / "points.csv")
+    assert cli("report", campaign, "-o", tmp_path / "r.html").code == 0
+    html = (tmp_path / "r.html").read_text()
+    temps = table.optional["air_temp_c"]
+    row = re.search(r"Air temperature</td>(.*?)</tr>", html).group(1)
+    assert re.findall(r">([-0-9.]+)<", row) == [f"{np.mean(temps):.2f}", f"{np.min(temps):.2f}",
+                                                f"{np.max(temps):.2f}"]
+
+
+def test_bad_directories_give_one_error_line(demo_dir, tmp_path, cli):
+    assert_one_line_error(cli("report", tmp_path / "nowhere"), "not a campaign directory")
+    (tmp_path / "empty").mkdir()
+    assert_one_line_error(cli("report", tmp_path / "empty"), "not a campaign directory (no meta.json)")
+    campaign = shutil.copytree(demo_dir, tmp_path / "c")
+    header = [ln for ln in (campaign / "points.csv").read_text().splitlines() if ln.startswith("run,")]
+    (campaign / "points.csv").write_text(header[0] + "\n")
+    assert_one_line_error(cli("report", campaign), "points.csv", "no data rows")
+    assert_one_line_error(cli("report", demo_dir, "-o", tmp_path / "r.html", "--before", tmp_path / "empty"),
+                          "no meta.json")
+    (campaign / "meta.json").write_text("{not json")
+    assert_one_line_error(cli("report", campaign), "meta.json: not valid JSON")
