@@ -90,8 +90,9 @@ SIM_MODEL_FILE = "sim-model.toml"
 """The simulated machine's effective error model, kept in the campaign directory for resume."""
 
 
-def start_campaign(config: Config, out: str | Path | None = None, **kwargs) -> Outcome:
-    """A new campaign from `config` into `out` (a new directory)."""
+def start_campaign(config: Config, out: str | Path | None = None, meta_extra: dict | None = None,
+                   on_created=None, **kwargs) -> Outcome:
+    """A new campaign from `config` into `out` (a new directory); `meta_extra` goes into meta.json."""
     plan = build_plan(config)
     check_plan(plan, config)
     if config["axis_driver"]["type"] == "sim" and kwargs.get("model") is None:
@@ -99,9 +100,17 @@ def start_campaign(config: Config, out: str | Path | None = None, **kwargs) -> O
 
         kwargs["model"] = sim_model(config)
     directory = Path(out) if out else default_out_dir(config)
-    recorder = Recorder.create(directory, config.text, campaign_meta(config, plan), config["axis"]["kind"])
+    meta = {**campaign_meta(config, plan), **(meta_extra or {})}
+    try:
+        recorder = Recorder.create(directory, config.text, meta, config["axis"]["kind"])
+    except BaseException:
+        if kwargs.get("opened") is not None:
+            kwargs["opened"][0].close()
+        raise
     if kwargs.get("model") is not None:
         (directory / SIM_MODEL_FILE).write_text(kwargs["model"].to_toml(), encoding="utf-8")
+    if on_created is not None:
+        on_created(directory)
     return execute(config, plan, recorder, 0, **kwargs)
 
 
@@ -147,6 +156,11 @@ def resume_campaign(directory: str | Path, **kwargs) -> Outcome:
     t_last, position = last_raw_state(path)
     if (path / SIM_MODEL_FILE).exists() and kwargs.get("model") is None:
         kwargs["model"] = read_model(path / SIM_MODEL_FILE)
+    from campaign.verify import load_comp, open_compensated
+
+    comp = load_comp(path)
+    if comp is not None:  # a verification campaign: the PLC gets its table again first
+        kwargs["opened"] = open_compensated(config, comp, kwargs.get("speed"), kwargs.get("model"), position)
     recorder.event(t_last, "resume", f"resumed at point {first} of {len(plan.points)}")
     return execute(config, plan, recorder, first, t_offset=t_last, start=position, **kwargs)
 

@@ -92,6 +92,7 @@ def serve_on_free_loopback(plc):
 
 def _open_sim(config, fmt, speed, model, start_position):
     from campaign.faults import parse_faults
+    from drivers.sim.compensation import SimCompensation
     from drivers.sim.faults import FaultScheduler
     from drivers.sim.interferometer import SimInterferometer
     from drivers.sim.machine import SimAxisPhysics, make_clock
@@ -102,6 +103,7 @@ def _open_sim(config, fmt, speed, model, start_position):
     start = config["plan"]["start"] if start_position is None else start_position
     plc = SimPLC(drv["axis_index"], axis_cfg["max_velocity"], axis_cfg["max_acceleration"], position=start)
     clock.attach(plc.scan)
+    clock.attach(SimCompensation(plc).tick)  # FB_AxiscalCompensation: idle until a table is enabled
     physics = SimAxisPhysics(plc, model or sim_model(config), axis_cfg["unit"], config["sim"]["seed"],
                              vacuum_readings=config["environment"]["air_correction"] == "edlen")
     hw = Hardware(None, None, clock, [])

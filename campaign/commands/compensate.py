@@ -33,6 +33,11 @@ def register(sub) -> None:
                    help="counts (pmac) or detection units (fanuc) per mm or deg")
     p.add_argument("--axis-name", default=None, help="controller axis name (default X; siemens AX1)")
     p.add_argument("--joint", type=int, default=0, help="LinuxCNC joint number")
+    p.add_argument("--write-plc", metavar="CONFIG",
+                   help="TwinCAT: also write the tables into the PLC of CONFIG over ADS "
+                        "(GVL_Axiscal.astComp[n]), read them back, compare, then enable them")
+    p.add_argument("--max-rate", type=float, help="with --write-plc: correction rate limit, axis unit/s")
+    p.add_argument("--max-accel", type=float, help="with --write-plc: correction acceleration limit, axis unit/s²")
     p.set_defaults(func=run)
 
 
@@ -63,4 +68,26 @@ def run(args) -> int:
     for note in rendered.notes:
         console.print(f"  {note}")
     console.print(f"{args.format} table written to {out}")
+    if args.write_plc:
+        write_plc(args, ctable, console)
     return 0
+
+
+def write_plc(args, ctable, console) -> None:
+    """TwinCAT (a): the tables into the PLC's compensation variables over ADS, read back, compared."""
+    from campaign.config import load_config
+    from campaign.session import open_hardware
+    from campaign.verify import correction_limits
+
+    config = load_config(args.write_plc)
+    if ctable.kind != config["axis"]["kind"]:
+        raise InputError(f"--write-plc: a {ctable.kind} table does not fit the {config['axis']['kind']} axis")
+    rate, accel = correction_limits(config, args.max_rate, args.max_accel)
+    hardware, _ = open_hardware(config)
+    try:
+        hardware.axis.write_comp_table(ctable.to_plc(rate, accel, enabled=True))
+        back = hardware.axis.read_comp_table()
+    finally:
+        hardware.close()
+    console.print(f"PLC tables written over ADS ({back.points} points), read back equal, enabled; "
+                  f"correction limits {rate:g} /s, {accel:g} /s² (axis unit)")

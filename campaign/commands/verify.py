@@ -1,0 +1,71 @@
+"""`axiscal verify CONFIG --comp TABLE.json [--before DIR|POINTS] [--out DIR] ...`: measure again
+with the compensation active and show the before and after."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from rich.table import Table
+
+from campaign.commands.run import add_run_options, finish
+from campaign.compensation_file import read_comp_json
+from campaign.config import load_config
+from campaign.errors import InputError
+from campaign.executor import DEVIATION_SCALE
+from campaign.plan import build_plan, check_plan
+from campaign.plot import check_plot_path
+from campaign.progress import RichProgress
+from campaign.session import default_out_dir
+from campaign.verify import SUMMARY_KEYS, baseline_points, run_verification, write_report
+from campaign.views import fmt, make_console
+
+
+def register(sub) -> None:
+    p = sub.add_parser("verify", help="measure again with the compensation active (before/after)",
+                       description="Write the compensation table (from `axiscal compensate --format json`) "
+                                   "into the PLC, run the campaign again and compare with the baseline.")
+    p.add_argument("config", help="campaign TOML")
+    p.add_argument("--comp", required=True, metavar="TABLE.json", help="table from compensate --format json")
+    p.add_argument("--before", metavar="DIR|POINTS.csv", help="the baseline campaign (before compensation)")
+    p.add_argument("--max-rate", type=float, help="rate limit of the correction, axis unit/s")
+    p.add_argument("--max-accel", type=float, help="acceleration limit of the correction, axis unit/s²")
+    add_run_options(p)
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    config = load_config(args.config)
+    table = read_comp_json(args.comp)
+    for name in ("max_rate", "max_accel", "speed"):
+        value = getattr(args, name)
+        if value is not None and not value > 0:
+            raise InputError(f"--{name.replace('_', '-')}: must be > 0")
+    if args.plot:
+        check_plot_path(args.plot)
+    if table.kind != config["axis"]["kind"]:
+        raise InputError(f"{args.comp}: a {table.kind} table does not fit the {config['axis']['kind']} axis")
+    baseline = Path(args.before) if args.before else None
+    before = baseline_points(baseline) if baseline else None
+    check_plan(build_plan(config), config)
+    out = Path(args.out) if args.out else default_out_dir(config)
+    unit = config["axis"]["unit"]
+    with RichProgress(unit, DEVIATION_SCALE[unit]) as observer:
+        outcome = run_verification(config, table, out, baseline=baseline if baseline and baseline.is_dir() else None,
+                                   max_rate=args.max_rate, max_accel=args.max_accel, speed=args.speed,
+                                   observer=observer)
+    summaries = {}
+    if outcome.points:
+        from campaign.pointtable import read_points
+
+        summaries = write_report(outcome.dir, read_points(outcome.dir / "points.csv"), before)
+        if not args.json:
+            shown = Table(title=f"Before and after compensation ({'µm' if unit == 'mm' else 'arcsec'})")
+            for head in ("parameter", "before", "after"):
+                shown.add_column(head, justify="right")
+            for key, name in SUMMARY_KEYS:
+                b = summaries["before"].get(key) if summaries["before"] else None
+                shown.add_row(name, fmt(b), fmt(summaries["after"].get(key)))
+            console = make_console()
+            console.print(shown)
+            console.print(f"tables: {outcome.dir / 'verification.md'}; plot: {outcome.dir / 'verification.png'}")
+    return finish(outcome, args, {"before": summaries.get("before")})

@@ -1,0 +1,133 @@
+"""Closed-loop verification: measure again with the compensation active.
+
+The table goes into the PLC's compensation variables over ADS (written, read back, compared, then
+enabled) — on a real PLC and on the simulated one alike; the simulated PLC then applies it exactly
+as FB_AxiscalCompensation does. The campaign runs as usual into a new directory whose meta.json
+names the baseline. The before and after are written as tables like seed 000's tables 7–12
+(`verification.md`) and as a plot (`verification.png`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import matplotlib.pyplot as plt
+
+from campaign.compensation_grid import ControllerTable
+from campaign.config import Config
+from campaign.iso230 import Evaluation, evaluate
+from campaign.plot import draw_evaluation
+from campaign.pointtable import PointTable, read_points
+from campaign.session import Outcome, open_hardware, start_campaign
+from protocols.plc_contract import CompTable
+
+COMP_FILE = "plc-compensation.json"
+"""The table written to the PLC (axis units), kept in the verification campaign's directory."""
+
+VERIFY_SEED_OFFSET = 1000
+"""The simulated verification run draws its noise from sim.seed + this (independent of the baseline)."""
+
+SUMMARY_KEYS = (("M", "mean bidirectional deviation range M"), ("E", "systematic deviation E"),
+                ("R_up", "repeatability R↑"), ("R_down", "repeatability R↓"), ("B", "reversal B"),
+                ("A_up", "accuracy A↑"), ("A_down", "accuracy A↓"), ("A", "accuracy A"))
+
+
+def correction_limits(config: Config, max_rate: float | None, max_accel: float | None) -> tuple[float, float]:
+    """(rate limit axis unit/s, acceleration limit axis unit/s²) of the applied correction.
+    Defaults: a tenth of the axis' velocity and acceleration limits (seed 004 makes the bound
+    proportional to the axis' maximum acceleration)."""
+    axis = config["axis"]
+    return (max_rate or 0.1 * axis["max_velocity"], max_accel or 0.1 * axis["max_acceleration"])
+
+
+def run_verification(config: Config, table: ControllerTable, out: Path, *, baseline: Path | None = None,
+                     max_rate: float | None = None, max_accel: float | None = None, speed=None,
+                     observer=None) -> Outcome:
+    """Write `table` to the PLC, then run the campaign of `config` into `out`."""
+    rate, accel = correction_limits(config, max_rate, max_accel)
+    opened_table = table.to_plc(rate, accel, enabled=True)
+    opened = open_compensated(config, opened_table, speed)
+    extra = {"compensation": {"file": COMP_FILE, "mode": table.mode, "points": len(table.forward),
+                              "start": table.start, "spacing": table.spacing, "overrun": table.overrun,
+                              "max_rate": rate, "max_accel": accel}}
+    if baseline is not None:
+        extra["baseline_dir"] = str(baseline.resolve())
+    return start_campaign(config, out, opened=opened, observer=observer, meta_extra=extra,
+                          on_created=lambda directory: save_comp(directory, opened_table))
+
+
+def open_compensated(config: Config, comp: CompTable, speed=None, model=None, start=None):
+    """Open the hardware and write `comp` into the PLC (read back, compared, enabled). On the
+    simulated machine the noise is drawn from sim.seed + VERIFY_SEED_OFFSET: a new measurement
+    sees new scatter, not the baseline's again."""
+    if config["axis_driver"]["type"] == "sim":
+        config.sections["sim"] = {**config["sim"], "seed": config["sim"]["seed"] + VERIFY_SEED_OFFSET}
+    opened = open_hardware(config, speed, model, start)
+    try:
+        opened[0].axis.write_comp_table(comp)
+    except BaseException:
+        opened[0].close()
+        raise
+    return opened
+
+
+def save_comp(directory: Path, comp: CompTable) -> None:
+    """Keep the PLC table in the campaign directory, so that resume writes it again."""
+    (directory / COMP_FILE).write_text(json.dumps(dataclasses.asdict(comp), indent=1), encoding="utf-8")
+
+
+def load_comp(directory: Path) -> CompTable | None:
+    path = directory / COMP_FILE
+    return CompTable(**json.loads(path.read_text(encoding="utf-8"))) if path.exists() else None
+
+
+def baseline_points(path: Path) -> PointTable:
+    """The before point table: a campaign directory or a points CSV."""
+    return read_points(path / "points.csv" if path.is_dir() else path)
+
+
+def direction_table(table: PointTable, ev: Evaluation, direction: int) -> list[str]:
+    """Markdown rows: per target each run's deviation, the mean and s (seed 000 tables 7, 8)."""
+    runs = sorted({int(r) for r in table.run})
+    suffix = "up" if direction > 0 else "down"
+    lines = ["| target " + table.position_unit + " | " + " | ".join(str(r) for r in runs) + " | mean | s |",
+             "|---" * (len(runs) + 3) + "|"]
+    for t in ev.targets:
+        pick = (table.target == t.target) & (table.direction == direction)
+        by_run = {int(r): d for r, d in zip(table.run[pick], table.deviation[pick])}
+        cells = [f"{by_run[r]:.3f}" if r in by_run else "–" for r in runs]
+        mean, s = getattr(t, f"mean_{suffix}"), getattr(t, f"s_{suffix}")
+        lines.append(f"| {t.target:g} | " + " | ".join(cells) +
+                     f" | {'–' if mean is None else f'{mean:.3f}'} | {'–' if s is None else f'{s:.3f}'} |")
+    return lines
+
+
+def write_report(directory: Path, after: PointTable, before: PointTable | None) -> dict:
+    """verification.md and verification.png in `directory`; returns the before/after summaries."""
+    ev_after = evaluate(after)
+    ev_before = evaluate(before) if before is not None else None
+    unit = ev_after.unit
+    md = [f"# Verification: {directory}", ""]
+    for label, table, ev in (("Before compensation", before, ev_before), ("After compensation", after, ev_after)):
+        if table is None:
+            continue
+        for direction, name in ((1, "forward (+)"), (-1, "reverse (-)")):
+            md += [f"## {label}: {name} deviations, {unit}", ""] + direction_table(table, ev, direction) + [""]
+    md += [f"## Accuracy, {unit}", "", "| parameter | before | after |", "|---|---|---|"]
+    result = {"after": ev_after.summary, "before": ev_before.summary if ev_before else None}
+    for key, name in SUMMARY_KEYS:
+        b = ev_before.summary.get(key) if ev_before else None
+        a = ev_after.summary.get(key)
+        md.append(f"| {name} | {'–' if b is None else f'{b:.3f}'} | {'–' if a is None else f'{a:.3f}'} |")
+    (directory / "verification.md").write_text("\n".join(md) + "\n", encoding="utf-8")
+    panels = [(before, ev_before, "before: "), (after, ev_after, "after: ")] if before is not None \
+        else [(after, ev_after, "after: ")]
+    fig, axes = plt.subplots(1, len(panels), figsize=(7 * len(panels), 5), squeeze=False)
+    for ax, (table, ev, label) in zip(axes[0], panels):
+        draw_evaluation(ax, table, ev, label)
+    fig.tight_layout()
+    fig.savefig(directory / "verification.png", dpi=100)
+    plt.close(fig)
+    return result

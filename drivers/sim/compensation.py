@@ -1,0 +1,69 @@
+"""The simulated PLC's compensation: FB_AxiscalCompensation, run every PLC cycle.
+
+Reads the tables from the PLC's own compensation variables (GVL_Axiscal.astComp[n], as the PC
+wrote them over ADS), evaluates them at the NC's commanded position for the direction of motion
+with `campaign.compensator.Compensator` (the same table lookup, end-zone ramps and planner as the
+Structured Text), and applies the result as the motor correction (`SimPLC.correction`).
+Positions in axis unit, times in s.
+"""
+
+from __future__ import annotations
+
+from campaign.compensator import Compensator
+from drivers.sim.plc import SimPLC
+from protocols import plc_contract
+from protocols.plc_contract import CompTable
+
+CYCLE_S = 0.002
+"""The PLC task cycle the compensation runs in, s."""
+
+
+def comp_table_in_plc(plc: SimPLC) -> CompTable | None:
+    """The table the PLC holds, or None when it holds none (nPoints < 2)."""
+    symbols = plc_contract.comp_symbols(plc.axis)
+    v = {member: plc.value(s.name) for member, s in symbols.items()}
+    n = int(v["nPoints"])
+    if n < 2 or v["fSpacing"] <= 0 or v["fMaxRate"] <= 0 or v["fMaxAccel"] <= 0:
+        return None
+    return CompTable(tuple(v["afForward"][:n]), tuple(v["afReverse"][:n]), v["fStart"], v["fSpacing"],
+                     v["fOverrun"], v["fMaxRate"], v["fMaxAccel"], bool(v["bEnable"]))
+
+
+class SimCompensation:
+    """Attach `tick` to the SimClock after the PLC scan."""
+
+    def __init__(self, plc: SimPLC, cycle_s: float = CYCLE_S):
+        self.plc = plc
+        self.cycle_s = cycle_s
+        self.compensator: Compensator | None = None
+        self._enable_symbol = plc_contract.comp_symbols(plc.axis)["bEnable"].name
+        self._t = None
+
+    def tick(self, t: float) -> None:
+        if self._t is None:
+            self._t = t
+            return
+        enabled = bool(self.plc.value(self._enable_symbol))
+        if enabled and self.compensator is None:
+            table = comp_table_in_plc(self.plc)
+            self.compensator = Compensator(table, self.cycle_s) if table else None
+        elif not enabled and self.compensator is not None and self.compensator.applied == 0.0:
+            self.compensator = None
+        if self.compensator is None:
+            self._t = t
+            return
+        if not enabled:
+            self.compensator.table = CompTable(**{**self.compensator.table.__dict__, "enabled": False})
+        while self._t + self.cycle_s <= t + 1e-12:
+            self._t += self.cycle_s
+            commanded = self.plc.setpoint_position(self._t) - self.plc.correction
+            if self._settled(commanded):
+                self._t = t
+                break
+            self.plc.correction = self.compensator.step(commanded, self.plc.last_direction)
+
+    def _settled(self, commanded: float) -> bool:
+        """At rest with the correction reached: every further cycle changes nothing."""
+        c = self.compensator
+        return (self.plc.arrival_time is not None and c.state.step == 0.0
+                and c.applied == c.desired(commanded, self.plc.last_direction))

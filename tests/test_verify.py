@@ -1,0 +1,77 @@
+"""Closed loop: measure, compensate, write the table into the (simulated) PLC over ADS, measure
+again with the compensation applied as FB_AxiscalCompensation does, compare before and after."""
+
+import json
+
+import pytest
+
+from campaign.compensation_file import read_comp_json
+from tests.conftest import ROOT, assert_one_line_error
+from tests.test_demo_e2e import axiscal
+
+CONFIGS = ROOT / "data" / "configs"
+
+
+@pytest.fixture(scope="module")
+def vertical(tmp_path_factory):
+    """Seed 000's vertical axis (490 µm reversal): baseline, bidirectional table, verification."""
+    base = tmp_path_factory.mktemp("vertical")
+    assert axiscal("run", CONFIGS / "vertical-sim.toml", "--out", base / "before").returncode == 0
+    comp = axiscal("compensate", base / "before" / "points.csv", "--format", "json", "-o", base / "t.json",
+                   "--overrun", "5")
+    assert comp.returncode == 0, comp.stderr
+    proc = axiscal("verify", CONFIGS / "vertical-sim.toml", "--comp", base / "t.json", "--before", base / "before",
+                   "--out", base / "after", "--json")
+    assert proc.returncode == 0, proc.stderr
+    return base, json.loads(proc.stdout)
+
+
+def test_compensation_removes_the_systematic_error(vertical):
+    _base, data = vertical
+    before, after = data["before"], data
+    assert before["A"] > 700 and before["B"] > 350  # the paper's vertical axis: ~800 µm, ~490 µm reversal
+    assert after["points"] == 110 and after["status"] == "completed"
+    floor = max(after["R_up"], after["R_down"])  # 4 s_max: what is left once every mean is removed
+    assert after["A"] < 1.5 * floor
+    assert after["B"] < 2.0 and after["E"] < 3.0
+
+
+def test_verification_is_recorded_with_its_baseline(vertical):
+    base, _ = vertical
+    meta = json.loads((base / "after" / "meta.json").read_text())
+    assert meta["baseline_dir"] == str((base / "before").resolve())
+    assert meta["compensation"]["mode"] == "bi"
+    table = json.loads((base / "after" / "plc-compensation.json").read_text())
+    written = read_comp_json(base / "t.json")
+    assert table["forward"] == pytest.approx(list(written.forward * 1e-3))  # µm -> mm in the PLC
+    md = (base / "after" / "verification.md").read_text()
+    assert "Before compensation: forward (+) deviations" in md and "| accuracy A |" in md
+    assert (base / "after" / "verification.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_report_shows_before_and_after(vertical, tmp_path):
+    base, _ = vertical
+    proc = axiscal("report", base / "after", "-o", tmp_path / "r.html")
+    assert proc.returncode == 0, proc.stderr
+    html = (tmp_path / "r.html").read_text()
+    assert "Before" in html and "After" in html
+
+
+def test_write_plc_round_trip(vertical, tmp_path):
+    base, _ = vertical
+    proc = axiscal("compensate", base / "before" / "points.csv", "--format", "json", "-o", tmp_path / "t.json",
+                   "--write-plc", CONFIGS / "vertical-sim.toml")
+    assert proc.returncode == 0, proc.stderr
+    assert "read back equal, enabled" in proc.stdout
+
+
+def test_verify_bad_input(cli, tmp_path):
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"position_unit": "mm", "forward": [1]}')
+    assert_one_line_error(cli("verify", CONFIGS / "vertical-sim.toml", "--comp", bad), "bad.json")
+    assert_one_line_error(cli("verify", CONFIGS / "vertical-sim.toml", "--comp", tmp_path / "none.json"),
+                          "no such file")
+    rotary = tmp_path / "rot.json"
+    rotary.write_text(json.dumps({"position_unit": "deg", "start": 0, "spacing": 10, "forward": [0, 1],
+                                  "reverse": [0, 1], "common": [0, 1], "mode": "uni"}))
+    assert_one_line_error(cli("verify", CONFIGS / "vertical-sim.toml", "--comp", rotary), "rotary")
