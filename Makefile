@@ -12,7 +12,9 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
+	rm -rf runs/demo
 	$(VENV)/bin/axiscal demo --out runs/demo --plot runs/demo/iso230.png
+	$(VENV)/bin/axiscal report runs/demo -o runs/demo/report.html
 
 test: $(STAMP)
 	bash tests/setup_system.sh
