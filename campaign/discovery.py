@@ -12,6 +12,12 @@ model is missing, add it, refit, and repeat until what is left is noise (issue 4
    for spatial ones). Then refit every shape parameter and go back to 1.
 5. An effect whose columns the model already spans is not named: it is reported as confounded.
 6. Without a time column, time is the point order (time constants in points), and it says so.
+
+`environment` (the slope that follows the air and material log) is a candidate only when the
+table has an air or material column that varies. It and thermal_drift can both explain a
+run-to-run slope change: when both are plausible at a step, a note says which one was chosen and
+why (the log's fit against the exponential's, and the pivot: air about the laser datum x = 0,
+screw growth about its fixed bearing).
 """
 
 from __future__ import annotations
@@ -21,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from campaign.discovery_data import CampaignData
-from campaign.discovery_effects import FORMS, SHAPE_KEYS, fixed_shape
+from campaign.discovery_effects import FORMS, LASER_DATUM_MM, SHAPE_KEYS, environment_logs, fixed_shape
 from campaign.discovery_fit import (
     Fit,
     Term,
@@ -34,6 +40,7 @@ from campaign.discovery_fit import (
     linear_fit,
     periodogram_periods,
     refine,
+    standard_errors,
 )
 from campaign.model import EFFECT_PARAMS, ErrorModel
 
@@ -76,6 +83,8 @@ class Step:
     ranking: list[Candidate]
     residual_before: np.ndarray
     residual_after: np.ndarray
+    errors: dict[str, float] = field(default_factory=dict)
+    """1-σ standard errors of the parameters that have one (see discovery_fit.standard_errors)."""
 
 
 @dataclass
@@ -93,14 +102,18 @@ class Discovery:
     notes: list[str] = field(default_factory=list)
     disagreement_before: dict = field(default_factory=dict)
     disagreement_after: dict = field(default_factory=dict)
+    choices: list[dict] = field(default_factory=list)
+    """Where two confounded candidates were both plausible: step, chosen, other, why."""
 
     @property
     def added(self) -> list[str]:
         return [s.effect for s in self.steps]
 
     def final_model(self, noise: dict[str, float] | None = None) -> ErrorModel:
-        """The final model (the offset is left out: it belongs to the datum, not the axis)."""
-        effects = {name: {k: params[k] for k in EFFECT_PARAMS[name]} for name, params in self.final.params().items()}
+        """The final model (the offset is left out: it belongs to the datum, not the axis; so is
+        `environment`, which follows the log of one campaign and is not a parameter of the axis)."""
+        effects = {name: {k: params[k] for k in EFFECT_PARAMS[name]} for name, params in self.final.params().items()
+                   if name in EFFECT_PARAMS}
         effects["noise"] = noise or {"sigma_um": round(self.noise_um, 4)}
         return ErrorModel(effects)
 
@@ -184,6 +197,10 @@ def candidate_names(data: CampaignData, terms: list[Term], notes: list[str]) -> 
         names.remove("periodic_lead")
         _note(notes, "periodic_lead is not looked for: the targets are evenly spaced, so a screw-lead period "
                      "aliases into a smooth bow or vanishes (plan with offsets = \"golden\" or \"random\")")
+    if "environment" in names and not environment_logs(data):
+        names.remove("environment")
+        _note(notes, "environment is not looked for: the table has no air or material log that varies "
+                     "(air_temp_c, air_pressure_hpa, humidity_pct, material_temp_c)")
     if "thermal_drift" in names and len(np.unique(data.run)) < 2:
         names.remove("thermal_drift")
         _note(notes, "thermal_drift is not looked for: one run cannot show a run-to-run change")
@@ -205,13 +222,17 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
     elif FORMS[name].shape_grid is not None:
         starts = FORMS[name].shape_grid(data, {})
     best: Fit | None = None
+    fits = []
     for shape in starts:
         term = drop_collinear(data, current.terms, Term(name, {}, False, {**held, **shape}))
         if not any(term.keep):
             continue
         fit = linear_fit(data, [*current.terms, term])
+        fits.append(fit)
         if best is None or fit.rss < best.rss:
             best = fit
+    if name == "environment" and fits:
+        best = environment_variant(fits, n, notes)
     if best is None:
         others = confounders(data, current.terms, Term(name, {}, False, {**held, **(starts[0] if starts else {})}))
         _note(notes, f"{name} is confounded with {' + '.join(others) or 'the model'} on this data: not named")
@@ -231,6 +252,37 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
     return cand
 
 
+PLAUSIBLE = {"air_factor": (-0.5, 1.5), "alpha_ppm_per_k": (-5.0, 30.0)}
+"""Physically plausible environment coefficients: the share of the air index change the reading
+carries (0 to 1, with room for noise), and an expansion coefficient, µm/m per K (invar to
+aluminium and beyond)."""
+
+
+def environment_variant(fits: list[Fit], n: int, notes: list[str]) -> Fit:
+    """Of the environment fits with each log alone and both together, the one with the lowest BIC
+    among those with plausible coefficients (all of them if none is). When the air and material
+    logs move together the variants fit alike: the note says so, and which one the coefficients
+    rule out."""
+    def coefs(fit):
+        return fit.params()["environment"]
+
+    def plausible(fit):
+        return all(lo <= coefs(fit)[k] <= hi for k, (lo, hi) in PLAUSIBLE.items() if k in coefs(fit))
+
+    ranked = sorted(fits, key=lambda f: bic(f, n))
+    chosen = next((f for f in ranked if plausible(f)), ranked[0])
+    rivals = [f for f in ranked if f is not chosen and set(coefs(f)) != set(coefs(chosen))
+              and bic(f, n) - bic(chosen, n) < BIC_MARGIN]
+    for rival in rivals:
+        logs = {k: ("air" if k == "air_factor" else "material") for k in (*coefs(chosen), *coefs(rival))}
+        said = ", ".join(f"{k} = {v:.3g}" for k, v in coefs(rival).items())
+        reason = (f"the {' and '.join(logs[k] for k in coefs(rival))} log alone would need {said}, which is not "
+                  "physical" if not plausible(rival) else "both are plausible: the attribution is uncertain")
+        _note(notes, f"the air and material logs move together in this campaign, so their slopes are confounded; "
+                     f"environment is fitted with the {' and '.join(logs[k] for k in coefs(chosen))} log: {reason}")
+    return chosen
+
+
 def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) -> Discovery:
     """Run discovery on a campaign from a starting model (`given`: the parameters the user gave
     per effect; the others are fitted)."""
@@ -239,7 +291,7 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
         notes.append("the table has no time column: time effects use the point order (time constants "
                      "are in points, not seconds)")
     start = refine(data, start_terms(model, given, data, notes))
-    current, steps = start, []
+    current, steps, choices = start, [], []
     for _ in range(MAX_STEPS):
         ranking = [try_candidate(data, current, name, notes)
                    for name in candidate_names(data, current.terms, notes)]
@@ -252,15 +304,70 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
             if ranking:
                 steps_ranking_note(notes, ranking)
             break
+        choice = air_or_screw(data, ranking, chosen, len(steps) + 1)
+        if choice:
+            choices.append(choice)
+            _note(notes, choice["why"])
         after = refine(data, chosen.fit.terms)
         steps.append(Step(chosen.name, after.params()[chosen.name], current.rms_um(data.y), after.rms_um(data.y),
-                          ranking, data.y - current.prediction, data.y - after.prediction))
+                          ranking, data.y - current.prediction, data.y - after.prediction,
+                          standard_errors(data, after).get(chosen.name, {})))
         current = after
     add_confounding_notes(data, current, notes)
     residual = data.y - current.prediction
     return Discovery(steps, start, current, start.rms_um(data.y), current.rms_um(data.y),
                      pooled_scatter_um(data, residual), data.time_source, notes,
-                     disagreement(data, data.y - start.prediction), disagreement(data, residual))
+                     disagreement(data, data.y - start.prediction), disagreement(data, residual), choices)
+
+
+PLAUSIBLE_SHARE = 0.5
+"""A confounded rival is "plausible" when it is significant itself or explains at least this share
+of what the chosen candidate explains."""
+
+
+def air_or_screw(data: CampaignData, ranking: list[Candidate], chosen: Candidate, step: int) -> dict | None:
+    """When environment and thermal_drift both explain the run-to-run slope change at this step,
+    which one is chosen and why: the fit of the log against the exponential in time (ΔBIC), and
+    the pivot of the slope change (air index: the laser datum; screw growth: its fixed bearing)."""
+    if chosen.name not in ("environment", "thermal_drift"):
+        return None
+    other_name = "thermal_drift" if chosen.name == "environment" else "environment"
+    other = next((c for c in ranking if c.name == other_name and c.fit is not None), None)
+    if other is None or not (other.accepted or other.verdict.startswith("significant")
+                             or other.explained_pct >= PLAUSIBLE_SHARE * chosen.explained_pct):
+        return None
+    env, thermal = (chosen, other) if chosen.name == "environment" else (other, chosen)
+    pivot = thermal.fit.params()["thermal_drift"]["pivot_mm"]
+    travel = float(np.ptp(data.x)) or 1.0
+    at_datum = abs(pivot - LASER_DATUM_MM) < 0.15 * travel
+    logs = " and ".join(sorted({"air_factor": "air", "alpha_ppm_per_k": "material"}[k]
+                               for k in env.fit.params()["environment"]))
+    margin = abs(env.delta_bic - thermal.delta_bic)
+    if chosen.name == "environment":
+        better = "more than" if env.explained_pct >= thermal.explained_pct else "as much as, with fewer parameters,"
+        fit_why = (f"the {logs} log explains {better} an exponential in time "
+                   f"(environment explains {env.explained_pct:.1f} %, ΔBIC {env.delta_bic:.1f}; thermal_drift "
+                   f"{thermal.explained_pct:.1f} %, ΔBIC {thermal.delta_bic:.1f})")
+        pivot_why = (f"thermal_drift's best pivot, {pivot:.0f} mm, is at the laser datum (x = {LASER_DATUM_MM:g}), "
+                     "where a refractive-index change pivots" if at_datum else
+                     f"but thermal_drift's best pivot, {pivot:.0f} mm, is away from the laser datum: part of the "
+                     "change may be screw growth, which thermal_drift is tried for again at the next step")
+    else:
+        fit_why = (f"an exponential in time explains the slope change better than the {logs} log does "
+                   f"(thermal_drift explains {thermal.explained_pct:.1f} %, ΔBIC {thermal.delta_bic:.1f}; "
+                   f"environment {env.explained_pct:.1f} %, ΔBIC {env.delta_bic:.1f})")
+        pivot_why = (f"the slope change pivots at {pivot:.0f} mm, away from the laser datum "
+                     f"(x = {LASER_DATUM_MM:g}) where an air refractive-index change would pivot: screw growth "
+                     "about its fixed bearing" if not at_datum else
+                     f"but it pivots at {pivot:.0f} mm, at the laser datum, as an air index change would: "
+                     "check the air log and the laser's air compensation")
+    why = (f"environment and thermal_drift both explain the run-to-run slope change (step {step}); "
+           f"chose {chosen.name}: {fit_why}, by {margin:.1f} in BIC; {pivot_why}")
+    return {"step": step, "chosen": chosen.name, "other": other.name, "pivot_mm": round(pivot, 1),
+            "pivot_at_laser_datum": bool(at_datum), "environment_explained_pct": round(env.explained_pct, 2),
+            "thermal_drift_explained_pct": round(thermal.explained_pct, 2),
+            "delta_bic_environment": round(env.delta_bic, 2), "delta_bic_thermal_drift": round(thermal.delta_bic, 2),
+            "why": why}
 
 
 def steps_ranking_note(notes: list[str], ranking: list[Candidate]) -> None:
@@ -273,25 +380,34 @@ def steps_ranking_note(notes: list[str], ranking: list[Candidate]) -> None:
 def add_confounding_notes(data: CampaignData, fit: Fit, notes: list[str]) -> None:
     """Say which named effects cannot be told from others on this data."""
     params = fit.params()
-    env = {k for k, v in data.env.items() if np.ptp(v) > 0}
+    logs = environment_logs(data)
     if "linear_scale" in params:
-        _note(notes, "linear_scale also holds any cosine error (always negative, < 1 µm/m) and, without an "
-                     "environment log, a constant air refractive-index or material-expansion error: "
+        _note(notes, "linear_scale also holds any cosine error (always negative, < 1 µm/m) and a constant "
+                     "air refractive-index or material-expansion error (only their changes follow the log): "
                      "they are confounded with it")
+    if "environment" in params:
+        env = params["environment"]
+        if "air_factor" in env:
+            _note(notes, f"environment: the reading follows {env['air_factor']:.2f} × the air log's refractive-index "
+                         "change (1: the instrument does not compensate the air; 0: it does)")
+        if "alpha_ppm_per_k" in env:
+            _note(notes, f"environment: the reading follows the material temperature with "
+                         f"{env['alpha_ppm_per_k']:.2f} µm/m per K (steel 11.5: the table is not normalised to 20 °C)")
     if "thermal_drift" in params:
         pivot = params["thermal_drift"]["pivot_mm"]
-        datum = float(data.x.min())
-        near = abs(pivot - datum) < 0.1 * (np.ptp(data.x) or 1.0)
-        air = {"air_temp_c", "air_pressure_hpa"} & env
-        if near and not air:
-            _note(notes, f"thermal_drift pivots at {pivot:.0f} mm, near the laser datum ({datum:g} mm): screw "
+        datum = LASER_DATUM_MM
+        travel = float(np.ptp(data.x)) or 1.0
+        near = abs(pivot - datum) < 0.15 * travel
+        if near and "air" not in logs:
+            _note(notes, f"thermal_drift pivots at {pivot:.0f} mm, near the laser datum (x = {datum:g}): screw "
                          "growth is confounded with a drift of the air's refractive index here (no air log)")
-        elif abs(pivot - datum) > 2 * np.ptp(data.x):
+        elif abs(pivot - datum) > 2 * travel:
             _note(notes, f"thermal_drift pivots at {pivot:.0f} mm, far outside the travel: mostly a drift of "
                          "the datum over time (e.g. the laser, its mount or the air warming), not screw growth")
         elif not near:
-            _note(notes, f"thermal_drift pivots at {pivot:.0f} mm, away from the laser datum ({datum:g} mm): "
+            _note(notes, f"thermal_drift pivots at {pivot:.0f} mm, away from the laser datum (x = {datum:g}): "
                          "screw growth about a fixed bearing, not air refractive index (which pivots at the datum)")
-        if air:
-            _note(notes, f"the air log varies ({', '.join(sorted(air))}): compare its refractive-index change "
-                         "with the thermal_drift slope change before blaming the screw")
+        if "air" in logs and "environment" not in params:
+            _note(notes, "the air log varies, but its refractive-index change does not explain the slope change "
+                         "(environment is not significant beside thermal_drift): the instrument compensates "
+                         "the air, and the change is the machine's")

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from campaign.edlen import refractive_index
 from campaign.errors import InputError
 from campaign.model import ErrorModel, model_from_dict
 from campaign.pointtable import PointTable, read_points
@@ -29,6 +30,8 @@ class CampaignData:
     x: target, mm. d: approach direction, ±1. run: run number. y: deviation, µm.
     t: sample times, s since start (or point order). w: sample waits since arrival, s (None when
     unknown). time_source: "time_s" or "point order". env: environment columns present.
+    air_index_change: n/n0 - 1 per point from the air log (n0: the first point's index; a column
+    that is missing is taken at its standard value), None without an air log.
     """
 
     x: np.ndarray
@@ -39,6 +42,7 @@ class CampaignData:
     w: np.ndarray | None
     time_source: str
     env: dict[str, np.ndarray]
+    air_index_change: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.y)
@@ -79,7 +83,22 @@ def campaign_data(table: PointTable, capture: dict[str, np.ndarray] | None = Non
     env = {k: v for k, v in table.optional.items() if k not in ("time_s", *CAPTURE_COLUMNS)}
     return CampaignData(x=table.target.astype(float), d=table.direction.astype(float), run=table.run,
                         y=table.deviation.astype(float), t=t, w=w if wait is not None else None,
-                        time_source=source, env=env)
+                        time_source=source, env=env, air_index_change=air_index_change(env, n))
+
+
+AIR_STANDARD = {"air_temp_c": 20.0, "air_pressure_hpa": 1013.25, "humidity_pct": 50.0}
+"""Values taken for an air column the table does not have (°C, hPa, %)."""
+
+
+def air_index_change(env: dict[str, np.ndarray], n: int) -> np.ndarray | None:
+    """n/n0 - 1 per point (dimensionless) from the air columns present (Edlén, reference §6), with
+    n0 the first point's index; None when the table has no air column."""
+    if not n or not set(AIR_STANDARD) & set(env):
+        return None
+    cols = {k: env.get(k, np.full(n, v)) for k, v in AIR_STANDARD.items()}
+    index = np.array([refractive_index(t, p * 100.0, rh) for t, p, rh in
+                      zip(cols["air_temp_c"], cols["air_pressure_hpa"], cols["humidity_pct"])])
+    return index / index[0] - 1
 
 
 def read_capture_columns(path: Path) -> dict[str, np.ndarray]:

@@ -19,6 +19,10 @@ import numpy as np
 from campaign.discovery_data import CampaignData
 from campaign.model import _legendre
 
+LASER_DATUM_MM = 0.0
+"""Where the laser reading is zero: the table's positions are the laser's, so an air
+refractive-index error (and the material normalisation) pivots at x = 0."""
+
 PERIOD_RANGE_MM = (2.0, 100.0)
 """Plausible screw leads searched for a periodic error, mm (at most half the travel)."""
 
@@ -103,6 +107,40 @@ def _settling_grid(data, held):
     return _tau_grid(max(waits.min() / 10, 1e-3), waits.max() * 2)
 
 
+def _environment(data, shape, held):
+    """The slope that follows the log: the air's refractive-index change since the first point,
+    x·(n/n0 - 1) (µm per unit air_factor), and the material's temperature above 20 °C,
+    x·(T_m - 20) (µm per µm/m/K), both about the laser datum."""
+    x = data.x - LASER_DATUM_MM
+    cols = []
+    if shape.get("air"):
+        cols.append(x * 1e3 * data.air_index_change)
+    if shape.get("material"):
+        cols.append(x * 1e-3 * (data.env["material_temp_c"] - 20.0))
+    return np.column_stack(cols) if cols else np.zeros((len(data), 0))
+
+
+def _environment_params(c, shape, held):
+    names = [k for k, flag in (("air_factor", "air"), ("alpha_ppm_per_k", "material")) if shape.get(flag)]
+    return {k: float(v) for k, v in zip(names, c)}
+
+
+def environment_logs(data: CampaignData) -> list[str]:
+    """Which environment logs vary in this campaign: "air" and/or "material"."""
+    logs = []
+    if data.air_index_change is not None and np.ptp(data.air_index_change) > 0:
+        logs.append("air")
+    if "material_temp_c" in data.env and np.ptp(data.env["material_temp_c"]) > 0:
+        logs.append("material")
+    return logs
+
+
+def _environment_grid(data, held):
+    logs = environment_logs(data)
+    variants = [{log: 1.0} for log in logs]
+    return variants + ([{log: 1.0 for log in logs}] if len(logs) > 1 else [])
+
+
 def period_limits(data: CampaignData) -> tuple[float, float]:
     """The range of periods searched, mm."""
     travel = float(np.ptp(data.x)) or 1.0
@@ -140,6 +178,8 @@ FORMS: dict[str, EffectForm] = {f.name: f for f in (
     EffectForm("nonlinear_lead", ("p2_um", "p3_um"), (), "target", _nonlinear, _nonlinear_params),
     EffectForm("position_dependent_backlash", ("b0_um", "k_ppm"), (), "target", _pd_backlash),
     EffectForm("settling", ("e0_um",), ("tau_s",), "target", _settling, None, _settling_grid),
+    EffectForm("environment", ("air_factor", "alpha_ppm_per_k"), (), "run", _environment,
+               _environment_params, _environment_grid),
 )}
 """Effect name -> its form, in the order candidates are listed."""
 

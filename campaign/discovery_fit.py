@@ -228,3 +228,50 @@ def f_test_p(before: Fit, after: Fit, n: int) -> float:
         return 1.0
     f_value = (before.rss - after.rss) / q / (after.rss / dof)
     return float(stats.f.sf(f_value, q, dof)) if f_value > 0 else 1.0
+
+
+def coefficient_names(term: Term) -> list[str]:
+    """The names of `term`'s columns, in the form's full column order."""
+    if term.name == "environment":
+        return [k for k, flag in (("air_factor", "air"), ("alpha_ppm_per_k", "material")) if term.shape.get(flag)]
+    return list(FORMS[term.name].coefficients)
+
+
+def standard_errors(data: CampaignData, fit: Fit, step: float = 1e-4) -> dict[str, dict[str, float]]:
+    """1-σ standard errors of the fitted parameters that are one coefficient or one shape parameter
+    (e.g. growth_ppm and tau_s, not a periodic amplitude), in their units: from the Jacobian of the
+    prediction with respect to every coefficient and the log of every searched shape, cov =
+    s²·(JᵀJ)⁻¹ with s² = RSS/(n - p). Asymptotic (linearised) values: the spread over repeated
+    campaigns, not a guarantee."""
+    a, slices = design(data, fit.terms)
+    blocks, labels = [a], [("", "")] + [("", "")] * (a.shape[1] - 1)
+    for term, sl in zip(fit.terms, slices):
+        if term.fixed:
+            continue
+        keep = term.keep if term.keep is not None else (True,) * len(coefficient_names(term))
+        names = [n for n, k in zip(coefficient_names(term), keep) if k]
+        for j, name in zip(range(sl.start, sl.stop), names):
+            labels[j] = (term.name, name)
+    for term, coefs in zip(fit.terms, fit.coefs):
+        for key in term.searched:
+            base = FORMS[term.name].columns(data, term.shape, term.held) @ coefs
+            moved = {**term.shape, key: term.shape[key] * math.exp(step)}
+            blocks.append(((FORMS[term.name].columns(data, moved, term.held) @ coefs - base) / step)[:, None])
+            labels.append((term.name, "log:" + key))
+    jac = np.hstack(blocks)
+    n, p = jac.shape
+    if n <= p:
+        return {}
+    cov = np.linalg.pinv(jac.T @ jac) * fit.rss / (n - p)
+    out: dict[str, dict[str, float]] = {}
+    params = fit.params()
+    for j, (name, key) in enumerate(labels):
+        if not name:
+            continue
+        sd = float(math.sqrt(max(cov[j, j], 0.0)))
+        if key.startswith("log:"):
+            key = key[4:]
+            sd *= abs(params[name][key])
+        if key in params[name]:
+            out.setdefault(name, {})[key] = sd
+    return out

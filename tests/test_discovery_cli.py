@@ -11,9 +11,10 @@ import sys
 import pytest
 
 from campaign.config import parse_config
+from campaign.errors import InputError
 from campaign.model import model_from_dict, read_model
 from campaign.pointtable import write_points
-from campaign.simulate import simulate_campaign
+from campaign.simulate import Environment, simulate_campaign
 from tests.conftest import PAPER, ROOT, assert_one_line_error
 
 REAL_PLAN = """
@@ -162,3 +163,43 @@ def test_fast_simulator_agrees_with_the_machine_on_reversal_and_settling(cli, tm
         assert data["model"]["position_dependent_backlash"]["k_ppm"] == pytest.approx(10.0, rel=0.15)
         # a constant dwell: settling is the part of the reversal that is not named
         assert any("settling is confounded with backlash" in note for note in data["notes"])
+
+
+def test_save_without_a_time_column_does_not_save_a_time_constant_in_points(cli, tmp_path):
+    """On the point order, thermal_drift's time constant is in points: the saved file says so and
+    leaves tau_s out, so that the simulator refuses it and discover refits it."""
+    config = parse_config(REAL_PLAN.replace("cycles = 4", "cycles = 5") + SPATIAL_AND_TIME.split("[sim.effects.periodic")[0]
+                          + "[sim.effects.thermal_drift]\ngrowth_ppm = 20.0\ntau_s = 200.0\npivot_mm = 300.0\n")
+    table = simulate_campaign(config, model_from_dict({"effects": config["sim"]["effects"]}, "t"), seed=2)
+    table.optional = {}
+    write_points(tmp_path / "points.csv", table)
+    model = tmp_path / "start.toml"
+    model.write_text("[effects.linear_scale]\n[effects.backlash]\n")
+    data = discover_json(cli, tmp_path / "points.csv", "--model", model, "--save", tmp_path / "new.toml")
+    assert data["added"] == ["thermal_drift"], data["notes"]
+    assert data["time_source"] == "point order"
+    text = (tmp_path / "new.toml").read_text()
+    assert "NOT seconds" in text and "\ntau_s =" not in text
+    with pytest.raises(InputError, match="tau_s"):
+        read_model(tmp_path / "new.toml")
+    refit = discover_json(cli, tmp_path / "points.csv", "--model", tmp_path / "new.toml")
+    assert refit["added"] == []
+    assert refit["model"]["thermal_drift"]["tau_s"] == pytest.approx(data["model"]["thermal_drift"]["tau_s"], rel=0.05)
+
+
+def test_environment_from_a_file_is_named_with_its_error_and_left_out_of_the_saved_model(cli, tmp_path):
+    config = parse_config(REAL_PLAN.replace("dwell_s = 1.0", "dwell_s = 10.0").replace("cycles = 4", "cycles = 10"))
+    env = Environment(air_temp_c=(20.0, 24.0), air_pressure_hpa=(1015.0, 1011.0), humidity_pct=(45.0, 45.0))
+    table = simulate_campaign(config, model_from_dict({"effects": config["sim"]["effects"]}, "t"), seed=3,
+                              environment=env)
+    write_points(tmp_path / "points.csv", table)
+    data = discover_json(cli, tmp_path / "points.csv", "--save", tmp_path / "new.toml")
+    assert data["added"] == ["environment"], data["notes"]
+    assert data["model"]["environment"]["air_factor"] == pytest.approx(1.0, rel=0.15)
+    assert data["steps"][0]["standard_errors"]["air_factor"] < 0.05
+    assert data["choices"][0]["chosen"] == "environment"
+    text = (tmp_path / "new.toml").read_text()
+    assert "# Left out: environment (air_factor = " in text and "[effects.environment]" not in text
+    assert set(read_model(tmp_path / "new.toml").effects) == {"linear_scale", "noise"}
+    out = cli("discover", tmp_path / "points.csv").out
+    assert "add environment (air_factor = " in out and " ± " in out and "chose environment" in out

@@ -29,11 +29,31 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+ENVIRONMENT_PARAMS = {"air_factor": "share of the air log's refractive-index change in the reading, 1",
+                      "alpha_ppm_per_k": "expansion following the material log, µm/m per K"}
+"""The environment effect's parameters (discovery only: it follows one campaign's log, so it is
+not a parameter of the axis model)."""
+
+
 def unit_of(effect: str, key: str, time_unit: str) -> str:
     """The unit of a model parameter, from its description in EFFECT_PARAMS."""
     if key == "tau_s" and effect == "thermal_drift" and time_unit != "s":
         return time_unit
-    return EFFECT_PARAMS[effect][key].rsplit(", ", 1)[-1]
+    described = ENVIRONMENT_PARAMS if effect == "environment" else EFFECT_PARAMS[effect]
+    unit = described[key].rsplit(", ", 1)[-1]
+    return "" if unit == "1" else unit
+
+
+def with_error(value: float, error: float | None, unit: str) -> str:
+    """'250 s ± 9.1 s (3.6 %)' or '250 s'."""
+    text = f"{value:.4g} {unit}".rstrip()
+    if error is None:
+        return text
+    share = f" ({100 * error / abs(value):.1f} %)" if value else ""
+    return f"{text} ± {error:.2g}{(' ' + unit) if unit else ''}{share}"
+
+
+SAVED_TAU_POINTS = "thermal_drift time constant in points (no time column)"
 
 
 def rounded(params: dict[str, float]) -> dict[str, float]:
@@ -57,6 +77,7 @@ def as_json(result: Discovery) -> dict:
         "noise_um": round(result.noise_um, 4),
         "time_source": result.time_source,
         "steps": [{"effect": s.effect, "params": rounded(s.params),
+                   "standard_errors": {k: float(f"{v:.3g}") for k, v in s.errors.items()},
                    **drift_rate(s.effect, s.params), "gap_before_um": round(s.gap_before_um, 4),
                    "gap_after_um": round(s.gap_after_um, 4),
                    "ranking": [{"effect": c.name, "explained_pct": round(c.explained_pct, 2),
@@ -67,6 +88,7 @@ def as_json(result: Discovery) -> dict:
         "offset_um": round(result.final.offset_um, 4),
         "disagreement_before": result.disagreement_before,
         "disagreement_after": result.disagreement_after,
+        "choices": result.choices,
         "notes": result.notes,
     }
 
@@ -82,7 +104,8 @@ def print_text(result: Discovery, time_unit: str) -> None:
     if not result.steps:
         console.print("no effect is named: none of the vocabulary explains the residual significantly")
     for i, step in enumerate(result.steps, 1):
-        params = ", ".join(f"{k} = {v:.4g} {unit_of(step.effect, k, time_unit)}" for k, v in step.params.items())
+        params = ", ".join(f"{k} = {with_error(v, step.errors.get(k), unit_of(step.effect, k, time_unit))}"
+                           for k, v in step.params.items())
         if step.effect == "thermal_drift" and time_unit == "s":
             params += f"; initially {drift_rate(step.effect, step.params)['initial_rate_ppm_per_h']:.3g} µm/m per hour"
         console.print(f"step {i}: add [bold]{step.effect}[/] ({params}); gap {step.gap_before_um:.3f} -> "
@@ -95,6 +118,38 @@ def print_text(result: Discovery, time_unit: str) -> None:
                   f"(run-to-run scatter): what is left is {verdict}")
     for note in result.notes:
         console.print(f"note: {note}")
+
+
+def saved_model(result: Discovery, model, source: str, time_source: str) -> str:
+    """The final model as TOML. The datum offset and `environment` (it follows this campaign's log)
+    are left out, and said so. Without a time column thermal_drift's time constant is in points,
+    not seconds: it is not saved as `tau_s` but as a comment, so that the simulator refuses the file
+    until a time constant in seconds is given, and `discover --model` refits it."""
+    noise = model.effects.get("noise") if "sigma_um" in model.effects.get("noise", {}) else None
+    lines = [f"# Error model found by `axiscal discover {source}`; the datum offset is left out."]
+    params = result.final.params()
+    if "environment" in params:
+        found = ", ".join(f"{k} = {v:.4g}" for k, v in params["environment"].items())
+        lines.append(f"# Left out: environment ({found}), which follows this campaign's air/material log.")
+    text = result.final_model(noise).to_toml()
+    if time_source != "time_s" and "thermal_drift" in params:
+        tau = params["thermal_drift"]["tau_s"]
+        lines.append(f"# No time column: thermal_drift's time constant was fitted on the point order, {tau:.4g} "
+                     "points, not seconds;")
+        lines.append("# tau_s is left out: give it in seconds (or fit it with `axiscal discover --model`).")
+        text = "\n".join(f"# tau_s = {tau!r}  # {SAVED_TAU_POINTS}, NOT seconds"
+                         if line.startswith("tau_s = ") and section == "[effects.thermal_drift]" else line
+                         for section, line in _with_sections(text.splitlines()))
+    return "\n".join(lines) + "\n" + text.rstrip("\n") + "\n"
+
+
+def _with_sections(lines: list[str]):
+    """(the current [table] header, line) for each line of a TOML text."""
+    section = ""
+    for line in lines:
+        if line.startswith("["):
+            section = line.strip()
+        yield section, line
 
 
 def plot_steps(result: Discovery, x: np.ndarray, d: np.ndarray, y: np.ndarray, out: Path) -> None:
@@ -137,11 +192,7 @@ def run(args) -> int:
     if plot_path:
         plot_steps(result, data.x, data.d, data.y, plot_path)
     if args.save:
-        noise = model.effects.get("noise") if "sigma_um" in model.effects.get("noise", {}) else None
-        header = f"# Error model found by `axiscal discover {args.file}`; the datum offset is left out.\n"
-        if data.time_source != "time_s":
-            header += "# No time column: time constants are in points (point order), not seconds.\n"
-        Path(args.save).write_text(header + result.final_model(noise).to_toml(), encoding="utf-8")
+        Path(args.save).write_text(saved_model(result, model, args.file, data.time_source), encoding="utf-8")
     if args.json:
         print_json(as_json(result))
     else:
