@@ -135,3 +135,17 @@ def test_csv_and_json():
     doc = json.loads(render("json", UNI).text)
     assert doc["forward"] == [-7.0, 1.0, 0.0] and doc["backlash"] == 2.0
     assert doc["positions"] == [0.0, 10.0, 20.0] and doc["correction_unit"] == "um"
+
+
+def test_pmac_command_reproduces_the_paper_by_default(tmp_path):
+    """Seed 003 through the command line with no method option: the published table."""
+    from campaign.cli import main
+    from tests.conftest import DATA
+
+    out = tmp_path / "comp.pmc"
+    assert main(["compensate", str(DATA / "paper-2012-pmac-turntable/forward_errors.csv"), "--format", "pmac",
+                 "--counts-per-unit", "1000", "-o", str(out)]) == 0
+    lines = out.read_text().splitlines()
+    assert "DEFINE COMP 10,100000" in lines
+    assert "84 55 66 41 100 59 66 40 135 0" in lines
+    assert lines[-1] == "I51=1"

@@ -15,6 +15,11 @@ from campaign.views import fmt, make_console
 from protocols.tables import FORMATS, FormatOptions, render
 
 
+DEFAULT_METHOD = {"pmac": "simple"}
+"""Formats whose default is the simple -error table: PMAC practice and seed 003's published table
+(the inverse method moves its 80° entry across a rounding boundary, 40 -> 41)."""
+
+
 def register(sub) -> None:
     p = sub.add_parser("compensate", help="write a pitch-error compensation table for a controller",
                        description="Turn a point table into a controller's compensation table "
@@ -23,8 +28,9 @@ def register(sub) -> None:
     p.add_argument("--format", required=True, choices=FORMATS, help="controller table format")
     p.add_argument("-o", "--output", required=True, help="the table file to write")
     p.add_argument("--mode", default="auto", choices=MODES, help="uni, bi or auto (default)")
-    p.add_argument("--method", default="inverse", choices=("inverse", "simple"),
-                   help="inverse interpolation (default) or simple -error")
+    p.add_argument("--method", choices=("inverse", "simple"),
+                   help="inverse interpolation (default) or simple -error (default for pmac: its table "
+                        "is the published, simple one of seed 003)")
     p.add_argument("--overrun", type=float, default=0.0, help="end-zone length L1, mm or deg (default 0)")
     p.add_argument("--max-points", type=int, help="point limit (default: the controller's)")
     p.add_argument("--spacing", type=float, help="table spacing, mm or deg (default: from the targets)")
@@ -43,7 +49,8 @@ def register(sub) -> None:
 
 def run(args) -> int:
     table = read_points(args.file)
-    corr = corrections(table, args.mode, args.method)
+    method = args.method or DEFAULT_METHOD.get(args.format, "inverse")
+    corr = corrections(table, args.mode, method)
     max_points = args.max_points or POINT_LIMITS[args.format]
     ctable = resample(corr, max_points, args.spacing, args.reference, args.overrun)
     axis = args.axis_name or ("AX1" if args.format == "siemens" else "X")
