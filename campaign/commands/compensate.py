@@ -14,7 +14,6 @@ from campaign.pointtable import read_points
 from campaign.views import fmt, make_console
 from protocols.tables import FORMATS, FormatOptions, render
 
-
 DEFAULT_METHOD = {"pmac": "simple"}
 """Formats whose default is the simple -error table: PMAC practice and seed 003's published table
 (the inverse method moves its 80° entry across a rounding boundary, 40 -> 41)."""
