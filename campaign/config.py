@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from campaign.errors import InputError
+from campaign.errors import InputError, read_input_text
 from campaign.faults import parse_faults
 from campaign.model import model_from_dict
 from protocols.serial_line import LineFormat
@@ -237,20 +237,8 @@ def parse_config(text: str, source: str = "<config>") -> Config:
 
 def load_config(path: str | Path) -> Config:
     """Read and validate a config file. InputError (exit 2) names the file and the key."""
-    name = str(path)
-    try:
-        raw = Path(path).read_bytes()
-    except FileNotFoundError:
-        raise InputError(f"{name}: no such file") from None
-    except IsADirectoryError:
-        raise InputError(f"{name}: is a directory, not a config file") from None
-    except OSError as exc:
-        raise InputError(f"{name}: cannot read ({exc.strerror})") from None
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        raise InputError(f"{name}: not UTF-8 text") from None
-    return parse_config(text, name)
+    text = read_input_text(path, "a config file")
+    return parse_config(text, str(path))
 
 
 def schema_markdown() -> str:

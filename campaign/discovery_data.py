@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from campaign.edlen import refractive_index
-from campaign.errors import InputError
+from campaign.errors import InputError, read_toml
 from campaign.model import ErrorModel, model_from_dict
 from campaign.pointtable import PointTable, read_points
 from campaign.simulate import SAMPLE_PERIOD_META, sample_times
@@ -141,12 +141,7 @@ def read_start_model(path: str | Path | None) -> tuple[ErrorModel, dict[str, set
     if path is None:
         return ErrorModel({"linear_scale": {}}), {"linear_scale": set()}
     name = str(path)
-    try:
-        data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"{name}: no such file") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(f"{name}: not valid TOML ({exc})") from None
+    data = read_toml(path, "a model TOML file")
     model = model_from_dict(data, name, require_all=False)
     given = {effect: set(params) for effect, params in data.get("effects", {}).items()}
     model.effects = {effect: {k: v for k, v in params.items() if k in given[effect]}

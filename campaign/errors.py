@@ -20,3 +20,36 @@ class InputError(Exception):
 
 class SafetyError(InputError):
     """A motion would leave the soft limits or exceed the velocity limit. Nothing was commanded."""
+
+
+def read_input_bytes(path, what: str, limit: int = -1) -> bytes:
+    """The bytes of an input file (at most `limit`, all by default); InputError naming the file
+    when it is missing, a directory or unreadable. `what` names the expected kind of file."""
+    name = str(path)
+    try:
+        with open(path, "rb") as f:
+            return f.read(limit)
+    except FileNotFoundError:
+        raise InputError(f"{name}: no such file") from None
+    except IsADirectoryError:
+        raise InputError(f"{name}: is a directory, not {what}") from None
+    except OSError as exc:
+        raise InputError(f"{name}: cannot read ({exc.strerror or exc})") from None
+
+
+def read_input_text(path, what: str) -> str:
+    """An input file as UTF-8 text (BOM allowed); InputError for any problem."""
+    try:
+        return read_input_bytes(path, what).decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: not UTF-8 text (bad byte at offset {exc.start})") from None
+
+
+def read_toml(path, what: str) -> dict:
+    """A TOML input file, parsed; InputError for any problem."""
+    import tomllib
+
+    try:
+        return tomllib.loads(read_input_text(path, what))
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{path}: not valid TOML ({exc})") from None

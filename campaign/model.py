@@ -15,13 +15,12 @@ since arrival at the target, w (s). For a rotary axis read mm as degree and µm 
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from campaign.errors import InputError
+from campaign.errors import InputError, read_toml
 
 EFFECT_PARAMS: dict[str, dict[str, str]] = {
     "linear_scale": {"ppm": "cumulative lead error, µm/m"},
@@ -149,11 +148,4 @@ def model_from_dict(data: dict, where: str, require_all: bool = True) -> ErrorMo
 
 def read_model(path: str | Path, require_all: bool = True) -> ErrorModel:
     """Read a model TOML file; InputError with the file and key on any problem."""
-    name = str(path)
-    try:
-        data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"{name}: no such file") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(f"{name}: not valid TOML ({exc})") from None
-    return model_from_dict(data, name, require_all)
+    return model_from_dict(read_toml(path, "a model TOML file"), str(path), require_all)

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from campaign.errors import InputError
+from campaign.errors import InputError, read_input_bytes
 
 AXIS_KINDS = {
     "linear": ("target_mm", "deviation_um"),
@@ -208,15 +208,7 @@ def _check_directions(table: PointTable, path: str) -> None:
 def read_points(path: str | Path) -> PointTable:
     """Read a point table from a file. Raises InputError for any bad input."""
     name = str(path)
-    try:
-        raw = Path(path).read_bytes()
-    except FileNotFoundError:
-        raise InputError(f"{name}: no such file") from None
-    except IsADirectoryError:
-        raise InputError(f"{name}: is a directory, not a point table") from None
-    except OSError as exc:
-        raise InputError(f"{name}: cannot read ({exc.strerror})") from None
-    return parse_points(_decode(name, raw), name)
+    return parse_points(_decode(name, read_input_bytes(path, "a point table")), name)
 
 
 def header_for(kind: str, optional: tuple[str, ...] = ()) -> list[str]:

@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from campaign.capture import ENV_FIELDS
-from campaign.errors import InputError
+from campaign.errors import InputError, read_input_bytes
 
 POSITION_COLUMNS = {
     "mm": ("reading_mm", "position_mm", "reading", "position"),
@@ -64,15 +64,7 @@ def _numeric(frame: pd.DataFrame, column: str) -> np.ndarray | int:
 
 def read_stream(path: str, unit: str) -> Stream:
     """Read and check a stream CSV. InputError (exit 2) names the file, line and column."""
-    try:
-        with open(path, "rb") as f:
-            head = f.read(65536)
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise InputError(f"{path}: is a directory, not a stream CSV") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+    head = read_input_bytes(path, "a stream CSV", limit=65536)
     if b"\x00" in head:
         raise InputError(f"{path}: not a CSV text file (binary data)")
     try:
