@@ -17,6 +17,7 @@ from typing import Any
 from campaign.errors import InputError, read_input_text
 from campaign.faults import parse_faults
 from campaign.model import model_from_dict
+from protocols import plc_contract
 from protocols.serial_line import LineFormat
 
 REQUIRED = object()
@@ -81,7 +82,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "ams_net_id": Key(str, "127.0.0.1.1.1", "the PLC's AMS net id"),
         "ams_port": Key(int, 851, "the PLC runtime's ADS port", min=1, max=65535),
         "ip": Key(str, "127.0.0.1", "the PLC's IP address"),
-        "axis_index": Key(int, 1, "index n of GVL_Axiscal.astAxes[n]", min=1, max=64),
+        "axis_index": Key(int, 1, "index n of GVL_Axiscal.astAxes[n]", min=1, max=plc_contract.MAX_AXES),
         "timeout_s": Key(float, 2.0, "ADS call timeout, s", min=0.01, max=60),
         "move_timeout_s": Key(float, 300.0, "longest a single move may take, s", min=0.1),
         "reconnect_s": Key(float, 30.0, "how long to wait for a lost ADS connection to come back, s", min=0),
@@ -94,7 +95,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "baudrate": Key(int, 115200, "serial baud rate", min=50, max=4000000),
         "mode": Key(str, "stream", "stream (instrument sends continuously) or query",
                     choices=("stream", "query")),
-        "rate_hz": Key(float, 10.0, "sample rate, Hz (stream) or query rate", min=0.1, max=1000),
+        "rate_hz": Key(float, 10.0, "how often axiscal takes the readings (its tick), Hz; set the instrument "
+                       "to stream at least this fast; the simulated instrument streams at this rate",
+                       min=0.1, max=1000),
         "timeout_s": Key(float, 1.0, "serial read timeout, s", min=0.01, max=60),
     },
     "environment": {
@@ -127,7 +130,6 @@ SCHEMA: dict[str, dict[str, Key]] = {
                      min=1e-3),
         "seed": Key(int, 1, "seed of the simulated noise", min=0),
         "model": Key(str, "", "error-model TOML file (relative to this config); or [sim.effects.NAME]"),
-        "ads_port": Key(int, 48898, "loopback TCP port of the simulated PLC's ADS server", min=1, max=65535),
     },
 }
 

@@ -1,5 +1,5 @@
-"""Plausibility of the environment sensors: out-of-range values are never recorded, and a sensor
-that stops changing is reported.
+"""Plausibility of the environment sensors: out-of-range values never reach the point table (the
+raw stream keeps what the sensor said), and a sensor that stops changing is reported.
 
 Ranges: air 10–35 °C, 800–1100 hPa, 5–95 % RH; material 10–35 °C. An out-of-range value is
 replaced by the last plausible one (the event says so); a value unchanged for `stuck_after_s`

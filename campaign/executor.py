@@ -119,10 +119,17 @@ class Hardware:
     clock: Clock
     closers: list = field(default_factory=list)
 
-    def close(self) -> None:
+    def close(self) -> list[str]:
+        """Close everything, in reverse order of opening, even when one part fails (e.g. the
+        PLC is unreachable and the axis cannot be asked whether it moves). Returns the failures."""
+        failures = []
         for close in reversed(self.closers):
-            close()
+            try:
+                close()
+            except Exception as exc:  # noqa: BLE001 - every part must get its chance to close
+                failures.append(f"{type(exc).__name__}: {exc}")
         self.closers.clear()
+        return failures
 
 
 def resume_steps(plan: Plan, first_point: int, overrun: float) -> list[tuple[int, Step]]:
@@ -250,7 +257,9 @@ class Executor:
                 self.hw.axis.status()
             except AxisError:
                 if self.now() >= end:
-                    raise CampaignStopped(f"the PLC connection did not come back within {limit_s:g} s") from None
+                    text = f"the PLC connection did not come back within {limit_s:g} s"
+                    self.rec.event(self.now(), "fault", text)
+                    raise CampaignStopped(text) from None
                 self._wait(1.0)
                 continue
             self.rec.event(self.now(), "reconnect", "PLC connection back")

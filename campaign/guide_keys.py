@@ -92,7 +92,7 @@ class CtrlC:
         if self.count == 1:
             self.dashboard.abort("Ctrl-C")
             return
-        with contextlib.suppress(Exception):  # the connection may be gone: the PLC stops the axis itself
+        with contextlib.suppress(Exception):  # the connection may be gone: the PLC then finishes its current move (no watchdog)
             self.hw.axis.halt()
         self.dashboard.say("second Ctrl-C: axis halted at once")
         raise KeyboardInterrupt

@@ -97,7 +97,7 @@ def nominal_targets(config: Config) -> list[float]:
     plan = config["plan"]
     if plan["targets"] is not None:
         return list(plan["targets"])
-    return list(np.linspace(plan["start"], plan["start"] + plan["length"], plan["count"]))
+    return [float(t) for t in np.linspace(plan["start"], plan["start"] + plan["length"], plan["count"])]
 
 
 def target_offsets(nominal: list[float], kind: str, fraction: float, seed: int) -> list[float]:

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from campaign.config import Config
+from campaign.errors import InputError
 from campaign.executor import CampaignStopped, Control, Executor, Observer
 from campaign.iso230 import Evaluation, evaluate
 from campaign.model import ErrorModel
@@ -46,11 +47,12 @@ def campaign_meta(config: Config, plan: Plan) -> dict:
 
 
 def open_hardware(config: Config, speed: float | None = None, model: ErrorModel | None = None,
-                  start: float | None = None):
-    """The config's hardware: (Hardware, SimParts or None). Lazy import: see the module docstring."""
+                  start: float | None = None, start_time: float = 0.0):
+    """The config's hardware: (Hardware, SimParts or None). Lazy import: see the module docstring.
+    `start` (axis unit) and `start_time` (s): where and when a simulated machine starts."""
     from drivers.factory import open_hardware as factory_open
 
-    return factory_open(config, speed=speed, model=model, start_position=start)
+    return factory_open(config, speed=speed, model=model, start_position=start, start_time=start_time)
 
 
 def execute(config: Config, plan: Plan, recorder: Recorder, first_point: int, *, speed=None, model=None,
@@ -60,24 +62,29 @@ def execute(config: Config, plan: Plan, recorder: Recorder, first_point: int, *,
     interrupted. Re-raises KeyboardInterrupt after the axis is halted and the recording flushed.
     `opened`: a (Hardware, SimParts | None) pair from `open_hardware` to use instead of opening
     new hardware (it is closed at the end either way)."""
-    hardware, sim = opened if opened is not None else open_hardware(config, speed, model, start)
+    hardware, sim = opened if opened is not None else open_hardware(config, speed, model, start, t_offset)
     executor = Executor(plan, config, hardware, recorder, observer, t0=hardware.clock.now() - t_offset,
                         control=control)
     if sim is not None and sim.faults is not None:
         sim.faults.on_disk_full = recorder.inject_disk_full
     if on_open:
         on_open(hardware, sim, executor)
-    status, message = "completed", ""
+    status, message = "failed", "stopped by an unexpected error"
     try:
         executor.run(first_point)
+        status, message = "completed", ""
     except CampaignStopped as exc:
         status, message = "interrupted", str(exc)
     except KeyboardInterrupt:
         status, message = "interrupted", "Ctrl-C"
         raise
+    except InputError as exc:  # e.g. a SafetyError: a motion refused before it was sent
+        status, message = "interrupted", str(exc)
+        raise
     finally:
         duration = executor.now()
-        hardware.close()
+        for failure in hardware.close():
+            message = f"{message}; closing: {failure}"
         try:
             recorder.set_status(status, duration_s=round(duration, 3), message=message)
             recorder.close()
@@ -141,9 +148,9 @@ def resume_campaign(directory: str | Path, **kwargs) -> Outcome:
     config.sections["sim"].pop("faults", None)  # rehearsed faults are not injected again on resume
     if json.loads((path / "meta.json").read_text(encoding="utf-8")).get("status") == "completed":
         raise InputError(f"{path}: the campaign is already completed")
-    recorder = Recorder.reopen(path)
     plan = build_plan(config)
-    check_plan(plan, config)
+    check_plan(plan, config)  # before anything is touched
+    recorder = Recorder.reopen(path)
     if recorder.meta.get("points_planned") != len(plan.points):
         recorder.close()
         raise InputError(f"{path}: config.toml no longer gives the recorded plan")
@@ -160,7 +167,8 @@ def resume_campaign(directory: str | Path, **kwargs) -> Outcome:
 
     comp = load_comp(path)
     if comp is not None:  # a verification campaign: the PLC gets its table again first
-        kwargs["opened"] = open_compensated(config, comp, kwargs.get("speed"), kwargs.get("model"), position)
+        kwargs["opened"] = open_compensated(config, comp, kwargs.get("speed"), kwargs.get("model"), position,
+                                            t_last)
     recorder.event(t_last, "resume", f"resumed at point {first} of {len(plan.points)}")
     return execute(config, plan, recorder, first, t_offset=t_last, start=position, **kwargs)
 

@@ -58,13 +58,13 @@ def run_verification(config: Config, table: ControllerTable, out: Path, *, basel
                           on_created=lambda directory: save_comp(directory, opened_table))
 
 
-def open_compensated(config: Config, comp: CompTable, speed=None, model=None, start=None):
+def open_compensated(config: Config, comp: CompTable, speed=None, model=None, start=None, start_time=0.0):
     """Open the hardware and write `comp` into the PLC (read back, compared, enabled). On the
     simulated machine the noise is drawn from sim.seed + VERIFY_SEED_OFFSET: a new measurement
     sees new scatter, not the baseline's again."""
     if config["axis_driver"]["type"] == "sim":
         config.sections["sim"] = {**config["sim"], "seed": config["sim"]["seed"] + VERIFY_SEED_OFFSET}
-    opened = open_hardware(config, speed, model, start)
+    opened = open_hardware(config, speed, model, start, start_time)
     try:
         opened[0].axis.write_comp_table(comp)
     except BaseException:

@@ -51,9 +51,12 @@ def line_format(config: Config) -> LineFormat:
 
 
 def open_hardware(config: Config, speed: float | None = None, model: ErrorModel | None = None,
-                  start_position: float | None = None) -> tuple[Hardware, SimParts | None]:
+                  start_position: float | None = None, start_time: float = 0.0,
+                  ) -> tuple[Hardware, SimParts | None]:
     """Open the axis, instrument and clock of `config`. For the simulated machine also return
-    its parts. `speed` overrides `sim.speed`; `model` overrides the config's error model."""
+    its parts. `speed` overrides `sim.speed`; `model` overrides the config's error model;
+    `start_position` (axis unit) and `start_time` (s) are where and when the simulated machine
+    starts (a resumed campaign continues where it stopped)."""
     fmt = line_format(config)
     inst, drv = config["instrument"], config["axis_driver"]
     if drv["type"] == "ads":
@@ -69,7 +72,7 @@ def open_hardware(config: Config, speed: float | None = None, model: ErrorModel 
             raise InputError(f"{config.source}: instrument.port: cannot open {inst['port']}: {exc}") from None
         hw.closers.append(hw.interferometer.close)
         return hw, None
-    return _open_sim(config, fmt, speed, model, start_position)
+    return _open_sim(config, fmt, speed, model, start_position, start_time)
 
 
 def serve_on_free_loopback(plc):
@@ -90,7 +93,7 @@ def serve_on_free_loopback(plc):
     raise OSError("no free loopback address for the simulated PLC's ADS server")
 
 
-def _open_sim(config, fmt, speed, model, start_position):
+def _open_sim(config, fmt, speed, model, start_position, start_time):
     from campaign.faults import parse_faults
     from drivers.sim.compensation import SimCompensation
     from drivers.sim.faults import FaultScheduler
@@ -99,11 +102,12 @@ def _open_sim(config, fmt, speed, model, start_position):
     from drivers.sim.plc import SimPLC
 
     axis_cfg, drv, inst = config["axis"], config["axis_driver"], config["instrument"]
-    clock = make_clock(speed if speed is not None else config["sim"]["speed"])
+    clock = make_clock(speed if speed is not None else config["sim"]["speed"], start_time)
     start = config["plan"]["start"] if start_position is None else start_position
-    plc = SimPLC(drv["axis_index"], axis_cfg["max_velocity"], axis_cfg["max_acceleration"], position=start)
+    plc = SimPLC(drv["axis_index"], axis_cfg["max_velocity"], axis_cfg["max_acceleration"], position=start,
+                 start_time=start_time)
     clock.attach(plc.scan)
-    clock.attach(SimCompensation(plc).tick)  # FB_AxiscalCompensation: idle until a table is enabled
+    clock.attach(SimCompensation(plc, clock.now()).tick)  # FB_AxiscalCompensation: idle until a table is enabled
     physics = SimAxisPhysics(plc, model or sim_model(config), axis_cfg["unit"], config["sim"]["seed"],
                              vacuum_readings=config["environment"]["air_correction"] == "edlen")
     hw = Hardware(None, None, clock, [])

@@ -103,7 +103,7 @@ class LineFormat:
     @classmethod
     def from_dict(cls, d: Mapping[str, Any], where: str) -> LineFormat:
         """A LineFormat from a config table; `where` names the table in error messages
-        (e.g. `campaign.toml [interferometer.line]`). Missing keys take the defaults.
+        (e.g. `campaign.toml [instrument.line]`). Missing keys take the defaults.
 
         Raises InputError with a one-line message naming the key for an unknown key or a bad value.
         """

@@ -200,9 +200,9 @@ def _parse_or_line_error(text: str, fmt: LineFormat) -> None:
 )
 def test_bad_config_raises_input_error_naming_the_key(table, key):
     with pytest.raises(InputError) as caught:
-        LineFormat.from_dict(table, "cfg.toml [interferometer.line]")
+        LineFormat.from_dict(table, "cfg.toml [instrument.line]")
     message = str(caught.value)
-    assert message.startswith("cfg.toml [interferometer.line]: ")
+    assert message.startswith("cfg.toml [instrument.line]: ")
     assert f"'{key}'" in message and "\n" not in message
 
 

@@ -75,3 +75,31 @@ def test_verify_bad_input(cli, tmp_path):
     rotary.write_text(json.dumps({"position_unit": "deg", "start": 0, "spacing": 10, "forward": [0, 1],
                                   "reverse": [0, 1], "common": [0, 1], "mode": "uni"}))
     assert_one_line_error(cli("verify", CONFIGS / "vertical-sim.toml", "--comp", rotary), "rotary")
+
+
+def test_simulated_plc_takes_a_rewritten_table(tmp_path):
+    """Like FB_AxiscalCompensation, which reads stComp every cycle: a table written while another is
+    active is applied, approached with the planner's bounded rate."""
+    import numpy as np
+
+    from campaign.config import parse_config
+    from campaign.session import open_hardware
+    from protocols.plc_contract import CompTable
+
+    config = parse_config((ROOT / "campaign" / "demo.toml").read_text(), "demo.toml")
+    hardware, sim = open_hardware(config)
+    try:
+        def table(value_mm):
+            return CompTable((value_mm,) * 3, (value_mm,) * 3, 0.0, 300.0, 0.0, 0.01, 0.1, True)
+
+        hardware.axis.write_comp_table(table(0.002))
+        hardware.clock.sleep(1.0)
+        assert sim.plc.correction == pytest.approx(0.002)
+        hardware.axis.write_comp_table(table(-0.003))
+        hardware.clock.sleep(0.1)
+        assert 0.002 > sim.plc.correction > -0.003  # on its way, rate-limited
+        hardware.clock.sleep(2.0)
+        assert sim.plc.correction == pytest.approx(-0.003)
+        assert np.isfinite(sim.plc.correction)
+    finally:
+        hardware.close()

@@ -34,8 +34,13 @@ def finish(outcome, args, extra: dict | None = None) -> int:
     """Print the outcome and the evaluation; exit 0 when completed, 3 when interrupted."""
     result = {"dir": str(outcome.dir), "status": outcome.status, "points": outcome.points,
               "planned": outcome.planned, "duration_s": round(outcome.duration_s, 3), **(extra or {})}
+    ev = None
     if outcome.points:
-        table, ev = analyse_dir(outcome.dir)
+        try:
+            table, ev = analyse_dir(outcome.dir)
+        except InputError as exc:  # an interrupted campaign: not every target has both directions yet
+            result["analysis"] = f"not evaluated: {exc}"
+    if ev is not None:
         result.update({k: v for k, v in ev.summary.items()})
         result["unit"] = ev.unit
         if args.plot:
@@ -44,13 +49,15 @@ def finish(outcome, args, extra: dict | None = None) -> int:
         print_json(result)
     else:
         console = make_console()
-        if outcome.points:
+        if ev is not None:
             print_evaluation(ev, console, per_target=False)
+        elif "analysis" in result:
+            console.print(f"ISO 230-2 summary {result['analysis']}")
         console.print(f"campaign {outcome.status}: {outcome.points}/{outcome.planned} points in "
                       f"{outcome.duration_s / 60:.1f} min (campaign time), recorded in {outcome.dir}")
         if outcome.status != "completed":
             console.print(f"[red]stopped:[/] {outcome.message}. Continue with: axiscal resume {outcome.dir}")
-        if args.plot:
+        if args.plot and ev is not None:
             console.print(f"plot written to {args.plot}")
     return 0 if outcome.status == "completed" else 3
 

@@ -32,28 +32,37 @@ def comp_table_in_plc(plc: SimPLC) -> CompTable | None:
 class SimCompensation:
     """Attach `tick` to the SimClock after the PLC scan."""
 
-    def __init__(self, plc: SimPLC, cycle_s: float = CYCLE_S):
+    def __init__(self, plc: SimPLC, start_s: float = 0.0, cycle_s: float = CYCLE_S):
         self.plc = plc
         self.cycle_s = cycle_s
         self.compensator: Compensator | None = None
-        self._enable_symbol = plc_contract.comp_symbols(plc.axis)["bEnable"].name
-        self._t = None
+        self._t = start_s  # simulated time of the last PLC cycle run, s
+        self._writes_seen = -1
+
+    def _reload(self) -> None:
+        """Take the table as it now stands in the PLC variables, as the ST block does every cycle.
+        The applied correction and the planner state carry over, so a new table is approached
+        with the same bounded rate and acceleration."""
+        table = comp_table_in_plc(self.plc)
+        if table is None:
+            table = None if self.compensator is None else CompTable(
+                **{**self.compensator.table.__dict__, "enabled": False})
+        if table is None:
+            return
+        previous, self.compensator = self.compensator, Compensator(table, self.cycle_s)
+        if previous is not None:
+            self.compensator.state, self.compensator.direction = previous.state, previous.direction
 
     def tick(self, t: float) -> None:
-        if self._t is None:
-            self._t = t
-            return
-        enabled = bool(self.plc.value(self._enable_symbol))
-        if enabled and self.compensator is None:
-            table = comp_table_in_plc(self.plc)
-            self.compensator = Compensator(table, self.cycle_s) if table else None
-        elif not enabled and self.compensator is not None and self.compensator.applied == 0.0:
+        if self.plc.handler.writes != self._writes_seen:  # the PC may have written the table
+            self._writes_seen = self.plc.handler.writes
+            self._reload()
+        if self.compensator is not None and not self.compensator.table.enabled \
+                and self.compensator.applied == 0.0:
             self.compensator = None
         if self.compensator is None:
             self._t = t
             return
-        if not enabled:
-            self.compensator.table = CompTable(**{**self.compensator.table.__dict__, "enabled": False})
         while self._t + self.cycle_s <= t + 1e-12:
             self._t += self.cycle_s
             commanded = self.plc.setpoint_position(self._t) - self.plc.correction

@@ -84,5 +84,5 @@ class SimAxisPhysics:
                 "material_temp_c": round(float(material), 3)}
 
 
-def make_clock(speed: float | None) -> SimClock:
-    return SimClock(0.0, speed)
+def make_clock(speed: float | None, start_s: float = 0.0) -> SimClock:
+    return SimClock(start_s, speed)

@@ -42,6 +42,10 @@ _ADS_SYMBOL_NOT_FOUND = 0x710
 """ADS error code a real PLC returns for an unknown symbol name."""
 
 
+_ADS_COMMAND_WRITE = 3
+"""The ADS Write command id (a write by handle, as pyads' write_by_name sends it)."""
+
+
 class _LockedHandler(AdvancedHandler):
     """An AdvancedHandler that answers each request while holding the PLC's lock.
 
@@ -52,9 +56,13 @@ class _LockedHandler(AdvancedHandler):
     def __init__(self, lock: threading.Lock):
         super().__init__()
         self._lock = lock
+        self.writes = 0
+        """ADS write requests answered so far (a cheap 'a variable may have changed' marker)."""
 
     def handle_request(self, request: AmsPacket) -> AmsResponseData:
         with self._lock:
+            if struct.unpack("<H", request.ams_header.command_id)[0] == _ADS_COMMAND_WRITE:
+                self.writes += 1
             try:
                 return super().handle_request(request)
             except KeyError:
