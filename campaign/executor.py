@@ -167,6 +167,7 @@ class Executor:
         self.target: float | None = None
         self.arrival_s = 0.0
         self.readings: list[Reading] = []
+        self.captured: Captured | None = None
         self.halted = False
 
     def now(self) -> float:
@@ -285,7 +286,10 @@ class Executor:
             message += "; axis halted"
         except AxisError as exc:
             message += f"; halt failed: {exc}"
-        self.rec.event(self.now(), kind, message)
+        try:
+            self.rec.event(self.now(), kind, message)
+        except RecordingError as exc:  # the halt matters more than its log line
+            message += f" (not logged: {exc})"
         self.obs.event(kind, message)
 
     def _do(self, step: Step) -> None:

@@ -66,6 +66,16 @@ def cut_torn_tail(path: Path) -> int:
     return len(data) - keep
 
 
+def _write_all(fd: int, data: bytes) -> None:
+    """Write all of `data` (os.write may write less than asked, e.g. on a nearly full disk)."""
+    view = memoryview(data)
+    while view:
+        written = os.write(fd, view)
+        if written <= 0:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        view = view[written:]
+
+
 def _cell(value) -> str:
     if value is None:
         return ""
@@ -89,9 +99,15 @@ class Recorder:
         self.meta = meta
         self.kind = kind
         # long-lived append handles, closed by close()
-        self._raw = open(directory / "raw.csv", "a", encoding="utf-8", newline="")  # noqa: SIM115
-        self._points_fd = os.open(directory / "points.csv", os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
-        self._events = open(directory / "events.log", "a", encoding="utf-8")  # noqa: SIM115
+        self._raw = self._events = None
+        self._points_fd = -1
+        try:
+            self._raw = open(directory / "raw.csv", "a", encoding="utf-8", newline="")  # noqa: SIM115
+            self._points_fd = os.open(directory / "points.csv", os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+            self._events = open(directory / "events.log", "a", encoding="utf-8")  # noqa: SIM115
+        except OSError:
+            self.close()
+            raise
         self.env_columns: tuple[str, ...] | None = None
         self.points_written = 0
         self.fail_next_point_write = False
@@ -127,7 +143,7 @@ class Recorder:
                  if ln and not ln.startswith("#")]
         if lines:
             header = lines[0].split(",")
-            rec.env_columns = tuple(c for c in header if c in ("time_s", *ENV_FIELDS) and c != "time_s")
+            rec.env_columns = tuple(c for c in header if c in ENV_FIELDS)
             rec.points_written = len(lines) - 1
         rec.set_status("running")
         return rec
@@ -137,7 +153,10 @@ class Recorder:
         """Append one raw sample (buffered; made durable at the next point)."""
         cells = (t_s, step, point, axis_position, reading.position, reading.signal_ok, reading.signal_pct,
                  reading.time_s, *(getattr(reading, f) for f in ENV_FIELDS))
-        self._raw.write(",".join(_cell(c) for c in cells) + "\n")
+        try:
+            self._raw.write(",".join(_cell(c) for c in cells) + "\n")
+        except OSError as exc:  # the buffer flushed onto a full disk
+            raise RecordingError(f"{self.dir / 'raw.csv'}: {exc.strerror or exc}") from exc
 
     def point(self, run: int, direction: int, target: float, deviation: float, time_s: float,
               env: dict[str, float | None], extra: dict[str, float]) -> None:
@@ -157,7 +176,7 @@ class Recorder:
                       *EXTRA_POINT_COLUMNS]
             comments = "".join(f"# {k}: {self.meta[k]}\n" for k in ("machine", "axis", "operator", "plan_seed")
                                if k in self.meta)
-            os.write(self._points_fd, (comments + ",".join(header) + "\n").encode())
+            _write_all(self._points_fd, (comments + ",".join(header) + "\n").encode())
         values = (time_s, *(env.get(c) if env.get(c) is not None else float("nan") for c in self.env_columns),
                   *(extra[c] for c in EXTRA_POINT_COLUMNS))
         row = format_row(run, direction, target, deviation, tuple(float(v) for v in values)).encode()
@@ -165,7 +184,7 @@ class Recorder:
             self.fail_next_point_write = False
             os.write(self._points_fd, row[: len(row) // 2])
             raise OSError(errno.ENOSPC, "No space left on device")
-        os.write(self._points_fd, row)
+        _write_all(self._points_fd, row)
         os.fsync(self._points_fd)
         self.points_written += 1
 
@@ -174,21 +193,38 @@ class Recorder:
         self.fail_next_point_write = True
 
     def event(self, t_s: float, kind: str, message: str) -> None:
+        """Append one line to events.log, fsynced. RecordingError when the disk refuses."""
         stamp = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
-        self._events.write(f"{stamp} t={t_s:.3f}s {kind}: {message}\n")
-        self._events.flush()
-        os.fsync(self._events.fileno())
+        try:
+            self._events.write(f"{stamp} t={t_s:.3f}s {kind}: {message}\n")
+            self._events.flush()
+            os.fsync(self._events.fileno())
+        except OSError as exc:
+            raise RecordingError(f"{self.dir / 'events.log'}: {exc.strerror or exc}") from exc
 
     def set_status(self, status: str, **extra) -> None:
         self.meta.update(status=status, **extra)
         write_json_atomic(self.dir / "meta.json", self.meta)
 
     def close(self) -> None:
+        """Flush, fsync and close every file; each is closed even when another fails (full
+        disk). Raises the first OSError afterwards."""
+        failure = None
         for f in (self._raw, self._events):
-            if not f.closed:
+            if f is None or f.closed:
+                continue
+            try:
                 f.flush()
                 os.fsync(f.fileno())
-                f.close()
+            except OSError as exc:
+                failure = failure or exc
+            finally:
+                try:
+                    f.close()
+                except OSError as exc:  # close flushes again: the same full disk
+                    failure = failure or exc
         if self._points_fd >= 0:
             os.close(self._points_fd)
             self._points_fd = -1
+        if failure is not None:
+            raise failure

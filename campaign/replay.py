@@ -11,13 +11,14 @@ settings it shows what would change. Times in s, positions in axis unit, deviati
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import pandas as pd
 
 from campaign.capture import BeamLost, Captured, capture_dwell, capture_stable
 from campaign.config import Config, load_config
+from campaign.env_check import EnvironmentGuard
 from campaign.errors import InputError
 from campaign.executor import DEVIATION_SCALE, point_deviation
 from campaign.interfaces import Reading
@@ -81,9 +82,10 @@ def _capture(config: Config, rows: pd.DataFrame, capture_step: int, arrival: flo
         if recorded.empty:
             raise BeamLost("no capture-window samples recorded")
         end = float(recorded.t_s.max())
-        if end - arrival < c["average_s"] - TICK_EPSILON_S:
+        average_s = min(c["average_s"], config["plan"]["dwell_s"])  # as campaign.plan.build_plan
+        if end - arrival < average_s - TICK_EPSILON_S:
             raise BeamLost(f"the recording holds only {end - arrival:.2f} s after arrival")
-        window = rows[rows.t_s > end - c["average_s"] + TICK_EPSILON_S]
+        window = rows[rows.t_s > end - average_s + TICK_EPSILON_S]
         return capture_dwell(_readings(window), end - arrival)
     tolerance = c["stable_tolerance"] / DEVIATION_SCALE[config["axis"]["unit"]]
     readings: list[Reading] = []
@@ -109,6 +111,7 @@ def replay(directory: str | Path, capture_overrides: dict | None = None, speed: 
     config.sections["capture"] = {**config["capture"], **(capture_overrides or {})}
     raw = load_raw(path)
     steps = _point_steps(plan)
+    guard = EnvironmentGuard()
     results, last_t = [], 0.0
     for point in plan.points:
         rows = raw[raw.point == point.index]
@@ -129,7 +132,8 @@ def replay(directory: str | Path, capture_overrides: dict | None = None, speed: 
             results.append(ReplayedPoint(point.index, point.run, point.direction, point.target, None, None,
                                          len(after), None, str(exc)))
             continue
-        deviation, _, _ = point_deviation(config, point.target, got)
+        env, _ = guard.check(got.env, arrival + got.wait_s)  # as the live campaign does
+        deviation, _, _ = point_deviation(config, point.target, replace(got, env=env))
         results.append(ReplayedPoint(point.index, point.run, point.direction, point.target, deviation,
                                      got.wait_s, got.samples, arrival + got.wait_s))
     return config, plan, results

@@ -87,9 +87,12 @@ def execute(config: Config, plan: Plan, recorder: Recorder, first_point: int, *,
             message = f"{message}; closing: {failure}"
         try:
             recorder.set_status(status, duration_s=round(duration, 3), message=message)
-            recorder.close()
         except OSError as exc:  # e.g. the disk is full: the directory stays "running", resumable
             message = f"{message}; could not update meta.json: {exc}"
+        try:
+            recorder.close()
+        except OSError as exc:
+            message = f"{message}; could not flush the recording: {exc}"
     return Outcome(recorder.dir, status, recorder.points_written, len(plan.points), duration, message)
 
 

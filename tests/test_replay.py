@@ -37,7 +37,9 @@ def test_other_capture_settings_show_what_changes(cli, recorded):
 
 
 def test_window_longer_than_the_recording_is_reported(cli, recorded):
-    data = json.loads(cli("replay", recorded / "dwell", "--average-s", "9", "--json").out)
+    """A stable-trigger recording stops soon after arrival: a 3 s dwell average cannot be had."""
+    data = json.loads(cli("replay", recorded / "stable", "--capture", "dwell", "--average-s", "3",
+                          "--json").out)
     assert data["points"] == 0
     assert all("holds only" in d["note"] for d in data["differences"])
 

@@ -1,0 +1,94 @@
+"""The recorder: torn tails are cut on reopen, short writes complete, a full disk on any file
+stops the campaign as a RecordingError (resumable), and every handle is closed."""
+
+import errno
+import os
+
+import pytest
+
+from campaign.interfaces import Reading
+from campaign.pointtable import read_points
+from campaign.recording import Recorder, RecordingError, cut_torn_tail
+
+META = {"machine": "m", "axis": "X", "kind": "linear"}
+ENV = {"air_temp_c": 20.0, "air_pressure_hpa": 1013.0, "humidity_pct": 50.0, "material_temp_c": 20.0}
+EXTRA = {"point": 0, "reading": 0.001, "air_correction_um": 0.0, "material_correction_um": 0.0,
+         "capture_wait_s": 4.0, "samples": 10}
+
+
+def new_recorder(tmp_path):
+    return Recorder.create(tmp_path / "c", "# config\n", dict(META), "linear")
+
+
+def write_points(rec, n, first=0):
+    for i in range(first, first + n):
+        rec.sample(float(i), 1, i, 0.0, Reading(float(i), 0.001, True, 90.0, 20.0, 1013.0, 50.0, 20.0))
+        rec.point(1, 1, float(10 * i), 1.0 + i, float(i), ENV, {**EXTRA, "point": i})
+
+
+def open_fds():
+    return len(os.listdir("/proc/self/fd"))
+
+
+def test_torn_tails_are_cut_on_reopen(tmp_path):
+    rec = new_recorder(tmp_path)
+    write_points(rec, 3)
+    rec.close()
+    directory = tmp_path / "c"
+    with open(directory / "points.csv", "ab") as f:
+        f.write(b"1,+,30.000000,2.5\x00\x00")  # a power cut in the middle of a row
+    with open(directory / "raw.csv", "ab") as f:
+        f.write(b"3.0,1,3,0.0,0.00")
+    rec = Recorder.reopen(directory)
+    assert rec.points_written == 3
+    write_points(rec, 1, first=3)
+    rec.close()
+    table = read_points(directory / "points.csv")
+    assert len(table) == 4 and list(table.deviation) == [1.0, 2.0, 3.0, 4.0]
+    assert (directory / "raw.csv").read_bytes().endswith(b"\n")
+    assert cut_torn_tail(directory / "points.csv") == 0
+
+
+def test_short_writes_are_completed(tmp_path, monkeypatch):
+    real_write = os.write
+
+    def short_write(fd, data):  # the kernel may take fewer bytes than asked
+        return real_write(fd, bytes(data[: max(1, len(data) // 3)]))
+
+    rec = new_recorder(tmp_path)
+    monkeypatch.setattr(os, "write", short_write)
+    write_points(rec, 2)
+    monkeypatch.undo()
+    rec.close()
+    assert len(read_points(tmp_path / "c" / "points.csv")) == 2
+
+
+@pytest.mark.parametrize("where", ["raw", "events", "points"])
+def test_full_disk_is_a_recording_error(tmp_path, where):
+    rec = new_recorder(tmp_path)
+    write_points(rec, 1)
+    before = open_fds()
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    with pytest.raises(RecordingError, match="No space left"):
+        if where == "raw":
+            rec._raw.write = full  # the buffered file flushes onto the full disk
+            write_points(rec, 1, first=1)
+        elif where == "events":
+            rec._events.flush = full
+            rec.event(1.0, "test", "x")
+        else:
+            rec.inject_disk_full()
+            write_points(rec, 1, first=1)
+    if where == "events":
+        with pytest.raises(OSError):
+            rec.close()  # the events file still cannot be flushed: reported, after closing the rest
+    else:
+        rec.close()
+    assert open_fds() == before - 3  # every handle closed, even after the failure
+    reopened = Recorder.reopen(tmp_path / "c")  # a torn row is cut; the campaign can resume
+    assert reopened.points_written == 1
+    reopened.close()
+    assert len(read_points(tmp_path / "c" / "points.csv")) == 1
