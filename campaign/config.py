@@ -219,6 +219,10 @@ def _check_consistency(config: Config) -> None:
         t = plan["targets"]
         if len(t) < 2 or any(b <= a for a, b in itertools.pairwise(t)):
             raise InputError(f"{src}: key 'plan.targets': needs at least 2 strictly increasing targets")
+    env = config["environment"]
+    if axis["kind"] == "rotary" and (env["air_correction"] != "none" or env["normalise_to_20c"]):
+        raise InputError(f"{src}: key 'environment.air_correction': air and temperature corrections are "
+                         "for linear axes; a rotary axis (angles) takes none")
     if config["axis_driver"]["type"] == "ads" and config["instrument"]["type"] == "sim":
         raise InputError(f"{src}: key 'instrument.type': a real axis needs a real instrument (serial)")
     if config["instrument"]["type"] == "serial" and not config["instrument"]["port"]:

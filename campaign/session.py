@@ -159,6 +159,7 @@ def resume_campaign(directory: str | Path, **kwargs) -> Outcome:
         raise InputError(f"{path}: config.toml no longer gives the recorded plan")
     done = recorded_point_indices(path)
     first = max(done) + 1 if done else 0
+    skipped = sorted(set(range(first)) - set(done))
     if first >= len(plan.points):
         recorder.set_status("completed")
         recorder.close()
@@ -173,6 +174,8 @@ def resume_campaign(directory: str | Path, **kwargs) -> Outcome:
         kwargs["opened"] = open_compensated(config, comp, kwargs.get("speed"), kwargs.get("model"), position,
                                             t_last)
     recorder.event(t_last, "resume", f"resumed at point {first} of {len(plan.points)}")
+    if skipped:  # skipped by the operator: they stay missing (a follow-up campaign can fill them)
+        recorder.event(t_last, "resume", f"points skipped earlier stay missing: {skipped}")
     return execute(config, plan, recorder, first, t_offset=t_last, start=position, **kwargs)
 
 

@@ -19,6 +19,8 @@ BAD = {
     "missing required": (BASE.replace("max_velocity = 20.0\n", ""), "axis.max_velocity"),
     "limits inverted": (BASE.replace("soft_limit_min = -10.0", "soft_limit_min = 200.0"), "axis.soft_limit_max"),
     "unit vs kind": (BASE.replace("[axis]", '[axis]\nunit = "deg"'), "axis.unit"),
+    "edlen on a rotary axis": (BASE.replace("[axis]", '[axis]\nkind = "rotary"\nunit = "deg"') +
+                               '[environment]\nair_correction = "edlen"\n', "environment.air_correction"),
     "targets not increasing": (BASE.replace("[0.0, 60.0, 120.0]", "[0.0, 60.0, 30.0]"), "plan.targets"),
     "not toml": ("[axis\nfoo", "not valid TOML"),
     "bad line format": (BASE + '[instrument.line]\nseparator = 5\n', "separator"),

@@ -44,6 +44,22 @@ def test_window_longer_than_the_recording_is_reported(cli, recorded):
     assert all("holds only" in d["note"] for d in data["differences"])
 
 
+def test_replay_of_a_resumed_campaign(cli, tmp_path):
+    """kill -9, resume, replay: the raw stream of both processes reproduces the point table."""
+    import signal
+
+    from tests.test_crash_safety import start_slow_demo, wait_for_points
+
+    out = tmp_path / "r"
+    proc = start_slow_demo(out)
+    wait_for_points(out / "points.csv", 6, proc)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait(timeout=10)
+    assert axiscal("resume", out).returncode == 0
+    data = json.loads(cli("replay", out, "--json").out)
+    assert data["identical"] and data["points"] == 110, data["differences"][:3]
+
+
 def test_replay_bad_input(cli, tmp_path):
     assert_one_line_error(cli("replay", tmp_path), str(tmp_path))
     assert_one_line_error(cli("replay", tmp_path, "--average-s", "-1"), "--average-s")

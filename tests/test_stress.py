@@ -67,13 +67,26 @@ def resources():
     return threading.active_count(), len(fds), sockets
 
 
+FAULTED = {  # fault paths must release everything too: the port vanishes, the PLC goes away
+    5: "serial_gone = { at_s = 3.0 }",
+    10: "ads_lost = { at_s = 3.0, duration_s = 20.0 }",
+    15: "disk_full = { at_s = 3.0 }",
+}
+
+
 def test_twenty_campaigns_leak_nothing(tmp_path):
     config = parse_config(SMALL, "small.toml")
     start_campaign(config, tmp_path / "warm")  # first use loads libraries that keep their own handles
     before = resources()
     for i in range(20):
-        outcome = start_campaign(config, tmp_path / f"c{i}")
-        assert outcome.status == "completed" and outcome.points == 6
+        if i in FAULTED:
+            text = SMALL.replace("[axis]", "[axis_driver]\nreconnect_s = 2.0\n[axis]") + \
+                f"[sim.faults]\n{FAULTED[i]}\n"
+            outcome = start_campaign(parse_config(text, "faulted.toml"), tmp_path / f"c{i}")
+            assert outcome.status == "interrupted", outcome.message
+        else:
+            outcome = start_campaign(config, tmp_path / f"c{i}")
+            assert outcome.status == "completed" and outcome.points == 6
     after = resources()
     assert after == before, f"threads, fds, sockets before {before}, after {after}"
 
