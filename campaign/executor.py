@@ -15,7 +15,7 @@ from campaign.capture import BeamLost, Captured, NotStable, capture_dwell, captu
 from campaign.config import Config
 from campaign.edlen import air_correction_factor, air_correction_um, thermal_normalisation_um
 from campaign.env_check import EnvironmentGuard
-from campaign.interfaces import Axis, AxisError, Clock, InstrumentError, Interferometer, Reading
+from campaign.interfaces import Axis, AxisError, AxisStatus, Clock, InstrumentError, Interferometer, Reading
 from campaign.plan import Capture, Checkpoint, Move, Plan, Point, Settle, Step, check_motion
 from campaign.recording import Recorder, RecordingError
 
@@ -50,6 +50,30 @@ def point_deviation(config: Config, target: float, got: Captured) -> tuple[float
     air, material = corrections_um(config, got.position, got.env)
     corrected = got.position + (air + material) / 1000.0
     return (corrected - target) * DEVIATION_SCALE["mm"], air, material
+
+
+def move_and_wait(axis: Axis, clock: Clock, tick, position: float, velocity: float, config: Config,
+                  on_status=None) -> AxisStatus:
+    """The one way axiscal moves an axis: check the soft limits and the velocity limit, command the
+    move, then call `tick()` (let a sample period pass) and poll the status until the axis is done
+    and in position. AxisError on an axis error or after `axis_driver.move_timeout_s`.
+    `on_status(status)` sees every status read. Positions in axis unit, velocity axis unit/s."""
+    check_motion(position, velocity, config)
+    axis.start_move(position, velocity)
+    start = clock.now()
+    window = config["axis"]["in_position_window"]
+    timeout = config["axis_driver"]["move_timeout_s"]
+    while True:
+        tick()
+        status = axis.status()
+        if on_status is not None:
+            on_status(status)
+        if status.error:
+            raise AxisError(f"axis error {status.error_id} during the move to {position:g}", status.error_id)
+        if status.done and not status.busy and abs(status.actual_position - position) <= window:
+            return status
+        if clock.now() - start > timeout:
+            raise AxisError(f"move to {position:g} not done after {timeout:g} s")
 
 
 class CampaignStopped(Exception):
@@ -324,25 +348,13 @@ class Executor:
             self._tick()
 
     def _move(self, step: Move) -> None:
-        check_motion(step.position, step.velocity, self.config)
-        axis = self.hw.axis
         self.target = None if step.overrun else step.position
         self.point_index = None if step.overrun else self.next_point
-        axis.start_move(step.position, step.velocity)
-        start = self.now()
-        window = self.config["axis"]["in_position_window"]
-        timeout = self.config["axis_driver"]["move_timeout_s"]
-        while True:
-            self._tick()
-            status = axis.status()
+
+        def seen(status: AxisStatus) -> None:
             self.axis_position = status.actual_position
-            if status.error:
-                raise AxisError(f"axis error {status.error_id} during the move to {step.position:g}",
-                                status.error_id)
-            if status.done and not status.busy and abs(status.actual_position - step.position) <= window:
-                break
-            if self.now() - start > timeout:
-                raise AxisError(f"move to {step.position:g} not done after {timeout:g} s")
+
+        move_and_wait(self.hw.axis, self.hw.clock, self._tick, step.position, step.velocity, self.config, seen)
         self.arrival_s = self.now()
         self.readings = []
 

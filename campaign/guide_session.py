@@ -17,9 +17,9 @@ from rich.table import Table
 
 from campaign.config import Config
 from campaign.errors import SafetyError
-from campaign.executor import Control, Hardware
+from campaign.executor import Control, Hardware, move_and_wait
 from campaign.interfaces import AxisError, InstrumentError, Reading
-from campaign.plan import Move, Plan, check_motion, check_plan, estimate_duration_s
+from campaign.plan import Move, Plan, check_plan, estimate_duration_s
 
 SAMPLE_S = 1.0
 """How long the signal and environment are sampled at rest, s."""
@@ -161,25 +161,19 @@ def move_and_sample(hw: Hardware, config: Config, position: float, velocity: flo
     """Move to `position` (checked against the limits first), then sample at rest. Returns (axis
     position, readings on the way, readings at rest). Halts the axis and raises KeyboardInterrupt
     when an abort is requested; AxisError on an axis error or a timeout."""
-    check_motion(position, velocity, config)
     rate = config["instrument"]["rate_hz"]
-    window, timeout = config["axis"]["in_position_window"], config["axis_driver"]["move_timeout_s"]
     on_the_way: list[Reading] = []
-    start = hw.clock.now()
+
+    def tick() -> None:
+        if control.abort_requested():
+            raise KeyboardInterrupt
+        hw.clock.sleep(1.0 / rate)
+        on_the_way.extend(hw.interferometer.poll())
+
     try:
-        hw.axis.start_move(position, velocity)
-        while True:
-            if control.abort_requested():
-                raise KeyboardInterrupt
-            hw.clock.sleep(1.0 / rate)
-            on_the_way.extend(hw.interferometer.poll())
-            status = hw.axis.status()
-            if status.error:
-                raise AxisError(f"axis error {status.error_id} during the move to {position:g}", status.error_id)
-            if status.done and not status.busy and abs(status.actual_position - position) <= window:
-                break
-            if hw.clock.now() - start > timeout:
-                raise AxisError(f"move to {position:g} not done after {timeout:g} s")
+        status = move_and_wait(hw.axis, hw.clock, tick, position, velocity, config)
+    except SafetyError:
+        raise  # refused before anything was sent: nothing to halt
     except BaseException:
         try:
             hw.axis.halt()
