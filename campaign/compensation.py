@@ -23,11 +23,11 @@ import numpy as np
 
 from campaign.errors import InputError
 from campaign.iso230 import evaluate
-from campaign.pointtable import PointTable
+from campaign.pointtable import DEVIATION_SCALE, UNITS, PointTable
 
 MODES = ("uni", "bi", "auto")
 
-AXIS_UNIT_PER_DEVIATION_UNIT = {"linear": 1e-3, "rotary": 1.0 / 3600.0}
+AXIS_UNIT_PER_DEVIATION_UNIT = {kind: 1.0 / DEVIATION_SCALE[units[0]] for kind, units in UNITS.items()}
 """Axis kind -> axis unit per deviation unit: mm per µm, degree per arcsec."""
 
 

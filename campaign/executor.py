@@ -17,10 +17,8 @@ from campaign.edlen import air_correction_factor, air_correction_um, thermal_nor
 from campaign.env_check import EnvironmentGuard
 from campaign.interfaces import Axis, AxisError, AxisStatus, Clock, InstrumentError, Interferometer, Reading
 from campaign.plan import Capture, Checkpoint, Move, Plan, Point, Settle, Step, check_motion
+from campaign.pointtable import DEVIATION_SCALE
 from campaign.recording import Recorder, RecordingError
-
-DEVIATION_SCALE = {"mm": 1000.0, "deg": 3600.0}
-"""Axis unit -> deviation unit factor (mm -> µm, deg -> arcsec)."""
 
 
 def corrections_um(config: Config, position: float, env: dict) -> tuple[float, float]:

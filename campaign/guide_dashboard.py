@@ -19,10 +19,11 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 from campaign.capture import BeamLost, NotStable
-from campaign.executor import DEVIATION_SCALE, Control, Observer
+from campaign.executor import Control, Observer
 from campaign.guide_keys import Keys
 from campaign.interfaces import AxisError, InstrumentError
 from campaign.plan import Plan
+from campaign.pointtable import DEVIATION_SCALE
 
 BLOCKS = "▁▂▃▄▅▆▇█"
 LIVE_DEVIATION_BAND = 100.0

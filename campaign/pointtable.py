@@ -33,6 +33,9 @@ AXIS_KINDS = {
 UNITS = {"linear": ("mm", "um"), "rotary": ("deg", "arcsec")}
 """Axis kind -> (position unit, deviation unit)."""
 
+DEVIATION_SCALE = {"mm": 1000.0, "deg": 3600.0}
+"""Position unit -> deviation units per position unit (mm -> µm, deg -> arcsec)."""
+
 OPTIONAL_COLUMNS = ("time_s", "air_temp_c", "air_pressure_hpa", "humidity_pct", "material_temp_c")
 
 MINUS_SIGNS = str.maketrans({"\u2212": "-", "\u2013": "-"})

@@ -20,9 +20,10 @@ from campaign.capture import BeamLost, Captured, capture_dwell, capture_stable
 from campaign.config import Config, load_config
 from campaign.env_check import EnvironmentGuard
 from campaign.errors import InputError
-from campaign.executor import DEVIATION_SCALE, point_deviation
+from campaign.executor import point_deviation
 from campaign.interfaces import Reading
 from campaign.plan import Capture, Move, Plan, build_plan
+from campaign.pointtable import DEVIATION_SCALE
 
 TICK_EPSILON_S = 1e-6
 """Times closer than this are the same tick, s (far below the sample period)."""

@@ -11,8 +11,8 @@ from importlib import resources
 
 from campaign.commands.run import add_run_options, finish, run_config
 from campaign.config import parse_config
-from campaign.executor import DEVIATION_SCALE
 from campaign.faults import parse_inject
+from campaign.pointtable import DEVIATION_SCALE
 from campaign.progress import RichProgress
 from campaign.session import resume_campaign, start_campaign
 

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 from campaign.commands.run import finish
 from campaign.errors import InputError
-from campaign.executor import DEVIATION_SCALE
 from campaign.plot import check_plot_path
+from campaign.pointtable import DEVIATION_SCALE
 from campaign.progress import RichProgress
 from campaign.session import resume_campaign
 
@@ -21,12 +24,22 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+def read_meta_unit(directory: str) -> str:
+    """The axis unit recorded in DIR/meta.json (mm when it cannot be read: resume then says why)."""
+    try:
+        unit = json.loads((Path(directory) / "meta.json").read_text(encoding="utf-8")).get("unit", "mm")
+    except (OSError, ValueError):
+        return "mm"
+    return unit if unit in DEVIATION_SCALE else "mm"
+
+
 def run(args) -> int:
     if args.plot:
         check_plot_path(args.plot)
     if args.speed is not None and args.speed <= 0:
         raise InputError("--speed: must be > 0")
-    observer = RichProgress("mm", DEVIATION_SCALE["mm"])
+    unit = read_meta_unit(args.dir)
+    observer = RichProgress(unit, DEVIATION_SCALE[unit], "µm" if unit == "mm" else "arcsec")
     with observer:
         outcome = resume_campaign(args.dir, speed=args.speed, observer=observer)
     return finish(outcome, args)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from campaign.config import load_config
 from campaign.errors import InputError
-from campaign.executor import DEVIATION_SCALE
 from campaign.plot import check_plot_path, plot_evaluation
+from campaign.pointtable import DEVIATION_SCALE
 from campaign.progress import RichProgress
 from campaign.session import analyse_dir, dry_run, start_campaign
 from campaign.views import make_console, print_evaluation, print_json

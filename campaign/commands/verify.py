@@ -11,9 +11,9 @@ from campaign.commands.run import add_run_options, finish
 from campaign.compensation_file import read_comp_json
 from campaign.config import load_config
 from campaign.errors import InputError
-from campaign.executor import DEVIATION_SCALE
 from campaign.plan import build_plan, check_plan
 from campaign.plot import check_plot_path
+from campaign.pointtable import DEVIATION_SCALE
 from campaign.progress import RichProgress
 from campaign.session import default_out_dir
 from campaign.verify import SUMMARY_KEYS, baseline_points, run_verification, write_report

@@ -14,10 +14,9 @@ import numpy as np
 
 from campaign.edlen import refractive_index
 from campaign.model import ErrorModel
+from campaign.pointtable import DEVIATION_SCALE
 from drivers.sim.clock import SimClock
 from drivers.sim.plc import SimPLC
-
-DEVIATION_PER_UNIT = {"mm": 1000.0, "deg": 3600.0}
 
 
 class SimAxisPhysics:
@@ -55,7 +54,7 @@ class SimAxisPhysics:
             e_um += self._scatter_um
         if with_reading_noise and self.model.reading_sigma_um:
             e_um += float(self.rng.normal(0.0, self.model.reading_sigma_um))
-        return x + e_um / DEVIATION_PER_UNIT[self.unit]
+        return x + e_um / DEVIATION_SCALE[self.unit]
 
     def environment(self, t: float) -> tuple[float, float, float, float]:
         """The room at t (s): air °C, hPa, % RH and material °C. A slow, small daily-like swing

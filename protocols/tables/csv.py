@@ -3,9 +3,8 @@ control adds to the command, ≈ -error) in the deviation unit, for both directi
 
 from __future__ import annotations
 
+from campaign.pointtable import UNITS
 from protocols.tables import FormatOptions, Rendered
-
-UNITS = {"linear": ("mm", "um"), "rotary": ("deg", "arcsec")}
 
 
 def render(table, options: FormatOptions) -> Rendered:
