@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 import os
 import sys
+import threading
 import time
 from collections.abc import Callable
 from contextlib import contextmanager
@@ -55,21 +56,27 @@ def _plc_type(symbol: Symbol) -> Any:
     return base if symbol.array_length is None else base * symbol.array_length
 
 
+_STDERR_LOCK = threading.Lock()
+
+
 @contextmanager
 def _native_stderr_silenced():
-    """The ADS library's C++ code logs "connection closed by remote" to stderr when a connection
-    closes; keep that line out of the command's output (an error must be one line)."""
-    sys.stderr.flush()
-    saved = os.dup(2)
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    try:
-        os.dup2(devnull, 2)
-        yield
-    finally:
-        time.sleep(0.01)  # the library logs from its receive thread as the socket closes
-        os.dup2(saved, 2)
-        os.close(saved)
-        os.close(devnull)
+    """The ADS library's C++ code logs "connection closed by remote" and failed connects to
+    stderr; keep those lines out of the command's output (an error must be one line). fd 2 is
+    shared by the whole process, so one redirection at a time (a lock), kept short; Python code
+    writing to sys.stderr meanwhile is held back by flushing before and after."""
+    with _STDERR_LOCK:
+        sys.stderr.flush()
+        saved = os.dup(2)
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(devnull, 2)
+            yield
+        finally:
+            time.sleep(0.01)  # the library logs from its receive thread as the socket closes
+            os.dup2(saved, 2)
+            os.close(saved)
+            os.close(devnull)
 
 
 class _BadAnswer(Exception):
