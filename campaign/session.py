@@ -137,9 +137,11 @@ def last_raw_state(directory: Path) -> tuple[float, float | None]:
     return t, position
 
 
-def resume_campaign(directory: str | Path, **kwargs) -> Outcome:
+def resume_campaign(directory: str | Path, faults: dict | None = None, **kwargs) -> Outcome:
     """Continue an interrupted campaign in `directory` from the point after the last recorded one,
-    re-approaching it from the overrun in its own direction, appending to the same files."""
+    re-approaching it from the overrun in its own direction, appending to the same files.
+    `faults`: a [sim.faults] table to rehearse in the resumed part (the config's own faults are not
+    injected again)."""
     from campaign.config import load_config
     from campaign.errors import InputError
     from campaign.model import read_model
@@ -149,6 +151,8 @@ def resume_campaign(directory: str | Path, **kwargs) -> Outcome:
         raise InputError(f"{path}: not a campaign directory (no meta.json / config.toml)")
     config = load_config(path / "config.toml")
     config.sections["sim"].pop("faults", None)  # rehearsed faults are not injected again on resume
+    if faults:
+        config.sections["sim"]["faults"] = faults
     if json.loads((path / "meta.json").read_text(encoding="utf-8")).get("status") == "completed":
         raise InputError(f"{path}: the campaign is already completed")
     plan = build_plan(config)

@@ -73,3 +73,15 @@ def test_bad_inject_and_fault_tables(cli, tmp_path):
 
     path.write_text(BASE + "[sim.faults]\nbeam_break = { at_s = -1 }\n")
     assert_one_line_error(cli("plan", path), "sim.faults.beam_break.at_s")
+
+
+def test_faults_after_a_resume_still_fire(tmp_path, fault_free):
+    """The port vanishes at 400 s (resume needed), the disk fills at 900 s (in the resumed part)."""
+    out = tmp_path / "two"
+    proc = axiscal("demo", "--out", out, "--inject", "serial_gone@400,disk_full@900", "--json", timeout=180)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    data = json.loads(proc.stdout)
+    assert data["survived"] and data["resumes"] == 2
+    assert [f["name"] for f in data["faults"]] == ["serial_gone", "disk_full"]
+    assert [f["at_s"] for f in data["faults"]] == [400.0, pytest.approx(900.0, abs=0.2)]
+    assert point_keys(out / "points.csv") == fault_free

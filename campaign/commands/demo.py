@@ -43,10 +43,10 @@ def run(args) -> int:
         return run_config(parse_config(text, "demo.toml"), args)
     faults = parse_inject(args.inject)
     text += "\n[sim.faults]\n" + "".join(f"{name} = {{ at_s = {p['at_s']!r} }}\n" for name, p in faults.items())
-    return rehearse(parse_config(text, "demo.toml"), args)
+    return rehearse(parse_config(text, "demo.toml"), faults, args)
 
 
-def rehearse(config, args) -> int:
+def rehearse(config, faults: dict, args) -> int:
     """Run with faults injected; resume (without faults) as often as needed, then report."""
     fired: list = []
 
@@ -62,10 +62,13 @@ def rehearse(config, args) -> int:
     resumes = 0
     while outcome.status != "completed" and resumes < MAX_RESUMES:
         resumes += 1
+        fired_names = {name for log in fired for _, name, what in log if what == "injected"}
+        remaining = {name: p for name, p in faults.items() if name not in fired_names}
         with progress() as observer:
-            outcome = resume_campaign(outcome.dir, speed=args.speed, observer=observer)
+            outcome = resume_campaign(outcome.dir, faults=remaining, speed=args.speed, observer=observer,
+                                      on_open=keep_log)
     events = [ln.split(" ", 2)[2] for ln in (outcome.dir / "events.log").read_text().splitlines()]
     survived = outcome.status == "completed" and outcome.points == outcome.planned
-    extra = {"faults": [{"name": name, "at_s": round(t, 3), "what": what} for t, name, what in fired[0]],
+    extra = {"faults": [{"name": name, "at_s": round(t, 3), "what": what} for log in fired for t, name, what in log],
              "resumes": resumes, "survived": survived, "events": events}
     return finish(outcome, args, extra)
