@@ -67,6 +67,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "overrun": Key(float, 2.0, "overrun L1 beyond both ends, axis unit", min=0),
         "cycles": Key(int, 5, "number of runs (cycles); ISO 230-2 asks for 5", min=1, max=1000),
         "dwell_s": Key(float, 4.0, "dwell at each target, s", min=0.1, max=600),
+        "dwell_jitter": Key(float, 0.0, "vary each point's dwell by up to this fraction (seeded): settling is "
+                            "only told from backlash when the dwell varies", min=0, max=0.9),
         "velocity": Key(float, REQUIRED, "positioning velocity, axis unit/s", min=1e-9),
         "cycle": Key(str, "linear", "linear (ISO 230-2) or pilgrim (step cycle, annex)",
                      choices=("linear", "pilgrim")),

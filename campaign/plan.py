@@ -125,18 +125,20 @@ def build_plan(config: Config) -> Plan:
     targets = [round(t + o, 9) for t, o in zip(nominal, offsets)]
     v, l1 = p["velocity"], p["overrun"]
     capture = config["capture"]
-    if capture["method"] == "dwell":
-        window = min(capture["average_s"], p["dwell_s"])
-        before = [Settle(p["dwell_s"] - window)] if p["dwell_s"] > window else []
-        timeout = window
-    else:
-        window, before, timeout = capture["stable_window_s"], [], capture["stable_timeout_s"]
+    dwell_rng = np.random.default_rng([p["seed"], 1])  # its own stream: the offsets do not change
     steps: list[Step] = []
     index = 0
 
     def visit(run: int, direction: int, i: int) -> None:
         nonlocal index
         point = Point(index, run, direction, i, targets[i])
+        dwell = p["dwell_s"] * (1 + dwell_rng.uniform(-1, 1) * p["dwell_jitter"]) if p["dwell_jitter"] else p["dwell_s"]
+        if capture["method"] == "dwell":
+            window = min(capture["average_s"], dwell)
+            before = [Settle(dwell - window)] if dwell > window else []
+            timeout = window
+        else:
+            window, before, timeout = capture["stable_window_s"], [], capture["stable_timeout_s"]
         steps.extend([Move(targets[i], v), *before, Capture(point, window, timeout), Checkpoint(point)])
         index += 1
 

@@ -22,7 +22,7 @@ from campaign.env_check import EnvironmentGuard
 from campaign.errors import InputError
 from campaign.executor import point_deviation
 from campaign.interfaces import Reading
-from campaign.plan import Capture, Move, Plan, build_plan
+from campaign.plan import Capture, Move, Plan, Settle, build_plan
 from campaign.pointtable import DEVIATION_SCALE
 
 TICK_EPSILON_S = 1e-6
@@ -64,18 +64,21 @@ def _readings(rows: pd.DataFrame) -> list[Reading]:
             for r in rows.itertuples(index=False)]
 
 
-def _point_steps(plan: Plan) -> dict[int, tuple[int, int]]:
-    """Point index -> (index of its approach Move step, index of its Capture step)."""
-    out, last_move = {}, 0
+def _point_steps(plan: Plan) -> dict[int, tuple[int, int, float]]:
+    """Point index -> (index of its approach Move step, index of its Capture step, its dwell in s:
+    settle + capture window, as recorded)."""
+    out, last_move, settle = {}, 0, 0.0
     for i, step in enumerate(plan.steps):
         if isinstance(step, Move):
-            last_move = i
+            last_move, settle = i, 0.0
+        elif isinstance(step, Settle):
+            settle = step.seconds
         elif isinstance(step, Capture):
-            out[step.point.index] = (last_move, i)
+            out[step.point.index] = (last_move, i, settle + step.window_s)
     return out
 
 
-def _capture(config: Config, rows: pd.DataFrame, capture_step: int, arrival: float) -> Captured:
+def _capture(config: Config, rows: pd.DataFrame, capture_step: int, arrival: float, dwell_s: float) -> Captured:
     """Capture one point from its samples after arrival, with `config`'s capture settings."""
     c = config["capture"]
     if c["method"] == "dwell":
@@ -83,7 +86,7 @@ def _capture(config: Config, rows: pd.DataFrame, capture_step: int, arrival: flo
         if recorded.empty:
             raise BeamLost("no capture-window samples recorded")
         end = float(recorded.t_s.max())
-        average_s = min(c["average_s"], config["plan"]["dwell_s"])  # as campaign.plan.build_plan
+        average_s = min(c["average_s"], dwell_s)  # as campaign.plan.build_plan
         if end - arrival < average_s - TICK_EPSILON_S:
             raise BeamLost(f"the recording holds only {end - arrival:.2f} s after arrival")
         window = rows[rows.t_s > end - average_s + TICK_EPSILON_S]
@@ -109,6 +112,7 @@ def replay(directory: str | Path, capture_overrides: dict | None = None, speed: 
         raise InputError(f"{path}: not a campaign directory (no config.toml)")
     config = load_config(path / "config.toml")
     plan = build_plan(config)  # the recorded plan: its step indices are those in raw.csv
+    recorded_dwell = config["capture"]["method"] == "dwell"  # else the steps do not hold the dwell
     config.sections["capture"] = {**config["capture"], **(capture_overrides or {})}
     raw = load_raw(path)
     steps = _point_steps(plan)
@@ -116,7 +120,8 @@ def replay(directory: str | Path, capture_overrides: dict | None = None, speed: 
     results, last_t = [], 0.0
     for point in plan.points:
         rows = raw[raw.point == point.index]
-        move_step, capture_step = steps[point.index]
+        move_step, capture_step, dwell_s = steps[point.index]
+        dwell_s = dwell_s if recorded_dwell else config["plan"]["dwell_s"]
         moves = rows[rows.step == move_step]
         if moves.empty:
             results.append(ReplayedPoint(point.index, point.run, point.direction, point.target, None, None, 0,
@@ -128,7 +133,7 @@ def replay(directory: str | Path, capture_overrides: dict | None = None, speed: 
             time.sleep(max(0.0, arrival - last_t) / speed)
             last_t = arrival
         try:
-            got = _capture(config, after, capture_step, arrival)
+            got = _capture(config, after, capture_step, arrival, dwell_s)
         except BeamLost as exc:
             results.append(ReplayedPoint(point.index, point.run, point.direction, point.target, None, None,
                                          len(after), None, str(exc)))
