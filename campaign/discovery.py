@@ -283,6 +283,24 @@ def environment_variant(fits: list[Fit], n: int, notes: list[str]) -> Fit:
     return chosen
 
 
+NESTED_IN = {"position_dependent_backlash": "backlash"}
+"""Effect -> the simpler effect it contains (its k = 0 case)."""
+
+
+def prefer_simpler(best: Candidate, accepted: list[Candidate], n: int, notes: list[str]) -> Candidate:
+    """Between nested candidates the larger one must earn its extra parameters: a nested F-test
+    against the simpler one with p < ALPHA; otherwise the simpler one is named."""
+    simpler = next((c for c in accepted if c.name == NESTED_IN.get(best.name)), None)
+    if simpler is None:
+        return best
+    p = f_test_p(simpler.fit, best.fit, n)
+    if p < ALPHA:
+        return best
+    _note(notes, f"{best.name} fits a little better than {simpler.name}, but its extra parameter is not "
+                 f"significant (nested F-test p = {p:.2g}): {simpler.name} is named")
+    return simpler
+
+
 def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) -> Discovery:
     """Run discovery on a campaign from a starting model (`given`: the parameters the user gave
     per effect; the others are fitted)."""
@@ -297,9 +315,10 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
                    for name in candidate_names(data, current.terms, notes)]
         ranking.sort(key=lambda c: (c.fit is None, c.delta_bic))
         accepted = [c for c in ranking if c.accepted]
-        chosen = accepted[0] if accepted else None
-        for cand in accepted[1:]:
-            cand.verdict = "significant, but explains less: tried again at the next step"
+        chosen = prefer_simpler(accepted[0], accepted, len(data.y), notes) if accepted else None
+        for cand in accepted:
+            if cand is not chosen:
+                cand.verdict = "significant, but not named at this step: tried again at the next"
         if chosen is None:
             if ranking:
                 steps_ranking_note(notes, ranking)
