@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from campaign.edlen import refractive_index
-from campaign.errors import InputError, read_toml
+from campaign.errors import read_toml
 from campaign.model import ErrorModel, model_from_dict
 from campaign.pointtable import PointTable, read_points
 from campaign.simulate import SAMPLE_PERIOD_META, sample_times
@@ -101,29 +101,12 @@ def air_index_change(env: dict[str, np.ndarray], n: int) -> np.ndarray | None:
     return index / index[0] - 1
 
 
-def read_capture_columns(path: Path) -> dict[str, np.ndarray]:
-    """The capture_wait_s and samples columns of a point-table file, if it has them (read_points
-    keeps only the columns every tool evaluates)."""
-    lines = [ln.strip() for ln in path.read_text(encoding="utf-8-sig").splitlines()]
-    lines = [ln for ln in lines if ln and not ln.startswith("#")]
-    header = lines[0].split(",")
-    found = {}
-    for name in CAPTURE_COLUMNS:
-        if name in header:
-            i = header.index(name)
-            try:
-                found[name] = np.array([float(ln.split(",")[i]) for ln in lines[1:]])
-            except (ValueError, IndexError):
-                raise InputError(f"{path}: column '{name}' is not numeric on every row") from None
-    return found
-
-
 def read_campaign(path: str | Path) -> CampaignData:
     """Read a point table for discovery: the table itself, its capture columns, and the sample
     period from the campaign's config.toml next to it (1/instrument.rate_hz) when there is one."""
     path = Path(path)
     table = read_points(path)
-    capture = read_capture_columns(path)
+    capture = {name: table.extra[name] for name in CAPTURE_COLUMNS if name in table.extra}
     period = None
     config = path.parent / "config.toml"
     if "samples" in capture and config.is_file() and SAMPLE_PERIOD_META not in table.meta:

@@ -10,7 +10,8 @@ comments; a comment of the form `# key: value` is kept as metadata. Columns:
 - optional: `time_s` (s since campaign start), `air_temp_c` (°C), `air_pressure_hpa` (hPa),
   `humidity_pct` (% RH), `material_temp_c` (°C).
 
-Any other column is kept as text and ignored by the evaluation. The Unicode minus sign U+2212 is
+Any other column is ignored by the evaluation; those whose every value is a finite number are
+kept in `PointTable.extra` (a recorded campaign's `point`, `capture_wait_s`, `samples`, ...). The Unicode minus sign U+2212 is
 read as `-`. Bad input raises `InputError` naming the file, line and column.
 """
 
@@ -48,6 +49,7 @@ class PointTable:
     run: run number (>= 1). direction: +1 or -1. target: axis unit (mm or deg).
     deviation: measured - target, in µm (linear) or arcsec (rotary).
     optional: the optional columns present, e.g. {"time_s": array of s}.
+    extra: the other columns whose every value is a finite number, e.g. {"point": plan indices}.
     meta: `# key: value` comment metadata.
     """
 
@@ -58,6 +60,7 @@ class PointTable:
     deviation: np.ndarray
     optional: dict[str, np.ndarray] = field(default_factory=dict)
     meta: dict[str, str] = field(default_factory=dict)
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
     source: str = "<memory>"
 
     @property
@@ -108,8 +111,9 @@ def _decode(path: str, raw: bytes) -> str:
         raise _fail(path, f"not UTF-8 text (bad byte at offset {exc.start})") from None
 
 
-def parse_points(text: str, path: str = "<input>") -> PointTable:
-    """Parse point-table CSV text. `path` is used only in error messages."""
+def parse_points(text: str, path: str = "<input>", partial: bool = False) -> PointTable:
+    """Parse point-table CSV text. `path` is used only in error messages. `partial`: a campaign's
+    table while it is recorded, whose targets need not all have the same directions yet."""
     header: list[str] | None = None
     header_line = 0
     meta: dict[str, str] = {}
@@ -133,7 +137,7 @@ def parse_points(text: str, path: str = "<input>") -> PointTable:
     kind = _kind_from_header(header, path, header_line)
     if not rows:
         raise _fail(path, "the header has no data rows", header_line)
-    return _build(header, rows, kind, meta, path)
+    return _build(header, rows, kind, meta, path, partial)
 
 
 def _kind_from_header(header: list[str], path: str, line: int) -> str:
@@ -151,7 +155,7 @@ def _kind_from_header(header: list[str], path: str, line: int) -> str:
     return kind
 
 
-def _build(header, rows, kind, meta, path) -> PointTable:
+def _build(header, rows, kind, meta, path, partial=False) -> PointTable:
     target_col, dev_col = AXIS_KINDS[kind]
     index = {name: i for i, name in enumerate(header)}
     optional = [c for c in OPTIONAL_COLUMNS if c in index]
@@ -180,6 +184,13 @@ def _build(header, rows, kind, meta, path) -> PointTable:
         deviation.append(_number(cells[index[dev_col]], path, number, dev_col))
         for c in optional:
             extra[c].append(_number(cells[index[c]], path, number, c))
+    known = {"run", "direction", target_col, dev_col, *optional}
+    others = {}
+    for name, i in index.items():
+        if name not in known:
+            values = _numbers_or_none([cells[i] for _, cells in rows])
+            if values is not None:
+                others[name] = values
     table = PointTable(
         kind=kind,
         run=np.array(run, dtype=int),
@@ -189,9 +200,20 @@ def _build(header, rows, kind, meta, path) -> PointTable:
         optional={c: np.array(v, dtype=float) for c, v in extra.items()},
         meta=meta,
         source=path,
+        extra=others,
     )
-    _check_directions(table, path)
+    if not partial:
+        _check_directions(table, path)
     return table
+
+
+def _numbers_or_none(cells: list[str]) -> np.ndarray | None:
+    """The cells as floats when every one is a finite number, else None (a text column)."""
+    try:
+        values = np.array([float(c.translate(MINUS_SIGNS)) for c in cells], dtype=float)
+    except ValueError:
+        return None
+    return values if np.all(np.isfinite(values)) else None
 
 
 def _check_directions(table: PointTable, path: str) -> None:
@@ -208,10 +230,11 @@ def _check_directions(table: PointTable, path: str) -> None:
                           "others in both")
 
 
-def read_points(path: str | Path) -> PointTable:
-    """Read a point table from a file. Raises InputError for any bad input."""
+def read_points(path: str | Path, partial: bool = False) -> PointTable:
+    """Read a point table from a file. Raises InputError for any bad input. `partial`: see
+    `parse_points`."""
     name = str(path)
-    return parse_points(_decode(name, read_input_bytes(path, "a point table")), name)
+    return parse_points(_decode(name, read_input_bytes(path, "a point table")), name, partial)
 
 
 def header_for(kind: str, optional: tuple[str, ...] = ()) -> list[str]:

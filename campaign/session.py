@@ -184,13 +184,11 @@ def resume_campaign(directory: str | Path, faults: dict | None = None, **kwargs)
 
 
 def recorded_point_indices(directory: Path) -> list[int]:
-    """The plan indices of the points recorded in points.csv (its `point` column)."""
-    lines = [ln for ln in (directory / "points.csv").read_text(encoding="utf-8").splitlines()
-             if ln and not ln.startswith("#")]
-    if not lines:
+    """The plan indices of the points recorded in points.csv (its `point` column); none while the
+    file holds no row yet."""
+    if not any(ln[:1].isdigit() for ln in (directory / "points.csv").read_text(encoding="utf-8").splitlines()):
         return []
-    column = lines[0].split(",").index("point")
-    return [int(float(ln.split(",")[column])) for ln in lines[1:]]
+    return [int(i) for i in read_points(directory / "points.csv", partial=True).extra["point"]]
 
 
 def analyse_dir(directory: str | Path) -> tuple[object, Evaluation]:
