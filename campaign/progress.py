@@ -7,17 +7,20 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from campaign.executor import Observer
 from campaign.plan import Plan
+from campaign.pointtable import DEVIATION_SCALE
 
 
 class RichProgress(Observer):
     """Shows the campaign on stderr; use as a context manager around the run."""
 
-    def __init__(self, unit: str = "mm", scale: float = 1000.0, dev_unit: str = "µm"):
+    def __init__(self, unit: str = "mm"):
+        """`unit`: the axis unit, mm or deg; the live deviation is shown in µm or arcsec."""
         self.console = Console(stderr=True)
         self.progress = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                                  TimeRemainingColumn(), TextColumn("{task.fields[live]}"),
                                  console=self.console, transient=False)
-        self.unit, self.scale, self.dev_unit = unit, scale, dev_unit
+        self.unit, self.scale = unit, DEVIATION_SCALE[unit]
+        self.dev_unit = "µm" if unit == "mm" else "arcsec"
         self.overall = self.run_task = None
         self.per_run = 0
         self._last_reading_t = -1.0

@@ -156,3 +156,18 @@ def test_subprocess_entry_points_no_traceback(tmp_path):
                               timeout=60)
         assert proc.returncode == 2 and proc.stderr.startswith("error: ") and "Traceback" not in proc.stderr
         assert len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_other_numeric_columns_are_kept_as_extra(tmp_path):
+    from campaign.pointtable import read_points
+
+    path = _write(tmp_path, "run,direction,target_mm,deviation_um,point,note,samples\n"
+                            "1,+,0,1,0,ok,10\n1,+,10,2,1,fine,\u22121\n")
+    table = read_points(path)
+    assert list(table.extra) == ["point", "samples"]  # 'note' is text: left out
+    assert list(table.extra["point"]) == [0, 1] and list(table.extra["samples"]) == [10, -1]
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "0", "-2", "fast"])
+def test_speed_must_be_a_finite_positive_number(cli, value):
+    assert_one_line_error(cli("demo", "--speed", value), "--speed")

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from campaign.commands import positive_number
 from campaign.compensation import MODES, corrections
 from campaign.compensation_grid import POINT_LIMITS, resample
 from campaign.compensation_predict import predict
@@ -41,8 +42,8 @@ def register(sub) -> None:
     p.add_argument("--write-plc", metavar="CONFIG",
                    help="TwinCAT: also write the tables into the PLC of CONFIG over ADS "
                         "(GVL_Axiscal.astComp[n]), read them back, compare, then enable them")
-    p.add_argument("--max-rate", type=float, help="with --write-plc: correction rate limit, axis unit/s")
-    p.add_argument("--max-accel", type=float, help="with --write-plc: correction acceleration limit, axis unit/s²")
+    p.add_argument("--max-rate", type=positive_number, help="with --write-plc: correction rate limit, axis unit/s")
+    p.add_argument("--max-accel", type=positive_number, help="with --write-plc: correction acceleration limit, axis unit/s²")
     p.set_defaults(func=run)
 
 

@@ -12,7 +12,6 @@ from importlib import resources
 from campaign.commands.run import add_run_options, finish, run_config
 from campaign.config import parse_config
 from campaign.faults import parse_inject
-from campaign.pointtable import DEVIATION_SCALE
 from campaign.progress import RichProgress
 from campaign.session import resume_campaign, start_campaign
 
@@ -55,7 +54,7 @@ def rehearse(config, faults: dict, args) -> int:
 
     def progress():
         unit = config["axis"]["unit"]
-        return RichProgress(unit, DEVIATION_SCALE[unit])
+        return RichProgress(unit)
 
     with progress() as observer:
         outcome = start_campaign(config, args.out, speed=args.speed, observer=observer, on_open=keep_log)

@@ -16,6 +16,7 @@ from pathlib import Path
 
 from rich.console import Console
 
+from campaign.commands import positive_number
 from campaign.commands.demo import demo_config_text
 from campaign.config import load_config, parse_config
 from campaign.errors import InputError
@@ -54,7 +55,7 @@ def register(sub) -> None:
                                    "dashboard (keys: p pause, r resume, a abort) and judge the result.")
     p.add_argument("config", nargs="?", help="campaign TOML (default: the embedded demo, simulated machine)")
     p.add_argument("--out", metavar="DIR", help="campaign directory (default runs/MACHINE-AXIS-TIME)")
-    p.add_argument("--speed", type=float, metavar="N", help="simulated machine: N times real time")
+    p.add_argument("--speed", type=positive_number, metavar="N", help="simulated machine: N times real time")
     p.add_argument("--yes", action="store_true", help="start the motion without asking (scripts)")
     p.add_argument("--on-fault", choices=("retry", "skip", "abort"),
                    help="answer every fault without asking; retry at most campaign.fault_retries times per "
@@ -66,8 +67,6 @@ def register(sub) -> None:
 def run(args, on_hardware=None) -> int:
     """The whole session. `on_hardware(hw, sim)`: called right after the hardware is opened (tests
     use it to inject faults into the simulated machine)."""
-    if args.speed is not None and args.speed <= 0:
-        raise InputError("--speed: must be > 0")
     config = load_config(args.config) if args.config else parse_config(demo_config_text(), "demo.toml")
     interactive = sys.stdin.isatty()
     console = Console(stderr=True) if args.json else make_console()

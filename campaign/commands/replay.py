@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 from rich.table import Table
 
+from campaign.commands import positive_number
 from campaign.errors import InputError
 from campaign.iso230 import evaluate
 from campaign.pointtable import PointTable, read_points
@@ -23,12 +24,12 @@ def register(sub) -> None:
                                    "recorded settings it reproduces the point table; with others it shows "
                                    "what would change.")
     p.add_argument("dir", help="campaign directory")
-    p.add_argument("--speed", type=float, metavar="N", help="pace the timeline at N times real time")
+    p.add_argument("--speed", type=positive_number, metavar="N", help="pace the timeline at N times real time")
     p.add_argument("--capture", choices=("dwell", "stable"), help="capture method (default: as recorded)")
-    p.add_argument("--average-s", type=float, help="dwell: averaging window, s")
-    p.add_argument("--stable-tolerance", type=float, help="stable: band, µm (arcsec)")
-    p.add_argument("--stable-window-s", type=float, help="stable: window, s")
-    p.add_argument("--stable-timeout-s", type=float, help="stable: timeout after arrival, s")
+    p.add_argument("--average-s", type=positive_number, help="dwell: averaging window, s")
+    p.add_argument("--stable-tolerance", type=positive_number, help="stable: band, µm (arcsec)")
+    p.add_argument("--stable-window-s", type=positive_number, help="stable: window, s")
+    p.add_argument("--stable-timeout-s", type=positive_number, help="stable: timeout after arrival, s")
     p.add_argument("--json", action="store_true", help="one JSON object")
     p.set_defaults(func=run)
 
@@ -36,29 +37,21 @@ def register(sub) -> None:
 def _overrides(args) -> dict:
     out = {"method": args.capture} if args.capture else {}
     for key in ("average_s", "stable_tolerance", "stable_window_s", "stable_timeout_s"):
-        value = getattr(args, key)
-        if value is not None:
-            if not np.isfinite(value) or value <= 0:
-                raise InputError(f"--{key.replace('_', '-')}: must be a number > 0")
-            out[key] = value
+        if getattr(args, key) is not None:
+            out[key] = getattr(args, key)
     return out
 
 
 def run(args) -> int:
-    if args.speed is not None and args.speed <= 0:
-        raise InputError("--speed: must be > 0")
     overrides = _overrides(args)
     directory = Path(args.dir)
     if not (directory / "meta.json").is_file():
         raise InputError(f"{directory}: not a campaign directory (no meta.json)")
     recorded = read_points(directory / "points.csv")
     config, _, points = replay(directory, overrides, args.speed)
-    rec_dev = {}
-    with open(directory / "points.csv", encoding="utf-8") as f:
-        rows = [ln.rstrip("\n").split(",") for ln in f if ln.strip() and not ln.startswith("#")]
-    col = rows[0].index("point")
-    for row, dev in zip(rows[1:], recorded.deviation):
-        rec_dev[int(float(row[col]))] = float(dev)
+    if "point" not in recorded.extra:
+        raise InputError(f"{directory / 'points.csv'}: no 'point' column: not recorded by axiscal")
+    rec_dev = {int(i): float(d) for i, d in zip(recorded.extra["point"], recorded.deviation)}
     diffs = []
     for p in points:
         before = rec_dev.get(p.index)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from campaign.commands import positive_number
 from campaign.commands.run import finish
-from campaign.errors import InputError
 from campaign.plot import check_plot_path
 from campaign.pointtable import DEVIATION_SCALE
 from campaign.progress import RichProgress
@@ -18,7 +18,7 @@ def register(sub) -> None:
                        description="Continue the campaign in DIR: re-approach the first missing point from "
                                    "the overrun in its direction, append to the same directory.")
     p.add_argument("dir", help="campaign directory")
-    p.add_argument("--speed", type=float, metavar="N", help="simulated machine: N times real time")
+    p.add_argument("--speed", type=positive_number, metavar="N", help="simulated machine: N times real time")
     p.add_argument("--json", action="store_true", help="print one JSON object at the end")
     p.add_argument("--plot", metavar="OUT", help="write the ISO 230-2 plot (.png or .svg)")
     p.set_defaults(func=run)
@@ -36,10 +36,8 @@ def read_meta_unit(directory: str) -> str:
 def run(args) -> int:
     if args.plot:
         check_plot_path(args.plot)
-    if args.speed is not None and args.speed <= 0:
-        raise InputError("--speed: must be > 0")
     unit = read_meta_unit(args.dir)
-    observer = RichProgress(unit, DEVIATION_SCALE[unit], "µm" if unit == "mm" else "arcsec")
+    observer = RichProgress(unit)
     with observer:
         outcome = resume_campaign(args.dir, speed=args.speed, observer=observer)
     return finish(outcome, args)

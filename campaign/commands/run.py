@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
+from campaign.commands import positive_number
 from campaign.config import load_config
 from campaign.errors import InputError
 from campaign.plot import check_plot_path, plot_evaluation
-from campaign.pointtable import DEVIATION_SCALE
 from campaign.progress import RichProgress
 from campaign.session import analyse_dir, dry_run, start_campaign
 from campaign.views import make_console, print_evaluation, print_json
@@ -24,7 +24,7 @@ def register(sub) -> None:
 
 def add_run_options(p) -> None:
     p.add_argument("--out", metavar="DIR", help="campaign directory (default runs/MACHINE-AXIS-TIME)")
-    p.add_argument("--speed", type=float, metavar="N",
+    p.add_argument("--speed", type=positive_number, metavar="N",
                    help="simulated machine: N times real time (default: as fast as possible)")
     p.add_argument("--json", action="store_true", help="print one JSON object at the end")
     p.add_argument("--plot", metavar="OUT", help="write the ISO 230-2 plot (.png or .svg)")
@@ -65,10 +65,8 @@ def finish(outcome, args, extra: dict | None = None) -> int:
 def run_config(config, args, extra=None) -> int:
     if args.plot:
         check_plot_path(args.plot)
-    if args.speed is not None and args.speed <= 0:
-        raise InputError("--speed: must be > 0")
     unit = config["axis"]["unit"]
-    observer = RichProgress(unit, DEVIATION_SCALE[unit], "µm" if unit == "mm" else "arcsec")
+    observer = RichProgress(unit)
     with observer:
         outcome = start_campaign(config, args.out, speed=args.speed, observer=observer)
     return finish(outcome, args, extra)

@@ -7,13 +7,13 @@ from pathlib import Path
 
 from rich.table import Table
 
+from campaign.commands import positive_number
 from campaign.commands.run import add_run_options, finish
 from campaign.compensation_file import read_comp_json
 from campaign.config import load_config
 from campaign.errors import InputError
 from campaign.plan import build_plan, check_plan
 from campaign.plot import check_plot_path
-from campaign.pointtable import DEVIATION_SCALE
 from campaign.progress import RichProgress
 from campaign.session import default_out_dir
 from campaign.verify import SUMMARY_KEYS, baseline_points, run_verification, write_report
@@ -27,8 +27,8 @@ def register(sub) -> None:
     p.add_argument("config", help="campaign TOML")
     p.add_argument("--comp", required=True, metavar="TABLE.json", help="table from compensate --format json")
     p.add_argument("--before", metavar="DIR|POINTS.csv", help="the baseline campaign (before compensation)")
-    p.add_argument("--max-rate", type=float, help="rate limit of the correction, axis unit/s")
-    p.add_argument("--max-accel", type=float, help="acceleration limit of the correction, axis unit/s²")
+    p.add_argument("--max-rate", type=positive_number, help="rate limit of the correction, axis unit/s")
+    p.add_argument("--max-accel", type=positive_number, help="acceleration limit of the correction, axis unit/s²")
     add_run_options(p)
     p.set_defaults(func=run)
 
@@ -36,10 +36,6 @@ def register(sub) -> None:
 def run(args) -> int:
     config = load_config(args.config)
     table = read_comp_json(args.comp)
-    for name in ("max_rate", "max_accel", "speed"):
-        value = getattr(args, name)
-        if value is not None and not value > 0:
-            raise InputError(f"--{name.replace('_', '-')}: must be > 0")
     if args.plot:
         check_plot_path(args.plot)
     if table.kind != config["axis"]["kind"]:
@@ -49,7 +45,7 @@ def run(args) -> int:
     check_plan(build_plan(config), config)
     out = Path(args.out) if args.out else default_out_dir(config)
     unit = config["axis"]["unit"]
-    with RichProgress(unit, DEVIATION_SCALE[unit]) as observer:
+    with RichProgress(unit) as observer:
         outcome = run_verification(config, table, out, baseline=baseline if baseline and baseline.is_dir() else None,
                                    max_rate=args.max_rate, max_accel=args.max_accel, speed=args.speed,
                                    observer=observer)
