@@ -126,15 +126,13 @@ def start_campaign(config: Config, out: str | Path | None = None, meta_extra: di
 
 def last_raw_state(directory: Path) -> tuple[float, float | None]:
     """(campaign time of the last raw sample in s, last known axis position or None)."""
-    t, position = 0.0, None
-    with open(directory / "raw.csv", encoding="utf-8") as f:
-        next(f, None)
-        for line in f:
-            cells = line.rstrip("\n").split(",")
-            if len(cells) >= 4:
-                t = float(cells[0])
-                position = float(cells[3]) if cells[3] else position
-    return t, position
+    from campaign.replay import load_raw
+
+    raw = load_raw(directory)
+    if raw.empty:
+        return 0.0, None
+    positions = raw.axis_position.dropna()
+    return float(raw.t_s.iloc[-1]), float(positions.iloc[-1]) if len(positions) else None
 
 
 def resume_campaign(directory: str | Path, faults: dict | None = None, **kwargs) -> Outcome:
