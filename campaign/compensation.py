@@ -10,7 +10,8 @@ Signs, everywhere in axiscal:
 Steps: the mean unidirectional deviations x̄↑, x̄↓ per target (iso230.evaluate); the mode
 (`uni`: one table from the mean of both directions and a constant backlash B̄; `bi`: one table
 per direction; `auto`: see `choose_mode`); per direction, the correction at each target by
-inverse interpolation (seed 004, see `inverse_corrections`). Resampling to a controller's grid
+inverse interpolation (seed 004, see `inverse_corrections`) of the means, smoothed where they
+lie on a polynomial within their scatter (campaign/compensation_smooth.py). Resampling to a controller's grid
 and the end zones are in campaign/compensation_grid.py; the predicted result in
 campaign/compensation_predict.py.
 """
@@ -21,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from campaign.compensation_smooth import SMOOTHING, Smoothing, pooled_variance, smooth_means
 from campaign.errors import InputError
 from campaign.iso230 import evaluate
 from campaign.pointtable import DEVIATION_SCALE, UNITS, PointTable
@@ -40,6 +42,8 @@ class Corrections:
     `uni` mode ((forward + reverse)/2 otherwise), deviation unit. backlash: B̄ = mean reversal,
     deviation unit (uni mode with both directions measured), else None. inverse_minus_simple:
     per direction (+1, -1) the inverse-interpolated correction minus the simple -e, deviation unit.
+    smoothing: how the means became the table's errors, per direction (+1, -1), or under 0 for
+    the one table of `uni` mode.
     """
 
     kind: str
@@ -52,6 +56,7 @@ class Corrections:
     backlash: float | None
     inverse_minus_simple: dict[int, np.ndarray]
     method: str = "inverse"
+    smoothing: dict[int, Smoothing] | None = None
 
     @property
     def max_inverse_minus_simple(self) -> float:
@@ -123,14 +128,17 @@ def choose_mode(requested: str, reversals: np.ndarray | None, scatter: np.ndarra
                    f"{2 * k:g}·s = {limit:.3f}: one table plus backlash B̄")
 
 
-def corrections(table: PointTable, mode: str = "auto", method: str = "inverse") -> Corrections:
+def corrections(table: PointTable, mode: str = "auto", method: str = "inverse",
+                smooth: str = "auto") -> Corrections:
     """The corrections at the measured targets of `table` (see `Corrections`).
 
     mode: uni, bi or auto (`choose_mode`). method: `inverse` (seed 004, default) or `simple`
-    (c = -e at each target).
+    (c = -e at each target). smooth: `auto` (default, `smooth_means`) or `none` (the raw means).
     """
     if method not in ("inverse", "simple"):
         raise InputError(f"unknown correction method '{method}' (use inverse or simple)")
+    if smooth not in SMOOTHING:
+        raise InputError(f"unknown smoothing '{smooth}' (use {' or '.join(SMOOTHING)})")
     ev = evaluate(table)
     rows = ev.targets
     if len(rows) < 2:
@@ -144,23 +152,28 @@ def corrections(table: PointTable, mode: str = "auto", method: str = "inverse") 
     scatter = np.array(sds) if ev.runs > 1 and sds else None
     chosen, reason = choose_mode(mode, reversals, scatter)
     factor = AXIS_UNIT_PER_DEVIATION_UNIT[table.kind]
+    pairs = [(s, n) for r in rows for s, n in ((r.s_up, r.n_up), (r.s_down, r.n_down)) if s is not None]
+    pooled = pooled_variance([s for s, _ in pairs], [n for _, n in pairs])
+    n_up = np.array([max(r.n_up, 1) for r in rows], dtype=float)
+    n_down = np.array([max(r.n_down, 1) for r in rows], dtype=float)
 
-    def solve(errors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        inverse = inverse_corrections(targets, errors, factor)
-        return (inverse if method == "inverse" else -errors), inverse + errors
+    def solve(errors: np.ndarray, var_weights: np.ndarray) -> tuple[np.ndarray, np.ndarray, Smoothing]:
+        smoothed = smooth_means(targets, errors, var_weights, pooled, smooth)
+        inverse = inverse_corrections(targets, smoothed.values, factor)
+        return (inverse if method == "inverse" else -smoothed.values), inverse + smoothed.values, smoothed
 
     if not both:
-        errors = np.array(up if None not in up else down, dtype=float)
-        common, diff = solve(errors)
         d = 1 if None not in up else -1
-        return Corrections(table.kind, targets, common, common, common, "uni", reason, None, {d: diff}, method)
+        common, diff, sm = solve(np.array(up if d > 0 else down, dtype=float), 1 / (n_up if d > 0 else n_down))
+        return Corrections(table.kind, targets, common, common, common, "uni", reason, None, {d: diff}, method,
+                           {d: sm})
     up_e, down_e = np.array(up, dtype=float), np.array(down, dtype=float)
     if chosen == "uni":
         backlash = float(np.mean(reversals))
-        common, diff = solve((up_e + down_e) / 2)
+        common, diff, sm = solve((up_e + down_e) / 2, (1 / n_up + 1 / n_down) / 4)
         return Corrections(table.kind, targets, common - backlash / 2, common + backlash / 2, common,
-                           "uni", reason, backlash, {1: diff, -1: diff}, method)
-    forward, diff_up = solve(up_e)
-    reverse, diff_down = solve(down_e)
+                           "uni", reason, backlash, {1: diff, -1: diff}, method, {0: sm})
+    forward, diff_up, sm_up = solve(up_e, 1 / n_up)
+    reverse, diff_down, sm_down = solve(down_e, 1 / n_down)
     return Corrections(table.kind, targets, forward, reverse, (forward + reverse) / 2, "bi", reason, None,
-                       {1: diff_up, -1: diff_down}, method)
+                       {1: diff_up, -1: diff_down}, method, {1: sm_up, -1: sm_down})

@@ -10,6 +10,7 @@ from campaign.commands import positive_number
 from campaign.compensation import MODES, corrections
 from campaign.compensation_grid import POINT_LIMITS, resample
 from campaign.compensation_predict import predict
+from campaign.compensation_smooth import SMOOTHING
 from campaign.errors import InputError
 from campaign.pointtable import read_points
 from campaign.views import fmt, make_console
@@ -31,6 +32,9 @@ def register(sub) -> None:
     p.add_argument("--method", choices=("inverse", "simple"),
                    help="inverse interpolation (default) or simple -error (default for pmac: its table "
                         "is the published, simple one of seed 003)")
+    p.add_argument("--smooth", default="auto", choices=SMOOTHING,
+                   help="auto (default): fit the means with the lowest polynomial that agrees with their "
+                        "scatter, where one does; none: the raw means")
     p.add_argument("--overrun", type=float, default=0.0, help="end-zone length L1, mm or deg (default 0)")
     p.add_argument("--max-points", type=int, help="point limit (default: the controller's)")
     p.add_argument("--spacing", type=float, help="table spacing, mm or deg (default: from the targets)")
@@ -50,7 +54,7 @@ def register(sub) -> None:
 def run(args) -> int:
     table = read_points(args.file)
     method = args.method or DEFAULT_METHOD.get(args.format, "inverse")
-    corr = corrections(table, args.mode, method)
+    corr = corrections(table, args.mode, method, args.smooth)
     max_points = args.max_points or POINT_LIMITS[args.format]
     ctable = resample(corr, max_points, args.spacing, args.reference, args.overrun)
     axis = args.axis_name or ("AX1" if args.format == "siemens" else "X")
@@ -66,6 +70,9 @@ def run(args) -> int:
     console.print(f"mode: [bold]{corr.mode}[/] ({corr.reason})")
     if corr.backlash is not None:
         console.print(f"backlash B̄ (mean reversal): {corr.backlash:.3f} {unit}")
+    for d, sm in (corr.smoothing or {}).items():
+        label = {1: "forward", -1: "reverse", 0: "mean of both directions"}[d]
+        console.print(f"smoothing, {label}: {sm.reason}")
     console.print(f"table: {len(ctable.forward)} points from {ctable.start:g} every {ctable.spacing:g} "
                   f"{table.position_unit}, overrun {ctable.overrun:g}")
     console.print(f"inverse interpolation - simple (-error): max {corr.max_inverse_minus_simple:.3f} {unit} "

@@ -6,9 +6,12 @@ detection units divided by the magnification 3623; the most negative point gets 
 are taken between rounded cumulative values (in magnified units), so no rounding drift builds up. 3624 = interval in
 detection units. Bidirectional (3605#0 = 1): the negative direction's points follow the positive
 ones, 3626 = its most negative point, 3627 = its correction at the reference position (absolute).
-Unidirectional: backlash 1851 = lost motion = -B̄. Values may have to stay within ±127 per point
-on older controls; the magnification is chosen for that. Semantics checked against
-reference.md only, not against a Fanuc manual.
+FANUC's technical report A-77810E (bidirectional pitch error compensation, 16i/18i) defines 3627
+as the compensation amount (absolute value) at the reference position when the axis arrives
+there opposite to the reference return direction; axiscal assumes the reference return runs in
+the + direction, so that amount is the negative direction's correction. Unidirectional: backlash
+1851 = lost motion = -B̄. Values may have to stay within ±127 per point on older controls; the
+magnification is chosen for that. The point numbering and 1851 follow reference.md only.
 """
 
 from __future__ import annotations
