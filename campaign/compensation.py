@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from campaign.compensation_smooth import SMOOTHING, Smoothing, pooled_variance, smooth_means
+from campaign.compensation_smooth import SMOOTHING, Smoothing, pool, scatter_within_runs, smooth_means
 from campaign.errors import InputError
 from campaign.iso230 import evaluate
 from campaign.pointtable import DEVIATION_SCALE, UNITS, PointTable
@@ -152,28 +152,29 @@ def corrections(table: PointTable, mode: str = "auto", method: str = "inverse",
     scatter = np.array(sds) if ev.runs > 1 and sds else None
     chosen, reason = choose_mode(mode, reversals, scatter)
     factor = AXIS_UNIT_PER_DEVIATION_UNIT[table.kind]
-    pairs = [(s, n) for r in rows for s, n in ((r.s_up, r.n_up), (r.s_down, r.n_down)) if s is not None]
-    pooled = pooled_variance([s for s, _ in pairs], [n for _, n in pairs])
+    within = {d: scatter_within_runs(table.run[table.direction == d], table.target[table.direction == d],
+                                     table.deviation[table.direction == d]) for d in table.directions}
     n_up = np.array([max(r.n_up, 1) for r in rows], dtype=float)
     n_down = np.array([max(r.n_down, 1) for r in rows], dtype=float)
 
-    def solve(errors: np.ndarray, var_weights: np.ndarray) -> tuple[np.ndarray, np.ndarray, Smoothing]:
-        smoothed = smooth_means(targets, errors, var_weights, pooled, smooth)
+    def solve(errors: np.ndarray, var_weights: np.ndarray, scatter) -> tuple[np.ndarray, np.ndarray, Smoothing]:
+        smoothed = smooth_means(targets, errors, var_weights, scatter, smooth)
         inverse = inverse_corrections(targets, smoothed.values, factor)
         return (inverse if method == "inverse" else -smoothed.values), inverse + smoothed.values, smoothed
 
     if not both:
         d = 1 if None not in up else -1
-        common, diff, sm = solve(np.array(up if d > 0 else down, dtype=float), 1 / (n_up if d > 0 else n_down))
+        common, diff, sm = solve(np.array(up if d > 0 else down, dtype=float), 1 / (n_up if d > 0 else n_down),
+                                within.get(d))
         return Corrections(table.kind, targets, common, common, common, "uni", reason, None, {d: diff}, method,
                            {d: sm})
     up_e, down_e = np.array(up, dtype=float), np.array(down, dtype=float)
     if chosen == "uni":
         backlash = float(np.mean(reversals))
-        common, diff, sm = solve((up_e + down_e) / 2, (1 / n_up + 1 / n_down) / 4)
+        common, diff, sm = solve((up_e + down_e) / 2, (1 / n_up + 1 / n_down) / 4, pool(within[1], within[-1]))
         return Corrections(table.kind, targets, common - backlash / 2, common + backlash / 2, common,
                            "uni", reason, backlash, {1: diff, -1: diff}, method, {0: sm})
-    forward, diff_up, sm_up = solve(up_e, 1 / n_up)
-    reverse, diff_down, sm_down = solve(down_e, 1 / n_down)
+    forward, diff_up, sm_up = solve(up_e, 1 / n_up, within[1])
+    reverse, diff_down, sm_down = solve(down_e, 1 / n_down, within[-1])
     return Corrections(table.kind, targets, forward, reverse, (forward + reverse) / 2, "bi", reason, None,
                        {1: diff_up, -1: diff_down}, method, {1: sm_up, -1: sm_down})

@@ -73,6 +73,8 @@ def run(args) -> int:
     for d, sm in (corr.smoothing or {}).items():
         label = {1: "forward", -1: "reverse", 0: "mean of both directions"}[d]
         console.print(f"smoothing, {label}: {sm.reason}")
+        if sm.degree is not None:
+            console.print(f"  the means move by at most {sm.max_change:.3f} {unit}")
     console.print(f"table: {len(ctable.forward)} points from {ctable.start:g} every {ctable.spacing:g} "
                   f"{table.position_unit}, overrun {ctable.overrun:g}")
     console.print(f"inverse interpolation - simple (-error): max {corr.max_inverse_minus_simple:.3f} {unit} "
