@@ -2,9 +2,13 @@
 .CMA file. Columns: NR, AXISPOS (mm or degree), the correction of the common table (mm or
 degree) and BACKLASH = reverse - forward correction per point. At most 256 entries.
 
-Verified from reference.md only: the AXISPOS/correction/BACKLASH columns and the 256 limit.
-NOT verified: the exact header and end lines and the sign of the correction column (written
-here as the correction to add, i.e. -error). Check with a test move before use.
+Checked against reference.md and two Heidenhain technical manuals: the TNC 407 manual lists
+"more than 256 entries" as an error of a .COM table; the MANUALplus 620 manual puts the
+compensation points in AXISPOS (relative to the machine datum) and "the compensation values
+measured in the negative direction of traverse" in BACKLASH. Whether BACKLASH takes the
+difference to the positive direction (written here) or the negative direction's own value, the
+exact header and end lines and the sign of the correction column (written here as the
+correction to add, i.e. -error) are NOT verified. Check with a test move before use.
 """
 
 from __future__ import annotations
