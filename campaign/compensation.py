@@ -11,14 +11,14 @@ Steps: the mean unidirectional deviations x̄↑, x̄↓ per target (iso230.eval
 (`uni`: one table from the mean of both directions and a constant backlash B̄; `bi`: one table
 per direction; `auto`: see `choose_mode`); per direction, the correction at each target by
 inverse interpolation (seed 004, see `inverse_corrections`) of the means, smoothed where they
-lie on a polynomial within their scatter (campaign/compensation_smooth.py). Resampling to a controller's grid
-and the end zones are in campaign/compensation_grid.py; the predicted result in
-campaign/compensation_predict.py.
+lie on a polynomial within their scatter (campaign/compensation_smooth.py). Resampling to a
+controller's grid and the end zones are in campaign/compensation_grid.py; the predicted result
+in campaign/compensation_predict.py.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -56,7 +56,7 @@ class Corrections:
     backlash: float | None
     inverse_minus_simple: dict[int, np.ndarray]
     method: str = "inverse"
-    smoothing: dict[int, Smoothing] | None = None
+    smoothing: dict[int, Smoothing] = field(default_factory=dict)
 
     @property
     def max_inverse_minus_simple(self) -> float:
@@ -157,8 +157,9 @@ def corrections(table: PointTable, mode: str = "auto", method: str = "inverse",
     n_up = np.array([max(r.n_up, 1) for r in rows], dtype=float)
     n_down = np.array([max(r.n_down, 1) for r in rows], dtype=float)
 
-    def solve(errors: np.ndarray, var_weights: np.ndarray, scatter) -> tuple[np.ndarray, np.ndarray, Smoothing]:
-        smoothed = smooth_means(targets, errors, var_weights, scatter, smooth)
+    def solve(errors: np.ndarray, var_weights: np.ndarray,
+              s2: tuple[float, int] | None) -> tuple[np.ndarray, np.ndarray, Smoothing]:
+        smoothed = smooth_means(targets, errors, var_weights, s2, smooth)
         inverse = inverse_corrections(targets, smoothed.values, factor)
         return (inverse if method == "inverse" else -smoothed.values), inverse + smoothed.values, smoothed
 

@@ -70,7 +70,7 @@ def run(args) -> int:
     console.print(f"mode: [bold]{corr.mode}[/] ({corr.reason})")
     if corr.backlash is not None:
         console.print(f"backlash B̄ (mean reversal): {corr.backlash:.3f} {unit}")
-    for d, sm in (corr.smoothing or {}).items():
+    for d, sm in corr.smoothing.items():
         label = {1: "forward", -1: "reverse", 0: "mean of both directions"}[d]
         console.print(f"smoothing, {label}: {sm.reason}")
         if sm.degree is not None:
