@@ -14,7 +14,7 @@ the floor and the evaluation.)
 The rule (`smooth_means`): fit polynomials (Legendre basis over the targets' range, weighted by
 1/var(x̄_i)) of degree 1, 2, … up to m-3 for m targets. Take the lowest degree whose residuals
 pass the overall test, F = χ²/ν against s² (F distribution with ν = m-d-1 and the degrees of
-freedom of s²), p ≥ `level` (5 %). Keep it if it also passes the local test: no target's
+freedom of s²), p ≥ `LEVEL` (5 %). Keep it if it also passes the local test: no target's
 studentised residual r_i / √(var(x̄_i)·(1-h_ii)) exceeds the two-sided t quantile at 5 %/m
 (Bonferroni), since the overall test averages a feature at one target over all of them. If the
 local test fails, or no degree passes, the raw means are kept and a sharp feature (seed 000's
@@ -42,7 +42,7 @@ from scipy import stats
 
 SMOOTHING = ("auto", "none")
 LEVEL = 0.05
-"""Significance level of the tests that keep a polynomial: 5 %."""
+"""Significance level of both tests that keep a polynomial: 5 %."""
 
 
 @dataclass(frozen=True)
@@ -50,16 +50,18 @@ class Smoothing:
     """The values that go into the table and how they were chosen.
 
     values: per target, deviation unit. degree: the polynomial kept, None when the raw means
-    are kept. p_value: of the kept degree's overall test (None without a fit). max_change:
-    largest |values - raw mean|, deviation unit. reason: one line for the operator (no numbers
-    with a unit; the caller prints max_change with its unit).
+    are kept. max_change: largest |values - raw mean|, deviation unit. reason: one line for the
+    operator (no numbers with a unit; the caller prints max_change with its unit).
     """
 
     values: np.ndarray
     degree: int | None
-    p_value: float | None
     max_change: float
     reason: str
+
+
+def _raw(means: np.ndarray, reason: str) -> Smoothing:
+    return Smoothing(means, None, 0.0, f"not smoothed: {reason}")
 
 
 def scatter_within_runs(run: np.ndarray, target: np.ndarray, deviation: np.ndarray) -> tuple[float, int] | None:
@@ -96,7 +98,7 @@ def pool(*scatters: tuple[float, int] | None) -> tuple[float, int] | None:
 
 
 def smooth_means(targets: np.ndarray, means: np.ndarray, var_weights: np.ndarray,
-                 scatter: tuple[float, int] | None, mode: str = "auto", level: float = LEVEL) -> Smoothing:
+                 scatter: tuple[float, int] | None, mode: str = "auto") -> Smoothing:
     """The smoothed means (see the module text).
 
     targets: axis unit, increasing. means: x̄_i, deviation unit. var_weights: var(x̄_i) / s² per
@@ -107,34 +109,31 @@ def smooth_means(targets: np.ndarray, means: np.ndarray, var_weights: np.ndarray
     means = np.asarray(means, dtype=float)
     m = len(means)
     if mode == "none":
-        return Smoothing(means, None, None, 0.0, "not smoothed (--smooth none): the raw means")
+        return Smoothing(means, None, 0.0, "not smoothed (--smooth none): the raw means")
     if scatter is None:
-        return Smoothing(means, None, None, 0.0, "not smoothed: the readings show no scatter to judge a fit by "
-                                                 "(one run, or identical readings)")
+        return _raw(means, "the readings show no scatter to judge a fit by (one run, or identical readings)")
     if m < 4:
-        return Smoothing(means, None, None, 0.0, f"not smoothed: {m} targets leave no room to test a fit")
+        return _raw(means, f"{m} targets leave no room to test a fit")
     s2, dof_s = scatter
     u = 2 * (targets - targets[0]) / (targets[-1] - targets[0]) - 1
     weights = 1 / np.sqrt(var_weights)
-    t_limit = float(stats.t.isf(level / (2 * m), dof_s))
+    y = means * weights  # in units of √(var(x̄_i)/s²), so every residual has variance s²
     for degree in range(1, m - 2):
-        basis = np.polynomial.legendre.legvander(u, degree) * weights[:, None]
-        coef, *_ = np.linalg.lstsq(basis, means * weights, rcond=None)
-        residual = means * weights - basis @ coef  # in units of √(var(x̄_i)/s²)
+        q, _ = np.linalg.qr(np.polynomial.legendre.legvander(u, degree) * weights[:, None])
+        fitted = q @ (q.T @ y)
+        residual = y - fitted
         nu = m - degree - 1
         p = float(stats.f.sf(np.sum(residual ** 2) / s2 / nu, nu, dof_s))
-        q, _ = np.linalg.qr(basis)
+        if p < LEVEL:
+            continue
         leverage = np.sum(q ** 2, axis=1)
         worst = float(np.max(np.abs(residual) / np.sqrt(s2 * np.clip(1 - leverage, 1e-12, None))))
-        if p < level:
-            continue
+        t_limit = float(stats.t.isf(LEVEL / (2 * m), dof_s))
         if worst > t_limit:
-            return Smoothing(means, None, None, 0.0, f"not smoothed: degree {degree} fits overall (p = {p:.2f}) "
-                                                     f"but leaves a target {worst:.1f} standard errors off "
-                                                     f"(> {t_limit:.1f}): a local feature, the raw means are kept")
-        fitted = basis @ coef / weights
-        return Smoothing(fitted, degree, p, float(np.max(np.abs(fitted - means))),
+            return _raw(means, f"degree {degree} fits overall (p = {p:.2f}) but leaves a target {worst:.1f} "
+                               f"standard errors off (> {t_limit:.1f}): a local feature, the raw means are kept")
+        values = fitted / weights
+        return Smoothing(values, degree, float(np.max(np.abs(values - means))),
                          f"polynomial of degree {degree} (p = {p:.2f}; studentised residuals "
                          f"≤ {worst:.1f}, limit {t_limit:.1f})")
-    return Smoothing(means, None, None, 0.0, f"not smoothed: no polynomial up to degree {m - 3} fits "
-                                             f"within the scatter, the raw means are kept")
+    return _raw(means, f"no polynomial up to degree {m - 3} fits within the scatter, the raw means are kept")
