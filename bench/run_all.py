@@ -14,7 +14,8 @@ from pathlib import Path
 
 HERE = Path(__file__).parent
 SCRIPTS = (("demo_wall_time.py",), ("stable_vs_dwell.py",), ("compensation.py",),
-           ("compensation.py", "--smooth", "none"), ("compensation.py", "--cycles", "10"), ("import_stream.py",))
+           ("compensation.py", "--smooth", "none"), ("compensation.py", "--cycles", "10"), ("import_stream.py",),
+           ("smoothing.py",))
 COMPENSATION = (("compensation", "5-run campaigns"),
                 ("compensation-raw-means", "5-run campaigns, table from the raw means (`--smooth none`)"),
                 ("compensation-10-runs", "10-run campaigns"))

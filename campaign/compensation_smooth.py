@@ -23,8 +23,8 @@ scale error (a line) is always expected on a screw.
 
 What it costs: a feature close to the tests' resolution is sometimes smoothed away. The worst
 case is a bump at one target of 1.5-2 s with 5 runs (3.4-4.5 s/√n) on 11 targets: it is
-detected in 40-60 % of campaigns, and on average the table then misses the axis by 0.48-0.50 s
-RMS instead of the raw means' 0.45 s. Smaller bumps gain from the smoothing, larger ones are
+detected in 41-66 % of campaigns, and on average the table then misses the axis by 0.48-0.49 s
+RMS instead of the raw means' 0.45 s (bench/smoothing.py). Smaller bumps gain from the smoothing, larger ones are
 detected. Where such features are expected, use `--smooth none` or more targets (`axiscal
 refine`).
 
