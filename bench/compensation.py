@@ -27,13 +27,13 @@ from pathlib import Path
 
 import numpy as np
 
-from campaign.compensation import corrections
-from campaign.compensation_grid import POINT_LIMITS, resample
+from campaign.compensation.corrections import corrections
+from campaign.compensation.grid import POINT_LIMITS, resample
 from campaign.config import load_config
 from campaign.iso230 import evaluate
+from campaign.measure.session import start_campaign
+from campaign.measure.verify import run_verification
 from campaign.pointtable import PointTable, read_points
-from campaign.session import start_campaign
-from campaign.verify import run_verification
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = Path(__file__).parent / "results"

@@ -1,7 +1,7 @@
 """Bench: `axiscal import-stream` on a 5-million-sample stream.
 
 Goal (issue 5): segmentation and extraction together cost at most 1.5 x the time pandas.read_csv
-takes to parse the same file. The stream is synthetic (campaign/stream_synth.py): the demo plan
+takes to parse the same file. The stream is synthetic (campaign/stream/synth.py): the demo plan
 (11 targets, 5 runs, 4 s dwell) sampled fast enough to give about 5 million samples, with noise,
 trapezoidal moves and a 2.5 s stop at each overrun (recognised and skipped). Each side is timed
 several times; the medians are compared. Writes bench/results/import_stream.json.
@@ -25,9 +25,9 @@ import pandas as pd
 from campaign.commands.demo import demo_config_text
 from campaign.config import parse_config
 from campaign.plan import build_plan, estimate_duration_s
-from campaign.stream_csv import stream_from_frame
-from campaign.stream_import import extract_points
-from campaign.stream_synth import synthetic_stream
+from campaign.stream.importer import extract_points
+from campaign.stream.reader import stream_from_frame
+from campaign.stream.synth import synthetic_stream
 
 RESULTS = Path(__file__).resolve().parent / "results" / "import_stream.json"
 GOAL = 1.5

@@ -1,4 +1,4 @@
-"""Bench: what the smoothing of the means gains and costs (campaign/compensation_smooth.py).
+"""Bench: what the smoothing of the means gains and costs (campaign/compensation/smooth.py).
 
 Simulated 5-run campaigns of a cubic screw on 11 targets, scatter s = 1 (so every figure is in
 units of s). For a bump of b·s at one target (b = 0 is the smooth screw) it gives:
@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from campaign.compensation_smooth import scatter_within_runs, smooth_means
+from campaign.compensation.smooth import scatter_within_runs, smooth_means
 
 RESULTS = Path(__file__).parent / "results"
 TARGETS, RUNS, BUMP_AT = 11, 5, 4

@@ -17,7 +17,7 @@ import tempfile
 from pathlib import Path
 
 from campaign.config import parse_config
-from campaign.session import analyse_dir, start_campaign
+from campaign.measure.session import analyse_dir, start_campaign
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = Path(__file__).parent / "results"

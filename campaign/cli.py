@@ -13,8 +13,8 @@ import os
 import sys
 
 from campaign import __version__
-from campaign.errors import InputError, one_line
-from campaign.interfaces import AxisError, InstrumentError
+from campaign.errors import BAD_INPUT, InputError, one_line
+from protocols.hardware import AxisError, InstrumentError
 
 COMMANDS = ("analyze", "plan", "run", "demo", "compensate", "correction", "verify", "refine",
             "discover", "guide", "resume", "replay", "import_stream", "report")
@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
             parser.print_help()
             return 2
         return int(args.func(args) or 0)
-    except InputError as exc:
+    except BAD_INPUT as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except (AxisError, InstrumentError) as exc:

@@ -1,9 +1,6 @@
 """Errors that end a command with exit status 2 and one line on stderr starting with `error:`."""
 
-
-def one_line(text: str) -> str:
-    """`text` with line breaks and other control characters escaped, so it prints as one line."""
-    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
+from protocols.errors import FormatError, one_line
 
 
 class InputError(Exception):
@@ -16,6 +13,10 @@ class InputError(Exception):
 
     def __init__(self, message: str = ""):
         super().__init__(one_line(message))
+
+
+BAD_INPUT = (InputError, FormatError)
+"""Every error that means bad input (exit status 2): ours and the pure format code's."""
 
 
 class SafetyError(InputError):

@@ -24,18 +24,13 @@ from pathlib import Path
 import numpy as np
 
 from campaign.errors import InputError, read_input_bytes
+from protocols.units import UNITS
 
 AXIS_KINDS = {
     "linear": ("target_mm", "deviation_um"),
     "rotary": ("target_deg", "deviation_arcsec"),
 }
 """Axis kind -> (target column, deviation column)."""
-
-UNITS = {"linear": ("mm", "um"), "rotary": ("deg", "arcsec")}
-"""Axis kind -> (position unit, deviation unit)."""
-
-DEVIATION_SCALE = {"mm": 1000.0, "deg": 3600.0}
-"""Position unit -> deviation units per position unit (mm -> µm, deg -> arcsec)."""
 
 OPTIONAL_COLUMNS = ("time_s", "air_temp_c", "air_pressure_hpa", "humidity_pct", "material_temp_c")
 

@@ -32,8 +32,8 @@ from typing import Any, TypeVar
 
 import pyads
 
-from campaign.interfaces import AxisError, AxisStatus
 from protocols import plc_contract
+from protocols.hardware import AxisError, AxisStatus
 from protocols.plc_contract import Command, CompTable, Symbol
 
 T = TypeVar("T")

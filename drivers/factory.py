@@ -10,14 +10,13 @@ import random
 import time
 from dataclasses import dataclass
 
-from campaign.clock import RealClock
 from campaign.config import Config
 from campaign.errors import InputError
-from campaign.executor import Hardware
-from campaign.interfaces import InstrumentError
 from campaign.model import ErrorModel, model_from_dict, read_model
 from drivers.ads_axis import AdsAxis
+from drivers.clock import RealClock
 from drivers.serial_interferometer import SerialInterferometer
+from protocols.hardware import Hardware, InstrumentError
 from protocols.serial_line import LineFormat
 
 

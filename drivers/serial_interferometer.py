@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import serial
 
-from campaign.interfaces import InstrumentError, Reading
+from protocols.hardware import InstrumentError, Reading
 from protocols.serial_line import LineError, LineFormat, parse_line
 
 try:

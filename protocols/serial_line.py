@@ -35,8 +35,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from campaign.errors import InputError
-from campaign.interfaces import Reading
+from protocols.errors import FormatError
+from protocols.hardware import Reading
 
 FIELD_NAMES = (
     "time_s",
@@ -105,21 +105,21 @@ class LineFormat:
         """A LineFormat from a config table; `where` names the table in error messages
         (e.g. `campaign.toml [instrument.line]`). Missing keys take the defaults.
 
-        Raises InputError with a one-line message naming the key for an unknown key or a bad value.
+        Raises FormatError with a one-line message naming the key for an unknown key or a bad value.
         """
         known = {f.name for f in dataclasses.fields(cls)}
         for key in d:
             if key not in known:
-                raise InputError(f"{where}: unknown key '{key}' (known: {', '.join(sorted(known))})")
+                raise FormatError(f"{where}: unknown key '{key}' (known: {', '.join(sorted(known))})")
         values = dict(d)
         if "fields" in values:
             if not isinstance(values["fields"], (list, tuple)):
-                raise InputError(f"{where}: key 'fields': must be a list of field names")
+                raise FormatError(f"{where}: key 'fields': must be a list of field names")
             values["fields"] = tuple(values["fields"])
         try:
             return cls(**values)
         except ValueError as e:
-            raise InputError(f"{where}: {e}") from None
+            raise FormatError(f"{where}: {e}") from None
 
     @property
     def terminator(self) -> str:

@@ -11,12 +11,12 @@ from dataclasses import dataclass
 
 import pytest
 
-from campaign.interfaces import AxisError, AxisStatus
 from drivers.ads_axis import AdsAxis
 from drivers.sim.ads_server import SimAdsServer
 from drivers.sim.clock import SimClock
 from drivers.sim.plc import SimPLC
 from protocols import plc_contract
+from protocols.hardware import AxisError, AxisStatus
 from protocols.plc_contract import CompTable, PlcErrorId
 
 NET_ID = "127.0.0.1.1.1"

@@ -1,4 +1,4 @@
-"""Smoothing the means before they become a table (campaign/compensation_smooth.py).
+"""Smoothing the means before they become a table (campaign/compensation/smooth.py).
 
 Critical values of F and t are quoted from printed tables, not computed by the code under test.
 """
@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from campaign.compensation import corrections
-from campaign.compensation_smooth import scatter_within_runs, smooth_means
+from campaign.compensation.corrections import corrections
+from campaign.compensation.smooth import scatter_within_runs, smooth_means
 from campaign.errors import InputError
 from campaign.pointtable import parse_points
 

@@ -1,4 +1,4 @@
-"""Acceptance of issue 4 (discovery) on synthetic campaigns from campaign/simulate.py: one effect
+"""Acceptance of issue 4 (discovery) on synthetic campaigns from campaign/discovery/simulate.py: one effect
 hidden, two hidden at once, the null case over 100 seeds, and the confounding refusals."""
 
 from __future__ import annotations
@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from campaign.config import parse_config
-from campaign.discovery import discover
-from campaign.discovery_data import campaign_data
+from campaign.discovery.data import campaign_data
+from campaign.discovery.search import discover
+from campaign.discovery.simulate import Environment, simulate_campaign
 from campaign.model import ErrorModel
 from campaign.plan import build_plan
-from campaign.simulate import Environment, simulate_campaign
 
 PLAN = """
 [axis]

@@ -1,5 +1,5 @@
 """`axiscal discover` on files: JSON, plot, saved model, bad input, seed 000's horizontal axis, and
-agreement of the fast simulator (campaign/simulate.py) with the real simulated machine (`axiscal
+agreement of the fast simulator (campaign/discovery/simulate.py) with the real simulated machine (`axiscal
 run`: real pyads against the loopback ADS server, one campaign at a time)."""
 
 from __future__ import annotations
@@ -11,10 +11,10 @@ import sys
 import pytest
 
 from campaign.config import parse_config
+from campaign.discovery.simulate import Environment, simulate_campaign
 from campaign.errors import InputError
 from campaign.model import model_from_dict, read_model
 from campaign.pointtable import write_points
-from campaign.simulate import Environment, simulate_campaign
 from tests.conftest import PAPER, ROOT, assert_one_line_error
 
 REAL_PLAN = """

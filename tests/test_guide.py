@@ -15,9 +15,9 @@ import pytest
 from campaign.cli import build_parser
 from campaign.commands import guide
 from campaign.errors import InputError
-from campaign.executor import Control
-from campaign.guide_dashboard import sparkline
-from campaign.guide_keys import CtrlC, Keys
+from campaign.guide.dashboard import sparkline
+from campaign.guide.keys import CtrlC, Keys
+from campaign.measure.executor import Control
 from tests.conftest import ROOT, assert_one_line_error
 
 SMALL = """

@@ -16,7 +16,7 @@ from campaign.cli import main
 from campaign.config import parse_config
 from campaign.plan import build_plan
 from campaign.pointtable import read_points
-from campaign.stream_synth import synthetic_stream
+from campaign.stream.synth import synthetic_stream
 from tests.conftest import assert_one_line_error
 from tests.test_demo_e2e import axiscal
 

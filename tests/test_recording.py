@@ -6,9 +6,9 @@ import os
 
 import pytest
 
-from campaign.interfaces import Reading
 from campaign.pointtable import read_points
-from campaign.recording import Recorder, RecordingError, cut_torn_tail
+from campaign.record.recorder import Recorder, RecordingError, cut_torn_tail
+from protocols.hardware import Reading
 
 META = {"machine": "m", "axis": "X", "kind": "linear"}
 ENV = {"air_temp_c": 20.0, "air_pressure_hpa": 1013.0, "humidity_pct": 50.0, "material_temp_c": 20.0}

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from campaign.refine import follow_up_config, interpolation_error
+from campaign.compensation.refine import follow_up_config, interpolation_error
 from tests.conftest import PAPER, assert_one_line_error
 from tests.test_demo_e2e import axiscal
 

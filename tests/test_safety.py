@@ -7,10 +7,10 @@ import pytest
 
 from campaign.config import parse_config
 from campaign.errors import SafetyError
-from campaign.executor import Executor
+from campaign.measure.executor import Executor
+from campaign.measure.session import dry_run, open_hardware
 from campaign.plan import Move, build_plan
-from campaign.recording import Recorder
-from campaign.session import dry_run, open_hardware
+from campaign.record.recorder import Recorder
 from protocols import plc_contract
 from tests.conftest import ROOT
 from tests.test_crash_safety import start_slow_demo, wait_for_points

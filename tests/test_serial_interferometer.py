@@ -5,10 +5,10 @@ import threading
 
 import pytest
 
-from campaign.interfaces import InstrumentError
 from drivers.serial_interferometer import SerialInterferometer
 from drivers.sim.clock import SimClock
 from drivers.sim.interferometer import SimInterferometer
+from protocols.hardware import InstrumentError
 from protocols.serial_line import LineFormat
 
 

@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from campaign.errors import InputError
-from campaign.interfaces import Reading
+from protocols.hardware import Reading
 from protocols.serial_line import LineError, LineFormat, checksum_hex, format_line, parse_line
 
 DEFAULT = LineFormat()

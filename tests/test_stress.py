@@ -7,8 +7,8 @@ import threading
 import numpy as np
 
 from campaign.config import parse_config
+from campaign.measure.session import start_campaign
 from campaign.pointtable import read_points
-from campaign.session import start_campaign
 
 SMALL = """
 [axis]

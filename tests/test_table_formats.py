@@ -14,8 +14,8 @@ import json
 import numpy as np
 import pytest
 
-from campaign.compensation import corrections
-from campaign.compensation_grid import ControllerTable, resample
+from campaign.compensation.corrections import corrections
+from campaign.compensation.grid import ControllerTable, resample
 from campaign.errors import InputError
 from campaign.pointtable import read_points
 from protocols.tables import FormatOptions, render

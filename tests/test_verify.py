@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from campaign.compensation_file import read_comp_json
+from campaign.compensation.table_file import read_comp_json
 from tests.conftest import ROOT, assert_one_line_error
 from tests.test_demo_e2e import axiscal
 
@@ -83,7 +83,7 @@ def test_simulated_plc_takes_a_rewritten_table(tmp_path):
     import numpy as np
 
     from campaign.config import parse_config
-    from campaign.session import open_hardware
+    from campaign.measure.session import open_hardware
     from protocols.plc_contract import CompTable
 
     config = parse_config((ROOT / "campaign" / "demo.toml").read_text(), "demo.toml")

@@ -7,10 +7,10 @@ from __future__ import annotations
 from pathlib import Path
 
 from campaign.commands import positive_number
-from campaign.compensation import MODES, corrections
-from campaign.compensation_grid import POINT_LIMITS, resample
-from campaign.compensation_predict import predict
-from campaign.compensation_smooth import SMOOTHING
+from campaign.compensation.corrections import MODES, corrections
+from campaign.compensation.grid import POINT_LIMITS, resample
+from campaign.compensation.predict import predict
+from campaign.compensation.smooth import SMOOTHING
 from campaign.errors import InputError
 from campaign.pointtable import read_points
 from campaign.views import fmt, make_console
@@ -92,8 +92,8 @@ def run(args) -> int:
 def write_plc(args, ctable, console) -> None:
     """TwinCAT (a): the tables into the PLC's compensation variables over ADS, read back, compared."""
     from campaign.config import load_config
-    from campaign.session import open_hardware
-    from campaign.verify import correction_limits
+    from campaign.measure.session import open_hardware
+    from campaign.measure.verify import correction_limits
 
     config = load_config(args.write_plc)
     if ctable.kind != config["axis"]["kind"]:

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from campaign.correction_planner import PlannerLimits, minimum_time, plan
+from campaign.compensation.planner import PlannerLimits, minimum_time, plan
 from campaign.errors import InputError
 from campaign.plot import check_plot_path
 from campaign.views import make_console, print_json

@@ -12,8 +12,8 @@ from importlib import resources
 from campaign.commands.run import add_run_options, finish, run_config
 from campaign.config import parse_config
 from campaign.faults import parse_inject
-from campaign.progress import RichProgress
-from campaign.session import resume_campaign, start_campaign
+from campaign.measure.progress import RichProgress
+from campaign.measure.session import resume_campaign, start_campaign
 
 
 def demo_config_text() -> str:

@@ -1,5 +1,5 @@
 """`axiscal discover POINTS.csv [--model MODEL.toml] [--json] [--plot OUT] [--save NEW.toml]`:
-name the effects the model is missing (campaign/discovery.py, docs/discovery.md)."""
+name the effects the model is missing (campaign/discovery/search.py, docs/discovery.md)."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from campaign.discovery import Discovery, discover
-from campaign.discovery_data import read_campaign, read_start_model
+from campaign.discovery.data import read_campaign, read_start_model
+from campaign.discovery.search import Discovery, discover
 from campaign.errors import InputError
 from campaign.model import EFFECT_PARAMS
 from campaign.plot import check_plot_path

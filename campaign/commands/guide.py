@@ -19,11 +19,8 @@ from rich.console import Console
 from campaign.commands import positive_number
 from campaign.commands.demo import demo_config_text
 from campaign.config import load_config, parse_config
-from campaign.errors import InputError
-from campaign.executor import Control
-from campaign.guide_dashboard import Dashboard
-from campaign.guide_keys import CtrlC, Keys
-from campaign.guide_session import (
+from campaign.errors import BAD_INPUT, InputError
+from campaign.guide.checklist import (
     CheckItem,
     alignment_item,
     checklist_table,
@@ -34,9 +31,10 @@ from campaign.guide_session import (
     record_item,
     soft_limit_item,
 )
-from campaign.interfaces import AxisError, InstrumentError
-from campaign.plan import build_plan
-from campaign.session import (
+from campaign.guide.dashboard import Dashboard
+from campaign.guide.keys import CtrlC, Keys
+from campaign.measure.executor import Control
+from campaign.measure.session import (
     Outcome,
     analyse_dir,
     default_out_dir,
@@ -44,7 +42,9 @@ from campaign.session import (
     recorded_point_indices,
     start_campaign,
 )
+from campaign.plan import build_plan
 from campaign.views import make_console, print_json, summary_table
+from protocols.hardware import AxisError, InstrumentError
 
 COMPENSATE_FORMATS = "twincat, csv, json"
 
@@ -108,7 +108,7 @@ def open_and_check(config, args, model, offline, console, interactive, on_hardwa
             if hw is None:
                 try:
                     hw, sim = open_hardware(config, args.speed, model)
-                except (AxisError, InstrumentError, InputError, OSError) as exc:
+                except (AxisError, InstrumentError, *BAD_INPUT, OSError) as exc:
                     items = [CheckItem("controller", False, f"cannot open the hardware: {exc}")]
                 else:
                     if on_hardware:

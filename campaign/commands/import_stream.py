@@ -10,8 +10,8 @@ from campaign.config import load_config
 from campaign.errors import InputError
 from campaign.plan import build_plan
 from campaign.pointtable import write_points
-from campaign.stream_csv import read_stream
-from campaign.stream_import import extract_points
+from campaign.stream.importer import extract_points
+from campaign.stream.reader import read_stream
 
 
 def register(sub) -> None:

@@ -7,10 +7,10 @@ from pathlib import Path
 
 from rich.table import Table
 
+from campaign.compensation.refine import follow_up_config, propose
 from campaign.config import load_config, parse_config
 from campaign.errors import InputError
 from campaign.pointtable import read_points
-from campaign.refine import follow_up_config, propose
 from campaign.views import make_console, print_json
 
 

@@ -10,8 +10,8 @@ from rich.table import Table
 from campaign.commands import positive_number
 from campaign.errors import InputError
 from campaign.iso230 import evaluate
+from campaign.measure.replay import replay
 from campaign.pointtable import PointTable, read_points
-from campaign.replay import replay
 from campaign.views import fmt, make_console, print_json
 
 DIGITS = 4

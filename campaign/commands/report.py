@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from campaign.report import write_report
+from campaign.report.document import write_report
 
 
 def register(sub) -> None:

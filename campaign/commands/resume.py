@@ -7,10 +7,10 @@ from pathlib import Path
 
 from campaign.commands import positive_number
 from campaign.commands.run import finish
+from campaign.measure.progress import RichProgress
+from campaign.measure.session import resume_campaign
 from campaign.plot import check_plot_path
-from campaign.pointtable import DEVIATION_SCALE
-from campaign.progress import RichProgress
-from campaign.session import resume_campaign
+from protocols.units import DEVIATION_SCALE
 
 
 def register(sub) -> None:

@@ -5,9 +5,9 @@ from __future__ import annotations
 from campaign.commands import positive_number
 from campaign.config import load_config
 from campaign.errors import InputError
+from campaign.measure.progress import RichProgress
+from campaign.measure.session import analyse_dir, dry_run, start_campaign
 from campaign.plot import check_plot_path, plot_evaluation
-from campaign.progress import RichProgress
-from campaign.session import analyse_dir, dry_run, start_campaign
 from campaign.views import make_console, print_evaluation, print_json
 
 

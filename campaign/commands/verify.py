@@ -9,14 +9,14 @@ from rich.table import Table
 
 from campaign.commands import positive_number
 from campaign.commands.run import add_run_options, finish
-from campaign.compensation_file import read_comp_json
+from campaign.compensation.table_file import read_comp_json
 from campaign.config import load_config
 from campaign.errors import InputError
+from campaign.measure.progress import RichProgress
+from campaign.measure.session import default_out_dir
+from campaign.measure.verify import SUMMARY_KEYS, baseline_points, run_verification, write_report
 from campaign.plan import build_plan, check_plan
 from campaign.plot import check_plot_path
-from campaign.progress import RichProgress
-from campaign.session import default_out_dir
-from campaign.verify import SUMMARY_KEYS, baseline_points, run_verification, write_report
 from campaign.views import fmt, make_console
 
 

@@ -22,8 +22,8 @@ import tty
 from collections.abc import Callable
 from typing import Any
 
-from campaign.interfaces import Reading
 from drivers.sim.clock import SimClock
+from protocols.hardware import Reading
 from protocols.serial_line import LineFormat, format_line
 
 Measure = Callable[[float], dict[str, Any]]

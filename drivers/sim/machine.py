@@ -14,9 +14,9 @@ import numpy as np
 
 from campaign.edlen import refractive_index
 from campaign.model import ErrorModel
-from campaign.pointtable import DEVIATION_SCALE
 from drivers.sim.clock import SimClock
 from drivers.sim.plc import SimPLC
+from protocols.units import DEVIATION_SCALE
 
 
 class SimAxisPhysics:

@@ -1,7 +1,7 @@
 """Compensation table formats: one module per controller, pure functions returning text.
 
 Every module has `render(table, options) -> Rendered`. `table` is a
-campaign.compensation_grid.ControllerTable (positions in the axis unit, corrections in the
+campaign.compensation.grid.ControllerTable (positions in the axis unit, corrections in the
 deviation unit, correction = what the control adds to the command, ≈ -error); each module
 converts to its controller's units and sign. docs/compensation-formats.md documents them all.
 """

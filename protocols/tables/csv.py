@@ -3,8 +3,8 @@ control adds to the command, ≈ -error) in the deviation unit, for both directi
 
 from __future__ import annotations
 
-from campaign.pointtable import UNITS
 from protocols.tables import FormatOptions, Rendered
+from protocols.units import UNITS
 
 
 def render(table, options: FormatOptions) -> Rendered:

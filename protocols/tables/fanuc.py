@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from campaign.errors import InputError
+from protocols.errors import FormatError
 from protocols.tables import FormatOptions, Rendered
 
 MAX_POINTS = 128
@@ -31,13 +31,13 @@ MAX_INCREMENT = 127
 def render(table, options: FormatOptions) -> Rendered:
     cpu = options.counts_per_unit
     if cpu is None or cpu <= 0:
-        raise InputError("fanuc needs --counts-per-unit (detection units per mm or degree)")
+        raise FormatError("fanuc needs --counts-per-unit (detection units per mm or degree)")
     if table.reference is None:
-        raise InputError("fanuc counts its points from the reference position: give --reference")
+        raise FormatError("fanuc counts its points from the reference position: give --reference")
     unit = table.unit_factor * cpu  # detection units per deviation unit
     n = len(table.forward)
     if n > MAX_POINTS:
-        raise InputError(f"fanuc takes about {MAX_POINTS} points, the table has {n}")
+        raise FormatError(f"fanuc takes about {MAX_POINTS} points, the table has {n}")
     ref_index = round((table.reference - table.start) / table.spacing)
     tables = [table.common if table.mode == "uni" else table.forward]
     if table.mode == "bi":

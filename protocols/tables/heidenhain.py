@@ -13,7 +13,7 @@ correction to add, i.e. -error) are NOT verified. Check with a test move before 
 
 from __future__ import annotations
 
-from campaign.errors import InputError
+from protocols.errors import FormatError
 from protocols.tables import FormatOptions, Rendered
 
 MAX_POINTS = 256
@@ -22,7 +22,7 @@ MAX_POINTS = 256
 def render(table, options: FormatOptions) -> Rendered:
     n = len(table.forward)
     if n > MAX_POINTS:
-        raise InputError(f"heidenhain takes at most {MAX_POINTS} entries, the table has {n}")
+        raise FormatError(f"heidenhain takes at most {MAX_POINTS} entries, the table has {n}")
     f = table.unit_factor
     axis = options.axis_name
     lines = [f"BEGIN {axis}.COM", f"NR AXISPOS D{axis} BACKLASH"]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 
 from protocols.tables import FormatOptions, Rendered
-from protocols.tables.csv import UNITS
+from protocols.units import UNITS
 
 
 def render(table, options: FormatOptions) -> Rendered:

@@ -10,7 +10,7 @@ correction. BACKLASH is ignored when a COMP_FILE is set, so both directions are 
 
 from __future__ import annotations
 
-from campaign.errors import InputError
+from protocols.errors import FormatError
 from protocols.tables import FormatOptions, Rendered
 
 MAX_POINTS = 256
@@ -19,7 +19,7 @@ MAX_POINTS = 256
 def render(table, options: FormatOptions) -> Rendered:
     positions = table.positions
     if len(positions) > MAX_POINTS:
-        raise InputError(f"linuxcnc takes at most {MAX_POINTS} points, the table has {len(positions)}")
+        raise FormatError(f"linuxcnc takes at most {MAX_POINTS} points, the table has {len(positions)}")
     f = table.unit_factor
     lines = [f"{p:.6f} {p - fw * f:.6f} {p - rv * f:.6f}"
              for p, fw, rv in zip(positions, table.forward, table.reverse)]

@@ -8,22 +8,22 @@ motor zero. One table only: uni mode (a backlash B̄ is reported for Ixx86).
 
 from __future__ import annotations
 
-from campaign.errors import InputError
+from protocols.errors import FormatError
 from protocols.tables import FormatOptions, Rendered
 
 
 def render(table, options: FormatOptions) -> Rendered:
     cpu = options.counts_per_unit
     if cpu is None or cpu <= 0:
-        raise InputError("pmac needs --counts-per-unit (encoder counts per mm or degree)")
+        raise FormatError("pmac needs --counts-per-unit (encoder counts per mm or degree)")
     if table.mode != "uni":
-        raise InputError("pmac writes one leadscrew table; use --mode uni")
+        raise FormatError("pmac writes one leadscrew table; use --mode uni")
     if abs(table.start) > 1e-9 * max(1.0, table.spacing):
-        raise InputError(f"pmac tables start at motor zero; the grid starts at {table.start:g} "
+        raise FormatError(f"pmac tables start at motor zero; the grid starts at {table.start:g} "
                          "(use --reference 0)")
     spacing_counts = table.spacing * cpu
     if abs(spacing_counts - round(spacing_counts)) > 1e-6:
-        raise InputError(f"the spacing {table.spacing:g} is {spacing_counts:g} counts, not a whole number")
+        raise FormatError(f"the spacing {table.spacing:g} is {spacing_counts:g} counts, not a whole number")
     sixteenths = [round(c * table.unit_factor * cpu * 16) for c in table.common]
     entries = sixteenths[1:] + sixteenths[:1]
     count_length = round(spacing_counts) * len(entries)

@@ -6,13 +6,13 @@ referenced. Direction-dependent tables (CEC with $AN_CEC_DIRECTION) are not writ
 
 from __future__ import annotations
 
-from campaign.errors import InputError
+from protocols.errors import FormatError
 from protocols.tables import FormatOptions, Rendered
 
 
 def render(table, options: FormatOptions) -> Rendered:
     if table.mode != "uni":
-        raise InputError("siemens EEC holds one table per axis; use --mode uni")
+        raise FormatError("siemens EEC holds one table per axis; use --mode uni")
     axis = options.axis_name
     f = table.unit_factor
     lines = ["%_N_AX_EEC_INI", "CHANDATA(1)"]

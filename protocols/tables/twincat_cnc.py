@@ -6,7 +6,7 @@ Enabled by lr_param.ssfk = 1 in the axis parameters.
 
 from __future__ import annotations
 
-from campaign.errors import InputError
+from protocols.errors import FormatError
 from protocols.tables import FormatOptions, Rendered
 
 MAX_POINTS = 1500
@@ -16,7 +16,7 @@ PER_AXIS_UNIT = 10_000  # 0.1 µm per mm
 def render(table, options: FormatOptions) -> Rendered:
     n = len(table.forward)
     if n > MAX_POINTS:
-        raise InputError(f"twincat_cnc takes at most {MAX_POINTS} points (kw.ssfk.max_points), got {n}")
+        raise FormatError(f"twincat_cnc takes at most {MAX_POINTS} points (kw.ssfk.max_points), got {n}")
     tenth = table.unit_factor * PER_AXIS_UNIT  # 0.1 µm per deviation unit
     rows = [("kw.ssfk.interval", round(table.spacing * PER_AXIS_UNIT)),
             ("kw.ssfk.kw_startpos", round(table.start * PER_AXIS_UNIT)),

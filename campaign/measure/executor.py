@@ -9,16 +9,16 @@ marked interrupted and can be resumed from the first missing point.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
-from campaign.capture import BeamLost, Captured, NotStable, capture_dwell, capture_stable
 from campaign.config import Config
 from campaign.edlen import air_correction_factor, air_correction_um, thermal_normalisation_um
-from campaign.env_check import EnvironmentGuard
-from campaign.interfaces import Axis, AxisError, AxisStatus, Clock, InstrumentError, Interferometer, Reading
+from campaign.measure.capture import BeamLost, Captured, NotStable, capture_dwell, capture_stable
+from campaign.measure.env_guard import EnvironmentGuard
 from campaign.plan import Capture, Checkpoint, Move, Plan, Point, Settle, Step, check_motion
-from campaign.pointtable import DEVIATION_SCALE
-from campaign.recording import Recorder, RecordingError
+from campaign.record.recorder import Recorder, RecordingError
+from protocols.hardware import Axis, AxisError, AxisStatus, Clock, Hardware, InstrumentError, Reading
+from protocols.units import DEVIATION_SCALE
 
 
 def corrections_um(config: Config, position: float, env: dict) -> tuple[float, float]:
@@ -130,28 +130,6 @@ class Control:
         """Wait up to `seconds` of real time, or until resume/abort is requested."""
         self._wake.wait(seconds)
         self._wake.clear()
-
-
-@dataclass
-class Hardware:
-    """What a campaign runs on. `close()` releases everything (halting the axis first)."""
-
-    axis: Axis
-    interferometer: Interferometer
-    clock: Clock
-    closers: list = field(default_factory=list)
-
-    def close(self) -> list[str]:
-        """Close everything, in reverse order of opening, even when one part fails (e.g. the
-        PLC is unreachable and the axis cannot be asked whether it moves). Returns the failures."""
-        failures = []
-        for close in reversed(self.closers):
-            try:
-                close()
-            except Exception as exc:  # noqa: BLE001 - every part must get its chance to close
-                failures.append(f"{type(exc).__name__}: {exc}")
-        self.closers.clear()
-        return failures
 
 
 def resume_steps(plan: Plan, first_point: int, overrun: float) -> list[tuple[int, Step]]:

@@ -11,9 +11,9 @@ Steps: the mean unidirectional deviations x̄↑, x̄↓ per target (iso230.eval
 (`uni`: one table from the mean of both directions and a constant backlash B̄; `bi`: one table
 per direction; `auto`: see `choose_mode`); per direction, the correction at each target by
 inverse interpolation (seed 004, see `inverse_corrections`) of the means, smoothed where they
-lie on a polynomial within their scatter (campaign/compensation_smooth.py). Resampling to a
-controller's grid and the end zones are in campaign/compensation_grid.py; the predicted result
-in campaign/compensation_predict.py.
+lie on a polynomial within their scatter (campaign/compensation/smooth.py). Resampling to a
+controller's grid and the end zones are in campaign/compensation/grid.py; the predicted result
+in campaign/compensation/predict.py.
 """
 
 from __future__ import annotations
@@ -22,10 +22,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from campaign.compensation_smooth import SMOOTHING, Smoothing, pool, scatter_within_runs, smooth_means
+from campaign.compensation.smooth import SMOOTHING, Smoothing, pool, scatter_within_runs, smooth_means
 from campaign.errors import InputError
 from campaign.iso230 import evaluate
-from campaign.pointtable import DEVIATION_SCALE, UNITS, PointTable
+from campaign.pointtable import PointTable
+from protocols.units import DEVIATION_SCALE, UNITS
 
 MODES = ("uni", "bi", "auto")
 

@@ -13,12 +13,12 @@ from pathlib import Path
 
 from campaign.config import Config
 from campaign.errors import InputError
-from campaign.executor import CampaignStopped, Control, Executor, Observer
 from campaign.iso230 import Evaluation, evaluate
+from campaign.measure.executor import CampaignStopped, Control, Executor, Observer
 from campaign.model import ErrorModel
 from campaign.plan import Move, Plan, build_plan, check_plan
 from campaign.pointtable import read_points
-from campaign.recording import Recorder
+from campaign.record.recorder import Recorder
 
 
 @dataclass
@@ -126,7 +126,7 @@ def start_campaign(config: Config, out: str | Path | None = None, meta_extra: di
 
 def last_raw_state(directory: Path) -> tuple[float, float | None]:
     """(campaign time of the last raw sample in s, last known axis position or None)."""
-    from campaign.replay import load_raw
+    from campaign.measure.replay import load_raw
 
     raw = load_raw(directory)
     if raw.empty:
@@ -169,7 +169,7 @@ def resume_campaign(directory: str | Path, faults: dict | None = None, **kwargs)
     t_last, position = last_raw_state(path)
     if (path / SIM_MODEL_FILE).exists() and kwargs.get("model") is None:
         kwargs["model"] = read_model(path / SIM_MODEL_FILE)
-    from campaign.verify import load_comp, open_compensated
+    from campaign.measure.verify import load_comp, open_compensated
 
     comp = load_comp(path)
     if comp is not None:  # a verification campaign: the PLC gets its table again first

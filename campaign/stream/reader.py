@@ -13,8 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from campaign.capture import ENV_FIELDS
 from campaign.errors import InputError, read_input_bytes
+from campaign.measure.capture import ENV_FIELDS
 
 POSITION_COLUMNS = {
     "mm": ("reading_mm", "position_mm", "reading", "position"),

@@ -22,7 +22,7 @@ from campaign.errors import InputError
 from campaign.iso230 import Evaluation, evaluate
 from campaign.plot import draw_evaluation
 from campaign.pointtable import PointTable, read_points
-from campaign.report_html import (
+from campaign.report.html import (
     comparison_table,
     environment_table,
     facts_table,

@@ -22,8 +22,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from campaign.compensation import interp_extended
-from campaign.compensation_grid import ControllerTable
+from campaign.compensation.corrections import interp_extended
+from campaign.compensation.grid import ControllerTable
 from campaign.iso230 import Evaluation, evaluate
 from campaign.pointtable import PointTable
 

@@ -2,7 +2,7 @@
 
 Every raw sample carries the plan step and the point it belongs to, so the samples of each point's
 approach, settle and capture are known. Replay feeds them, tick by tick, through the same capture
-code (campaign.capture) and the same corrections (campaign.executor.point_deviation) as the live
+code (campaign.measure.capture) and the same corrections (campaign.measure.executor.point_deviation) as the live
 campaign. With the recorded capture settings it reproduces the recorded point table; with other
 settings it shows what would change. Times in s, positions in axis unit, deviations in µm
 (arcsec for a rotary axis).
@@ -16,14 +16,14 @@ from pathlib import Path
 
 import pandas as pd
 
-from campaign.capture import BeamLost, Captured, capture_dwell, capture_stable
 from campaign.config import Config, load_config
-from campaign.env_check import EnvironmentGuard
 from campaign.errors import InputError
-from campaign.executor import point_deviation
-from campaign.interfaces import Reading
+from campaign.measure.capture import BeamLost, Captured, capture_dwell, capture_stable
+from campaign.measure.env_guard import EnvironmentGuard
+from campaign.measure.executor import point_deviation
 from campaign.plan import Capture, Move, Plan, Settle, build_plan
-from campaign.pointtable import DEVIATION_SCALE
+from protocols.hardware import Reading
+from protocols.units import DEVIATION_SCALE
 
 TICK_EPSILON_S = 1e-6
 """Times closer than this are the same tick, s (far below the sample period)."""

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from campaign.discovery_data import CampaignData
+from campaign.discovery.data import CampaignData
 from campaign.model import _legendre
 
 LASER_DATUM_MM = 0.0

@@ -1,7 +1,7 @@
-"""The small interfaces through which the campaign talks to hardware.
+"""The small interfaces through which the campaign talks to hardware, and the data they pass.
 
-`campaign/` never imports pyads or serial: the drivers in `drivers/` implement these protocols, and
-the simulated machine in `drivers/sim/` implements them too.
+Both sides import this module: `campaign/` uses the protocols, `drivers/` implements them (the real
+ADS axis and serial interferometer, and the simulated machine). It imports nothing of either.
 
 Units: positions are in the axis unit, mm for a linear axis and degrees for a rotary axis;
 velocities in axis unit per second; times in seconds.
@@ -9,8 +9,11 @@ velocities in axis unit per second; times in seconds.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import Protocol
+
+from protocols.plc_contract import CompTable
 
 
 class AxisError(Exception):
@@ -106,6 +109,15 @@ class Axis(Protocol):
         """Release the connection. The axis is halted first if it is moving."""
         ...
 
+    def write_comp_table(self, table: CompTable) -> None:
+        """Write the controller's compensation table (axis units, protocols/plc_contract.py), read
+        it back and compare, then enable it when `table.enabled`. AxisError when it differs."""
+        ...
+
+    def read_comp_table(self) -> CompTable | None:
+        """The compensation table the controller holds, or None when it holds none."""
+        ...
+
 
 class Interferometer(Protocol):
     """A laser interferometer on a serial line (or its simulation)."""
@@ -122,3 +134,26 @@ class Interferometer(Protocol):
     def close(self) -> None:
         """Release the port."""
         ...
+
+
+@dataclass
+class Hardware:
+    """What a campaign runs on. `closers` are called in reverse order by `close()`, which releases
+    everything (the axis is halted first by its own close)."""
+
+    axis: Axis
+    interferometer: Interferometer
+    clock: Clock
+    closers: list[Callable[[], None]] = field(default_factory=list)
+
+    def close(self) -> list[str]:
+        """Close everything, in reverse order of opening, even when one part fails (e.g. the
+        PLC is unreachable and the axis cannot be asked whether it moves). Returns the failures."""
+        failures = []
+        for close in reversed(self.closers):
+            try:
+                close()
+            except Exception as exc:  # noqa: BLE001 - every part must get its chance to close
+                failures.append(f"{type(exc).__name__}: {exc}")
+        self.closers.clear()
+        return failures

@@ -17,9 +17,9 @@ from rich.table import Table
 
 from campaign.config import Config
 from campaign.errors import SafetyError
-from campaign.executor import Control, Hardware, move_and_wait
-from campaign.interfaces import AxisError, InstrumentError, Reading
+from campaign.measure.executor import Control, move_and_wait
 from campaign.plan import Move, Plan, check_plan, estimate_duration_s
+from protocols.hardware import AxisError, Hardware, InstrumentError, Reading
 
 SAMPLE_S = 1.0
 """How long the signal and environment are sampled at rest, s."""

@@ -2,7 +2,7 @@
 
 `Dashboard` is the campaign's Observer: progress bars with ETA, the current point, the live reading
 and deviation, a chart of the mean deviation per target and direction, warnings, and the fault
-prompt (answered with a key, see campaign/guide_keys.py). On a terminal it draws itself with rich
+prompt (answered with a key, see campaign/guide/keys.py). On a terminal it draws itself with rich
 Live; otherwise (a script) it prints one line per event.
 Positions in the axis unit (mm or deg), deviations in µm (arcsec on a rotary axis), times in s.
 """
@@ -18,12 +18,12 @@ from rich.panel import Panel
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
-from campaign.capture import BeamLost, NotStable
-from campaign.executor import Control, Observer
-from campaign.guide_keys import Keys
-from campaign.interfaces import AxisError, InstrumentError
+from campaign.guide.keys import Keys
+from campaign.measure.capture import BeamLost, NotStable
+from campaign.measure.executor import Control, Observer
 from campaign.plan import Plan
-from campaign.pointtable import DEVIATION_SCALE
+from protocols.hardware import AxisError, InstrumentError
+from protocols.units import DEVIATION_SCALE
 
 BLOCKS = "▁▂▃▄▅▆▇█"
 LIVE_DEVIATION_BAND = 100.0

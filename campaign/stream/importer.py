@@ -1,6 +1,6 @@
 """Turn a continuous position log from another program into a point table.
 
-The stream (campaign/stream_csv.py) holds sample times (s) and readings in the axis unit (mm or
+The stream (campaign/stream/reader.py) holds sample times (s) and readings in the axis unit (mm or
 deg); its environment columns are averaged like the reading. Readings are taken as they are: no
 air or material correction is applied.
 
@@ -25,7 +25,7 @@ from campaign.config import Config
 from campaign.errors import InputError
 from campaign.plan import Checkpoint, Move, Plan, Point
 from campaign.pointtable import PointTable
-from campaign.stream_csv import Stream, locate
+from campaign.stream.reader import Stream, locate
 
 SCALE = {"mm": 1000.0, "deg": 3600.0}
 """Axis unit -> deviation unit factor (mm -> µm, deg -> arcsec)."""

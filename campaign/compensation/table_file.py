@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from campaign.compensation_grid import ControllerTable
+from campaign.compensation.grid import ControllerTable
 from campaign.errors import InputError
 
 KINDS = {"mm": "linear", "deg": "rotary"}

@@ -1,7 +1,7 @@
 """Discovery: find where the simulated and the measured campaign disagree, name the effect the
 model is missing, add it, refit, and repeat until what is left is noise (issue 4, reference §5).
 
-1. Fit the current model (campaign.discovery_fit) and simulate the campaign with it; the
+1. Fit the current model (campaign.discovery.fit) and simulate the campaign with it; the
    residual is measured - simulated (µm). An offset is always fitted (the laser datum is arbitrary).
 2. Summarise where they disagree: by position, by direction, by run.
 3. Rank every effect not in the model by how much of the residual it explains, penalised for
@@ -26,9 +26,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from campaign.discovery_data import CampaignData
-from campaign.discovery_effects import FORMS, LASER_DATUM_MM, SHAPE_KEYS, environment_logs, fixed_shape
-from campaign.discovery_fit import (
+from campaign.discovery.data import CampaignData
+from campaign.discovery.effects import FORMS, LASER_DATUM_MM, SHAPE_KEYS, environment_logs, fixed_shape
+from campaign.discovery.fit import (
     Fit,
     Term,
     bic,

@@ -5,7 +5,7 @@ Shape parameters (periods, time constants) are found by variable projection: for
 coefficients are a linear least-squares solution; the shapes are refined with
 scipy.optimize.least_squares (in log space, within bounds) from a grid or periodogram start.
 
-Units: deviations and RMS values µm; everything else as in campaign.discovery_effects.
+Units: deviations and RMS values µm; everything else as in campaign.discovery.effects.
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy import optimize, stats
 
-from campaign.discovery_data import CampaignData
-from campaign.discovery_effects import FORMS, period_limits
+from campaign.discovery.data import CampaignData
+from campaign.discovery.effects import FORMS, period_limits
 from campaign.model import effect_um
 
 COLLINEAR = 1e-3

@@ -5,9 +5,9 @@ from __future__ import annotations
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-from campaign.executor import Observer
+from campaign.measure.executor import Observer
 from campaign.plan import Plan
-from campaign.pointtable import DEVIATION_SCALE
+from protocols.units import DEVIATION_SCALE
 
 
 class RichProgress(Observer):

@@ -15,12 +15,12 @@ from pathlib import Path
 
 import matplotlib.pyplot as plt
 
-from campaign.compensation_grid import ControllerTable
+from campaign.compensation.grid import ControllerTable
 from campaign.config import Config
 from campaign.iso230 import Evaluation, evaluate
+from campaign.measure.session import Outcome, open_hardware, start_campaign
 from campaign.plot import draw_evaluation
 from campaign.pointtable import PointTable, read_points
-from campaign.session import Outcome, open_hardware, start_campaign
 from protocols.plc_contract import CompTable
 
 COMP_FILE = "plc-compensation.json"

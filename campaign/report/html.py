@@ -1,4 +1,4 @@
-"""HTML building blocks of the report (campaign/report.py): the page with its inline CSS, tables and
+"""HTML building blocks of the report (campaign/report/document.py): the page with its inline CSS, tables and
 the pass/fail box. Every text that comes from a file is escaped."""
 
 from __future__ import annotations

@@ -23,9 +23,9 @@ import platform
 from pathlib import Path
 
 from campaign import __version__
-from campaign.capture import ENV_FIELDS
-from campaign.interfaces import Reading
+from campaign.measure.capture import ENV_FIELDS
 from campaign.pointtable import AXIS_KINDS, format_row
+from protocols.hardware import Reading
 
 RAW_COLUMNS = ("t_s", "step", "point", "axis_position", "reading", "signal_ok", "signal_pct",
                "instrument_time_s", *ENV_FIELDS)

@@ -18,7 +18,7 @@ import tty
 from collections.abc import Callable
 from typing import Self
 
-from campaign.executor import Control
+from campaign.measure.executor import Control
 
 
 class Keys:

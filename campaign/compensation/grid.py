@@ -1,5 +1,5 @@
 """Resampling corrections to a controller's table: equidistant points, a point limit, a zero at
-the reference position, end zones. Values keep the sign and unit of campaign/compensation.py
+the reference position, end zones. Values keep the sign and unit of campaign/compensation/corrections.py
 (correction, deviation unit: µm or arcsec); positions are in the axis unit (mm or degree).
 """
 
@@ -10,8 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from campaign.compensation import AXIS_UNIT_PER_DEVIATION_UNIT, Corrections
-from campaign.compensator import table_lookup
+from campaign.compensation.compensator import table_lookup
+from campaign.compensation.corrections import AXIS_UNIT_PER_DEVIATION_UNIT, Corrections
 from campaign.errors import InputError
 from protocols.plc_contract import CompTable
 

@@ -13,11 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
+from campaign.discovery.simulate import SAMPLE_PERIOD_META, sample_times
 from campaign.edlen import refractive_index
 from campaign.errors import read_toml
 from campaign.model import ErrorModel, model_from_dict
 from campaign.pointtable import PointTable, read_points
-from campaign.simulate import SAMPLE_PERIOD_META, sample_times
 
 CAPTURE_COLUMNS = ("capture_wait_s", "samples")
 """Point-table columns the recorder writes that discovery uses when present."""
@@ -60,7 +60,7 @@ class CampaignData:
 def campaign_data(table: PointTable, capture: dict[str, np.ndarray] | None = None,
                   sample_period_s: float | None = None) -> CampaignData:
     """CampaignData from a point table. `capture`: capture_wait_s (s) and samples per point, if
-    known (a table from campaign.simulate carries them in `optional`); sample_period_s: the
+    known (a table from campaign.discovery.simulate carries them in `optional`); sample_period_s: the
     instrument's sample period, s (default: table metadata, else one sample per point)."""
     capture = dict(capture or {})
     for name in CAPTURE_COLUMNS:

@@ -16,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from statistics import fmean
 
-from campaign.interfaces import Reading
+from protocols.hardware import Reading
 
 ENV_FIELDS = ("air_temp_c", "air_pressure_hpa", "humidity_pct", "material_temp_c")
 
