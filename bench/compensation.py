@@ -34,6 +34,7 @@ from campaign.iso230 import evaluate
 from campaign.measure.session import start_campaign
 from campaign.measure.verify import run_verification
 from campaign.pointtable import PointTable, read_points
+from drivers.factory import open_hardware
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = Path(__file__).parent / "results"
@@ -50,11 +51,12 @@ def config_for(path: Path, seed: int, cycles: int = 5):
 
 
 def one(axis: str, seed: int, tmp: str, cycles: int, smooth: str = "auto") -> dict:
-    before = start_campaign(config_for(AXES[axis], seed, cycles), f"{tmp}/{axis}-{seed}-before")
+    before = start_campaign(config_for(AXES[axis], seed, cycles), f"{tmp}/{axis}-{seed}-before", opener=open_hardware)
     table = read_points(before.dir / "points.csv")
     overrun = config_for(AXES[axis], seed)["plan"]["overrun"]
     ctable = resample(corrections(table, "auto", "inverse", smooth), POINT_LIMITS["json"], overrun=overrun)
-    after = run_verification(config_for(AXES[axis], seed, cycles), ctable, Path(f"{tmp}/{axis}-{seed}-after"))
+    after = run_verification(config_for(AXES[axis], seed, cycles), ctable, Path(f"{tmp}/{axis}-{seed}-after"),
+                             opener=open_hardware)
     ev = evaluate(read_points(after.dir / "points.csv"))
     s_max = max(s for t in ev.targets for s in (t.s_up, t.s_down))
     floor = 4 * s_max

@@ -18,6 +18,7 @@ from pathlib import Path
 
 from campaign.config import parse_config
 from campaign.measure.session import analyse_dir, start_campaign
+from drivers.factory import open_hardware
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = Path(__file__).parent / "results"
@@ -52,7 +53,8 @@ tau_s = 0.3
 
 def campaign(method: str, seed: int, tmp: str) -> tuple[float, float]:
     text = CONFIG.format(method=method, seed=seed, model=ROOT / "data/models/seed000-horizontal.toml")
-    outcome = start_campaign(parse_config(text, str(ROOT / "bench" / "bench.toml")), f"{tmp}/{method}-{seed}")
+    outcome = start_campaign(parse_config(text, str(ROOT / "bench" / "bench.toml")), f"{tmp}/{method}-{seed}",
+                             opener=open_hardware)
     assert outcome.status == "completed"
     _, ev = analyse_dir(outcome.dir)
     return outcome.duration_s, ev.summary["A"]

@@ -10,7 +10,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
+import threading
 
 from campaign import __version__
 from campaign.errors import BAD_INPUT, InputError, one_line
@@ -43,6 +45,10 @@ def build_parser() -> Parser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    if threading.current_thread() is threading.main_thread():
+        # A process started as a background job inherits SIGINT ignored; Ctrl-C (or kill -INT)
+        # must still halt the axis and flush the recording.
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         parser = build_parser()
         args = parser.parse_args(argv)

@@ -8,6 +8,7 @@ out-of-range value raises InputError naming the key.
 from __future__ import annotations
 
 import itertools
+import json
 import math
 import tomllib
 from dataclasses import dataclass
@@ -25,7 +26,8 @@ REQUIRED = object()
 
 @dataclass(frozen=True)
 class Key:
-    """One config key: its type, default (REQUIRED if none), meaning with unit, and bounds."""
+    """One config key: its type, default (REQUIRED if none), meaning with unit, bounds, and whether
+    it may change before a resume."""
 
     type: type
     default: Any
@@ -33,31 +35,34 @@ class Key:
     min: float | None = None
     max: float | None = None
     choices: tuple = ()
+    resume: bool = False
+    """True when the key may change between a campaign's start and its resume (a connection, a
+    limit, a name); any other change would mix two measurements in one table."""
 
 
 SCHEMA: dict[str, dict[str, Key]] = {
     "campaign": {
-        "machine": Key(str, "machine", "machine id, recorded in the metadata"),
-        "operator": Key(str, "", "operator name, recorded in the metadata"),
-        "description": Key(str, "", "free text, recorded in the metadata"),
+        "machine": Key(str, "machine", "machine id, recorded in the metadata", resume=True),
+        "operator": Key(str, "", "operator name, recorded in the metadata", resume=True),
+        "description": Key(str, "", "free text, recorded in the metadata", resume=True),
         "tolerance": Key(float, 0.0, "pass/fail tolerance on A, deviation unit (µm or arcsec); 0 = none",
-                         min=0),
+                         min=0, resume=True),
         "on_fault": Key(str, "retry", "without an operator: retry a point after a fault, or abort at once",
-                        choices=("retry", "abort")),
-        "fault_retries": Key(int, 3, "faults retried at one point before the campaign stops", min=0, max=20),
+                        choices=("retry", "abort"), resume=True),
+        "fault_retries": Key(int, 3, "faults retried at one point before the campaign stops", min=0, max=20, resume=True),
     },
     "axis": {
         "name": Key(str, "X", "axis name"),
         "kind": Key(str, "linear", "linear or rotary", choices=("linear", "rotary")),
         "unit": Key(str, "mm", "position unit: mm (linear) or deg (rotary)", choices=("mm", "deg")),
-        "soft_limit_min": Key(float, REQUIRED, "lowest position any motion may command, axis unit"),
-        "soft_limit_max": Key(float, REQUIRED, "highest position any motion may command, axis unit"),
+        "soft_limit_min": Key(float, REQUIRED, "lowest position any motion may command, axis unit", resume=True),
+        "soft_limit_max": Key(float, REQUIRED, "highest position any motion may command, axis unit", resume=True),
         "max_velocity": Key(float, REQUIRED, "highest velocity any motion may command, axis unit/s",
-                            min=1e-6),
+                            min=1e-6, resume=True),
         "max_acceleration": Key(float, 500.0, "axis acceleration (simulated machine), axis unit/s²",
                                 min=1e-6),
         "in_position_window": Key(float, 0.01, "|actual - target| allowed when a move is done, axis unit",
-                                  min=0),
+                                  min=0, resume=True),
     },
     "plan": {
         "targets": Key(list, None, "explicit target list, axis unit (instead of start/length/count)"),
@@ -80,27 +85,27 @@ SCHEMA: dict[str, dict[str, Key]] = {
     },
     "axis_driver": {
         "type": Key(str, "sim", "sim (simulated machine over loopback ADS) or ads (a real PLC)",
-                    choices=("sim", "ads")),
-        "ams_net_id": Key(str, "127.0.0.1.1.1", "the PLC's AMS net id"),
-        "ams_port": Key(int, 851, "the PLC runtime's ADS port", min=1, max=65535),
-        "ip": Key(str, "127.0.0.1", "the PLC's IP address"),
-        "axis_index": Key(int, 1, "index n of GVL_Axiscal.astAxes[n]", min=1, max=plc_contract.MAX_AXES),
-        "timeout_s": Key(float, 2.0, "ADS call timeout, s", min=0.01, max=60),
-        "move_timeout_s": Key(float, 300.0, "longest a single move may take, s", min=0.1),
-        "reconnect_s": Key(float, 30.0, "how long to wait for a lost ADS connection to come back, s", min=0),
-        "read_only": Key(bool, False, "dry run: talk to the PLC read-only, command nothing"),
+                    choices=("sim", "ads"), resume=True),
+        "ams_net_id": Key(str, "127.0.0.1.1.1", "the PLC's AMS net id", resume=True),
+        "ams_port": Key(int, 851, "the PLC runtime's ADS port", min=1, max=65535, resume=True),
+        "ip": Key(str, "127.0.0.1", "the PLC's IP address", resume=True),
+        "axis_index": Key(int, 1, "index n of GVL_Axiscal.astAxes[n]", min=1, max=plc_contract.MAX_AXES, resume=True),
+        "timeout_s": Key(float, 2.0, "ADS call timeout, s", min=0.01, max=60, resume=True),
+        "move_timeout_s": Key(float, 300.0, "longest a single move may take, s", min=0.1, resume=True),
+        "reconnect_s": Key(float, 30.0, "how long to wait for a lost ADS connection to come back, s", min=0, resume=True),
+        "read_only": Key(bool, False, "dry run: talk to the PLC read-only, command nothing", resume=True),
     },
     "instrument": {
         "type": Key(str, "sim", "sim (simulated interferometer over a pty) or serial",
                     choices=("sim", "serial")),
-        "port": Key(str, "", "serial port, e.g. /dev/ttyUSB0"),
-        "baudrate": Key(int, 115200, "serial baud rate", min=50, max=4000000),
+        "port": Key(str, "", "serial port, e.g. /dev/ttyUSB0", resume=True),
+        "baudrate": Key(int, 115200, "serial baud rate", min=50, max=4000000, resume=True),
         "mode": Key(str, "stream", "stream (instrument sends continuously) or query",
                     choices=("stream", "query")),
         "rate_hz": Key(float, 10.0, "how often axiscal takes the readings (its tick), Hz; set the instrument "
                        "to stream at least this fast; the simulated instrument streams at this rate",
                        min=0.1, max=1000),
-        "timeout_s": Key(float, 1.0, "serial read timeout, s", min=0.01, max=60),
+        "timeout_s": Key(float, 1.0, "serial read timeout, s", min=0.01, max=60, resume=True),
     },
     "environment": {
         "air_correction": Key(str, "none", "none (instrument corrects for air) or edlen (axiscal "
@@ -129,7 +134,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
     },
     "sim": {
         "speed": Key(float, None, "run N times faster than real time; absent = as fast as possible",
-                     min=1e-3),
+                     min=1e-3, resume=True),
         "seed": Key(int, 1, "seed of the simulated noise", min=0),
         "model": Key(str, "", "error-model TOML file (relative to this config); or [sim.effects.NAME]"),
     },
@@ -249,6 +254,37 @@ def load_config(path: str | Path) -> Config:
     return parse_config(text, str(path))
 
 
+def _json_value(value: Any) -> Any:
+    """`value` as it reads back from JSON (tuples become lists), for comparing with a record."""
+    return json.loads(json.dumps(value, default=str))
+
+
+def recorded_sections(config: Config) -> dict[str, Any]:
+    """The config's sections as JSON values, kept in a campaign's meta.json."""
+    return _json_value(config.sections)
+
+
+def resume_conflicts(recorded: dict[str, Any], config: Config) -> list[str]:
+    """The keys of `config` that differ from the `recorded` sections (see `recorded_sections`) and
+    may not change before a resume (`Key.resume`), as "section.key is X now, Y when recorded".
+    Sub-tables ([instrument.line], [sim.effects]) must not change; rehearsed [sim.faults] may."""
+    found = []
+    for section, keys in SCHEMA.items():
+        now, then = config.sections.get(section, {}), recorded.get(section, {})
+        names = [n for n, k in keys.items() if not k.resume]
+        names += [n for s, n in TABLES if s == section and n != "faults"]
+        for name in names:
+            a, b = _json_value(now.get(name)), then.get(name)
+            if a != b:
+                found.append(f"{section}.{name} is {_show(a)} now, {_show(b)} when recorded")
+    return found
+
+
+def _show(value: Any) -> str:
+    text = json.dumps(value) if not isinstance(value, str) else repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def schema_markdown() -> str:
     """docs/config.md: every section and key with type, default and meaning."""
     out = ["# Campaign configuration (TOML)", "",
@@ -263,7 +299,8 @@ def schema_markdown() -> str:
             rng = ""
             if key.min is not None or key.max is not None:
                 rng = f" Range [{key.min if key.min is not None else '−∞'}, {key.max if key.max is not None else '∞'}]."
-            out.append(f"| `{name}` | {key.type.__name__} | {default} | {key.doc}.{extra}{rng} |")
+            again = " May change before `axiscal resume`." if key.resume else ""
+            out.append(f"| `{name}` | {key.type.__name__} | {default} | {key.doc}.{extra}{rng}{again} |")
         out.append("")
     out += ["## Sub-tables", "",
             "- `[instrument.line]`: the serial line format (see `docs/serial-line.md`).",

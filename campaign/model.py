@@ -149,3 +149,17 @@ def model_from_dict(data: dict, where: str, require_all: bool = True) -> ErrorMo
 def read_model(path: str | Path, require_all: bool = True) -> ErrorModel:
     """Read a model TOML file; InputError with the file and key on any problem."""
     return model_from_dict(read_toml(path, "a model TOML file"), str(path), require_all)
+
+
+def sim_model(config) -> ErrorModel:
+    """The simulated machine's error model from a campaign config (campaign.config.Config): its
+    `sim.model` file and/or inline [sim.effects]."""
+    sim = config["sim"]
+    model = ErrorModel()
+    if sim["model"]:
+        path = config.base_dir / sim["model"]
+        model = read_model(path)
+    if "effects" in sim:
+        inline = model_from_dict({"effects": sim["effects"]}, f"{config.source}: [sim.effects]")
+        model.effects.update(inline.effects)
+    return model

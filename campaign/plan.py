@@ -12,12 +12,13 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, replace
+from functools import cached_property
 
 import numpy as np
 
 from campaign.config import Config
-from campaign.errors import SafetyError
+from campaign.errors import InputError, SafetyError
 
 GOLDEN = (math.sqrt(5) - 1) / 2
 
@@ -70,6 +71,34 @@ Step = Move | Settle | Capture | Checkpoint
 
 
 @dataclass(frozen=True)
+class Stop:
+    """One move of the plan and what happens where it ends: the plan walker's unit.
+
+    step: index of the Move in `Plan.steps`; move: that Move. For a measured stop also the point,
+    the Settle before its capture (`settle_s`, 0 when there is none), the Capture step and the
+    index of the Capture and Checkpoint steps; an overrun stop (motion only) has none of them.
+    """
+
+    step: int
+    move: Move
+    point: Point | None = None
+    settle_s: float = 0.0
+    capture: Capture | None = None
+    capture_step: int | None = None
+    checkpoint_step: int | None = None
+
+    @property
+    def position(self) -> float:
+        return self.move.position
+
+    @property
+    def dwell_s(self) -> float:
+        """Time planned at the target, s: the settle plus the capture window (with the stable
+        method the window is only the stability window; the wait is found while measuring)."""
+        return self.settle_s + (self.capture.window_s if self.capture else 0.0)
+
+
+@dataclass(frozen=True)
 class Plan:
     """The steps, the targets (axis unit) and the offsets applied to the nominal grid."""
 
@@ -78,18 +107,47 @@ class Plan:
     offsets: tuple[float, ...]
     seed: int
 
+    @cached_property
+    def _stops(self) -> tuple[Stop, ...]:
+        stops: list[Stop] = []
+        for i, step in enumerate(self.steps):
+            if isinstance(step, Move):
+                stops.append(Stop(i, step))
+            elif not stops:
+                raise ValueError(f"plan step {i} ({type(step).__name__}) comes before the first move")
+            elif isinstance(step, Settle):
+                stops[-1] = replace(stops[-1], settle_s=stops[-1].settle_s + step.seconds)
+            elif isinstance(step, Capture):
+                stops[-1] = replace(stops[-1], point=step.point, capture=step, capture_step=i)
+            elif isinstance(step, Checkpoint):
+                stops[-1] = replace(stops[-1], checkpoint_step=i)
+        return tuple(stops)
+
+    def stops(self) -> tuple[Stop, ...]:
+        """Every move of the plan in order, with what happens at its end: the one walker every
+        consumer of a plan uses (executor resume, replay, simulation, import, duration, ends)."""
+        return self._stops
+
+    def visits(self) -> tuple[Stop, ...]:
+        """The measured stops only, in point order (`visits()[i].point.index == i`)."""
+        return tuple(s for s in self._stops if s.point is not None)
+
     @property
     def points(self) -> list[Point]:
-        return [s.point for s in self.steps if isinstance(s, Checkpoint)]
+        return [s.point for s in self.visits()]
+
+    def ends(self) -> tuple[float, float]:
+        """The lowest and highest position the plan moves to (overruns included), axis unit."""
+        positions = [s.position for s in self._stops]
+        return min(positions), max(positions)
 
     def travel(self, start: float | None = None) -> float:
         """Total distance of all moves, axis unit (from `start`, default the first move's end)."""
-        moves = [s.position for s in self.steps if isinstance(s, Move)]
-        here = moves[0] if start is None else start
+        here = self._stops[0].position if start is None else start
         total = 0.0
-        for p in moves:
-            total += abs(p - here)
-            here = p
+        for s in self._stops:
+            total += abs(s.position - here)
+            here = s.position
         return total
 
 
@@ -197,13 +255,64 @@ def estimate_duration_s(plan: Plan, config: Config, start: float | None = None) 
     """Estimated campaign duration, s: moves, settles and capture windows (stable: its window)."""
     accel = config["axis"]["max_acceleration"]
     total, here = 0.0, start
+    for stop in plan.stops():
+        if here is not None:
+            total += move_time_s(stop.position - here, stop.move.velocity, accel)
+        here = stop.position
+        total += stop.dwell_s
+    return total
+
+
+PLAN_FORMAT = "axiscal plan"
+"""The `format` of the header record of a recorded plan (plan.jsonl)."""
+
+
+def plan_records(plan: Plan) -> list[dict]:
+    """The plan as JSON-ready records: a header (targets, offsets, seed, counts), then one record
+    per step in order. Floats survive a JSON round trip exactly, so the plan read back is equal."""
+    header = {"format": PLAN_FORMAT, "targets": list(plan.targets), "offsets": list(plan.offsets),
+              "seed": plan.seed, "steps": len(plan.steps), "points": len(plan.points)}
+    records = [header]
     for step in plan.steps:
         if isinstance(step, Move):
-            if here is not None:
-                total += move_time_s(step.position - here, step.velocity, accel)
-            here = step.position
+            records.append({"step": "move", "position": step.position, "velocity": step.velocity,
+                            "overrun": step.overrun})
         elif isinstance(step, Settle):
-            total += step.seconds
+            records.append({"step": "settle", "seconds": step.seconds})
         elif isinstance(step, Capture):
-            total += step.window_s
-    return total
+            records.append({"step": "capture", "point": asdict(step.point), "window_s": step.window_s,
+                            "timeout_s": step.timeout_s})
+        else:
+            records.append({"step": "checkpoint", "point": step.point.index})
+    return records
+
+
+def plan_from_records(records: list[dict], where: str) -> Plan:
+    """The plan `plan_records` wrote; InputError naming `where` and the record when it is not one."""
+    if not records or not isinstance(records[0], dict) or records[0].get("format") != PLAN_FORMAT:
+        raise InputError(f"{where}: not a recorded axiscal plan (no '{PLAN_FORMAT}' header)")
+    header, steps, points, number = records[0], [], {}, 1
+    try:
+        for number, r in enumerate(records[1:], start=2):
+            kind = r.get("step")
+            if kind == "move":
+                steps.append(Move(float(r["position"]), float(r["velocity"]), bool(r["overrun"])))
+            elif kind == "settle":
+                steps.append(Settle(float(r["seconds"])))
+            elif kind == "capture":
+                point = Point(**{k: (float if k == "target" else int)(v) for k, v in r["point"].items()})
+                points[point.index] = point
+                steps.append(Capture(point, float(r["window_s"]), float(r["timeout_s"])))
+            elif kind == "checkpoint":
+                steps.append(Checkpoint(points[int(r["point"])]))
+            else:
+                raise ValueError(f"unknown step '{kind}'")
+        plan = Plan(tuple(steps), tuple(float(t) for t in header["targets"]),
+                    tuple(float(o) for o in header["offsets"]), int(header["seed"]))
+        plan.stops()
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise InputError(f"{where}: line {number}: not a plan record ({exc})") from None
+    if len(steps) != header.get("steps") or len(plan.points) != header.get("points"):
+        raise InputError(f"{where}: holds {len(steps)} steps and {len(plan.points)} points, its header "
+                         f"{header.get('steps')} and {header.get('points')} (a torn file?)")
+    return plan

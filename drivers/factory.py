@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 from campaign.config import Config
 from campaign.errors import InputError
-from campaign.model import ErrorModel, model_from_dict, read_model
+from campaign.model import ErrorModel, sim_model
 from drivers.ads_axis import AdsAxis
 from drivers.clock import RealClock
 from drivers.serial_interferometer import SerialInterferometer
@@ -30,19 +30,6 @@ class SimParts:
     instrument: object
     physics: object
     faults: object = None
-
-
-def sim_model(config: Config) -> ErrorModel:
-    """The simulated machine's error model: `sim.model` file and/or inline [sim.effects]."""
-    sim = config["sim"]
-    model = ErrorModel()
-    if sim["model"]:
-        path = config.base_dir / sim["model"]
-        model = read_model(path)
-    if "effects" in sim:
-        inline = model_from_dict({"effects": sim["effects"]}, f"{config.source}: [sim.effects]")
-        model.effects.update(inline.effects)
-    return model
 
 
 def line_format(config: Config) -> LineFormat:

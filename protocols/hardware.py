@@ -48,6 +48,10 @@ class AxisStatus:
     homed: bool = True
 
 
+ENV_FIELDS = ("air_temp_c", "air_pressure_hpa", "humidity_pct", "material_temp_c")
+"""The environment fields of a Reading, in their order on the serial line and in the files."""
+
+
 @dataclass(frozen=True)
 class Reading:
     """One interferometer sample.

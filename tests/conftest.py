@@ -1,7 +1,11 @@
-"""Shared test helpers."""
+"""Shared test helpers, and the guard of the two tiers: a test that starts the simulated machine,
+a subprocess campaign, a browser or a pty must be marked `machine`; without the mark it fails
+at once saying so, so `pytest -m "not machine"` stays fast and honest."""
 
 from __future__ import annotations
 
+import os
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -11,6 +15,51 @@ from campaign.cli import main
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "data"
 PAPER = DATA / "paper-2022-beckhoff-press"
+
+
+MACHINE_WORDS = ("axiscal", "-m campaign", "chromium", "chromedriver", "node", "rs274", "linuxcnc")
+"""A subprocess whose command line holds one of these is a machine-tier process."""
+
+
+def _refuse(what: str):
+    def refuse(*args, **kwargs):
+        raise AssertionError(f"this test {what}: mark it @pytest.mark.machine (see tests/conftest.py)")
+
+    return refuse
+
+
+def _guard(monkeypatch: pytest.MonkeyPatch) -> None:
+    import pty
+
+    from drivers.sim.ads_server import SimAdsServer
+
+    monkeypatch.setattr(SimAdsServer, "start", _refuse("starts the simulated machine (ADS server)"))
+    monkeypatch.setattr(os, "openpty", _refuse("opens a pty"))
+    monkeypatch.setattr(os, "forkpty", _refuse("opens a pty"))
+    monkeypatch.setattr(pty, "fork", _refuse("opens a pty"))
+    real_popen_init = subprocess.Popen.__init__
+
+    def popen_init(self, args, *rest, **kwargs):
+        words = " ".join(map(str, args)) if isinstance(args, (list, tuple)) else str(args)
+        if any(w in words for w in MACHINE_WORDS):
+            _refuse(f"starts a subprocess ({words[:80]})")()
+        real_popen_init(self, args, *rest, **kwargs)
+
+    monkeypatch.setattr(subprocess.Popen, "__init__", popen_init)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    """Around the whole test (its fixtures of any scope included): unmarked tests get the guard."""
+    if item.get_closest_marker("machine") is not None:
+        yield
+        return
+    monkeypatch = pytest.MonkeyPatch()
+    _guard(monkeypatch)
+    try:
+        yield
+    finally:
+        monkeypatch.undo()
 
 
 class CliResult:
@@ -28,6 +77,21 @@ def cli(capsys):
         return CliResult(code, captured.out, captured.err)
 
     return run
+
+
+def events(directory, kind: str | None = None, **data) -> list[dict]:
+    """The events.jsonl records of a campaign directory, of `kind` and with `data` items if given."""
+    from campaign.record.directory import read_events
+
+    return [e for e in read_events(directory)
+            if (kind is None or e["kind"] == kind) and all(e["data"].get(k) == v for k, v in data.items())]
+
+
+def status(directory) -> str:
+    """The campaign's status from its run records (completed, interrupted, failed, running)."""
+    from campaign.record.directory import open_campaign
+
+    return open_campaign(directory).status
 
 
 def assert_one_line_error(result: CliResult, *fragments: str) -> None:

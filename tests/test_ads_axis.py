@@ -64,6 +64,7 @@ def wait_until_idle(m: Machine, limit_s: float = 30.0) -> AxisStatus:
     raise AssertionError(f"axis still busy after {limit_s} s of simulated time")
 
 
+@pytest.mark.machine
 def test_move_reaches_target_and_reports_done(machine):
     m = machine
     assert m.axis.status() == AxisStatus(False, False, False, 0, 0.0, True, True)
@@ -87,6 +88,7 @@ def test_move_reaches_target_and_reports_done(machine):
     assert m.plc.last_direction == -1
 
 
+@pytest.mark.machine
 def test_injected_drive_error_stops_the_move_and_is_kept_until_reset(machine):
     m = machine
     m.axis.start_move(30.0, 10.0)
@@ -112,6 +114,7 @@ def test_injected_drive_error_stops_the_move_and_is_kept_until_reset(machine):
     assert status.done and status.actual_position == 30.0
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("velocity", [0.0, -1.0, 50.1])
 def test_move_with_bad_velocity_is_refused_by_the_plc(machine, velocity):
     m = machine
@@ -122,6 +125,7 @@ def test_move_with_bad_velocity_is_refused_by_the_plc(machine, velocity):
     assert not status.busy and status.actual_position == 0.0
 
 
+@pytest.mark.machine
 def test_move_while_drive_disabled_is_refused_by_the_plc(machine):
     m = machine
     m.plc.enabled = False
@@ -133,6 +137,7 @@ def test_move_while_drive_disabled_is_refused_by_the_plc(machine):
     assert status.error and status.error_id == PlcErrorId.NOT_ENABLED
 
 
+@pytest.mark.machine
 def test_halt_during_a_move_stops_short_of_the_target(machine):
     m = machine
     m.axis.start_move(40.0, 20.0)
@@ -149,6 +154,7 @@ def test_halt_during_a_move_stops_short_of_the_target(machine):
     assert not m.axis.status().error
 
 
+@pytest.mark.machine
 def test_close_halts_a_moving_axis(machine):
     m = machine
     m.axis.start_move(40.0, 20.0)
@@ -170,6 +176,7 @@ def test_close_halts_a_moving_axis(machine):
         "MAIN.bAnything",
     ],
 )
+@pytest.mark.machine
 def test_write_to_a_symbol_outside_the_contract_is_refused(machine, name):
     with pytest.raises(ValueError):
         machine.axis._write(name, True)
@@ -177,6 +184,7 @@ def test_write_to_a_symbol_outside_the_contract_is_refused(machine, name):
     assert machine.axis.status().done is False
 
 
+@pytest.mark.machine
 def test_read_only_mode_reads_status_and_refuses_every_write(machine):
     m = machine
     dry = AdsAxis(NET_ID, IP, axis=1, read_only=True, timeout_s=0.5)
@@ -198,6 +206,7 @@ def test_read_only_mode_reads_status_and_refuses_every_write(machine):
         dry.close()
 
 
+@pytest.mark.machine
 def test_status_recovers_after_the_plc_connection_is_lost(machine):
     m = machine
     m.axis.start_move(20.0, 10.0)
@@ -211,6 +220,7 @@ def test_status_recovers_after_the_plc_connection_is_lost(machine):
     assert m.axis.status().actual_position > before.actual_position
 
 
+@pytest.mark.machine
 def test_unreachable_plc_raises_axis_error_without_error_id(machine):
     machine.server.stop()
     with pytest.raises(AxisError) as lost:
@@ -233,6 +243,7 @@ def _table(points: int = 11, enabled: bool = True) -> CompTable:
     )
 
 
+@pytest.mark.machine
 def test_comp_table_write_and_read_back(machine):
     m = machine
     assert m.axis.read_comp_table() is None

@@ -147,6 +147,7 @@ def test_few_runs_warn_and_one_run_has_no_repeatability(cli, tmp_path):
     assert data["E"] == pytest.approx(1.0) and data["B"] == pytest.approx(0.0)
 
 
+@pytest.mark.machine
 def test_subprocess_entry_points_no_traceback(tmp_path):
     """The installed console script and `python -m campaign` behave the same on bad input."""
     path = _write(tmp_path, GOOD_HEADER + "1,+,0,x\n")

@@ -8,7 +8,7 @@ import sys
 import pytest
 
 from campaign.pointtable import read_points
-from tests.conftest import ROOT
+from tests.conftest import ROOT, status
 
 AXISCAL = [sys.executable, "-m", "campaign"]
 
@@ -18,6 +18,7 @@ def axiscal(*args, timeout=120):
                           cwd=ROOT, check=False)
 
 
+@pytest.mark.machine
 def test_demo_runs_the_paper_campaign(tmp_path):
     out = tmp_path / "demo"
     proc = axiscal("demo", "--out", out, "--json", "--plot", tmp_path / "demo.png")
@@ -33,13 +34,14 @@ def test_demo_runs_the_paper_campaign(tmp_path):
     table = read_points(out / "points.csv")
     assert len(table) == 110 and sorted(set(table.run)) == [1, 2, 3, 4, 5]
     meta = json.loads((out / "meta.json").read_text())
-    assert meta["status"] == "completed" and meta["plan_seed"] == 1
+    assert status(out) == "completed" and meta["plan_seed"] == 1 and meta["format_version"] == 2
     assert (out / "config.toml").read_text().startswith("# The embedded demo")
     raw_lines = (out / "raw.csv").read_text().splitlines()
     assert len(raw_lines) > 10000  # every sample of 20 minutes at 10 Hz
     assert (tmp_path / "demo.png").read_bytes()[:4] == b"\x89PNG"
 
 
+@pytest.mark.machine
 def test_stable_capture_waits_less_than_the_dwell(tmp_path):
     proc = axiscal("demo", "--out", tmp_path / "s", "--capture", "stable", "--json")
     assert proc.returncode == 0, proc.stderr
@@ -51,6 +53,7 @@ def test_stable_capture_waits_less_than_the_dwell(tmp_path):
     assert max(waits) < 4.0 and min(waits) > 0.5  # stable before a 4 s dwell, after the 0.5 s window
 
 
+@pytest.mark.machine
 def test_run_refuses_plan_outside_limits_before_moving(tmp_path):
     config = (ROOT / "data/configs/vertical-sim.toml").read_text().replace("overrun = 5.0", "overrun = 50.0")
     path = tmp_path / "c.toml"
@@ -60,6 +63,7 @@ def test_run_refuses_plan_outside_limits_before_moving(tmp_path):
     assert not (tmp_path / "never").exists()
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("name", ["rotary-sim.toml", "vertical-sim.toml"])
 def test_run_example_configs(tmp_path, name):
     proc = axiscal("run", ROOT / "data/configs" / name, "--out", tmp_path / "r", "--json")

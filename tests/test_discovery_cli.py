@@ -142,6 +142,7 @@ def run_real_campaign(tmp_path, effects: str) -> tuple:
     return tmp_path / "real" / "points.csv", tmp_path / "fast.csv"
 
 
+@pytest.mark.machine
 def test_fast_simulator_agrees_with_the_machine_on_spatial_and_time_effects(cli, tmp_path):
     real, fast = run_real_campaign(tmp_path, SPATIAL_AND_TIME)
     model = tmp_path / "start.toml"
@@ -155,6 +156,7 @@ def test_fast_simulator_agrees_with_the_machine_on_spatial_and_time_effects(cli,
     assert found[0]["gap_before_um"] == pytest.approx(found[1]["gap_before_um"], rel=0.15)
 
 
+@pytest.mark.machine
 def test_fast_simulator_agrees_with_the_machine_on_reversal_and_settling(cli, tmp_path):
     real, fast = run_real_campaign(tmp_path, REVERSAL_AND_SETTLING)
     for path in (real, fast):

@@ -19,6 +19,7 @@ def effects_toml(effects: dict) -> str:
                    for name, params in effects.items())
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("hidden", list(HIDDEN))
 def test_one_hidden_effect_on_the_simulated_machine(tmp_path, hidden):
     true_params, checked = HIDDEN[hidden]

@@ -7,20 +7,20 @@ import json
 import pytest
 
 from campaign.pointtable import read_points
-from tests.conftest import assert_one_line_error
+from tests.conftest import assert_one_line_error, events
 from tests.test_demo_e2e import axiscal
 from tests.test_resume import point_keys
 
-# fault -> (event that must be logged, resumes needed, whether a halt must be logged)
+# fault -> (event that must be logged: kind and data items, resumes needed, whether a halt must be logged)
 FAULTS = {
-    "ads_lost@300": ("reconnect: PLC connection back", 0, True),
-    "axis_error@200": ("AxisError: axis error 17744", 0, True),
-    "beam_break@300": ("beam: beam lost (signal 0.0 %)", 0, False),
-    "serial_garbage@100": ("garbage or partial serial line(s) skipped, not recorded", 0, False),
-    "serial_gone@400": ("InstrumentError", 1, True),
-    "env_stuck@100": ("sensor stuck?", 0, False),
-    "env_out_of_range@100": ("air_temp_c = 85 is outside [10, 35]: last plausible value used", 0, False),
-    "disk_full@200": ("recording failed", 1, True),
+    "ads_lost@300": (("reconnect", {}), 0, True),
+    "axis_error@200": (("fault", {"error": "AxisError", "error_id": 17744}), 0, True),
+    "beam_break@300": (("beam", {"ok": False, "signal_pct": 0.0}), 0, False),
+    "serial_garbage@100": (("serial", {}), 0, False),
+    "serial_gone@400": (("fault", {"error": "InstrumentError"}), 1, True),
+    "env_stuck@100": (("environment", {"problem": "stuck"}), 0, False),
+    "env_out_of_range@100": (("environment", {"field": "air_temp_c", "problem": "out_of_range"}), 0, False),
+    "disk_full@200": (("fault", {"error": "RecordingError"}), 1, True),
 }
 
 
@@ -31,6 +31,7 @@ def fault_free(tmp_path_factory):
     return point_keys(out / "points.csv")
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("fault", sorted(FAULTS))
 def test_fault_is_survived(tmp_path, fault_free, fault):
     event, resumes, halted = FAULTS[fault]
@@ -41,11 +42,14 @@ def test_fault_is_survived(tmp_path, fault_free, fault):
     name = fault.split("@")[0]
     assert data["survived"] and data["status"] == "completed" and data["resumes"] == resumes
     assert data["faults"][0]["name"] == name and data["faults"][0]["what"] == "injected"
-    events = (out / "events.log").read_text()
-    assert event in events
+    kind, items = event
+    logged = [e for e in data["events"] if e["kind"] == kind and all(e["data"].get(k) == v for k, v in items.items())]
+    assert logged, (kind, items)
+    assert logged == events(out, kind, **items)  # demo --json reports events.jsonl
     if halted:
         # the PLC answered the halt; only with the ADS connection gone can it not be asked
-        assert ("halt failed" if name == "ads_lost" else "; axis halted") in events
+        halts = events(out, "halt", why="fault") + events(out, "halt", why="recording failed")
+        assert halts and halts[0]["data"]["ok"] is (name != "ads_lost")
     # no corrupt point: the strict reader accepts the table, every value is a plausible deviation
     table = read_points(out / "points.csv")
     assert abs(table.deviation).max() < 20.0
@@ -53,6 +57,7 @@ def test_fault_is_survived(tmp_path, fault_free, fault):
     assert point_keys(out / "points.csv") == fault_free
 
 
+@pytest.mark.machine
 def test_faults_from_the_config(tmp_path):
     from tests.conftest import ROOT
 
@@ -62,7 +67,7 @@ def test_faults_from_the_config(tmp_path):
     proc = axiscal("run", path, "--out", tmp_path / "r", "--json")
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert json.loads(proc.stdout)["points"] == 110
-    assert "beam" in (tmp_path / "r" / "events.log").read_text()
+    assert events(tmp_path / "r", "beam", ok=False) and events(tmp_path / "r", "beam", ok=True)
 
 
 def test_bad_inject_and_fault_tables(cli, tmp_path):
@@ -75,6 +80,7 @@ def test_bad_inject_and_fault_tables(cli, tmp_path):
     assert_one_line_error(cli("plan", path), "sim.faults.beam_break.at_s")
 
 
+@pytest.mark.machine
 def test_faults_after_a_resume_still_fire(tmp_path, fault_free):
     """The port vanishes at 400 s (resume needed), the disk fills at 900 s (in the resumed part)."""
     out = tmp_path / "two"

@@ -7,7 +7,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from campaign.config import parse_config
-from campaign.errors import InputError
+from campaign.errors import BAD_INPUT
 from campaign.faults import parse_faults, parse_inject
 from campaign.model import model_from_dict
 from campaign.pointtable import parse_points
@@ -25,7 +25,7 @@ HEADER = "run,direction,target_mm,deviation_um\n"
 def test_point_table_text(text):
     try:
         parse_points(text, "fuzz.csv")
-    except InputError as exc:
+    except BAD_INPUT as exc:
         assert "\n" not in str(exc) and str(exc).startswith("fuzz.csv")
 
 
@@ -37,7 +37,7 @@ def test_point_table_rows(rows):
     try:
         table = parse_points(text, "rows.csv")
         assert len(table) == len(rows)
-    except InputError as exc:
+    except BAD_INPUT as exc:
         assert "\n" not in str(exc)
 
 
@@ -59,7 +59,7 @@ def test_point_table_binary_through_cli(cli, tmp_path):
 def test_config_text(text):
     try:
         parse_config(text, "fuzz.toml")
-    except InputError as exc:
+    except BAD_INPUT as exc:
         assert "\n" not in str(exc)
 
 
@@ -79,7 +79,7 @@ def test_config_values(section, key, value):
     data.setdefault(section, {})[key] = value
     try:
         config_from_dict(data, "fuzz.toml")
-    except InputError as exc:
+    except BAD_INPUT as exc:
         assert "\n" not in str(exc)
 
 
@@ -88,7 +88,7 @@ def test_config_values(section, key, value):
 def test_line_format_tables(table):
     try:
         fmt = LineFormat.from_dict(table, "fuzz.toml")
-    except InputError as exc:
+    except BAD_INPUT as exc:
         assert "\n" not in str(exc)
         return
     try:
@@ -104,7 +104,7 @@ def test_model_and_fault_tables(table):
     for load in (lambda: model_from_dict({"effects": table}, "m.toml"), lambda: parse_faults(table, "f.toml")):
         try:
             load()
-        except InputError as exc:
+        except BAD_INPUT as exc:
             assert "\n" not in str(exc)
 
 
@@ -113,5 +113,5 @@ def test_model_and_fault_tables(table):
 def test_inject_option(text):
     try:
         parse_inject(text)
-    except InputError as exc:
+    except BAD_INPUT as exc:
         assert "\n" not in str(exc)

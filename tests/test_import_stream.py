@@ -65,6 +65,7 @@ def demo_dir(tmp_path_factory):
     return out
 
 
+@pytest.mark.machine
 def test_a_recorded_raw_stream_imports_to_the_recorded_point_table(demo_dir, tmp_path, cli):
     raw = pd.read_csv(demo_dir / "raw.csv")
     stream = raw.rename(columns={"t_s": "time_s"})[["time_s", "reading", "air_temp_c", "humidity_pct"]]

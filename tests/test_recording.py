@@ -6,7 +6,11 @@ import os
 
 import pytest
 
+from campaign.commands.demo import demo_config_text
+from campaign.config import parse_config
+from campaign.plan import build_plan, plan_records
 from campaign.pointtable import read_points
+from campaign.record.events import Event
 from campaign.record.recorder import Recorder, RecordingError, cut_torn_tail
 from protocols.hardware import Reading
 
@@ -17,7 +21,8 @@ EXTRA = {"point": 0, "reading": 0.001, "air_correction_um": 0.0, "material_corre
 
 
 def new_recorder(tmp_path):
-    return Recorder.create(tmp_path / "c", "# config\n", dict(META), "linear")
+    plan = build_plan(parse_config(demo_config_text(), "demo.toml"))
+    return Recorder.create(tmp_path / "c", "# config\n", {}, plan_records(plan), dict(META), "linear")
 
 
 def write_points(rec, n, first=0):
@@ -78,7 +83,7 @@ def test_full_disk_is_a_recording_error(tmp_path, where):
             write_points(rec, 1, first=1)
         elif where == "events":
             rec._events.flush = full
-            rec.event(1.0, "test", "x")
+            rec.emit(Event(1.0, "beam", "beam lost"))
         else:
             rec.inject_disk_full()
             write_points(rec, 1, first=1)
@@ -87,7 +92,7 @@ def test_full_disk_is_a_recording_error(tmp_path, where):
             rec.close()  # the events file still cannot be flushed: reported, after closing the rest
     else:
         rec.close()
-    assert open_fds() == before - 3  # every handle closed, even after the failure
+    assert open_fds() == before - 5  # every handle closed, even after the failure
     reopened = Recorder.reopen(tmp_path / "c")  # a torn row is cut; the campaign can resume
     assert reopened.points_written == 1
     reopened.close()

@@ -43,6 +43,7 @@ def test_interpolation_error_of_a_parabola():
     assert interpolation_error(x, 3 * x + 1) == pytest.approx(np.zeros(6))
 
 
+@pytest.mark.machine
 def test_follow_up_lowers_a_between_the_original_targets(tmp_path):
     (tmp_path / "wavy.toml").write_text(WAVY)
     mid = WAVY.replace("start = 0.0", "start = 25.0").replace("length = 300.0", "length = 250.0").replace(

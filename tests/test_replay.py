@@ -16,6 +16,7 @@ def recorded(tmp_path_factory):
     return base
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("method", ["dwell", "stable"])
 def test_recorded_settings_reproduce_the_point_table(cli, recorded, method):
     result = cli("replay", recorded / method, "--json")
@@ -25,6 +26,7 @@ def test_recorded_settings_reproduce_the_point_table(cli, recorded, method):
     assert data["summary_replayed"] == pytest.approx(data["summary_recorded"])
 
 
+@pytest.mark.machine
 def test_other_capture_settings_show_what_changes(cli, recorded):
     data = json.loads(cli("replay", recorded / "dwell", "--capture", "stable", "--json").out)
     assert not data["identical"] and data["capture"] == "stable"
@@ -36,6 +38,7 @@ def test_other_capture_settings_show_what_changes(cli, recorded):
     assert "change with dwell capture" in text and "recorded" in text
 
 
+@pytest.mark.machine
 def test_window_longer_than_the_recording_is_reported(cli, recorded):
     """A stable-trigger recording stops soon after arrival: a 3 s dwell average cannot be had."""
     data = json.loads(cli("replay", recorded / "stable", "--capture", "dwell", "--average-s", "3",
@@ -44,6 +47,7 @@ def test_window_longer_than_the_recording_is_reported(cli, recorded):
     assert all("holds only" in d["note"] for d in data["differences"])
 
 
+@pytest.mark.machine
 def test_replay_of_a_resumed_campaign(cli, tmp_path):
     """kill -9, resume, replay: the raw stream of both processes reproduces the point table."""
     import signal

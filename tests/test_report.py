@@ -53,6 +53,7 @@ def chromium(*args, tmp_path):
     return proc.stdout
 
 
+@pytest.mark.machine
 def test_the_report_renders_in_headless_chromium(demo_dir, tmp_path, cli):
     report = tmp_path / "report.html"
     result = cli("report", demo_dir, "-o", report)
@@ -73,6 +74,7 @@ def test_the_report_renders_in_headless_chromium(demo_dir, tmp_path, cli):
         assert text in dom, text
 
 
+@pytest.mark.machine
 def test_the_report_is_self_contained(demo_dir, tmp_path, cli):
     assert cli("report", demo_dir, "-o", tmp_path / "r.html").code == 0
     html = (tmp_path / "r.html").read_text()
@@ -84,6 +86,7 @@ def test_the_report_is_self_contained(demo_dir, tmp_path, cli):
         assert base64.b64decode(source.split(",", 1)[1], validate=True)[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+@pytest.mark.machine
 def test_before_and_after_side_by_side_from_meta_and_from_the_option(demo_dir, tmp_path, cli):
     before = scaled_copy(demo_dir, tmp_path / "before", 3.0)
     after = shutil.copytree(demo_dir, tmp_path / "after")
@@ -103,6 +106,7 @@ def test_before_and_after_side_by_side_from_meta_and_from_the_option(demo_dir, t
     assert "Before and after" not in (tmp_path / "alone.html").read_text()
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("tolerance, word", [("1.0", "FAIL"), ("0.0", "NO TOLERANCE"), ("10.0", "PASS")])
 def test_pass_or_fail_against_the_tolerance(demo_dir, tmp_path, cli, tolerance, word):
     campaign = shutil.copytree(demo_dir, tmp_path / "c")
@@ -114,6 +118,7 @@ def test_pass_or_fail_against_the_tolerance(demo_dir, tmp_path, cli, tolerance, 
     assert verdict == word
 
 
+@pytest.mark.machine
 def test_the_default_output_is_in_the_campaign_directory(demo_dir, tmp_path, cli):
     campaign = shutil.copytree(demo_dir, tmp_path / "c")
     result = cli("report", campaign)
@@ -121,6 +126,7 @@ def test_the_default_output_is_in_the_campaign_directory(demo_dir, tmp_path, cli
     assert str(campaign / "report.html") in result.out
 
 
+@pytest.mark.machine
 def test_environment_summary_uses_points_csv(demo_dir, tmp_path, cli):
     campaign = shutil.copytree(demo_dir, tmp_path / "c")
     table = read_points(campaign / "points.csv")
@@ -132,6 +138,7 @@ def test_environment_summary_uses_points_csv(demo_dir, tmp_path, cli):
                                                 f"{np.max(temps):.2f}"]
 
 
+@pytest.mark.machine
 def test_bad_directories_give_one_error_line(demo_dir, tmp_path, cli):
     assert_one_line_error(cli("report", tmp_path / "nowhere"), "not a campaign directory")
     (tmp_path / "empty").mkdir()

@@ -8,7 +8,7 @@ import signal
 
 import pytest
 
-from tests.conftest import assert_one_line_error
+from tests.conftest import assert_one_line_error, events, status
 from tests.test_crash_safety import start_slow_demo, wait_for_points
 from tests.test_demo_e2e import axiscal
 
@@ -25,6 +25,7 @@ def uninterrupted(tmp_path_factory):
     return point_keys(out / "points.csv")
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("how", ["kill -9", "ctrl-c"])
 def test_resume_gives_the_uninterrupted_point_table(tmp_path, uninterrupted, how):
     out = tmp_path / "r"
@@ -36,7 +37,7 @@ def test_resume_gives_the_uninterrupted_point_table(tmp_path, uninterrupted, how
     else:
         os.kill(proc.pid, signal.SIGINT)
         proc.communicate(timeout=30)
-        assert json.loads((out / "meta.json").read_text())["status"] == "interrupted"
+        assert status(out) == "interrupted"
     before = point_keys(out / "points.csv")
     assert 7 <= len(before) < 110
     result = axiscal("resume", out, "--json")
@@ -46,11 +47,11 @@ def test_resume_gives_the_uninterrupted_point_table(tmp_path, uninterrupted, how
     after = point_keys(out / "points.csv")
     assert after == uninterrupted  # no point lost, none duplicated, same order
     assert after[: len(before)] == before  # appended, not rewritten
-    events = (out / "events.log").read_text()
-    assert f"resumed at point {len(before)} of 110" in events
-    assert json.loads((out / "meta.json").read_text())["status"] == "completed"
+    assert events(out, "resume", first_point=len(before))
+    assert status(out) == "completed"
 
 
+@pytest.mark.machine
 def test_resume_reapproaches_from_the_overrun(tmp_path):
     out = tmp_path / "r"
     proc = start_slow_demo(out)
@@ -72,6 +73,7 @@ def test_resume_reapproaches_from_the_overrun(tmp_path):
     assert approach == sorted(approach) and approach[-1] == pytest.approx(target, abs=0.01)
 
 
+@pytest.mark.machine
 def test_resume_refuses_completed_and_non_campaign(cli, tmp_path):
     assert_one_line_error(cli("resume", tmp_path), "not a campaign directory")
     out = tmp_path / "done"
@@ -79,6 +81,7 @@ def test_resume_refuses_completed_and_non_campaign(cli, tmp_path):
     assert_one_line_error(cli("resume", out), "already completed")
 
 
+@pytest.mark.machine
 def test_demo_refuses_to_overwrite_a_campaign(tmp_path):
     out = tmp_path / "d"
     assert axiscal("demo", "--out", out).returncode == 0

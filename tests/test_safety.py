@@ -8,9 +8,10 @@ import pytest
 from campaign.config import parse_config
 from campaign.errors import SafetyError
 from campaign.measure.executor import Executor
-from campaign.measure.session import dry_run, open_hardware
-from campaign.plan import Move, build_plan
+from campaign.measure.session import dry_run
+from campaign.plan import Move, build_plan, plan_records
 from campaign.record.recorder import Recorder
+from drivers.factory import open_hardware
 from protocols import plc_contract
 from tests.conftest import ROOT
 from tests.test_crash_safety import start_slow_demo, wait_for_points
@@ -23,6 +24,7 @@ def control_values(plc):
     return {member: plc.value(symbol.name) for member, symbol in plc_contract.control_symbols(1).items()}
 
 
+@pytest.mark.machine
 def test_dry_run_commands_nothing():
     config = parse_config(DEMO, "demo.toml")
     hardware, sim = open_hardware(parse_config(DEMO.replace('type = "sim"\n', 'type = "sim"\nread_only = true\n', 1),
@@ -35,6 +37,7 @@ def test_dry_run_commands_nothing():
     assert sim.plc.setpoint_position(sim.clock.now()) == 0.0  # the axis never moved
 
 
+@pytest.mark.machine
 def test_dry_run_command(tmp_path):
     proc = axiscal("run", ROOT / "data/configs/vertical-sim.toml", "--dry-run", "--json")
     assert proc.returncode == 0, proc.stderr
@@ -42,12 +45,13 @@ def test_dry_run_command(tmp_path):
     assert data["read_only"] and data["plan_within_limits"] and data["axis_position"] == 0.0
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("position, velocity, why", [(700.0, 8.0, "soft limits"), (100.0, 80.0, "velocity")])
 def test_every_motion_is_checked_before_it_is_sent(tmp_path, position, velocity, why):
     config = parse_config(DEMO, "demo.toml")
     plan = build_plan(config)
     hardware, sim = open_hardware(config)
-    recorder = Recorder.create(tmp_path / "c", DEMO, {}, "linear")
+    recorder = Recorder.create(tmp_path / "c", DEMO, {}, plan_records(plan), {}, "linear")
     executor = Executor(plan, config, hardware, recorder)
     try:
         with pytest.raises(SafetyError, match=why):
@@ -60,6 +64,7 @@ def test_every_motion_is_checked_before_it_is_sent(tmp_path, position, velocity,
         recorder.close()
 
 
+@pytest.mark.machine
 def test_resume_checks_the_limits_before_moving(tmp_path, cli):
     out = tmp_path / "r"
     proc = start_slow_demo(out)

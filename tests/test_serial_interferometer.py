@@ -42,6 +42,7 @@ def rig():
         thing.close()
 
 
+@pytest.mark.machine
 def test_stream_readings_arrive_as_the_clock_advances(rig):
     clock, sim, driver = rig()
     assert driver.poll() == []
@@ -59,6 +60,7 @@ def test_stream_readings_arrive_as_the_clock_advances(rig):
     assert driver.skipped_lines == 0 and sim.dropped_lines == 0
 
 
+@pytest.mark.machine
 def test_partial_line_is_kept_until_the_rest_arrives(rig):
     clock, sim, driver = rig()
     sim.split_next_line()
@@ -69,6 +71,7 @@ def test_partial_line_is_kept_until_the_rest_arrives(rig):
     assert driver.skipped_lines == 0
 
 
+@pytest.mark.machine
 def test_garbage_is_skipped_counted_and_never_returned(rig):
     clock, sim, driver = rig()
     clock.sleep(0.1)
@@ -82,6 +85,7 @@ def test_garbage_is_skipped_counted_and_never_returned(rig):
     assert driver.skipped_lines == 3
 
 
+@pytest.mark.machine
 def test_endless_garbage_without_line_end_is_dropped(rig):
     clock, sim, driver = rig()
     sim.inject_garbage("x" * 3000)
@@ -92,6 +96,7 @@ def test_endless_garbage_without_line_end_is_dropped(rig):
     assert [r.time_s for r in driver.poll()] == pytest.approx([0.2])
 
 
+@pytest.mark.machine
 def test_beam_break_gives_readings_with_signal_not_ok(rig):
     clock, sim, driver = rig()
     sim.beam_break(0.25, 0.45)
@@ -101,6 +106,7 @@ def test_beam_break_gives_readings_with_signal_not_ok(rig):
     assert readings[2].signal_pct == 0.0
 
 
+@pytest.mark.machine
 def test_beam_break_with_a_flag_only_format(rig):
     fmt = LineFormat.from_dict({"fields": ["time_s", "position", "beam_ok"]}, "test")
     clock, sim, driver = rig(fmt=fmt)
@@ -111,6 +117,7 @@ def test_beam_break_with_a_flag_only_format(rig):
     assert all(r.signal_pct is None for r in readings)
 
 
+@pytest.mark.machine
 def test_drain_discards_pending_input(rig):
     clock, sim, driver = rig()
     sim.split_next_line()
@@ -123,6 +130,7 @@ def test_drain_discards_pending_input(rig):
     assert driver.skipped_lines == 0
 
 
+@pytest.mark.machine
 def test_overflowing_pty_drops_lines_but_the_stream_recovers(rig):
     clock, sim, driver = rig(rate_hz=1000.0)
     clock.sleep(100.0)  # 100 000 lines and nobody reading
@@ -133,6 +141,7 @@ def test_overflowing_pty_drops_lines_but_the_stream_recovers(rig):
     assert [r.time_s for r in driver.poll()] == pytest.approx([100.001 + 0.001 * k for k in range(10)])
 
 
+@pytest.mark.machine
 def test_query_mode_answers_with_the_reading_at_clock_now(rig):
     clock, _, driver = rig(mode="query")
     clock.sleep(2.5)
@@ -142,6 +151,7 @@ def test_query_mode_answers_with_the_reading_at_clock_now(rig):
     assert [r.time_s for r in driver.poll()] == [3.0]
 
 
+@pytest.mark.machine
 def test_query_mode_garbage_answer_gives_no_reading(rig):
     _, sim, driver = rig(mode="query")
     sim.inject_garbage("!!\n")
@@ -150,6 +160,7 @@ def test_query_mode_garbage_answer_gives_no_reading(rig):
     assert len(driver.poll()) == 1
 
 
+@pytest.mark.machine
 def test_query_without_answer_raises_instrument_error(rig):
     # the simulator streams (and its clock stands still), so nobody answers the request
     _, _, driver = rig(mode="stream", driver_mode="query", timeout_s=0.2)
@@ -157,6 +168,7 @@ def test_query_without_answer_raises_instrument_error(rig):
         driver.poll()
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("mode", ["stream", "query"])
 def test_vanished_port_raises_instrument_error(rig, mode):
     clock, sim, driver = rig(mode=mode)
@@ -173,6 +185,7 @@ def test_opening_a_missing_port_raises_instrument_error():
         SerialInterferometer("/dev/does-not-exist-axiscal", 115200)
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("mode", ["stream", "query"])
 def test_no_fds_or_threads_leak(mode):
     fds_before = len(os.listdir("/proc/self/fd"))

@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from campaign.errors import InputError
+from campaign.errors import BAD_INPUT
 from protocols.hardware import Reading
 from protocols.serial_line import LineError, LineFormat, checksum_hex, format_line, parse_line
 
@@ -199,7 +199,7 @@ def _parse_or_line_error(text: str, fmt: LineFormat) -> None:
     ],
 )
 def test_bad_config_raises_input_error_naming_the_key(table, key):
-    with pytest.raises(InputError) as caught:
+    with pytest.raises(BAD_INPUT) as caught:
         LineFormat.from_dict(table, "cfg.toml [instrument.line]")
     message = str(caught.value)
     assert message.startswith("cfg.toml [instrument.line]: ")

@@ -5,10 +5,12 @@ import os
 import threading
 
 import numpy as np
+import pytest
 
 from campaign.config import parse_config
 from campaign.measure.session import start_campaign
 from campaign.pointtable import read_points
+from drivers.factory import open_hardware
 
 SMALL = """
 [axis]
@@ -74,26 +76,28 @@ FAULTED = {  # fault paths must release everything too: the port vanishes, the P
 }
 
 
+@pytest.mark.machine
 def test_twenty_campaigns_leak_nothing(tmp_path):
     config = parse_config(SMALL, "small.toml")
-    start_campaign(config, tmp_path / "warm")  # first use loads libraries that keep their own handles
+    start_campaign(config, tmp_path / "warm", opener=open_hardware)  # first use loads libraries that keep their own handles
     before = resources()
     for i in range(20):
         if i in FAULTED:
             text = SMALL.replace("[axis]", "[axis_driver]\nreconnect_s = 2.0\n[axis]") + \
                 f"[sim.faults]\n{FAULTED[i]}\n"
-            outcome = start_campaign(parse_config(text, "faulted.toml"), tmp_path / f"c{i}")
+            outcome = start_campaign(parse_config(text, "faulted.toml"), tmp_path / f"c{i}", opener=open_hardware)
             assert outcome.status == "interrupted", outcome.message
         else:
-            outcome = start_campaign(config, tmp_path / f"c{i}")
+            outcome = start_campaign(config, tmp_path / f"c{i}", opener=open_hardware)
             assert outcome.status == "completed" and outcome.points == 6
     after = resources()
     assert after == before, f"threads, fds, sockets before {before}, after {after}"
 
 
+@pytest.mark.machine
 def test_24_hour_campaign_with_thermal_drift(tmp_path):
     config = parse_config(DAY, "day.toml")
-    outcome = start_campaign(config, tmp_path / "day")
+    outcome = start_campaign(config, tmp_path / "day", opener=open_hardware)
     assert outcome.status == "completed" and outcome.points == outcome.planned == 59 * 22
     assert outcome.duration_s > 24 * 3600
     table = read_points(tmp_path / "day" / "points.csv")

@@ -16,7 +16,7 @@ import pytest
 
 from campaign.compensation.corrections import corrections
 from campaign.compensation.grid import ControllerTable, resample
-from campaign.errors import InputError
+from campaign.errors import BAD_INPUT
 from campaign.pointtable import read_points
 from protocols.tables import FormatOptions, render
 from tests.conftest import DATA
@@ -40,7 +40,7 @@ def test_linuxcnc_type0_triplets():
 def test_linuxcnc_point_limit():
     n = 257
     big = ControllerTable("linear", 0.0, 1.0, np.zeros(n), np.zeros(n), np.zeros(n), "bi", None)
-    with pytest.raises(InputError, match="256"):
+    with pytest.raises(BAD_INPUT, match="256"):
         render("linuxcnc", big)
 
 
@@ -51,7 +51,7 @@ def test_pmac_hand_worked():
     out = render("pmac", UNI, FormatOptions(counts_per_unit=1000))
     assert out.text == "#1\nDEFINE COMP 3,30000\n32 16 -96\nI51=1\n"
     assert any("I186 = -32" in n for n in out.notes)
-    with pytest.raises(InputError, match="mode uni"):
+    with pytest.raises(BAD_INPUT, match="mode uni"):
         render("pmac", BI, FormatOptions(counts_per_unit=1000))
 
 
@@ -90,7 +90,7 @@ def test_siemens_hand_worked():
         "$AA_ENC_COMP_STEP[0,AX1]=10.000000", "$AA_ENC_COMP_MIN[0,AX1]=0.000000",
         "$AA_ENC_COMP_MAX[0,AX1]=20.000000", "$AA_ENC_COMP_IS_MODULO[0,AX1]=0", "M17"]
     assert "MD32450 BACKLASH = -0.002000 (lost motion = -B̄)" in out.notes
-    with pytest.raises(InputError):
+    with pytest.raises(BAD_INPUT):
         render("siemens", BI)
 
 

@@ -26,6 +26,7 @@ def vertical(tmp_path_factory):
     return base, json.loads(proc.stdout)
 
 
+@pytest.mark.machine
 def test_compensation_removes_the_systematic_error(vertical):
     _base, data = vertical
     before, after = data["before"], data
@@ -36,6 +37,7 @@ def test_compensation_removes_the_systematic_error(vertical):
     assert after["B"] < 2.0 and after["E"] < 3.0
 
 
+@pytest.mark.machine
 def test_verification_is_recorded_with_its_baseline(vertical):
     base, _ = vertical
     meta = json.loads((base / "after" / "meta.json").read_text())
@@ -49,6 +51,7 @@ def test_verification_is_recorded_with_its_baseline(vertical):
     assert (base / "after" / "verification.png").read_bytes()[:4] == b"\x89PNG"
 
 
+@pytest.mark.machine
 def test_report_shows_before_and_after(vertical, tmp_path):
     base, _ = vertical
     proc = axiscal("report", base / "after", "-o", tmp_path / "r.html")
@@ -57,6 +60,7 @@ def test_report_shows_before_and_after(vertical, tmp_path):
     assert "Before" in html and "After" in html
 
 
+@pytest.mark.machine
 def test_write_plc_round_trip(vertical, tmp_path):
     base, _ = vertical
     proc = axiscal("compensate", base / "before" / "points.csv", "--format", "json", "-o", tmp_path / "t.json",
@@ -77,13 +81,14 @@ def test_verify_bad_input(cli, tmp_path):
     assert_one_line_error(cli("verify", CONFIGS / "vertical-sim.toml", "--comp", rotary), "rotary")
 
 
+@pytest.mark.machine
 def test_simulated_plc_takes_a_rewritten_table(tmp_path):
     """Like FB_AxiscalCompensation, which reads stComp every cycle: a table written while another is
     active is applied, approached with the planner's bounded rate."""
     import numpy as np
 
     from campaign.config import parse_config
-    from campaign.measure.session import open_hardware
+    from drivers.factory import open_hardware
     from protocols.plc_contract import CompTable
 
     config = parse_config((ROOT / "campaign" / "demo.toml").read_text(), "demo.toml")

@@ -13,3 +13,11 @@ def positive_number(text: str) -> float:
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"must be a finite number > 0, found '{text}'")
     return value
+
+
+def hardware_opener():
+    """The drivers' hardware factory (campaign.measure.session.Opener), imported when a command
+    needs hardware: the commands are the one place where the domain meets the drivers."""
+    from drivers.factory import open_hardware
+
+    return open_hardware

@@ -91,15 +91,15 @@ def run(args) -> int:
 
 def write_plc(args, ctable, console) -> None:
     """TwinCAT (a): the tables into the PLC's compensation variables over ADS, read back, compared."""
+    from campaign.commands import hardware_opener
     from campaign.config import load_config
-    from campaign.measure.session import open_hardware
     from campaign.measure.verify import correction_limits
 
     config = load_config(args.write_plc)
     if ctable.kind != config["axis"]["kind"]:
         raise InputError(f"--write-plc: a {ctable.kind} table does not fit the {config['axis']['kind']} axis")
     rate, accel = correction_limits(config, args.max_rate, args.max_accel)
-    hardware, _ = open_hardware(config)
+    hardware, _ = hardware_opener()(config)
     try:
         hardware.axis.write_comp_table(ctable.to_plc(rate, accel, enabled=True))
         back = hardware.axis.read_comp_table()

@@ -9,11 +9,13 @@ from __future__ import annotations
 
 from importlib import resources
 
+from campaign.commands import hardware_opener
 from campaign.commands.run import add_run_options, finish, run_config
 from campaign.config import parse_config
 from campaign.faults import parse_inject
 from campaign.measure.progress import RichProgress
 from campaign.measure.session import resume_campaign, start_campaign
+from campaign.record.directory import read_events
 
 
 def demo_config_text() -> str:
@@ -57,16 +59,17 @@ def rehearse(config, faults: dict, args) -> int:
         return RichProgress(unit)
 
     with progress() as observer:
-        outcome = start_campaign(config, args.out, speed=args.speed, observer=observer, on_open=keep_log)
+        outcome = start_campaign(config, args.out, opener=hardware_opener(), speed=args.speed, observer=observer,
+                                 on_open=keep_log)
     resumes = 0
     while outcome.status != "completed" and resumes < MAX_RESUMES:
         resumes += 1
         fired_names = {name for log in fired for _, name, what in log if what == "injected"}
         remaining = {name: p for name, p in faults.items() if name not in fired_names}
         with progress() as observer:
-            outcome = resume_campaign(outcome.dir, faults=remaining, speed=args.speed, observer=observer,
-                                      on_open=keep_log)
-    events = [ln.split(" ", 2)[2] for ln in (outcome.dir / "events.log").read_text().splitlines()]
+            outcome = resume_campaign(outcome.dir, faults=remaining, opener=hardware_opener(), speed=args.speed,
+                                      observer=observer, on_open=keep_log)
+    events = read_events(outcome.dir)
     survived = outcome.status == "completed" and outcome.points == outcome.planned
     extra = {"faults": [{"name": name, "at_s": round(t, 3), "what": what} for log in fired for t, name, what in log],
              "resumes": resumes, "survived": survived, "events": events}

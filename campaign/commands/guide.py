@@ -9,14 +9,13 @@ ends with exit status 2 and one `error:` line. See docs/guide.md.
 
 from __future__ import annotations
 
-import json
 import sys
 from contextlib import ExitStack
 from pathlib import Path
 
 from rich.console import Console
 
-from campaign.commands import positive_number
+from campaign.commands import hardware_opener, positive_number
 from campaign.commands.demo import demo_config_text
 from campaign.config import load_config, parse_config
 from campaign.errors import BAD_INPUT, InputError
@@ -26,7 +25,6 @@ from campaign.guide.checklist import (
     checklist_table,
     failures,
     hardware_items,
-    plan_ends,
     plan_preview,
     record_item,
     soft_limit_item,
@@ -38,11 +36,11 @@ from campaign.measure.session import (
     Outcome,
     analyse_dir,
     default_out_dir,
-    open_hardware,
-    recorded_point_indices,
     start_campaign,
 )
+from campaign.model import sim_model
 from campaign.plan import build_plan
+from campaign.record.directory import open_campaign, recorded_point_indices
 from campaign.views import make_console, print_json, summary_table
 from protocols.hardware import AxisError, InstrumentError
 
@@ -82,8 +80,6 @@ def run(args, on_hardware=None) -> int:
         stop_on(failures(offline)[0])
     model = None
     if config["axis_driver"]["type"] == "sim":
-        from drivers.factory import sim_model
-
         model = sim_model(config)
     hw, sim = open_and_check(config, args, model, offline, console, interactive, on_hardware)
     try:
@@ -107,7 +103,7 @@ def open_and_check(config, args, model, offline, console, interactive, on_hardwa
         while True:
             if hw is None:
                 try:
-                    hw, sim = open_hardware(config, args.speed, model)
+                    hw, sim = hardware_opener()(config, speed=args.speed, model=model)
                 except (AxisError, InstrumentError, *BAD_INPUT, OSError) as exc:
                     items = [CheckItem("controller", False, f"cannot open the hardware: {exc}")]
                 else:
@@ -131,7 +127,7 @@ def open_and_check(config, args, model, offline, console, interactive, on_hardwa
 
 
 def confirm(args, console, interactive, plan, config) -> None:
-    lo, hi = plan_ends(plan)
+    lo, hi = plan.ends()
     unit = config["axis"]["unit"]
     console.print(f"[bold]The axis will move[/]: alignment check to {hi:g} {unit} and back to {lo:g} {unit}, "
                   f"then the campaign ({len(plan.points)} points). Keep clear of the machine.")
@@ -184,9 +180,9 @@ def check_alignment(hw, plan, config, control, console, keys: Keys | None) -> No
 
 def recorded_outcome(directory: Path, planned: int, reason: str | None) -> Outcome:
     """The outcome of a campaign that ended with an abort, from its directory."""
-    meta = json.loads((directory / "meta.json").read_text(encoding="utf-8"))
-    return Outcome(directory, meta.get("status", "interrupted"), len(recorded_point_indices(directory)),
-                   planned, float(meta.get("duration_s", 0.0)), reason or meta.get("message", "aborted"))
+    campaign = open_campaign(directory)
+    return Outcome(directory, campaign.status, len(recorded_point_indices(directory)), planned,
+                   campaign.duration_s, reason or campaign.message or "aborted")
 
 
 def judge(ev, outcome: Outcome, tolerance: float) -> tuple[str, str]:
@@ -225,7 +221,7 @@ def conclude(outcome: Outcome, config, args, console) -> int:
     colour = {"PASS": "bold green", "FAIL": "bold red"}.get(verdict, "bold yellow")
     console.print(f"[{colour}]{verdict}[/]: {reason}.")
     if outcome.status == "completed":
-        say(f"Record: {d} (points.csv, raw.csv, events.log, meta.json).")
+        say(f"Record: {d} (points.csv, raw.csv, events.jsonl, plan.jsonl, meta.json).")
         say(f"Report for quality:\n  axiscal report {d} -o {d}/report.html")
         say(f"Next step, compensation (FMT: {COMPENSATE_FORMATS}):\n"
             f"  axiscal compensate {d}/points.csv --format FMT -o FILE")

@@ -5,7 +5,7 @@ from __future__ import annotations
 from rich.table import Table
 
 from campaign.config import load_config
-from campaign.plan import Move, build_plan, check_plan, estimate_duration_s
+from campaign.plan import build_plan, check_plan, estimate_duration_s
 from campaign.views import make_console, print_json
 
 
@@ -23,7 +23,7 @@ def summary(config, plan) -> dict:
     return {"points": len(plan.points), "runs": config["plan"]["cycles"], "targets": list(plan.targets),
             "offsets": list(plan.offsets), "seed": plan.seed, "unit": a["unit"],
             "travel": round(plan.travel(), 6), "estimated_duration_s": round(estimate_duration_s(plan, config), 1),
-            "moves": sum(isinstance(s, Move) for s in plan.steps), "cycle": config["plan"]["cycle"],
+            "moves": len(plan.stops()), "cycle": config["plan"]["cycle"],
             "soft_limits": [a["soft_limit_min"], a["soft_limit_max"]], "max_velocity": a["max_velocity"]}
 
 

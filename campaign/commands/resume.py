@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from campaign.commands import positive_number
+from campaign.commands import hardware_opener, positive_number
 from campaign.commands.run import finish
 from campaign.measure.progress import RichProgress
 from campaign.measure.session import resume_campaign
@@ -39,5 +39,5 @@ def run(args) -> int:
     unit = read_meta_unit(args.dir)
     observer = RichProgress(unit)
     with observer:
-        outcome = resume_campaign(args.dir, speed=args.speed, observer=observer)
+        outcome = resume_campaign(args.dir, opener=hardware_opener(), speed=args.speed, observer=observer)
     return finish(outcome, args)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from campaign.commands import positive_number
+from campaign.commands import hardware_opener, positive_number
 from campaign.config import load_config
 from campaign.errors import InputError
 from campaign.measure.progress import RichProgress
@@ -68,14 +68,14 @@ def run_config(config, args, extra=None) -> int:
     unit = config["axis"]["unit"]
     observer = RichProgress(unit)
     with observer:
-        outcome = start_campaign(config, args.out, speed=args.speed, observer=observer)
+        outcome = start_campaign(config, args.out, opener=hardware_opener(), speed=args.speed, observer=observer)
     return finish(outcome, args, extra)
 
 
 def run(args) -> int:
     config = load_config(args.config)
     if args.dry_run or config["axis_driver"]["read_only"]:
-        report = dry_run(config)
+        report = dry_run(config, hardware_opener())
         if args.json:
             print_json(report)
         else:

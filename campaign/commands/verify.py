@@ -7,7 +7,7 @@ from pathlib import Path
 
 from rich.table import Table
 
-from campaign.commands import positive_number
+from campaign.commands import hardware_opener, positive_number
 from campaign.commands.run import add_run_options, finish
 from campaign.compensation.table_file import read_comp_json
 from campaign.config import load_config
@@ -46,7 +46,7 @@ def run(args) -> int:
     out = Path(args.out) if args.out else default_out_dir(config)
     unit = config["axis"]["unit"]
     with RichProgress(unit) as observer:
-        outcome = run_verification(config, table, out, baseline=baseline if baseline and baseline.is_dir() else None,
+        outcome = run_verification(config, table, out, opener=hardware_opener(), baseline=baseline if baseline and baseline.is_dir() else None,
                                    max_rate=args.max_rate, max_accel=args.max_accel, speed=args.speed,
                                    observer=observer)
     summaries = {}

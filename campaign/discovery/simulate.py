@@ -31,7 +31,7 @@ import numpy as np
 from campaign.config import Config
 from campaign.edlen import REFERENCE_TEMPERATURE_C, refractive_index
 from campaign.model import ErrorModel
-from campaign.plan import Capture, Move, build_plan, move_time_s
+from campaign.plan import build_plan, move_time_s
 from campaign.pointtable import PointTable
 
 SAMPLE_PERIOD_META = "sample_period_s"
@@ -143,14 +143,12 @@ def simulate_campaign(config: Config, model: ErrorModel, seed: int = 1, dwell_ji
 
     rows: list[tuple] = []
     t, here = 0.0, None
-    for step in plan.steps:
-        if isinstance(step, Move):
-            if here is not None:
-                t += move_time_s(step.position - here, step.velocity, accel)
-            here = step.position
-        elif isinstance(step, Capture):  # the plan's Settle is the dwell minus the window
-            point = step.point
-            window = step.window_s
+    for stop in plan.stops():
+        if here is not None:
+            t += move_time_s(stop.position - here, stop.move.velocity, accel)
+        here = stop.position
+        if stop.point is not None:  # the plan's Settle is the dwell minus the window
+            point, window = stop.point, stop.capture.window_s
             settle = max(dwells_s[point.index], window) - window
             count = max(round(window / period), 1)
             t += settle + window

@@ -18,7 +18,7 @@ from rich.table import Table
 from campaign.config import Config
 from campaign.errors import SafetyError
 from campaign.measure.executor import Control, move_and_wait
-from campaign.plan import Move, Plan, check_plan, estimate_duration_s
+from campaign.plan import Plan, check_plan, estimate_duration_s
 from protocols.hardware import AxisError, Hardware, InstrumentError, Reading
 
 SAMPLE_S = 1.0
@@ -51,15 +51,9 @@ def failures(items: list[CheckItem]) -> list[CheckItem]:
     return [item for item in items if item.ok is False]
 
 
-def plan_ends(plan: Plan) -> tuple[float, float]:
-    """The lowest and highest position the plan moves to (overruns included), axis unit."""
-    moves = [s.position for s in plan.steps if isinstance(s, Move)]
-    return min(moves), max(moves)
-
-
 def soft_limit_item(plan: Plan, config: Config) -> CheckItem:
     axis = config["axis"]
-    unit, (lo, hi) = axis["unit"], plan_ends(plan)
+    unit, (lo, hi) = axis["unit"], plan.ends()
     limits = f"[{axis['soft_limit_min']:g}, {axis['soft_limit_max']:g}] {unit}"
     try:
         check_plan(plan, config)
@@ -187,7 +181,7 @@ def alignment_item(hw: Hardware, plan: Plan, config: Config, control: Control) -
     """Move to the high end of the plan, then to the low end (where the campaign starts), and
     compare the signal and the reading with the axis position at both ends."""
     unit, limit = config["axis"]["unit"], ALIGNMENT_MISMATCH[config["axis"]["unit"]]
-    lo, hi = plan_ends(plan)
+    lo, hi = plan.ends()
     ok, parts, travel = True, [], []
     try:
         for end in (hi, lo):

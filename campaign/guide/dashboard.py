@@ -22,12 +22,16 @@ from campaign.guide.keys import Keys
 from campaign.measure.capture import BeamLost, NotStable
 from campaign.measure.executor import Control, Observer
 from campaign.plan import Plan
+from campaign.record.events import Event
 from protocols.hardware import AxisError, InstrumentError
 from protocols.units import DEVIATION_SCALE
 
 BLOCKS = "▁▂▃▄▅▆▇█"
 LIVE_DEVIATION_BAND = 100.0
 """The live deviation is shown within this distance of the target, µm (arcsec); else the distance."""
+QUIET_KINDS = ("start", "point", "interrupt", "fault", "halt", "stop", "skip", "retry")
+"""Events the dashboard shows its own way (progress, the fault prompt, abort()) or not at all."""
+
 KEY_HELP = "keys: p pause after this point · r resume · a abort · Ctrl-C abort (twice: halt at once)"
 
 
@@ -164,7 +168,7 @@ class Dashboard(Observer):
         self.state = "ABORTING"
         self.say(f"{why}: aborting, the axis halts and the recording is flushed")
 
-    # -- Observer -------------------------------------------------------------------------------
+    # -- Observer (a display sink of the event stream) -------------------------------------------------------------------------------
 
     def started(self, plan: Plan, first_point: int) -> None:
         self.state = "RUNNING" if not self.control.abort_requested() else self.state
@@ -180,7 +184,7 @@ class Dashboard(Observer):
             text += f", signal {reading.signal_pct:.0f} %"
         self.live_text = text + ("" if reading.signal_ok else " [bold red]BEAM LOST[/]")
 
-    def point_done(self, point, deviation, t_s) -> None:
+    def point_done(self, point, deviation) -> None:
         self.deviations[point.direction][point.target_index].append(deviation)
         self.measured += 1
         self.next_point = point.index + 1
@@ -195,15 +199,18 @@ class Dashboard(Observer):
             self.console.print(f"run {point.run} of {self.runs} done at {self.t_s:.1f} s of campaign time "
                                f"({self.measured} points measured)")
 
-    def event(self, kind, message) -> None:
-        if kind == "pause":
+    def emit(self, event: Event) -> None:
+        kind = event.kind
+        if kind == "point":
+            self.point_done(self.plan.points[event.point], event.data["deviation"])
+        elif kind == "pause":
             self.state = "PAUSED"
             self.say("PAUSED: press r to resume, a to abort", warning=False)
-        elif kind == "resume":
+        elif kind == "unpause":
             self.state = "RUNNING"
             self.say("resumed", warning=False)
-        elif kind not in ("interrupted", "fault"):  # those two are shown by abort() and fault()
-            self.say(f"{kind}: {message}")
+        elif kind not in QUIET_KINDS or (kind == "halt" and not event.data.get("ok")):
+            self.say(f"{kind}: {event.message}")
 
     def fault(self, exc: Exception, point: int) -> str | None:
         text = f"point {point}: {describe_fault(exc)}. The axis is halted."

@@ -16,9 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from statistics import fmean
 
-from protocols.hardware import Reading
-
-ENV_FIELDS = ("air_temp_c", "air_pressure_hpa", "humidity_pct", "material_temp_c")
+from protocols.hardware import ENV_FIELDS, Reading
 
 
 class BeamLost(Exception):

@@ -21,8 +21,10 @@ class EnvironmentGuard:
         self.changed_at: dict[str, float] = {}
         self.reported_stuck: set[str] = set()
 
-    def check(self, env: dict[str, float | None], t_s: float) -> tuple[dict[str, float | None], list[str]]:
-        """(the environment to record, messages for the event log)."""
+    def check(self, env: dict[str, float | None], t_s: float,
+              ) -> tuple[dict[str, float | None], list[tuple[str, str, str]]]:
+        """(the environment to record, (field, problem, message) for each event to log; problem
+        is out_of_range or stuck)."""
         clean, messages = dict(env), []
         for name, value in env.items():
             if value is None or name not in PLAUSIBLE:
@@ -31,13 +33,13 @@ class EnvironmentGuard:
             if not low <= value <= high:
                 clean[name] = self.last_good.get(name)
                 used = "last plausible value used" if clean[name] is not None else "no value recorded"
-                messages.append(f"{name} = {value:g} is outside [{low:g}, {high:g}]: {used}")
+                messages.append((name, "out_of_range", f"{name} = {value:g} is outside [{low:g}, {high:g}]: {used}"))
                 continue
             if self.last_good.get(name) != value:
                 self.changed_at[name] = t_s
                 self.reported_stuck.discard(name)
             elif t_s - self.changed_at.get(name, t_s) >= self.stuck_after_s and name not in self.reported_stuck:
                 self.reported_stuck.add(name)
-                messages.append(f"{name} has not changed for {t_s - self.changed_at[name]:.0f} s: sensor stuck?")
+                messages.append((name, "stuck", f"{name} has not changed for {t_s - self.changed_at[name]:.0f} s: sensor stuck?"))
             self.last_good[name] = value
         return clean, messages

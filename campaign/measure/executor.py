@@ -3,8 +3,12 @@
 It runs a tick loop at the instrument's sample period: every tick it lets time pass, takes the
 readings that arrived, records them in the raw stream, and (while moving) polls the axis. Every
 motion is checked against the soft limits and the velocity limit before it is sent. On any fault
-or Ctrl-C the axis is halted, the event is logged and the recording is flushed; the campaign is
-marked interrupted and can be resumed from the first missing point.
+or Ctrl-C the axis is halted and the recording is flushed; the campaign can be resumed from the
+first missing point.
+
+Each fact (a fault, a halt, a recorded point, a beam change, ...) is emitted once as an Event to
+the sinks: the recorder first (events.jsonl; a disk error there stops the campaign), then the
+display sinks (Observers), whose failures never stop it.
 """
 
 from __future__ import annotations
@@ -12,42 +16,14 @@ from __future__ import annotations
 from dataclasses import replace
 
 from campaign.config import Config
-from campaign.edlen import air_correction_factor, air_correction_um, thermal_normalisation_um
 from campaign.measure.capture import BeamLost, Captured, NotStable, capture_dwell, capture_stable
+from campaign.measure.deviation import point_deviation
 from campaign.measure.env_guard import EnvironmentGuard
-from campaign.plan import Capture, Checkpoint, Move, Plan, Point, Settle, Step, check_motion
+from campaign.plan import Capture, Checkpoint, Move, Plan, Settle, Step, check_motion
+from campaign.record.events import Event
 from campaign.record.recorder import Recorder, RecordingError
 from protocols.hardware import Axis, AxisError, AxisStatus, Clock, Hardware, InstrumentError, Reading
 from protocols.units import DEVIATION_SCALE
-
-
-def corrections_um(config: Config, position: float, env: dict) -> tuple[float, float]:
-    """(air correction, material normalisation to 20 °C) in µm for a reading at `position` (mm),
-    from the environment `env` (instrument values first, the config's fixed values otherwise)."""
-    envc = config["environment"]
-    air = material = 0.0
-    if envc["air_correction"] == "edlen":
-        t, p, h = (env.get(k) if env.get(k) is not None else envc[k]
-                   for k in ("air_temp_c", "air_pressure_hpa", "humidity_pct"))
-        if None in (t, p, h):
-            raise InstrumentError("air correction needs air temperature, pressure and humidity")
-        factor = air_correction_factor(t, p * 100.0, h, 1.0, envc["wavelength_nm"], envc["co2_ppm"])
-        air = air_correction_um(position, factor)
-    if envc["normalise_to_20c"]:
-        if env.get("material_temp_c") is None:
-            raise InstrumentError("normalisation to 20 °C needs the material temperature")
-        material = thermal_normalisation_um(position, env["material_temp_c"], envc["expansion_ppm_per_k"])
-    return air, material
-
-
-def point_deviation(config: Config, target: float, got: Captured) -> tuple[float, float, float]:
-    """(deviation in µm or arcsec, air correction µm, material correction µm) of a capture.
-    The corrections apply to linear lengths only; a rotary axis gets none."""
-    if config["axis"]["unit"] == "deg":
-        return (got.position - target) * DEVIATION_SCALE["deg"], 0.0, 0.0
-    air, material = corrections_um(config, got.position, got.env)
-    corrected = got.position + (air + material) / 1000.0
-    return (corrected - target) * DEVIATION_SCALE["mm"], air, material
 
 
 def move_and_wait(axis: Axis, clock: Clock, tick, position: float, velocity: float, config: Config,
@@ -82,13 +58,14 @@ FAULTS = (AxisError, InstrumentError, BeamLost, NotStable)
 
 
 class Observer:
-    """Receives progress from the executor. The default does nothing and aborts on a fault; the
-    CLI shows rich bars, the guided session asks the operator."""
+    """A display sink: sees every event, the plan at the start and the live readings, and may
+    answer faults. The default does nothing and leaves faults to the config's policy; the CLI
+    shows rich bars, the guided session a dashboard that asks the operator. An exception from an
+    observer never stops the campaign (it is logged once as a `display` event)."""
 
     def started(self, plan: Plan, first_point: int) -> None: ...
     def reading(self, t_s: float, reading: Reading, target: float | None) -> None: ...
-    def point_done(self, point: Point, deviation: float, t_s: float) -> None: ...
-    def event(self, kind: str, message: str) -> None: ...
+    def emit(self, event: Event) -> None: ...
 
     def fault(self, exc: Exception, point: int) -> str | None:
         """A fault at point `point` (the axis is already halted): "retry", "skip" or "abort"; None
@@ -138,20 +115,20 @@ def resume_steps(plan: Plan, first_point: int, overrun: float) -> list[tuple[int
     steps = list(enumerate(plan.steps))
     if first_point == 0:
         return steps
-    capture_at = next(i for i, s in steps if isinstance(s, Capture) and s.point.index == first_point)
-    move_at = max(i for i, s in steps[:capture_at] if isinstance(s, Move))
-    point = plan.steps[capture_at].point
-    approach = Move(point.target - point.direction * overrun, plan.steps[move_at].velocity, overrun=True)
-    return [(move_at, approach)] + steps[move_at:]
+    visit = plan.visits()[first_point]
+    point = visit.point
+    approach = Move(point.target - point.direction * overrun, visit.move.velocity, overrun=True)
+    return [(visit.step, approach)] + steps[visit.step:]
 
 
 class Executor:
     """Runs one plan. Positions in axis unit, deviations in µm (linear) or arcsec (rotary)."""
 
     def __init__(self, plan: Plan, config: Config, hardware: Hardware, recorder: Recorder,
-                 observer: Observer | None = None, t0: float | None = None, control: Control | None = None):
+                 observers: list[Observer] | tuple[Observer, ...] = (), t0: float | None = None,
+                 control: Control | None = None):
         self.plan, self.config, self.hw, self.rec = plan, config, hardware, recorder
-        self.obs = observer or Observer()
+        self.observers = list(observers)
         self.control = control or Control()
         self.next_point = 0
         self.retries: dict[int, int] = {}
@@ -169,23 +146,51 @@ class Executor:
         self.readings: list[Reading] = []
         self.captured: Captured | None = None
         self.halted = False
+        self._display_failed = False
 
     def now(self) -> float:
         """Seconds since campaign start."""
         return self.hw.clock.now() - self.t0
 
+    def emit(self, kind: str, message: str, point: int | None = None, **data) -> None:
+        """Emit one fact: recorded first (RecordingError propagates), then shown."""
+        event = Event(self.now(), kind, message, point, data)
+        self.rec.emit(event)
+        self._show(lambda obs: obs.emit(event))
+
+    def _show(self, call) -> None:
+        """Call every observer; a failing display is recorded once and otherwise ignored."""
+        for obs in self.observers:
+            try:
+                call(obs)
+            except Exception as exc:  # noqa: BLE001 - a display must never stop a campaign
+                if not self._display_failed:
+                    self._display_failed = True
+                    try:
+                        self.rec.emit(Event(self.now(), "display", f"a display failed: {type(exc).__name__}: "
+                                                                   f"{exc}", None, {"error": type(exc).__name__}))
+                    except RecordingError:
+                        pass
+
     def run(self, first_point: int = 0) -> None:
-        """Run from point `first_point` to the end. On a fault the observer decides: retry the
+        """Run from point `first_point` to the end. On a fault the observers decide: retry the
         point, skip it, or abort (CampaignStopped, after halting). Ctrl-C or an abort request
         halts, flushes and re-raises KeyboardInterrupt."""
-        self.obs.started(self.plan, first_point)
+        self._show(lambda obs: obs.started(self.plan, first_point))
+        self.emit("start", f"measuring from point {first_point + 1} of {len(self.plan.points)}", first_point,
+                  first_point=first_point, planned=len(self.plan.points))
         point: int | None = first_point
         try:
             while point is not None:
                 point = self._run_from(point)
         except KeyboardInterrupt:
-            self._halt("interrupted", f"{self.control.abort_reason or 'Ctrl-C'}: recording flushed")
+            by = self.control.abort_reason or "Ctrl-C"
+            self._emit_safely("interrupt", f"interrupted ({by}); recording flushed", self.next_point, by=by)
+            self._halt("interrupted")
             raise
+        except RecordingError as exc:  # an event between steps (retry, skip, pause) could not be written
+            self._halt("recording failed")
+            raise CampaignStopped(f"recording failed: {exc}") from exc
 
     def _run_from(self, first_point: int) -> int | None:
         """Run the steps from `first_point`; returns the point to restart from after a fault
@@ -197,18 +202,22 @@ class Executor:
             try:
                 self._do(step)
             except RecordingError as exc:
-                self._halt("fault", f"point {self.next_point}: recording failed: {exc}")
+                self._emit_safely("fault", f"point {self.next_point + 1}: recording failed: {exc}", self.next_point,
+                                  error="RecordingError", error_id=0)
+                self._halt("recording failed")
                 raise CampaignStopped(f"recording failed: {exc}") from exc
             except FAULTS as exc:
-                self._halt("fault", f"point {self.next_point}: {type(exc).__name__}: {exc}")
+                self._emit_safely("fault", f"point {self.next_point + 1}: {type(exc).__name__}: {exc}",
+                                  self.next_point, error=type(exc).__name__, error_id=getattr(exc, "error_id", 0))
+                self._halt("fault")
                 decision = self._decide(exc, total)
                 if decision == "abort":
                     raise CampaignStopped(str(exc)) from exc
                 self._recover(exc)
                 if decision == "skip":
-                    self.rec.event(self.now(), "skip", f"point {self.next_point} skipped by the operator")
+                    self.emit("skip", f"point {self.next_point + 1} skipped by the operator", self.next_point)
                     return self.next_point + 1 if self.next_point + 1 < total else None
-                self.rec.event(self.now(), "retry", f"point {self.next_point} retried")
+                self.emit("retry", f"point {self.next_point + 1} measured again", self.next_point)
                 return self.next_point
             if isinstance(step, Checkpoint):
                 self.next_point = step.point.index + 1
@@ -221,9 +230,10 @@ class Executor:
         vanished instrument port cannot be retried in this process (resume later)."""
         if self.next_point >= total:
             return "abort"
-        decision = self.obs.fault(exc, self.next_point)
-        if decision is not None:
-            return decision
+        for obs in self.observers:
+            decision = obs.fault(exc, self.next_point)
+            if decision is not None:
+                return decision
         c = self.config["campaign"]
         used = self.retries.get(self.next_point, 0)
         if c["on_fault"] == "abort" or isinstance(exc, InstrumentError) or used >= c["fault_retries"]:
@@ -258,39 +268,39 @@ class Executor:
                 self.hw.axis.status()
             except AxisError:
                 if self.now() >= end:
-                    text = f"the PLC connection did not come back within {limit_s:g} s"
-                    self.rec.event(self.now(), "fault", text)
-                    raise CampaignStopped(text) from None
+                    raise CampaignStopped(f"the PLC connection did not come back within {limit_s:g} s") from None
                 self._wait(1.0)
                 continue
-            self.rec.event(self.now(), "reconnect", "PLC connection back")
-            self.obs.event("reconnect", "PLC connection back")
+            self.emit("reconnect", "PLC connection back")
             return
 
     def _maybe_pause(self) -> None:
         """Between points: hold while the control asks for a pause; abort when it asks to."""
         if self.control.pause_requested() and not self.control.abort_requested():
-            self.rec.event(self.now(), "pause", f"paused after point {self.next_point - 1}")
-            self.obs.event("pause", "paused: press r to resume, a to abort")
+            self.emit("pause", f"paused after point {self.next_point}: press r to resume, a to abort",
+                      self.next_point - 1)
             while self.control.pause_requested() and not self.control.abort_requested():
                 self.control.wait(0.05)
-            self.rec.event(self.now(), "resume", "resumed by the operator")
-            self.obs.event("resume", "resumed")
+            self.emit("unpause", "resumed by the operator")
         if self.control.abort_requested():
             raise KeyboardInterrupt
 
-    def _halt(self, kind: str, message: str) -> None:
+    def _emit_safely(self, kind: str, message: str, point: int | None = None, **data) -> None:
+        """Emit while stopping: a disk error must not keep the axis from being halted (the event
+        is still shown, marked as not recorded)."""
+        try:
+            self.emit(kind, message, point, **data)
+        except RecordingError as exc:
+            event = Event(self.now(), kind, f"{message} (not recorded: {exc})", point, data)
+            self._show(lambda obs: obs.emit(event))
+
+    def _halt(self, why: str) -> None:
         try:
             self.hw.axis.halt()
             self.halted = True
-            message += "; axis halted"
+            self._emit_safely("halt", f"axis halted ({why})", self.next_point, ok=True, why=why)
         except AxisError as exc:
-            message += f"; halt failed: {exc}"
-        try:
-            self.rec.event(self.now(), kind, message)
-        except RecordingError as exc:  # the halt matters more than its log line
-            message += f" (not logged: {exc})"
-        self.obs.event(kind, message)
+            self._emit_safely("halt", f"halt failed ({why}): {exc}", self.next_point, ok=False, why=why)
 
     def _do(self, step: Step) -> None:
         if isinstance(step, Move):
@@ -311,12 +321,12 @@ class Executor:
         for reading in self.hw.interferometer.poll():
             self.rec.sample(t, self.step_index, self.point_index, self.axis_position, reading)
             self.readings.append(reading)
-            self.obs.reading(t, reading, self.target)
+            self._show(lambda obs, r=reading: obs.reading(t, r, self.target))
             if reading.signal_ok != self.beam_ok:
                 self.beam_ok = reading.signal_ok
-                text = "beam back" if reading.signal_ok else f"beam lost (signal {reading.signal_pct} %)"
-                self.rec.event(t, "beam", text)
-                self.obs.event("beam", text)
+                signal = "" if reading.signal_pct is None else f" (signal {reading.signal_pct:g} %)"
+                self.emit("beam", ("beam back" if reading.signal_ok else "beam lost") + signal, self.point_index,
+                          ok=reading.signal_ok, signal_pct=reading.signal_pct)
 
     def _wait(self, seconds: float) -> None:
         end = self.now() + seconds - 1e-9
@@ -344,8 +354,7 @@ class Executor:
             except BeamLost as exc:
                 if attempt == capture["retries"]:
                     raise
-                self.rec.event(self.now(), "beam", f"point {step.point.index}: {exc}; capture retried")
-                self.obs.event("beam", f"beam lost at point {step.point.index}; retrying")
+                self.emit("capture_retry", f"point {step.point.index + 1}: {exc}; capture retried", step.point.index)
                 self._wait_for_beam(capture["stable_timeout_s"])
 
     def _wait_for_beam(self, timeout_s: float) -> None:
@@ -376,18 +385,23 @@ class Executor:
         point, t = step.point, self.now()
         env, messages = self.env_guard.check(self.captured.env, t)
         got = replace(self.captured, env=env)
-        for message in messages:
-            self.rec.event(t, "environment", f"point {point.index}: {message}")
-            self.obs.event("environment", message)
+        for field, problem, message in messages:
+            self.emit("environment", f"point {point.index + 1}: {message}", point.index, field=field,
+                      problem=problem)
         skipped = self.hw.interferometer.skipped_lines
         if skipped > self.skipped_seen:
-            text = f"{skipped - self.skipped_seen} garbage or partial serial line(s) skipped, not recorded"
-            self.rec.event(t, "serial", text)
-            self.obs.event("serial", text)
+            lines = skipped - self.skipped_seen
+            self.emit("serial", f"{lines} garbage or partial serial line(s) skipped, not recorded", point.index,
+                      lines=lines)
             self.skipped_seen = skipped
         deviation, air, material = point_deviation(self.config, point.target, got)
         self.rec.point(point.run, point.direction, point.target, deviation, t, got.env,
                        {"point": point.index, "reading": got.position, "air_correction_um": air,
                         "material_correction_um": material, "capture_wait_s": got.wait_s,
                         "samples": got.samples})
-        self.obs.point_done(point, deviation, t)
+        sign = "+" if point.direction > 0 else "-"
+        pos_unit = self.config["axis"]["unit"]
+        dev_unit = "µm" if pos_unit == "mm" else "arcsec"
+        self.emit("point", f"point {point.index + 1}: run {point.run} {sign}, target {point.target:g} {pos_unit}: "
+                           f"deviation {deviation:+.4f} {dev_unit}", point.index,
+                  run=point.run, direction=point.direction, target=point.target, deviation=round(deviation, 4))

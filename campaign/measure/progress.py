@@ -7,6 +7,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from campaign.measure.executor import Observer
 from campaign.plan import Plan
+from campaign.record.events import Event
 from protocols.units import DEVIATION_SCALE
 
 
@@ -56,10 +57,11 @@ class RichProgress(Observer):
         self.progress.update(self.overall, live=f"t={t_s:7.1f} s")
         self.progress.update(self.run_task, live=text)
 
-    def point_done(self, point, deviation, t_s) -> None:
-        self.progress.advance(self.overall)
-        done = point.index + 1 - (point.run - 1) * self.per_run
-        self.progress.update(self.run_task, description=f"run {point.run}/{self.runs}", completed=done)
-
-    def event(self, kind, message) -> None:
-        self.console.print(f"[yellow]{kind}:[/] {message}")
+    def emit(self, event: Event) -> None:
+        if event.kind == "point":
+            run = event.data["run"]
+            self.progress.advance(self.overall)
+            done = event.point + 1 - (run - 1) * self.per_run
+            self.progress.update(self.run_task, description=f"run {run}/{self.runs}", completed=done)
+        elif event.kind not in ("start", "stop"):
+            self.console.print(f"[yellow]{event.kind}:[/] {event.message}")

@@ -2,7 +2,7 @@
 
 Every raw sample carries the plan step and the point it belongs to, so the samples of each point's
 approach, settle and capture are known. Replay feeds them, tick by tick, through the same capture
-code (campaign.measure.capture) and the same corrections (campaign.measure.executor.point_deviation) as the live
+code (campaign.measure.capture) and the same corrections (campaign.measure.deviation.point_deviation) as the live
 campaign. With the recorded capture settings it reproduces the recorded point table; with other
 settings it shows what would change. Times in s, positions in axis unit, deviations in µm
 (arcsec for a rotary axis).
@@ -17,11 +17,11 @@ from pathlib import Path
 import pandas as pd
 
 from campaign.config import Config, load_config
-from campaign.errors import InputError
 from campaign.measure.capture import BeamLost, Captured, capture_dwell, capture_stable
+from campaign.measure.deviation import point_deviation
 from campaign.measure.env_guard import EnvironmentGuard
-from campaign.measure.executor import point_deviation
-from campaign.plan import Capture, Move, Plan, Settle, build_plan
+from campaign.plan import Plan
+from campaign.record.directory import load_raw, open_campaign
 from protocols.hardware import Reading
 from protocols.units import DEVIATION_SCALE
 
@@ -44,17 +44,6 @@ class ReplayedPoint:
     reason: str = ""
 
 
-def load_raw(directory: Path) -> pd.DataFrame:
-    path = directory / "raw.csv"
-    if not path.is_file():
-        raise InputError(f"{directory}: not a campaign directory (no raw.csv)")
-    try:
-        raw = pd.read_csv(path, dtype={"step": "Int64", "point": "Int64"})
-    except (ValueError, pd.errors.ParserError) as exc:
-        raise InputError(f"{path}: cannot read the raw stream ({exc})") from None
-    return raw
-
-
 def _readings(rows: pd.DataFrame) -> list[Reading]:
     def value(v):
         return None if pd.isna(v) else float(v)
@@ -62,20 +51,6 @@ def _readings(rows: pd.DataFrame) -> list[Reading]:
     return [Reading(r.instrument_time_s, r.reading, bool(r.signal_ok), value(r.signal_pct), value(r.air_temp_c),
                     value(r.air_pressure_hpa), value(r.humidity_pct), value(r.material_temp_c))
             for r in rows.itertuples(index=False)]
-
-
-def _point_steps(plan: Plan) -> dict[int, tuple[int, int, float]]:
-    """Point index -> (index of its approach Move step, index of its Capture step, its dwell in s:
-    settle + capture window, as recorded)."""
-    out, last_move, settle = {}, 0, 0.0
-    for i, step in enumerate(plan.steps):
-        if isinstance(step, Move):
-            last_move, settle = i, 0.0
-        elif isinstance(step, Settle):
-            settle = step.seconds
-        elif isinstance(step, Capture):
-            out[step.point.index] = (last_move, i, settle + step.window_s)
-    return out
 
 
 def _capture(config: Config, rows: pd.DataFrame, capture_step: int, arrival: float, dwell_s: float) -> Captured:
@@ -108,20 +83,18 @@ def replay(directory: str | Path, capture_overrides: dict | None = None, speed: 
     """Replay `directory` with its recorded config, the [capture] keys in `capture_overrides`
     replaced. `speed`: pace the timeline at N times real time (None: as fast as possible)."""
     path = Path(directory)
-    if not (path / "config.toml").is_file():
-        raise InputError(f"{path}: not a campaign directory (no config.toml)")
+    campaign = open_campaign(path)
     config = load_config(path / "config.toml")
-    plan = build_plan(config)  # the recorded plan: its step indices are those in raw.csv
+    plan = campaign.plan_for(config)  # its step indices are those in raw.csv
     recorded_dwell = config["capture"]["method"] == "dwell"  # else the steps do not hold the dwell
     config.sections["capture"] = {**config["capture"], **(capture_overrides or {})}
     raw = load_raw(path)
-    steps = _point_steps(plan)
     guard = EnvironmentGuard()
     results, last_t = [], 0.0
-    for point in plan.points:
+    for visit in plan.visits():
+        point, move_step, capture_step = visit.point, visit.step, visit.capture_step
         rows = raw[raw.point == point.index]
-        move_step, capture_step, dwell_s = steps[point.index]
-        dwell_s = dwell_s if recorded_dwell else config["plan"]["dwell_s"]
+        dwell_s = visit.dwell_s if recorded_dwell else config["plan"]["dwell_s"]
         moves = rows[rows.step == move_step]
         if moves.empty:
             results.append(ReplayedPoint(point.index, point.run, point.direction, point.target, None, None, 0,

@@ -1,24 +1,42 @@
 """One campaign from config to recorded directory: plan, limit check, hardware, recording, run.
 
-Used by `run`, `demo`, `resume` and `guide`. The limits are checked before any hardware is opened.
-The hardware factory is imported lazily: `campaign/` itself never imports pyads or serial.
+Used by `run`, `demo`, `resume`, `guide` and `verify`. The limits are checked before any hardware
+is opened. The hardware comes from an `Opener` the caller passes in (drivers.factory.open_hardware
+for the command line, an in-process fake in the tests): `campaign/` never imports the drivers.
 """
 
 from __future__ import annotations
 
 import datetime as dt
-import json
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-from campaign.config import Config
+from campaign.config import Config, load_config, recorded_sections
 from campaign.errors import InputError
 from campaign.iso230 import Evaluation, evaluate
 from campaign.measure.executor import CampaignStopped, Control, Executor, Observer
-from campaign.model import ErrorModel
-from campaign.plan import Move, Plan, build_plan, check_plan
+from campaign.model import read_model, sim_model
+from campaign.plan import Plan, build_plan, check_plan, estimate_duration_s, plan_records
 from campaign.pointtable import read_points
-from campaign.record.recorder import Recorder
+from campaign.record.directory import last_raw_state, open_campaign, recorded_point_indices
+from campaign.record.events import Event
+from campaign.record.recorder import Recorder, RecordingError
+from protocols.hardware import Hardware
+from protocols.plc_contract import CompTable
+
+Opener = Callable[..., tuple[Hardware, Any]]
+"""opener(config, speed=None, model=None, start_position=None, start_time=0.0) -> (Hardware, the
+simulated machine's parts or None). `speed`: N times real time (simulated machine); `model`: its
+error model; `start_position` (axis unit) and `start_time` (s): where and when it starts."""
+
+SIM_MODEL_FILE = "sim-model.toml"
+"""The simulated machine's effective error model, kept in the campaign directory for resume."""
+
+COMP_SEED_OFFSET = 1000
+"""A simulated campaign measured with a compensation table draws its noise from sim.seed + this:
+a new measurement sees new scatter, not the baseline's again."""
 
 
 @dataclass
@@ -46,35 +64,30 @@ def campaign_meta(config: Config, plan: Plan) -> dict:
             "capture": config["capture"]["method"], "driver": config["axis_driver"]["type"]}
 
 
-def open_hardware(config: Config, speed: float | None = None, model: ErrorModel | None = None,
-                  start: float | None = None, start_time: float = 0.0):
-    """The config's hardware: (Hardware, SimParts or None). Lazy import: see the module docstring.
-    `start` (axis unit) and `start_time` (s): where and when a simulated machine starts."""
-    from drivers.factory import open_hardware as factory_open
-
-    return factory_open(config, speed=speed, model=model, start_position=start, start_time=start_time)
-
-
-def execute(config: Config, plan: Plan, recorder: Recorder, first_point: int, *, speed=None, model=None,
-            observer: Observer | None = None, t_offset: float = 0.0, start: float | None = None,
-            on_open=None, control: Control | None = None, opened=None) -> Outcome:
-    """Run `plan` from `first_point` into `recorder`, then mark the directory completed or
-    interrupted. Re-raises KeyboardInterrupt after the axis is halted and the recording flushed.
-    `opened`: a (Hardware, SimParts | None) pair from `open_hardware` to use instead of opening
-    new hardware (it is closed at the end either way)."""
-    hardware, sim = opened if opened is not None else open_hardware(config, speed, model, start, t_offset)
-    executor = Executor(plan, config, hardware, recorder, observer, t0=hardware.clock.now() - t_offset,
-                        control=control)
-    if sim is not None and sim.faults is not None:
+def execute(config: Config, plan: Plan, recorder: Recorder, first_point: int, *, opener: Opener | None = None,
+            speed=None, model=None, observer: Observer | None = None, t_offset: float = 0.0,
+            start: float | None = None, on_open=None, control: Control | None = None, opened=None) -> Outcome:
+    """Run `plan` from `first_point` into `recorder` between a start and a stop record. Re-raises
+    KeyboardInterrupt after the axis is halted and the recording flushed. `opened`: a (Hardware,
+    parts) pair already open, used instead of `opener` (it is closed at the end either way)."""
+    if opened is None:
+        opened = opener(config, speed=speed, model=model, start_position=start, start_time=t_offset)
+    hardware, sim = opened
+    executor = Executor(plan, config, hardware, recorder, [observer] if observer else [],
+                        t0=hardware.clock.now() - t_offset, control=control)
+    if getattr(sim, "faults", None) is not None:
         sim.faults.on_disk_full = recorder.inject_disk_full
-    if on_open:
-        on_open(hardware, sim, executor)
     status, message = "failed", "stopped by an unexpected error"
     try:
+        if on_open:
+            on_open(hardware, sim, executor)
+        recorder.start(executor.now(), first_point, len(plan.points))
         executor.run(first_point)
         status, message = "completed", ""
     except CampaignStopped as exc:
         status, message = "interrupted", str(exc)
+    except RecordingError as exc:  # the start record could not be written: nothing moved
+        status, message = "interrupted", f"recording failed: {exc}"
     except KeyboardInterrupt:
         status, message = "interrupted", "Ctrl-C"
         raise
@@ -86,9 +99,11 @@ def execute(config: Config, plan: Plan, recorder: Recorder, first_point: int, *,
         for failure in hardware.close():
             message = f"{message}; closing: {failure}"
         try:
-            recorder.set_status(status, duration_s=round(duration, 3), message=message)
-        except OSError as exc:  # e.g. the disk is full: the directory stays "running", resumable
-            message = f"{message}; could not update meta.json: {exc}"
+            recorder.emit(Event(duration, "stop", f"campaign {status}" + (f": {message}" if message else ""),
+                                None, {"status": status, "points": recorder.points_written}))
+            recorder.stop(duration, status, message)
+        except RecordingError as exc:  # e.g. the disk is full: no stop record, resume treats it as interrupted
+            message = f"{message}; could not record the stop: {exc}"
         try:
             recorder.close()
         except OSError as exc:
@@ -96,23 +111,19 @@ def execute(config: Config, plan: Plan, recorder: Recorder, first_point: int, *,
     return Outcome(recorder.dir, status, recorder.points_written, len(plan.points), duration, message)
 
 
-SIM_MODEL_FILE = "sim-model.toml"
-"""The simulated machine's effective error model, kept in the campaign directory for resume."""
-
-
 def start_campaign(config: Config, out: str | Path | None = None, meta_extra: dict | None = None,
                    on_created=None, **kwargs) -> Outcome:
-    """A new campaign from `config` into `out` (a new directory); `meta_extra` goes into meta.json."""
+    """A new campaign from `config` into `out` (a new directory); `meta_extra` goes into meta.json.
+    The other keywords go to `execute` (`opener` or `opened` is required)."""
     plan = build_plan(config)
     check_plan(plan, config)
     if config["axis_driver"]["type"] == "sim" and kwargs.get("model") is None:
-        from drivers.factory import sim_model
-
         kwargs["model"] = sim_model(config)
     directory = Path(out) if out else default_out_dir(config)
     meta = {**campaign_meta(config, plan), **(meta_extra or {})}
     try:
-        recorder = Recorder.create(directory, config.text, meta, config["axis"]["kind"])
+        recorder = Recorder.create(directory, config.text, recorded_sections(config), plan_records(plan), meta,
+                                   config["axis"]["kind"])
     except BaseException:
         if kwargs.get("opened") is not None:
             kwargs["opened"][0].close()
@@ -124,69 +135,60 @@ def start_campaign(config: Config, out: str | Path | None = None, meta_extra: di
     return execute(config, plan, recorder, 0, **kwargs)
 
 
-def last_raw_state(directory: Path) -> tuple[float, float | None]:
-    """(campaign time of the last raw sample in s, last known axis position or None)."""
-    from campaign.measure.replay import load_raw
+def open_with_comp(opener: Opener, config: Config, comp: CompTable, speed=None, model=None, start=None,
+                   start_time: float = 0.0):
+    """Open the hardware and write `comp` into the controller (read back, compared, enabled).
+    On the simulated machine the noise is drawn from sim.seed + COMP_SEED_OFFSET."""
+    if config["axis_driver"]["type"] == "sim":
+        config.sections["sim"] = {**config["sim"], "seed": config["sim"]["seed"] + COMP_SEED_OFFSET}
+    opened = opener(config, speed=speed, model=model, start_position=start, start_time=start_time)
+    try:
+        opened[0].axis.write_comp_table(comp)
+    except BaseException:
+        opened[0].close()
+        raise
+    return opened
 
-    raw = load_raw(directory)
-    if raw.empty:
-        return 0.0, None
-    positions = raw.axis_position.dropna()
-    return float(raw.t_s.iloc[-1]), float(positions.iloc[-1]) if len(positions) else None
 
-
-def resume_campaign(directory: str | Path, faults: dict | None = None, **kwargs) -> Outcome:
+def resume_campaign(directory: str | Path, faults: dict | None = None, *, opener: Opener, **kwargs) -> Outcome:
     """Continue an interrupted campaign in `directory` from the point after the last recorded one,
-    re-approaching it from the overrun in its own direction, appending to the same files.
-    `faults`: a [sim.faults] table to rehearse in the resumed part (the config's own faults are not
-    injected again)."""
-    from campaign.config import load_config
-    from campaign.errors import InputError
-    from campaign.model import read_model
-
+    re-approaching it from the overrun in its own direction, appending to the same files, with
+    the recorded plan (see `CampaignDir.plan_for`). `faults`: a [sim.faults] table to rehearse in the
+    resumed part (the config's own faults are not injected again)."""
     path = Path(directory)
-    if not (path / "meta.json").is_file() or not (path / "config.toml").is_file():
-        raise InputError(f"{path}: not a campaign directory (no meta.json / config.toml)")
+    campaign = open_campaign(path)
+    if campaign.status == "completed":
+        raise InputError(f"{path}: the campaign is already completed")
     config = load_config(path / "config.toml")
     config.sections["sim"].pop("faults", None)  # rehearsed faults are not injected again on resume
+    plan = campaign.plan_for(config)
     if faults:
         config.sections["sim"]["faults"] = faults
-    if json.loads((path / "meta.json").read_text(encoding="utf-8")).get("status") == "completed":
-        raise InputError(f"{path}: the campaign is already completed")
-    plan = build_plan(config)
     check_plan(plan, config)  # before anything is touched
-    recorder = Recorder.reopen(path)
-    if recorder.meta.get("points_planned") != len(plan.points):
+    recorder = Recorder.reopen(path)  # torn tails are cut before anything is read
+    try:
+        done = recorded_point_indices(path)
+        first = max(done) + 1 if done else 0
+        skipped = sorted(set(range(first)) - set(done))
+        t_last, position = last_raw_state(path)
+        if first >= len(plan.points):  # stopped after its last point, before its stop record
+            recorder.stop(t_last, "completed", "nothing left to measure")
+            recorder.close()
+            return Outcome(path, "completed", len(done), len(plan.points), t_last, "nothing left to measure")
+        if (path / SIM_MODEL_FILE).exists() and kwargs.get("model") is None:
+            kwargs["model"] = read_model(path / SIM_MODEL_FILE)
+        comp = campaign.comp_table()
+        if comp is not None:  # measured with compensation: the controller gets its table again first
+            kwargs["opened"] = open_with_comp(opener, config, comp, kwargs.get("speed"), kwargs.get("model"),
+                                              position, t_last)
+        text = f"resumed at point {first + 1} of {len(plan.points)} (plan index {first})"
+        if skipped:  # skipped by the operator: they stay missing (a follow-up campaign can fill them)
+            text += f"; points skipped earlier stay missing: {skipped}"
+        recorder.emit(Event(t_last, "resume", text, first, {"first_point": first, "skipped": skipped}))
+    except BaseException:
         recorder.close()
-        raise InputError(f"{path}: config.toml no longer gives the recorded plan")
-    done = recorded_point_indices(path)
-    first = max(done) + 1 if done else 0
-    skipped = sorted(set(range(first)) - set(done))
-    if first >= len(plan.points):
-        recorder.set_status("completed")
-        recorder.close()
-        return Outcome(path, "completed", len(done), len(plan.points), 0.0, "nothing left to measure")
-    t_last, position = last_raw_state(path)
-    if (path / SIM_MODEL_FILE).exists() and kwargs.get("model") is None:
-        kwargs["model"] = read_model(path / SIM_MODEL_FILE)
-    from campaign.measure.verify import load_comp, open_compensated
-
-    comp = load_comp(path)
-    if comp is not None:  # a verification campaign: the PLC gets its table again first
-        kwargs["opened"] = open_compensated(config, comp, kwargs.get("speed"), kwargs.get("model"), position,
-                                            t_last)
-    recorder.event(t_last, "resume", f"resumed at point {first} of {len(plan.points)}")
-    if skipped:  # skipped by the operator: they stay missing (a follow-up campaign can fill them)
-        recorder.event(t_last, "resume", f"points skipped earlier stay missing: {skipped}")
-    return execute(config, plan, recorder, first, t_offset=t_last, start=position, **kwargs)
-
-
-def recorded_point_indices(directory: Path) -> list[int]:
-    """The plan indices of the points recorded in points.csv (its `point` column); none while the
-    file holds no row yet."""
-    if not any(ln[:1].isdigit() for ln in (directory / "points.csv").read_text(encoding="utf-8").splitlines()):
-        return []
-    return [int(i) for i in read_points(directory / "points.csv", partial=True).extra["point"]]
+        raise
+    return execute(config, plan, recorder, first, opener=opener, t_offset=t_last, start=position, **kwargs)
 
 
 def analyse_dir(directory: str | Path) -> tuple[object, Evaluation]:
@@ -195,18 +197,16 @@ def analyse_dir(directory: str | Path) -> tuple[object, Evaluation]:
     return table, evaluate(table)
 
 
-def dry_run(config: Config, ticks: int = 10, opened=None) -> dict:
+def dry_run(config: Config, opener: Opener | None = None, ticks: int = 10, opened=None) -> dict:
     """Talk to the controller read-only and walk the plan: nothing is commanded.
 
     Reads the axis status, checks every move of the plan against the limits, and reads `ticks`
     sample periods of the interferometer. Returns what it saw (positions in axis unit).
     `opened`: hardware already opened read-only (tests inspect the simulated PLC afterwards)."""
-    from campaign.plan import estimate_duration_s
-
     plan = build_plan(config)
     check_plan(plan, config)
     config.sections["axis_driver"] = {**config["axis_driver"], "read_only": True}
-    hardware, _ = opened if opened is not None else open_hardware(config)
+    hardware, _ = opened if opened is not None else opener(config)
     try:
         status = hardware.axis.status()
         readings = []
@@ -220,6 +220,5 @@ def dry_run(config: Config, ticks: int = 10, opened=None) -> dict:
             "axis_error": status.error, "axis_error_id": status.error_id,
             "axis_position": status.actual_position, "readings": len(readings),
             "beam_ok": bool(last and last.signal_ok), "reading": last.position if last else None,
-            "points": len(plan.points), "moves": sum(isinstance(s, Move) for s in plan.steps),
-            "travel": plan.travel(), "estimated_duration_s": estimate_duration_s(plan, config),
-            "plan_within_limits": True}
+            "points": len(plan.points), "moves": len(plan.stops()), "travel": plan.travel(),
+            "estimated_duration_s": estimate_duration_s(plan, config), "plan_within_limits": True}

@@ -18,16 +18,11 @@ import matplotlib.pyplot as plt
 from campaign.compensation.grid import ControllerTable
 from campaign.config import Config
 from campaign.iso230 import Evaluation, evaluate
-from campaign.measure.session import Outcome, open_hardware, start_campaign
+from campaign.measure.session import Opener, Outcome, open_with_comp, start_campaign
 from campaign.plot import draw_evaluation
 from campaign.pointtable import PointTable, read_points
+from campaign.record.directory import COMP_FILE
 from protocols.plc_contract import CompTable
-
-COMP_FILE = "plc-compensation.json"
-"""The table written to the PLC (axis units), kept in the verification campaign's directory."""
-
-VERIFY_SEED_OFFSET = 1000
-"""The simulated verification run draws its noise from sim.seed + this (independent of the baseline)."""
 
 SUMMARY_KEYS = (("M", "mean bidirectional deviation range M"), ("E", "systematic deviation E"),
                 ("R_up", "repeatability R↑"), ("R_down", "repeatability R↓"), ("B", "reversal B"),
@@ -42,45 +37,25 @@ def correction_limits(config: Config, max_rate: float | None, max_accel: float |
     return (max_rate or 0.1 * axis["max_velocity"], max_accel or 0.1 * axis["max_acceleration"])
 
 
-def run_verification(config: Config, table: ControllerTable, out: Path, *, baseline: Path | None = None,
-                     max_rate: float | None = None, max_accel: float | None = None, speed=None,
-                     observer=None) -> Outcome:
-    """Write `table` to the PLC, then run the campaign of `config` into `out`."""
+def run_verification(config: Config, table: ControllerTable, out: Path, *, opener: Opener,
+                     baseline: Path | None = None, max_rate: float | None = None, max_accel: float | None = None,
+                     speed=None, observer=None) -> Outcome:
+    """Write `table` to the controller, then run the campaign of `config` into `out`."""
     rate, accel = correction_limits(config, max_rate, max_accel)
-    opened_table = table.to_plc(rate, accel, enabled=True)
-    opened = open_compensated(config, opened_table, speed)
+    comp = table.to_plc(rate, accel, enabled=True)
+    opened = open_with_comp(opener, config, comp, speed)
     extra = {"compensation": {"file": COMP_FILE, "mode": table.mode, "points": len(table.forward),
                               "start": table.start, "spacing": table.spacing, "overrun": table.overrun,
                               "max_rate": rate, "max_accel": accel}}
     if baseline is not None:
         extra["baseline_dir"] = str(baseline.resolve())
     return start_campaign(config, out, opened=opened, observer=observer, meta_extra=extra,
-                          on_created=lambda directory: save_comp(directory, opened_table))
-
-
-def open_compensated(config: Config, comp: CompTable, speed=None, model=None, start=None, start_time=0.0):
-    """Open the hardware and write `comp` into the PLC (read back, compared, enabled). On the
-    simulated machine the noise is drawn from sim.seed + VERIFY_SEED_OFFSET: a new measurement
-    sees new scatter, not the baseline's again."""
-    if config["axis_driver"]["type"] == "sim":
-        config.sections["sim"] = {**config["sim"], "seed": config["sim"]["seed"] + VERIFY_SEED_OFFSET}
-    opened = open_hardware(config, speed, model, start, start_time)
-    try:
-        opened[0].axis.write_comp_table(comp)
-    except BaseException:
-        opened[0].close()
-        raise
-    return opened
+                          on_created=lambda directory: save_comp(directory, comp))
 
 
 def save_comp(directory: Path, comp: CompTable) -> None:
-    """Keep the PLC table in the campaign directory, so that resume writes it again."""
+    """Keep the controller's table in the campaign directory, so that resume writes it again."""
     (directory / COMP_FILE).write_text(json.dumps(dataclasses.asdict(comp), indent=1), encoding="utf-8")
-
-
-def load_comp(directory: Path) -> CompTable | None:
-    path = directory / COMP_FILE
-    return CompTable(**json.loads(path.read_text(encoding="utf-8"))) if path.exists() else None
 
 
 def baseline_points(path: Path) -> PointTable:

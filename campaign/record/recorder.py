@@ -1,16 +1,18 @@
-"""The campaign directory: crash-safe, append-only recording.
+"""Writing the campaign directory: crash-safe and append-only.
 
-    config.toml   snapshot of the config the campaign ran with
-    meta.json     software version, machine, axis, operator, start time, plan seed, status
+At the start: config.toml, meta.json and plan.jsonl, each written once (campaign/record/directory.py
+says what they hold). While the campaign runs, appended:
+
+    runs.jsonl    a record at each start and each stop of the executor (status, reason, points)
     raw.csv       every sample: time, step, point, axis actual position, reading, beam, environment
     points.csv    the point table (docs/point-table.md) plus capture columns, one row per point
-    events.log    faults, halts, resumes: one line each
+    events.jsonl  the event stream (campaign/record/events.py), one JSON object a line
+    events.log    the same events as sentences for people
 
 Every point row is written with one write() and fsynced, after the raw samples before it are
-fsynced, so a crash or power cut loses at most the point in progress. A torn last line (power cut
-in the middle of a write) is cut off when the directory is opened again. `meta.json` is replaced
-atomically; its `status` is running, completed, interrupted or failed. A directory left `running`
-by a killed process is treated as interrupted.
+fsynced, so a crash or power cut loses at most the point in progress. Every event and run record
+is fsynced. A torn last line (power cut in the middle of a write) is cut off when the directory is
+opened again. Nothing is ever rewritten.
 """
 
 from __future__ import annotations
@@ -23,9 +25,20 @@ import platform
 from pathlib import Path
 
 from campaign import __version__
-from campaign.measure.capture import ENV_FIELDS
 from campaign.pointtable import AXIS_KINDS, format_row
-from protocols.hardware import Reading
+from campaign.record.directory import (
+    CONFIG_FILE,
+    FORMAT_VERSION,
+    META_FILE,
+    PLAN_FILE,
+    RUNS_FILE,
+    open_campaign,
+)
+from campaign.record.events import Event
+from protocols.hardware import ENV_FIELDS, Reading
+
+APPENDED = ("raw.csv", "points.csv", "events.jsonl", "events.log", RUNS_FILE)
+"""The files a campaign appends to (a torn last line of each is cut off on reopen)."""
 
 RAW_COLUMNS = ("t_s", "step", "point", "axis_position", "reading", "signal_ok", "signal_pct",
                "instrument_time_s", *ENV_FIELDS)
@@ -41,14 +54,20 @@ def _fsync_dir(path: Path) -> None:
         os.close(fd)
 
 
-def write_json_atomic(path: Path, data: dict) -> None:
+def write_once(path: Path, text: str) -> None:
+    """Write a file of the directory's header (config, meta, plan) completely and durably: a
+    temporary file, fsynced, renamed into place, the directory fsynced."""
     tmp = path.with_suffix(path.suffix + ".tmp")
     with open(tmp, "w", encoding="utf-8") as f:
-        json.dump(data, f, indent=1)
+        f.write(text)
         f.flush()
         os.fsync(f.fileno())
     os.replace(tmp, path)
     _fsync_dir(path.parent)
+
+
+def json_lines(records: list[dict]) -> str:
+    return "".join(json.dumps(r, allow_nan=False) + "\n" for r in records)
 
 
 def cut_torn_tail(path: Path) -> int:
@@ -91,20 +110,23 @@ class RecordingError(Exception):
 
 
 class Recorder:
-    """Writes one campaign directory. Use `Recorder.create` for a new campaign and
-    `Recorder.reopen` to append to an interrupted one."""
+    """Writes one campaign directory; the recording sink of the event stream (its `emit` raises
+    RecordingError when the disk refuses, which stops the campaign). Use `Recorder.create` for a
+    new campaign and `Recorder.reopen` to append to an interrupted one."""
 
     def __init__(self, directory: Path, meta: dict, kind: str):
         self.dir = directory
         self.meta = meta
         self.kind = kind
         # long-lived append handles, closed by close()
-        self._raw = self._events = None
-        self._points_fd = -1
+        self._raw = self._events = self._log = None
+        self._points_fd = self._runs_fd = -1
         try:
             self._raw = open(directory / "raw.csv", "a", encoding="utf-8", newline="")  # noqa: SIM115
             self._points_fd = os.open(directory / "points.csv", os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
-            self._events = open(directory / "events.log", "a", encoding="utf-8")  # noqa: SIM115
+            self._runs_fd = os.open(directory / RUNS_FILE, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+            self._events = open(directory / "events.jsonl", "a", encoding="utf-8")  # noqa: SIM115
+            self._log = open(directory / "events.log", "a", encoding="utf-8")  # noqa: SIM115
         except OSError:
             self.close()
             raise
@@ -113,19 +135,22 @@ class Recorder:
         self.fail_next_point_write = False
 
     @classmethod
-    def create(cls, directory: str | Path, config_text: str, meta: dict, kind: str) -> Recorder:
+    def create(cls, directory: str | Path, config_text: str, sections: dict, plan_records: list[dict],
+               meta: dict, kind: str) -> Recorder:
+        """A new campaign directory: config.toml (`config_text`), meta.json (`meta` with the format
+        version, software, host, creation time and the config's `sections`) and plan.jsonl."""
         path = Path(directory)
         path.mkdir(parents=True, exist_ok=True)
         if (path / "points.csv").exists() and (path / "points.csv").stat().st_size:
             from campaign.errors import InputError
             raise InputError(f"{path}: already holds a campaign (use `axiscal resume {path}` or another --out)")
-        for name in ("raw.csv", "points.csv", "events.log"):
+        for name in APPENDED:
             (path / name).unlink(missing_ok=True)
-        (path / "config.toml").write_text(config_text, encoding="utf-8")
-        full = {"software": f"axiscal {__version__}", "host": platform.node(),
-                "start_time": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
-                "status": "running", **meta}
-        write_json_atomic(path / "meta.json", full)
+        write_once(path / CONFIG_FILE, config_text)
+        full = {"format_version": FORMAT_VERSION, "software": f"axiscal {__version__}", "host": platform.node(),
+                "created": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"), **meta, "config": sections}
+        write_once(path / PLAN_FILE, json_lines(plan_records))
+        write_once(path / META_FILE, json.dumps(full, indent=1, allow_nan=False) + "\n")
         rec = cls(path, full, kind)
         rec._raw.write(",".join(RAW_COLUMNS) + "\n")
         rec._raw.flush()
@@ -135,8 +160,8 @@ class Recorder:
     def reopen(cls, directory: str | Path) -> Recorder:
         """Open an interrupted campaign to append to it (torn tails are cut first)."""
         path = Path(directory)
-        meta = json.loads((path / "meta.json").read_text(encoding="utf-8"))
-        for name in ("raw.csv", "points.csv", "events.log"):
+        meta = open_campaign(path).meta
+        for name in APPENDED:
             cut_torn_tail(path / name)
         rec = cls(path, meta, meta.get("kind", "linear"))
         lines = [ln for ln in (path / "points.csv").read_text(encoding="utf-8").splitlines()
@@ -145,7 +170,6 @@ class Recorder:
             header = lines[0].split(",")
             rec.env_columns = tuple(c for c in header if c in ENV_FIELDS)
             rec.points_written = len(lines) - 1
-        rec.set_status("running")
         return rec
 
     def sample(self, t_s: float, step: int, point: int | None, axis_position: float | None,
@@ -192,25 +216,42 @@ class Recorder:
         """Fault injection: the next point row is cut short by ENOSPC, as on a full disk."""
         self.fail_next_point_write = True
 
-    def event(self, t_s: float, kind: str, message: str) -> None:
-        """Append one line to events.log, fsynced. RecordingError when the disk refuses."""
+    def emit(self, event: Event) -> None:
+        """Append one event to events.jsonl and events.log, both fsynced. RecordingError when the
+        disk refuses."""
         stamp = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
-        try:
-            self._events.write(f"{stamp} t={t_s:.3f}s {kind}: {message}\n")
-            self._events.flush()
-            os.fsync(self._events.fileno())
-        except OSError as exc:
-            raise RecordingError(f"{self.dir / 'events.log'}: {exc.strerror or exc}") from exc
+        for f, text in ((self._events, json.dumps(event.record(stamp), allow_nan=False, ensure_ascii=False)), (self._log, event.line(stamp))):
+            try:
+                f.write(text + "\n")
+                f.flush()
+                os.fsync(f.fileno())
+            except OSError as exc:
+                raise RecordingError(f"{f.name}: {exc.strerror or exc}") from exc
 
-    def set_status(self, status: str, **extra) -> None:
-        self.meta.update(status=status, **extra)
-        write_json_atomic(self.dir / "meta.json", self.meta)
+    def start(self, t_s: float, first_point: int, planned: int) -> None:
+        """Append the start record of one run of the executor (runs.jsonl)."""
+        self._run_record({"record": "start", "t_s": round(t_s, 3), "first_point": first_point,
+                          "planned": planned, "software": f"axiscal {__version__}", "host": platform.node(),
+                          "pid": os.getpid()})
+
+    def stop(self, t_s: float, status: str, message: str) -> None:
+        """Append the stop record: `status` completed, interrupted or failed, with the reason."""
+        self._run_record({"record": "stop", "t_s": round(t_s, 3), "status": status, "message": message,
+                          "points": self.points_written, "duration_s": round(t_s, 3)})
+
+    def _run_record(self, record: dict) -> None:
+        record = {"utc": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"), **record}
+        try:
+            _write_all(self._runs_fd, (json.dumps(record, allow_nan=False) + "\n").encode())
+            os.fsync(self._runs_fd)
+        except OSError as exc:
+            raise RecordingError(f"{self.dir / RUNS_FILE}: {exc.strerror or exc}") from exc
 
     def close(self) -> None:
         """Flush, fsync and close every file; each is closed even when another fails (full
         disk). Raises the first OSError afterwards."""
         failure = None
-        for f in (self._raw, self._events):
+        for f in (self._raw, self._events, self._log):
             if f is None or f.closed:
                 continue
             try:
@@ -223,8 +264,9 @@ class Recorder:
                     f.close()
                 except OSError as exc:  # close flushes again: the same full disk
                     failure = failure or exc
-        if self._points_fd >= 0:
-            os.close(self._points_fd)
-            self._points_fd = -1
+        for name in ("_points_fd", "_runs_fd"):
+            if getattr(self, name) >= 0:
+                os.close(getattr(self, name))
+                setattr(self, name, -1)
         if failure is not None:
             raise failure

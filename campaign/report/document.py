@@ -22,6 +22,7 @@ from campaign.errors import InputError
 from campaign.iso230 import Evaluation, evaluate
 from campaign.plot import draw_evaluation
 from campaign.pointtable import PointTable, read_points
+from campaign.record.directory import RUNS_FILE, CampaignDir, read_json_lines
 from campaign.report.html import (
     comparison_table,
     environment_table,
@@ -64,6 +65,8 @@ def load_campaign(directory: str | Path) -> Campaign:
         raise InputError(f"{path / 'meta.json'}: not a JSON object")
     config = load_config(path / "config.toml") if (path / "config.toml").is_file() else None
     table = read_points(path / "points.csv")
+    recorded = CampaignDir(path, meta, read_json_lines(path / RUNS_FILE))  # status from the run records
+    meta = {**meta, "status": recorded.status, "duration_s": recorded.duration_s}
     return Campaign(path, meta, config, table, evaluate(table))
 
 
@@ -108,7 +111,7 @@ def plot_png(campaigns: list[tuple[str, Campaign]]) -> str:
 
 
 def _date(c: Campaign) -> str:
-    return str(c.meta.get("start_time", "date unknown")).replace("T", " ").replace("+00:00", " UTC")
+    return str(c.meta.get("created", c.meta.get("start_time", "date unknown"))).replace("T", " ").replace("+00:00", " UTC")
 
 
 def _campaign_facts(c: Campaign) -> list[tuple[str, str]]:

@@ -23,7 +23,7 @@ import numpy as np
 
 from campaign.config import Config
 from campaign.errors import InputError
-from campaign.plan import Checkpoint, Move, Plan, Point
+from campaign.plan import Plan, Point
 from campaign.pointtable import PointTable
 from campaign.stream.reader import Stream, locate
 
@@ -97,13 +97,10 @@ def capture_windows(stream: Stream, dwells: Dwells, average_s: float) -> tuple[n
 def plan_stops(plan: Plan) -> list[tuple[float, Point | None]]:
     """The plan's move endpoints in order: (position, the point measured there or None)."""
     stops: list[tuple[float, Point | None]] = []
-    for step in plan.steps:
-        if isinstance(step, Move):
-            if stops and stops[-1] == (step.position, None):
-                stops.pop()  # a zero-length move after an overrun stop: one stop
-            stops.append((step.position, None))
-        elif isinstance(step, Checkpoint):
-            stops[-1] = (stops[-1][0], step.point)
+    for stop in plan.stops():
+        if stops and stops[-1] == (stop.position, None):
+            stops.pop()  # a zero-length move after an overrun stop: one stop
+        stops.append((stop.position, stop.point))
     return stops
 
 

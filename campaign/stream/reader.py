@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from campaign.errors import InputError, read_input_bytes
-from campaign.measure.capture import ENV_FIELDS
+from protocols.hardware import ENV_FIELDS
 
 POSITION_COLUMNS = {
     "mm": ("reading_mm", "position_mm", "reading", "position"),

@@ -14,18 +14,14 @@ import numpy as np
 import pandas as pd
 
 from campaign.config import Config
-from campaign.plan import Checkpoint, Move, Plan, move_time_s
+from campaign.plan import Plan, move_time_s
 
 
 def _stops(plan: Plan, config: Config, overrun_dwell_s: float, skip_point: int | None):
     """(position, dwell s, point index or -1) per move endpoint; `skip_point` gets no stop at all."""
     dwell = config["plan"]["dwell_s"]
-    stops: list[list] = []
-    for step in plan.steps:
-        if isinstance(step, Move):
-            stops.append([step.position, overrun_dwell_s, -1])
-        elif isinstance(step, Checkpoint):
-            stops[-1][1:] = [dwell, step.point.index]
+    stops = [[s.position, dwell, s.point.index] if s.point else [s.position, overrun_dwell_s, -1]
+             for s in plan.stops()]
     return [s for s in stops if s[2] != skip_point or skip_point is None]
 
 

@@ -1,0 +1,210 @@
+"""The campaign directory, read back: what ran, how it ended, what was recorded.
+
+    config.toml   the config as given (resume compares it with the recorded one in meta.json)
+    meta.json     written once at the start: format_version, software, host, created (UTC),
+                  machine, axis, operator, kind, unit, plan seed, points planned, targets, offsets,
+                  capture, driver, the config's sections as recorded, and what the command added
+                  (a verification's table and baseline)
+    plan.jsonl    the plan that runs: a header, then one record per step (campaign.plan)
+    runs.jsonl    one record per start and per stop of the executor, appended, never rewritten
+    raw.csv, points.csv, events.jsonl, events.log: see campaign/record/recorder.py
+
+Format versions: 1 (axiscal 0.1: no plan.jsonl, runs.jsonl or events.jsonl; meta.json rewritten
+with a `status`), 2 (this layout). A version-1 directory is read and resumed as it is: its plan is
+rebuilt from config.toml and must give the targets meta.json recorded.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from campaign.config import Config, resume_conflicts
+from campaign.errors import InputError
+from campaign.plan import Plan, build_plan, plan_from_records
+from protocols.plc_contract import CompTable
+
+FORMAT_VERSION = 2
+"""The campaign directory layout this software writes."""
+
+CONFIG_FILE, META_FILE, PLAN_FILE, RUNS_FILE = "config.toml", "meta.json", "plan.jsonl", "runs.jsonl"
+
+COMP_FILE = "plc-compensation.json"
+"""The table written to the PLC (axis units) for a campaign measured with compensation; resume
+writes it again before anything moves."""
+
+
+def read_json_lines(path: Path) -> list[dict[str, Any]]:
+    """The objects of a JSON-lines file; a torn last line (a crash during a write) is left out, any
+    other bad line is an InputError naming it."""
+    if not path.exists():
+        return []
+    lines = path.read_text(encoding="utf-8").splitlines()
+    records = []
+    for number, line in enumerate(lines, start=1):
+        try:
+            record = json.loads(line)
+        except json.JSONDecodeError:
+            if number == len(lines):
+                break
+            raise InputError(f"{path}:{number}: not a JSON object") from None
+        if not isinstance(record, dict):
+            raise InputError(f"{path}:{number}: not a JSON object")
+        records.append(record)
+    return records
+
+
+@dataclass
+class CampaignDir:
+    """A campaign directory as recorded. `meta`: meta.json; `runs`: the runs.jsonl records."""
+
+    path: Path
+    meta: dict[str, Any]
+    runs: list[dict[str, Any]]
+
+    @property
+    def format_version(self) -> int:
+        return int(self.meta.get("format_version", 1))
+
+    @property
+    def last_stop(self) -> dict[str, Any] | None:
+        """The last stop record, or None when the executor never stopped cleanly here."""
+        return self.runs[-1] if self.runs and self.runs[-1].get("record") == "stop" else None
+
+    @property
+    def status(self) -> str:
+        """completed, interrupted or failed (the last stop); running when the last start has no
+        stop yet (a campaign in progress, or a process that was killed: resume treats it as
+        interrupted); created when it never started."""
+        if self.runs:
+            stop = self.last_stop
+            return stop["status"] if stop else "running"
+        if self.format_version == 1:
+            return str(self.meta.get("status", "running"))
+        return "created"
+
+    @property
+    def message(self) -> str:
+        stop = self.last_stop
+        if stop:
+            return str(stop.get("message", ""))
+        if self.status == "running":
+            return "the process ended without a stop record (killed, or still running)"
+        return str(self.meta.get("message", ""))
+
+    @property
+    def duration_s(self) -> float:
+        """Campaign time at the last stop, s (0 when there is none)."""
+        stop = self.last_stop
+        if stop:
+            return float(stop.get("duration_s", 0.0))
+        return float(self.meta.get("duration_s", 0.0))
+
+    def recorded_plan(self) -> Plan | None:
+        """The plan from plan.jsonl, or None in a version-1 directory."""
+        path = self.path / PLAN_FILE
+        if not path.exists():
+            if self.format_version >= 2:
+                raise InputError(f"{path}: missing (the directory says format version {self.format_version})")
+            return None
+        return plan_from_records(read_json_lines(path), str(path))
+
+    def plan_for(self, config: Config) -> Plan:
+        """The plan a resume or a replay continues: the recorded one, when `config` (config.toml
+        now) still gives the same measurement (only keys marked `resume` in the schema may differ).
+        A version-1 directory has no recorded plan: the plan rebuilt from `config` must give the
+        recorded targets. InputError naming what differs otherwise."""
+        where = self.path / CONFIG_FILE
+        refuse = "refused: that would mix two plans in one table; restore it, or start a new campaign"
+        if "config" in self.meta:
+            conflicts = resume_conflicts(self.meta["config"], config)
+            if conflicts:
+                more = f" (and {len(conflicts) - 1} more)" if len(conflicts) > 1 else ""
+                raise InputError(f"{where}: {conflicts[0]}{more}; {refuse}")
+        recorded = self.recorded_plan()
+        if recorded is not None:
+            return recorded
+        plan = build_plan(config)
+        targets, planned = self.meta.get("targets"), self.meta.get("points_planned")
+        if targets is None or planned is None:
+            raise InputError(f"{self.path}: recorded without its plan or targets: cannot check that "
+                             f"{CONFIG_FILE} still gives it; start a new campaign")
+        if len(targets) != len(plan.targets):
+            raise InputError(f"{where}: gives {len(plan.targets)} targets now, {len(targets)} when recorded; {refuse}")
+        for i, (now, then) in enumerate(zip(plan.targets, targets), start=1):
+            if round(now, 9) != round(then, 9):
+                raise InputError(f"{where}: target {i} is {now:g} now, {then:g} when recorded; {refuse}")
+        if planned != len(plan.points):
+            raise InputError(f"{where}: gives {len(plan.points)} points now, {planned} when recorded; {refuse}")
+        return plan
+
+    def comp_table(self) -> CompTable | None:
+        """The PLC table of a campaign measured with compensation, else None."""
+        path = self.path / COMP_FILE
+        if not path.exists():
+            return None
+        try:
+            return CompTable(**json.loads(path.read_text(encoding="utf-8")))
+        except (ValueError, TypeError) as exc:
+            raise InputError(f"{path}: not a compensation table ({exc})") from None
+
+
+def open_campaign(directory: str | Path) -> CampaignDir:
+    """Read a campaign directory's records; InputError when it is not one."""
+    path = Path(directory)
+    meta_path = path / META_FILE
+    if not path.is_dir():
+        raise InputError(f"{path}: no such campaign directory")
+    if not meta_path.is_file() or not (path / CONFIG_FILE).is_file():
+        raise InputError(f"{path}: not a campaign directory (no {META_FILE} / {CONFIG_FILE})")
+    try:
+        meta = json.loads(meta_path.read_text(encoding="utf-8"))
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise InputError(f"{meta_path}: not valid JSON ({exc})") from None
+    if not isinstance(meta, dict):
+        raise InputError(f"{meta_path}: not a JSON object")
+    if int(meta.get("format_version", 1)) > FORMAT_VERSION:
+        raise InputError(f"{path}: recorded in directory format {meta['format_version']} by "
+                         f"{meta.get('software', 'a newer axiscal')}; this axiscal reads up to {FORMAT_VERSION}")
+    return CampaignDir(path, meta, read_json_lines(path / RUNS_FILE))
+
+
+def read_events(directory: str | Path) -> list[dict[str, Any]]:
+    """The events.jsonl records of a campaign directory, in order (see campaign/record/events.py);
+    none in a version-1 directory."""
+    return read_json_lines(Path(directory) / "events.jsonl")
+
+
+def recorded_point_indices(directory: Path) -> list[int]:
+    """The plan indices of the points recorded in points.csv (its `point` column); none while the
+    file holds no row yet."""
+    from campaign.pointtable import read_points
+
+    path = Path(directory) / "points.csv"
+    if not path.exists() or not any(ln[:1].isdigit() for ln in path.read_text(encoding="utf-8").splitlines()):
+        return []
+    return [int(i) for i in read_points(path, partial=True).extra["point"]]
+
+
+def load_raw(directory: Path):
+    """raw.csv as a pandas DataFrame (step and point as nullable integers)."""
+    import pandas as pd
+
+    path = Path(directory) / "raw.csv"
+    if not path.is_file():
+        raise InputError(f"{directory}: not a campaign directory (no raw.csv)")
+    try:
+        return pd.read_csv(path, dtype={"step": "Int64", "point": "Int64"})
+    except (ValueError, pd.errors.ParserError) as exc:
+        raise InputError(f"{path}: cannot read the raw stream ({exc})") from None
+
+
+def last_raw_state(directory: Path) -> tuple[float, float | None]:
+    """(campaign time of the last raw sample in s, last known axis position or None)."""
+    raw = load_raw(directory)
+    if raw.empty:
+        return 0.0, None
+    positions = raw.axis_position.dropna()
+    return float(raw.t_s.iloc[-1]), float(positions.iloc[-1]) if len(positions) else None

@@ -1,0 +1,267 @@
+"""The executor and the session on the in-process fake axis and laser (fast tier): the recorded
+table, the event stream, the run records, and what happens on retry, skip, abort, pause, beam
+loss, disk full, Ctrl-C, a failing display, and resume (with an unchanged, an edited and an old
+directory)."""
+
+import json
+
+import pytest
+
+from campaign.config import parse_config
+from campaign.errors import InputError, SafetyError
+from campaign.measure.executor import Observer
+from campaign.measure.session import resume_campaign, start_campaign
+from campaign.plan import build_plan
+from campaign.pointtable import read_points
+from campaign.record.directory import open_campaign
+from tests.conftest import events
+from tests.fakes import SMALL, AxisFault, FakeMachine, linear_error_um
+
+
+def config(extra: str = ""):
+    return parse_config(SMALL + extra, "small.toml")
+
+
+def rows(directory):
+    table = read_points(directory / "points.csv", partial=True)
+    return [(int(p), int(r), int(d), float(t), float(x)) for p, r, d, t, x in
+            zip(table.extra["point"], table.run, table.direction, table.target, table.deviation)]
+
+
+def expected_rows(cfg):
+    return [(p.index, p.run, p.direction, p.target, round(linear_error_um(p.target, p.direction), 4))
+            for p in build_plan(cfg).points]
+
+
+def test_a_campaign_records_every_point_and_one_event_stream(tmp_path):
+    cfg = config()
+    machine = FakeMachine()
+    outcome = start_campaign(cfg, tmp_path / "c", opener=machine)
+    assert (outcome.status, outcome.points, outcome.planned) == ("completed", 12, 12)
+    assert rows(tmp_path / "c") == expected_rows(cfg)
+    kinds = [e["kind"] for e in events(tmp_path / "c")]
+    assert kinds == ["start"] + ["point"] * 12 + ["stop"]
+    point = events(tmp_path / "c", "point")[4]
+    assert point["point"] == 4 and point["data"]["deviation"] == round(linear_error_um(50.0, -1), 4)
+    assert set(point) >= {"t_s", "kind", "message", "point", "utc", "data"}
+    campaign = open_campaign(tmp_path / "c")
+    assert campaign.status == "completed" and [r["record"] for r in campaign.runs] == ["start", "stop"]
+    assert campaign.recorded_plan() == build_plan(cfg)
+    assert campaign.meta["format_version"] == 2 and campaign.meta["software"].startswith("axiscal ")
+    log = (tmp_path / "c" / "events.log").read_text().splitlines()
+    assert len(log) == 14 and "point 1: run 1 +, target 0 mm" in log[1]
+
+
+def test_every_move_is_checked_before_it_is_sent(tmp_path):
+    machine = FakeMachine()
+    cfg = config()
+    cfg.sections["axis"]["max_velocity"] = 20.0  # below the plan's 25 mm/s
+    with pytest.raises(SafetyError, match="velocity"):
+        start_campaign(cfg, tmp_path / "c", opener=machine)
+    assert machine.openings == []  # refused before any hardware was opened
+
+
+def test_an_axis_fault_is_retried_and_the_table_is_complete(tmp_path):
+    machine = FakeMachine(setup=lambda parts: parts.axis.faults.append(AxisFault(move=4)))
+    outcome = start_campaign(config(), tmp_path / "c", opener=machine)
+    assert outcome.status == "completed"
+    assert rows(tmp_path / "c") == expected_rows(config())  # no point lost or doubled
+    fault = events(tmp_path / "c", "fault")
+    assert [(f["point"], f["data"]) for f in fault] == [(2, {"error": "AxisError", "error_id": 0x4550})]
+    assert events(tmp_path / "c", "halt", ok=True, why="fault")
+    assert [e["point"] for e in events(tmp_path / "c", "retry")] == [2]
+    axis = machine.openings[0].axis
+    assert axis.halts == 1 and axis.resets == 1
+
+
+class Decides(Observer):
+    def __init__(self, decision):
+        self.decision, self.seen = decision, []
+
+    def fault(self, exc, point):
+        self.seen.append((type(exc).__name__, point))
+        return self.decision
+
+
+def test_a_skipped_point_is_missing_and_the_rest_measured(tmp_path):
+    machine = FakeMachine(setup=lambda parts: parts.axis.faults.append(AxisFault(move=4)))
+    observer = Decides("skip")
+    outcome = start_campaign(config(), tmp_path / "c", opener=machine, observer=observer)
+    assert outcome.status == "completed" and outcome.points == 11
+    assert observer.seen == [("AxisError", 2)]
+    assert [r[0] for r in rows(tmp_path / "c")] == [i for i in range(12) if i != 2]
+    assert [e["point"] for e in events(tmp_path / "c", "skip")] == [2]
+
+
+def test_abort_by_policy_stops_halted_and_resumable(tmp_path):
+    machine = FakeMachine(setup=lambda parts: parts.axis.faults.append(AxisFault(move=6)))
+    cfg = config()
+    cfg.sections["campaign"]["on_fault"] = "abort"
+    outcome = start_campaign(cfg, tmp_path / "c", opener=machine)  # move 6: to 100 mm from above
+    assert outcome.status == "interrupted" and outcome.points == 3
+    assert open_campaign(tmp_path / "c").status == "interrupted"
+    assert events(tmp_path / "c", "halt", ok=True)
+    assert events(tmp_path / "c", "stop")[0]["data"] == {"status": "interrupted", "points": 3}
+    again = resume_campaign(tmp_path / "c", opener=FakeMachine())
+    assert again.status == "completed" and rows(tmp_path / "c") == expected_rows(config())
+    runs = open_campaign(tmp_path / "c").runs
+    assert [(r["record"], r.get("status")) for r in runs] == [("start", None), ("stop", "interrupted"),
+                                                              ("start", None), ("stop", "completed")]
+    assert runs[2]["first_point"] == 3
+
+
+def test_resume_reapproaches_the_point_in_its_own_direction(tmp_path):
+    cfg = config()
+    cfg.sections["campaign"]["on_fault"] = "abort"
+    # the 6th command is the move to the first target approached from above (100 mm, point 3)
+    start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(6))))
+    first = len(rows(tmp_path / "c"))
+    point = build_plan(cfg).points[first]
+    machine = FakeMachine()
+    resume_campaign(tmp_path / "c", opener=machine)
+    moves = machine.openings[0].axis.moves
+    assert moves[0][0] == point.target - point.direction * 2.0  # from the overrun side
+    assert moves[1][0] == point.target
+
+
+def test_pause_holds_between_points(tmp_path):
+    class PausesOnce(Observer):
+        def __init__(self):
+            self.control = None
+
+        def emit(self, event):
+            if event.kind == "point" and event.point == 3:
+                self.control.request_pause()
+            if event.kind == "pause":
+                self.control.request_resume()  # the operator presses r at once
+
+    from campaign.measure.executor import Control
+
+    observer, control = PausesOnce(), Control()
+    observer.control = control
+    outcome = start_campaign(config(), tmp_path / "c", opener=FakeMachine(), observer=observer, control=control)
+    assert outcome.status == "completed"
+    pause, unpause = events(tmp_path / "c", "pause"), events(tmp_path / "c", "unpause")
+    assert [e["point"] for e in pause] == [3] and len(unpause) == 1
+
+
+def test_beam_loss_retries_the_capture_and_never_averages_a_bad_reading(tmp_path):
+    def cut_the_beam(parts):
+        parts.laser.beam_off.append((0.85, 1.05))  # during the first point's capture window (0.7 to 1.2 s)
+
+    outcome = start_campaign(config(), tmp_path / "c", opener=FakeMachine(setup=cut_the_beam))
+    assert outcome.status == "completed"
+    assert rows(tmp_path / "c") == expected_rows(config())
+    assert events(tmp_path / "c", "capture_retry")
+    assert events(tmp_path / "c", "beam", ok=False) and events(tmp_path / "c", "beam", ok=True)
+
+
+def test_a_full_disk_stops_the_campaign_and_resume_completes_it(tmp_path):
+    def full_disk_later(hardware, parts, executor):
+        def at(t):
+            if t >= 12.0 and not executor.rec.fail_next_point_write and not parts.opened:
+                parts.opened.append(t)
+                executor.rec.inject_disk_full()
+
+        parts.clock.listeners.append(at)
+
+    outcome = start_campaign(config(), tmp_path / "c", opener=FakeMachine(), on_open=full_disk_later)
+    assert outcome.status == "interrupted" and "recording failed" in outcome.message
+    assert 0 < outcome.points < 12
+    again = resume_campaign(tmp_path / "c", opener=FakeMachine())
+    assert again.status == "completed" and rows(tmp_path / "c") == expected_rows(config())
+
+
+def test_ctrl_c_halts_and_marks_the_directory_interrupted(tmp_path):
+    def ctrl_c_after_three_points(hardware, parts, executor):
+        def at(t):
+            if executor.rec.points_written == 3:
+                raise KeyboardInterrupt
+
+        parts.clock.listeners.append(at)
+
+    with pytest.raises(KeyboardInterrupt):
+        start_campaign(config(), tmp_path / "c", opener=FakeMachine(), on_open=ctrl_c_after_three_points)
+    assert open_campaign(tmp_path / "c").status == "interrupted"
+    assert events(tmp_path / "c", "interrupt", by="Ctrl-C")
+    assert events(tmp_path / "c", "halt", ok=True, why="interrupted")
+    assert len(rows(tmp_path / "c")) == 3
+
+
+def test_a_failing_display_never_stops_the_campaign(tmp_path):
+    class Broken(Observer):
+        def emit(self, event):
+            raise RuntimeError("the terminal went away")
+
+        def reading(self, t_s, reading, target):
+            raise RuntimeError("the terminal went away")
+
+    outcome = start_campaign(config(), tmp_path / "c", opener=FakeMachine(), observer=Broken())
+    assert outcome.status == "completed" and outcome.points == 12
+    assert len(events(tmp_path / "c", "display")) == 1
+
+
+def test_resume_after_an_edited_config_refuses_and_names_the_key(tmp_path):
+    cfg = config()
+    cfg.sections["campaign"]["on_fault"] = "abort"
+    start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(6))))
+    path = tmp_path / "c" / "config.toml"
+    path.write_text(path.read_text().replace("targets = [0.0, 50.0, 100.0]", "targets = [3.0, 53.0, 103.0]"))
+    before = (tmp_path / "c" / "points.csv").read_bytes()
+    with pytest.raises(InputError, match=r"config.toml: plan.targets is \[3.0, 53.0, 103.0\] now, "
+                                         r"\[0.0, 50.0, 100.0\] when recorded"):
+        resume_campaign(tmp_path / "c", opener=FakeMachine())
+    assert (tmp_path / "c" / "points.csv").read_bytes() == before  # nothing touched
+
+
+def test_resume_accepts_a_changed_connection_or_operator(tmp_path):
+    cfg = config()
+    cfg.sections["campaign"]["on_fault"] = "abort"
+    start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(6))))
+    path = tmp_path / "c" / "config.toml"
+    path.write_text(path.read_text() + '[axis_driver]\nip = "10.0.0.7"\n')
+    path.write_text(path.read_text().replace('machine = "fake"', 'machine = "fake"\noperator = "night shift"'))
+    assert resume_campaign(tmp_path / "c", opener=FakeMachine()).status == "completed"
+
+
+def test_resume_uses_the_recorded_plan_not_todays_plan_builder(tmp_path, monkeypatch):
+    cfg = config()
+    cfg.sections["campaign"]["on_fault"] = "abort"
+    start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(6))))
+    import campaign.plan
+
+    def different_builder(config):  # a later axiscal that plans differently
+        raise AssertionError("resume must not rebuild a recorded plan")
+
+    monkeypatch.setattr(campaign.plan, "build_plan", different_builder)
+    assert resume_campaign(tmp_path / "c", opener=FakeMachine()).status == "completed"
+    assert rows(tmp_path / "c") == expected_rows(config())
+
+
+def old_directory(tmp_path, targets_recorded):
+    """A directory as axiscal 0.1 left it: meta.json with a status, no plan.jsonl or runs.jsonl."""
+    cfg = config()
+    cfg.sections["campaign"]["on_fault"] = "abort"
+    start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(6))))
+    d = tmp_path / "c"
+    meta = json.loads((d / "meta.json").read_text())
+    for key in ("format_version", "config"):
+        meta.pop(key)
+    meta.update(status="interrupted", targets=targets_recorded)
+    (d / "meta.json").write_text(json.dumps(meta))
+    for name in ("plan.jsonl", "runs.jsonl", "events.jsonl"):
+        (d / name).unlink()
+    return d
+
+
+def test_an_old_directory_resumes_with_the_rebuilt_plan(tmp_path):
+    d = old_directory(tmp_path, [0.0, 50.0, 100.0])
+    assert open_campaign(d).status == "interrupted" and open_campaign(d).format_version == 1
+    assert resume_campaign(d, opener=FakeMachine()).status == "completed"
+    assert rows(d) == expected_rows(config())
+
+
+def test_an_old_directory_whose_config_changed_is_refused(tmp_path):
+    d = old_directory(tmp_path, [0.0, 40.0, 100.0])
+    with pytest.raises(InputError, match=r"config.toml: target 2 is 50 now, 40 when recorded"):
+        resume_campaign(d, opener=FakeMachine())
