@@ -47,8 +47,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "description": Key(str, "", "free text, recorded in the metadata", resume=True),
         "tolerance": Key(float, 0.0, "pass/fail tolerance on A, deviation unit (µm or arcsec); 0 = none",
                          min=0, resume=True),
-        "on_fault": Key(str, "retry", "without an operator: retry a point after a fault, or abort at once",
-                        choices=("retry", "abort"), resume=True),
+        "on_fault": Key(str, "retry", "without an operator: retry a point after a fault (up to fault_retries "
+                        "times), skip it (resume measures it later), or abort at once",
+                        choices=("retry", "skip", "abort"), resume=True),
         "fault_retries": Key(int, 3, "faults retried at one point before the campaign stops", min=0, max=20, resume=True),
     },
     "axis": {

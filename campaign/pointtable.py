@@ -12,13 +12,14 @@ comments; a comment of the form `# key: value` is kept as metadata. Columns:
 
 Any other column is ignored by the evaluation; those whose every value is a finite number are
 kept in `PointTable.extra` (a recorded campaign's `point`, `capture_wait_s`, `samples`, ...). The Unicode minus sign U+2212 is
-read as `-`. Bad input raises `InputError` naming the file, line and column.
+read as `-`. A table with a `point` column (the plan index, written by axiscal's recorder) is read
+in plan order, whatever order its rows were measured in. Bad input raises `InputError` naming the file, line and column.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -197,9 +198,22 @@ def _build(header, rows, kind, meta, path, partial=False) -> PointTable:
         source=path,
         extra=others,
     )
+    if "point" in others:
+        table = _in_plan_order(table)
     if not partial:
         _check_directions(table, path)
     return table
+
+
+def _in_plan_order(table: PointTable) -> PointTable:
+    """A recorded campaign's table is written in measurement order; a point skipped after a fault
+    and measured on resume comes last. Its `point` column (the plan index) gives the plan order."""
+    order = np.argsort(table.extra["point"], kind="stable")
+    if np.all(order == np.arange(len(order))):
+        return table
+    return replace(table, run=table.run[order], direction=table.direction[order], target=table.target[order],
+                   deviation=table.deviation[order], optional={k: v[order] for k, v in table.optional.items()},
+                   extra={k: v[order] for k, v in table.extra.items()})
 
 
 def _numbers_or_none(cells: list[str]) -> np.ndarray | None:

@@ -265,3 +265,33 @@ def test_an_old_directory_whose_config_changed_is_refused(tmp_path):
     d = old_directory(tmp_path, [0.0, 40.0, 100.0])
     with pytest.raises(InputError, match=r"config.toml: target 2 is 50 now, 40 when recorded"):
         resume_campaign(d, opener=FakeMachine())
+
+
+def test_resume_measures_a_skipped_point_and_the_table_reads_in_plan_order(tmp_path):
+    machine = FakeMachine(setup=lambda parts: parts.axis.faults.append(AxisFault(move=4)))
+    first = start_campaign(config(), tmp_path / "c", opener=machine, observer=Decides("skip"))
+    assert first.status == "completed" and first.points == 11  # completed, one point short
+    second = FakeMachine()
+    again = resume_campaign(tmp_path / "c", opener=second)
+    assert (again.status, again.points, again.planned) == ("completed", 12, 12)
+    file_order = [int(ln.split(",")[5]) for ln in (tmp_path / "c" / "points.csv").read_text().splitlines()
+                  if ln[:1].isdigit()]
+    assert file_order == [i for i in range(12) if i != 2] + [2]  # appended, never rewritten
+    assert rows(tmp_path / "c") == expected_rows(config())  # read in plan order, no duplicate
+    point = build_plan(config()).points[2]
+    moves = second.openings[0].axis.moves
+    assert moves[:2] == [(point.target - point.direction * 2.0, 25.0), (point.target, 25.0)]
+    assert len(moves) == 2  # the re-approach and the point: the rest was measured before
+    resume = events(tmp_path / "c", "resume")[0]
+    assert resume["data"] == {"first_point": 2, "points": 1, "skipped": [2]}
+    with pytest.raises(InputError, match="already completed"):
+        resume_campaign(tmp_path / "c", opener=FakeMachine())
+
+
+def test_skip_policy_without_an_operator(tmp_path):
+    cfg = config()
+    cfg.sections["campaign"]["on_fault"] = "skip"
+    machine = FakeMachine(setup=lambda parts: parts.axis.faults.append(AxisFault(move=4)))
+    outcome = start_campaign(cfg, tmp_path / "c", opener=machine)
+    assert outcome.status == "completed" and outcome.points == 11
+    assert [e["point"] for e in events(tmp_path / "c", "skip")] == [2]

@@ -10,7 +10,7 @@ from __future__ import annotations
 from importlib import resources
 
 from campaign.commands import hardware_opener
-from campaign.commands.run import add_run_options, finish, run_config
+from campaign.commands.run import add_run_options, apply_on_fault, finish, run_config
 from campaign.config import parse_config
 from campaign.faults import parse_inject
 from campaign.measure.progress import RichProgress
@@ -49,6 +49,7 @@ def run(args) -> int:
 
 def rehearse(config, faults: dict, args) -> int:
     """Run with faults injected; resume (without faults) as often as needed, then report."""
+    apply_on_fault(config, args)
     fired: list = []
 
     def keep_log(hardware, sim, executor):

@@ -28,6 +28,19 @@ def add_run_options(p) -> None:
                    help="simulated machine: N times real time (default: as fast as possible)")
     p.add_argument("--json", action="store_true", help="print one JSON object at the end")
     p.add_argument("--plot", metavar="OUT", help="write the ISO 230-2 plot (.png or .svg)")
+    add_on_fault_option(p)
+
+
+def add_on_fault_option(p) -> None:
+    p.add_argument("--on-fault", choices=("retry", "skip", "abort"),
+                   help="after a fault: retry the point (up to [campaign] fault_retries times), skip it "
+                        "(`axiscal resume` measures it later) or stop (default: the config's [campaign] on_fault)")
+
+
+def apply_on_fault(config, args) -> None:
+    """--on-fault overrides the config's [campaign] on_fault."""
+    if getattr(args, "on_fault", None):
+        config.sections["campaign"]["on_fault"] = args.on_fault
 
 
 def finish(outcome, args, extra: dict | None = None) -> int:
@@ -63,6 +76,7 @@ def finish(outcome, args, extra: dict | None = None) -> int:
 
 
 def run_config(config, args, extra=None) -> int:
+    apply_on_fault(config, args)
     if args.plot:
         check_plot_path(args.plot)
     unit = config["axis"]["unit"]

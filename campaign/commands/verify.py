@@ -8,7 +8,7 @@ from pathlib import Path
 from rich.table import Table
 
 from campaign.commands import hardware_opener, positive_number
-from campaign.commands.run import add_run_options, finish
+from campaign.commands.run import add_run_options, apply_on_fault, finish
 from campaign.compensation.table_file import read_comp_json
 from campaign.config import load_config
 from campaign.errors import InputError
@@ -35,6 +35,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     config = load_config(args.config)
+    apply_on_fault(config, args)
     table = read_comp_json(args.comp)
     if args.plot:
         check_plot_path(args.plot)

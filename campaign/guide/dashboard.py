@@ -170,7 +170,7 @@ class Dashboard(Observer):
 
     # -- Observer (a display sink of the event stream) -------------------------------------------------------------------------------
 
-    def started(self, plan: Plan, first_point: int) -> None:
+    def started(self, plan: Plan, todo: list[int]) -> None:
         self.state = "RUNNING" if not self.control.abort_requested() else self.state
 
     def reading(self, t_s, reading, target) -> None:

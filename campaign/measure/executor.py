@@ -63,7 +63,8 @@ class Observer:
     shows rich bars, the guided session a dashboard that asks the operator. An exception from an
     observer never stops the campaign (it is logged once as a `display` event)."""
 
-    def started(self, plan: Plan, first_point: int) -> None: ...
+    def started(self, plan: Plan, todo: list[int]) -> None:
+        """The executor starts to measure the points `todo` (plan indices, ascending)."""
     def reading(self, t_s: float, reading: Reading, target: float | None) -> None: ...
     def emit(self, event: Event) -> None: ...
 
@@ -109,16 +110,31 @@ class Control:
         self._wake.clear()
 
 
-def resume_steps(plan: Plan, first_point: int, overrun: float) -> list[tuple[int, Step]]:
-    """The steps (with their plan index) from point `first_point` on, preceded by a re-approach
-    from the overrun so that the point is approached in its own direction."""
+def stretch_steps(plan: Plan, first: int, last: int, overrun: float) -> list[tuple[int, Step]]:
+    """The steps (with their plan index) that measure the consecutive points `first`..`last` (plan
+    indices). Unless `first` is the plan's first point, they begin with a re-approach from the
+    overrun, so that the point is approached in its own direction; when `last` is the plan's last
+    point they include the plan's closing moves."""
+    visits = plan.visits()
     steps = list(enumerate(plan.steps))
-    if first_point == 0:
-        return steps
-    visit = plan.visits()[first_point]
+    end = len(steps) if last == len(visits) - 1 else visits[last].checkpoint_step + 1
+    if first == 0:
+        return steps[:end]
+    visit = visits[first]
     point = visit.point
     approach = Move(point.target - point.direction * overrun, visit.move.velocity, overrun=True)
-    return [(visit.step, approach)] + steps[visit.step:]
+    return [(visit.step, approach)] + steps[visit.step:end]
+
+
+def stretches(todo: list[int]) -> list[tuple[int, int]]:
+    """Runs of consecutive plan indices in `todo` (ascending): [(first, last), ...]."""
+    out: list[tuple[int, int]] = []
+    for index in todo:
+        if out and index == out[-1][1] + 1:
+            out[-1] = (out[-1][0], index)
+        else:
+            out.append((index, index))
+    return out
 
 
 class Executor:
@@ -172,17 +188,19 @@ class Executor:
                     except RecordingError:
                         pass
 
-    def run(self, first_point: int = 0) -> None:
-        """Run from point `first_point` to the end. On a fault the observers decide: retry the
-        point, skip it, or abort (CampaignStopped, after halting). Ctrl-C or an abort request
-        halts, flushes and re-raises KeyboardInterrupt."""
-        self._show(lambda obs: obs.started(self.plan, first_point))
-        self.emit("start", f"measuring from point {first_point + 1} of {len(self.plan.points)}", first_point,
-                  first_point=first_point, planned=len(self.plan.points))
-        point: int | None = first_point
+    def run(self, todo: int | list[int] = 0) -> None:
+        """Measure the points `todo` (plan indices; an int n means n to the end) in plan order. On a
+        fault the observers decide: retry the point, skip it, or abort (CampaignStopped, after
+        halting). Ctrl-C or an abort request halts, flushes and re-raises KeyboardInterrupt."""
+        total = len(self.plan.points)
+        todo = list(range(todo, total)) if isinstance(todo, int) else sorted(set(todo))
+        self._show(lambda obs: obs.started(self.plan, todo))
+        if todo:
+            self.emit("start", f"measuring {len(todo)} of {total} points, from point {todo[0] + 1}", todo[0],
+                      first_point=todo[0], points=len(todo), planned=total)
         try:
-            while point is not None:
-                point = self._run_from(point)
+            while todo:
+                todo = self._run_points(todo)
         except KeyboardInterrupt:
             by = self.control.abort_reason or "Ctrl-C"
             self._emit_safely("interrupt", f"interrupted ({by}); recording flushed", self.next_point, by=by)
@@ -192,42 +210,49 @@ class Executor:
             self._halt("recording failed")
             raise CampaignStopped(f"recording failed: {exc}") from exc
 
-    def _run_from(self, first_point: int) -> int | None:
-        """Run the steps from `first_point`; returns the point to restart from after a fault
-        the observer chose to retry or skip, or None at the end."""
-        self.next_point = first_point
+    def _run_points(self, todo: list[int]) -> list[int]:
+        """Measure `todo`, one stretch of consecutive points at a time; returns the points still to
+        measure after a fault the observer chose to retry or skip, [] at the end."""
         total = len(self.plan.points)
-        for index, step in resume_steps(self.plan, first_point, self.config["plan"]["overrun"]):
-            self.step_index = index
-            try:
-                self._do(step)
-            except RecordingError as exc:
-                self._emit_safely("fault", f"point {self.next_point + 1}: recording failed: {exc}", self.next_point,
-                                  error="RecordingError", error_id=0)
-                self._halt("recording failed")
-                raise CampaignStopped(f"recording failed: {exc}") from exc
-            except FAULTS as exc:
-                self._emit_safely("fault", f"point {self.next_point + 1}: {type(exc).__name__}: {exc}",
-                                  self.next_point, error=type(exc).__name__, error_id=getattr(exc, "error_id", 0))
-                self._halt("fault")
-                decision = self._decide(exc, total)
-                if decision == "abort":
-                    raise CampaignStopped(str(exc)) from exc
-                self._recover(exc)
-                if decision == "skip":
-                    self.emit("skip", f"point {self.next_point + 1} skipped by the operator", self.next_point)
-                    return self.next_point + 1 if self.next_point + 1 < total else None
-                self.emit("retry", f"point {self.next_point + 1} measured again", self.next_point)
-                return self.next_point
-            if isinstance(step, Checkpoint):
-                self.next_point = step.point.index + 1
-                self._maybe_pause()
-        return None
+        for first, last in stretches(todo):
+            self.next_point = first
+            for index, step in stretch_steps(self.plan, first, last, self.config["plan"]["overrun"]):
+                self.step_index = index
+                try:
+                    self._do(step)
+                except RecordingError as exc:
+                    self._emit_safely("fault", f"point {self.next_point + 1}: recording failed: {exc}",
+                                      self.next_point, error="RecordingError", error_id=0)
+                    self._halt("recording failed")
+                    raise CampaignStopped(f"recording failed: {exc}") from exc
+                except FAULTS as exc:
+                    return self._after_fault(exc, todo, total)
+                if isinstance(step, Checkpoint):
+                    self.next_point = step.point.index + 1
+                    self._maybe_pause()
+        return []
+
+    def _after_fault(self, exc: Exception, todo: list[int], total: int) -> list[int]:
+        """Halt, let the operator (or the policy) decide, get the axis ready again; the points left."""
+        point = self.next_point
+        self._emit_safely("fault", f"point {point + 1}: {type(exc).__name__}: {exc}", point,
+                          error=type(exc).__name__, error_id=getattr(exc, "error_id", 0))
+        self._halt("fault")
+        decision = self._decide(exc, total)
+        if decision == "abort":
+            raise CampaignStopped(str(exc)) from exc
+        self._recover(exc)
+        if decision == "skip":
+            self.emit("skip", f"point {point + 1} skipped (resume measures it later)", point)
+            return [p for p in todo if p > point]
+        self.emit("retry", f"point {point + 1} measured again", point)
+        return [p for p in todo if p >= point]
 
     def _decide(self, exc: Exception, total: int) -> str:
-        """The operator's decision, or without one the config's policy: retry a point up to
-        `campaign.fault_retries` times after an axis fault, a lost connection or beam loss; a
-        vanished instrument port cannot be retried in this process (resume later)."""
+        """The operator's decision, or without one the config's policy (`campaign.on_fault`): retry
+        a point up to `campaign.fault_retries` times after an axis fault, a lost connection or beam
+        loss, skip it at once (resume measures it later), or abort; a vanished instrument port
+        cannot be retried in this process (resume later)."""
         if self.next_point >= total:
             return "abort"
         for obs in self.observers:
@@ -236,7 +261,11 @@ class Executor:
                 return decision
         c = self.config["campaign"]
         used = self.retries.get(self.next_point, 0)
-        if c["on_fault"] == "abort" or isinstance(exc, InstrumentError) or used >= c["fault_retries"]:
+        if c["on_fault"] == "abort" or isinstance(exc, InstrumentError):
+            return "abort"
+        if c["on_fault"] == "skip":
+            return "skip"
+        if used >= c["fault_retries"]:
             return "abort"
         self.retries[self.next_point] = used + 1
         return "retry"

@@ -33,17 +33,19 @@ class RichProgress(Observer):
         if self.overall is not None:
             self.progress.stop()
 
-    def started(self, plan: Plan, first_point: int) -> None:
+    def started(self, plan: Plan, todo: list[int]) -> None:
         self.progress.start()
-        points = plan.points
-        runs = max(p.run for p in points)
-        self.per_run = len(points) // runs
-        done_in_run = first_point % self.per_run
-        run = points[first_point].run if first_point < len(points) else runs
-        self.overall = self.progress.add_task("campaign", total=len(points), completed=first_point, live="")
-        self.run_task = self.progress.add_task(f"run {run}/{runs}", total=self.per_run,
-                                               completed=done_in_run, live="")
-        self.runs = runs
+        self.points = plan.points
+        self.runs = max(p.run for p in self.points)
+        self.per_run = len(self.points) // self.runs
+        self.done = {p.index for p in self.points} - set(todo)
+        run = self.points[todo[0]].run if todo else self.runs
+        self.overall = self.progress.add_task("campaign", total=len(self.points), completed=len(self.done), live="")
+        self.run_task = self.progress.add_task(f"run {run}/{self.runs}", total=self.per_run,
+                                               completed=self._done_in(run), live="")
+
+    def _done_in(self, run: int) -> int:
+        return sum(1 for i in self.done if self.points[i].run == run)
 
     def reading(self, t_s, reading, target) -> None:
         if t_s - self._last_reading_t < 0.5 or self.overall is None:
@@ -60,8 +62,8 @@ class RichProgress(Observer):
     def emit(self, event: Event) -> None:
         if event.kind == "point":
             run = event.data["run"]
-            self.progress.advance(self.overall)
-            done = event.point + 1 - (run - 1) * self.per_run
-            self.progress.update(self.run_task, description=f"run {run}/{self.runs}", completed=done)
+            self.done.add(event.point)
+            self.progress.update(self.overall, completed=len(self.done))
+            self.progress.update(self.run_task, description=f"run {run}/{self.runs}", completed=self._done_in(run))
         elif event.kind not in ("start", "stop"):
             self.console.print(f"[yellow]{event.kind}:[/] {event.message}")

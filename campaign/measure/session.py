@@ -64,10 +64,11 @@ def campaign_meta(config: Config, plan: Plan) -> dict:
             "capture": config["capture"]["method"], "driver": config["axis_driver"]["type"]}
 
 
-def execute(config: Config, plan: Plan, recorder: Recorder, first_point: int, *, opener: Opener | None = None,
+def execute(config: Config, plan: Plan, recorder: Recorder, todo: int | list[int], *, opener: Opener | None = None,
             speed=None, model=None, observer: Observer | None = None, t_offset: float = 0.0,
             start: float | None = None, on_open=None, control: Control | None = None, opened=None) -> Outcome:
-    """Run `plan` from `first_point` into `recorder` between a start and a stop record. Re-raises
+    """Measure the points `todo` of `plan` (plan indices; an int n: from n to the end) into
+    `recorder`, between a start and a stop record. Re-raises
     KeyboardInterrupt after the axis is halted and the recording flushed. `opened`: a (Hardware,
     parts) pair already open, used instead of `opener` (it is closed at the end either way)."""
     if opened is None:
@@ -81,8 +82,9 @@ def execute(config: Config, plan: Plan, recorder: Recorder, first_point: int, *,
     try:
         if on_open:
             on_open(hardware, sim, executor)
-        recorder.start(executor.now(), first_point, len(plan.points))
-        executor.run(first_point)
+        first = todo if isinstance(todo, int) else min(todo)
+        recorder.start(executor.now(), first, len(plan.points))
+        executor.run(todo)
         status, message = "completed", ""
     except CampaignStopped as exc:
         status, message = "interrupted", str(exc)
@@ -151,44 +153,52 @@ def open_with_comp(opener: Opener, config: Config, comp: CompTable, speed=None, 
 
 
 def resume_campaign(directory: str | Path, faults: dict | None = None, *, opener: Opener, **kwargs) -> Outcome:
-    """Continue an interrupted campaign in `directory` from the point after the last recorded one,
-    re-approaching it from the overrun in its own direction, appending to the same files, with
-    the recorded plan (see `CampaignDir.plan_for`). `faults`: a [sim.faults] table to rehearse in the
-    resumed part (the config's own faults are not injected again)."""
+    """Measure the points an earlier run of the campaign in `directory` left out: those skipped
+    after a fault, and those after the last one recorded. Each is re-approached from the overrun
+    in its own direction, in plan order, appending to the same files, with the recorded plan
+    (see `CampaignDir.plan_for`). `faults`: a [sim.faults] table to rehearse in the resumed part
+    (the config's own faults are not injected again)."""
     path = Path(directory)
     campaign = open_campaign(path)
-    if campaign.status == "completed":
-        raise InputError(f"{path}: the campaign is already completed")
     config = load_config(path / "config.toml")
     config.sections["sim"].pop("faults", None)  # rehearsed faults are not injected again on resume
     plan = campaign.plan_for(config)
     if faults:
         config.sections["sim"]["faults"] = faults
     check_plan(plan, config)  # before anything is touched
+    if campaign.status == "completed" and not missing_points(path, plan):
+        raise InputError(f"{path}: the campaign is already completed: every point is recorded")
     recorder = Recorder.reopen(path)  # torn tails are cut before anything is read
     try:
-        done = recorded_point_indices(path)
-        first = max(done) + 1 if done else 0
-        skipped = sorted(set(range(first)) - set(done))
+        todo = missing_points(path, plan)
         t_last, position = last_raw_state(path)
-        if first >= len(plan.points):  # stopped after its last point, before its stop record
+        if not todo:  # stopped after its last point, before its stop record
             recorder.stop(t_last, "completed", "nothing left to measure")
             recorder.close()
-            return Outcome(path, "completed", len(done), len(plan.points), t_last, "nothing left to measure")
+            return Outcome(path, "completed", len(plan.points), len(plan.points), t_last, "nothing left to measure")
         if (path / SIM_MODEL_FILE).exists() and kwargs.get("model") is None:
             kwargs["model"] = read_model(path / SIM_MODEL_FILE)
         comp = campaign.comp_table()
         if comp is not None:  # measured with compensation: the controller gets its table again first
             kwargs["opened"] = open_with_comp(opener, config, comp, kwargs.get("speed"), kwargs.get("model"),
                                               position, t_last)
-        text = f"resumed at point {first + 1} of {len(plan.points)} (plan index {first})"
-        if skipped:  # skipped by the operator: they stay missing (a follow-up campaign can fill them)
-            text += f"; points skipped earlier stay missing: {skipped}"
-        recorder.emit(Event(t_last, "resume", text, first, {"first_point": first, "skipped": skipped}))
+        last_done = max(set(range(len(plan.points))) - set(todo), default=-1)
+        again = [i for i in todo if i < last_done]  # skipped after a fault
+        text = f"resumed: {len(todo)} of {len(plan.points)} points to measure, from point {todo[0] + 1}"
+        if again:
+            text += f"; measured again after a skip: {', '.join(str(i + 1) for i in again)}"
+        recorder.emit(Event(t_last, "resume", text, todo[0], {"first_point": todo[0], "points": len(todo),
+                                                                "skipped": again}))
     except BaseException:
         recorder.close()
         raise
-    return execute(config, plan, recorder, first, opener=opener, t_offset=t_last, start=position, **kwargs)
+    return execute(config, plan, recorder, todo, opener=opener, t_offset=t_last, start=position, **kwargs)
+
+
+def missing_points(directory: Path, plan: Plan) -> list[int]:
+    """The plan indices of the points not recorded in the directory's points.csv, ascending."""
+    done = set(recorded_point_indices(directory))
+    return [i for i in range(len(plan.points)) if i not in done]
 
 
 def analyse_dir(directory: str | Path) -> tuple[object, Evaluation]:

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 KINDS = {
-    "start": "the executor starts (or continues) at a point; data: first_point, planned",
+    "start": "the executor starts (or continues); data: first_point, points (to measure), planned",
     "point": "a point is recorded; data: run, direction, target, deviation",
     "fault": "a fault stopped the current point; data: error (the exception type), error_id",
     "halt": "the axis was asked to halt; data: ok (false when the halt could not be sent), why",
@@ -30,7 +30,8 @@ KINDS = {
     "pause": "the operator paused between points",
     "unpause": "the operator resumed after a pause",
     "reconnect": "the controller connection came back",
-    "resume": "the campaign continues in this directory; data: first_point, skipped (points measured now)",
+    "resume": "the campaign continues in this directory; data: first_point, points (to measure), skipped (plan "
+              "indices skipped earlier, measured now)",
     "stop": "the executor stopped; data: status (completed, interrupted, failed), points",
     "display": "a display sink failed; the campaign goes on (data: error)",
 }
