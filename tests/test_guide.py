@@ -293,7 +293,7 @@ def test_a_fault_asks_the_operator_in_a_terminal(tmp_path, small_config):
     try:
         child.expect("Start the motion")
         child.sendline("y")
-        child.expect("Press r to retry the point, s to skip it, a to abort")
+        child.expect("Press r to retry the point, s to skip it")
         skipped_at = count_points(out)
         child.send("s")
         assert keep_reading_until(child, lambda: count_points(out) > skipped_at + 1)

@@ -15,7 +15,7 @@ from typing import Self
 from rich.console import Console, Group
 from rich.live import Live
 from rich.panel import Panel
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 from rich.table import Table
 
 from campaign.guide.keys import Keys
@@ -42,9 +42,24 @@ def sparkline(values: list[float | None], lo: float, hi: float, width: int = 1) 
         if v is None:
             out.append("·" * width)
             continue
-        level = 0 if hi <= lo else round((v - lo) / (hi - lo) * (len(BLOCKS) - 1))
-        out.append(BLOCKS[level] * width)
+        out.append(BLOCKS[level_of(v, lo, hi)] * width)
     return "".join(out)
+
+
+def level_of(value: float, lo: float, hi: float) -> int:
+    """The block (0 to 7) that shows `value` on a scale from lo to hi."""
+    return 0 if hi <= lo else round((value - lo) / (hi - lo) * (len(BLOCKS) - 1))
+
+
+def clock_text(seconds: float) -> str:
+    """h:mm:ss for a duration in s."""
+    seconds = max(0, round(seconds))
+    return f"{seconds // 3600}:{seconds % 3600 // 60:02d}:{seconds % 60:02d}"
+
+
+def error_id_text(error_id: int) -> str:
+    """A controller error number in decimal and hex, as TwinCAT's documentation lists them."""
+    return f"{error_id} (0x{error_id:04X})"
 
 
 def describe_fault(exc: Exception) -> str:
@@ -54,7 +69,7 @@ def describe_fault(exc: Exception) -> str:
     if isinstance(exc, NotStable):
         return f"reading not stable ({exc}). Check for vibration or air draught"
     if isinstance(exc, AxisError) and exc.error_id:
-        return f"axis error {exc.error_id} ({exc}). Check the drive"
+        return f"axis error {error_id_text(exc.error_id)}: {exc}. Check the drive"
     if isinstance(exc, AxisError):
         return f"lost connection to the controller ({exc}). Check the network cable"
     if isinstance(exc, InstrumentError):
@@ -65,7 +80,11 @@ def describe_fault(exc: Exception) -> str:
 class Dashboard(Observer):
     """The campaign on screen. `on_fault`: "ask" (a prompt through `keys`); the fixed answer "retry"
     (at most campaign.fault_retries times per point, then abort), "skip" or "abort"; or None (the
-    config's own policy, [campaign] on_fault). `hw`: the hardware the campaign runs on."""
+    config's own policy, [campaign] on_fault). `hw`: the hardware the campaign runs on.
+
+    Points are counted from 1 on screen, like the progress bars; points.csv's `point` column holds
+    the plan index (from 0). The ETAs are machine time: the time per point measured so far (pauses
+    left out) times the points left."""
 
     def __init__(self, console: Console, config, plan: Plan, control: Control, on_fault: str | None,
                  hw=None, keys: Keys | None = None):
@@ -76,17 +95,23 @@ class Dashboard(Observer):
         self.dev_unit = "µm" if self.unit == "mm" else "arcsec"
         self.scale = DEVIATION_SCALE[self.unit]
         self.runs = config["plan"]["cycles"]
+        self.per_run = len(plan.points) // self.runs
         self.state = "starting"
         self.abort_reason: str | None = None
         self.prompt: str | None = None
         self.warnings: deque[str] = deque(maxlen=4)
-        self.next_point, self.measured, self.skipped, self.t_s = 0, 0, 0, 0.0
+        self.done: set[int] = set()
+        self.todo: list[int] = list(range(len(plan.points)))
+        self.skipped: set[int] = set()
+        self.t_s, self.started_s, self.paused_s, self.pause_began = 0.0, None, 0.0, None
+        self.measured_now = 0
+        self.run = 1
         self.live_text = "no reading yet"
         self.deviations: dict[int, list[list[float]]] = {d: [[] for _ in plan.targets] for d in (1, -1)}
         self.progress = Progress(TextColumn("{task.description:<12}"), BarColumn(bar_width=50),
-                                 MofNCompleteColumn(), TextColumn("points  ETA"), TimeRemainingColumn())
-        self.overall = self.progress.add_task("campaign", total=len(plan.points))
-        self.run_task = self.progress.add_task(f"run 1 of {self.runs}", total=len(plan.points) // self.runs)
+                                 MofNCompleteColumn(), TextColumn("points  {task.fields[eta]}"))
+        self.overall = self.progress.add_task("campaign", total=len(plan.points), eta="")
+        self.run_task = self.progress.add_task(f"run 1 of {self.runs}", total=self.per_run, eta="")
         self.live = Live(self, console=console, refresh_per_second=4) if console.is_terminal else None
 
     def __enter__(self) -> Self:
@@ -110,20 +135,29 @@ class Dashboard(Observer):
             parts.append(f"[dim]{KEY_HELP}[/]")
         return Group(*parts)
 
+    def current(self) -> int | None:
+        """The plan index of the point being measured (the first one to do), None at the end."""
+        return next((i for i in self.todo if i not in self.done and i not in self.skipped), None)
+
     def _status(self) -> Table:
         grid = Table.grid(padding=(0, 2))
         grid.add_column(style="bold")
         grid.add_column()
-        colour = {"RUNNING": "green", "PAUSED": "yellow", "FAULT": "red", "ABORTING": "red"}
-        grid.add_row("state", f"[bold {colour.get(self.state, 'white')}]{self.state}[/]")
-        if self.next_point < len(self.plan.points):
-            p = self.plan.points[self.next_point]
+        colour = {"RUNNING": "green", "PAUSED": "yellow", "FAULT": "red", "ABORTING": "red",
+                  "COMPLETED": "green", "INTERRUPTED": "red", "FAILED": "red"}
+        state = self.state
+        if state == "PAUSED" and self.pause_began is not None:
+            state += f" for {clock_text(self.t_s - self.pause_began)} (r resumes, a aborts)"
+        grid.add_row("state", f"[bold {colour.get(self.state, 'white')}]{state}[/]")
+        index = self.current()
+        if index is not None and self.state not in ("COMPLETED", "INTERRUPTED", "FAILED"):
+            p = self.plan.points[index]
             arrow = "+ (up ↑)" if p.direction > 0 else "- (down ↓)"
-            grid.add_row("point", f"{p.index} (from 0, as in points.csv), run {p.run} of {self.runs}, "
+            grid.add_row("point", f"{index + 1} of {len(self.plan.points)}: run {p.run} of {self.runs}, "
                                   f"target {p.target:.3f} {self.unit}, direction {arrow}")
         grid.add_row("live", self.live_text)
-        skipped = f", skipped: {self.skipped} point{'s' if self.skipped > 1 else ''}" if self.skipped else ""
-        grid.add_row("time", f"{self.t_s:.1f} s of campaign time{skipped}")
+        skipped = f", skipped: {len(self.skipped)} point{'s' if len(self.skipped) > 1 else ''}" if self.skipped else ""
+        grid.add_row("time", f"{clock_text(self.t_s)} of campaign time{skipped}")
         return grid
 
     def _chart(self) -> Table:
@@ -136,9 +170,12 @@ class Dashboard(Observer):
                                   f"{self.unit}" + (f", {min(known):+.2f} to {max(known):+.2f} {self.dev_unit}"
                                                     if known else ""))
         width = max(1, 48 // len(self.plan.targets))
-        lo, hi = (min(known), max(known)) if known else (0.0, 0.0)
+        lo, hi = (min(min(known), 0.0), max(max(known), 0.0)) if known else (0.0, 0.0)
         for direction, label in ((1, "↑ +"), (-1, "↓ -")):
             grid.add_row(f"  {label}", sparkline(means[direction], lo, hi, width))
+        if known:
+            grid.add_row("  0", f"[dim]{BLOCKS[level_of(0.0, lo, hi)] * width * len(self.plan.targets)}[/] "
+                                f"[dim](the level of 0 {self.dev_unit})[/]")
         return grid
 
     def say(self, message: str, warning: bool = True) -> None:
@@ -168,13 +205,20 @@ class Dashboard(Observer):
         self.state = "ABORTING"
         self.say(f"{why}: aborting, the axis halts and the recording is flushed")
 
-    # -- Observer (a display sink of the event stream) -------------------------------------------------------------------------------
+    # -- Observer (a display sink of the event stream) ---------------------------------------------
 
     def started(self, plan: Plan, todo: list[int]) -> None:
+        self.todo = list(todo)
+        self.done = {p.index for p in plan.points} - set(todo)
         self.state = "RUNNING" if not self.control.abort_requested() else self.state
+        self._update_bars()
 
     def reading(self, t_s, reading, target) -> None:
         self.t_s = t_s
+        if not reading.signal_ok:
+            signal = "" if reading.signal_pct is None else f" (signal {reading.signal_pct:.0f} %)"
+            self.live_text = f"[bold red]BEAM LOST[/]{signal}: no valid reading"
+            return
         text = f"reading {reading.position:.4f} {self.unit}"
         if target is not None:
             deviation = (reading.position - target) * self.scale
@@ -182,53 +226,78 @@ class Dashboard(Observer):
                      else f", {target - reading.position:+.3f} {self.unit} to the target")
         if reading.signal_pct is not None:
             text += f", signal {reading.signal_pct:.0f} %"
-        self.live_text = text + ("" if reading.signal_ok else " [bold red]BEAM LOST[/]")
+        self.live_text = text
 
-    def point_done(self, point, deviation) -> None:
+    def point_done(self, point, deviation, t_s: float) -> None:
         self.deviations[point.direction][point.target_index].append(deviation)
-        self.measured += 1
-        self.next_point = point.index + 1
-        self._advance(point)
+        self.done.add(point.index)
+        self.skipped.discard(point.index)
+        self.measured_now += 1
+        self.t_s = t_s
+        self._update_bars()
+        if self.live is None and self._done_in(point.run) == self.per_run:
+            self.console.print(f"run {point.run} of {self.runs} done at {clock_text(t_s)} of campaign time "
+                               f"({len(self.done)} of {len(self.plan.points)} points measured)")
 
-    def _advance(self, point) -> None:
-        per_run = len(self.plan.points) // self.runs
-        self.progress.update(self.overall, completed=self.measured + self.skipped)
-        in_run = sum(1 for p in self.plan.points[:point.index + 1] if p.run == point.run)
-        self.progress.update(self.run_task, description=f"run {point.run} of {self.runs}", completed=in_run)
-        if self.live is None and in_run == per_run:
-            self.console.print(f"run {point.run} of {self.runs} done at {self.t_s:.1f} s of campaign time "
-                               f"({self.measured} points measured)")
+    def _done_in(self, run: int) -> int:
+        return sum(1 for i in self.done | self.skipped if self.plan.points[i].run == run)
+
+    def _per_point_s(self) -> float | None:
+        """Machine time per point measured in this session, pauses left out, s."""
+        if self.started_s is None or not self.measured_now:
+            return None
+        return max(self.t_s - self.started_s - self.paused_s, 0.0) / self.measured_now
+
+    def _update_bars(self) -> None:
+        index = self.current()
+        run = self.plan.points[index].run if index is not None else self.run
+        if run != self.run:  # a new run: a new bar, so that its ETA starts afresh
+            self.run = run
+            self.progress.reset(self.run_task, total=self.per_run, description=f"run {run} of {self.runs}")
+        per_point = self._per_point_s()
+        left = len(self.plan.points) - len(self.done) - len(self.skipped)
+        left_in_run = self.per_run - self._done_in(run)
+
+        def eta(points: int) -> str:
+            return "" if per_point is None else f"ETA {clock_text(points * per_point)} machine time"
+
+        self.progress.update(self.overall, completed=len(self.done) + len(self.skipped), eta=eta(left))
+        self.progress.update(self.run_task, completed=self._done_in(run), eta=eta(left_in_run))
 
     def emit(self, event: Event) -> None:
         kind = event.kind
-        if kind == "point":
-            self.point_done(self.plan.points[event.point], event.data["deviation"])
+        if kind == "start":
+            self.started_s = event.t_s
+        elif kind == "point":
+            self.point_done(self.plan.points[event.point], event.data["deviation"], event.t_s)
         elif kind == "pause":
-            self.state = "PAUSED"
+            self.state, self.pause_began = "PAUSED", event.t_s
             self.say("PAUSED: press r to resume, a to abort", warning=False)
         elif kind == "unpause":
-            self.state = "RUNNING"
+            self.paused_s += event.t_s - (self.pause_began if self.pause_began is not None else event.t_s)
+            self.state, self.pause_began = "RUNNING", None
             self.say("resumed", warning=False)
+        elif kind == "stop":
+            self.state = str(event.data.get("status", "stopped")).upper()
         elif kind not in QUIET_KINDS or (kind == "halt" and not event.data.get("ok")):
             self.say(f"{kind}: {event.message}")
 
     def fault(self, exc: Exception, point: int) -> str | None:
-        text = f"point {point}: {describe_fault(exc)}. The axis is halted."
+        text = f"point {point + 1}: {describe_fault(exc)}. The axis is halted."
         state, self.state = self.state, "FAULT"
         self.say(text)
         decision = self._decide(text, point)
-        self.say(f"fault at point {point}: {decision or 'as the config says ([campaign] on_fault)'}",
+        self.say(f"fault at point {point + 1}: {decision or 'as the config says ([campaign] on_fault)'}",
                  warning=False)
         if decision == "skip":
-            self.skipped += 1
-            self.next_point = point + 1
-            self._advance(self.plan.points[point])
+            self.skipped.add(point)
+            self._update_bars()
         self.state = state if decision != "abort" else "ABORTING"
         return decision
 
     def _decide(self, text: str, point: int) -> str | None:
         if self.on_fault == "ask" and self.keys is not None:
-            self.prompt = f"{text}\nPress r to retry the point, s to skip it, a to abort."
+            self.prompt = f"{text}\nPress r to retry the point, s to skip it (resume measures it later), a to abort."
             try:
                 return self.keys.ask({"r": "retry", "s": "skip", "a": "abort"}, self.control)
             finally:

@@ -43,7 +43,8 @@ def move_and_wait(axis: Axis, clock: Clock, tick, position: float, velocity: flo
         if on_status is not None:
             on_status(status)
         if status.error:
-            raise AxisError(f"axis error {status.error_id} during the move to {position:g}", status.error_id)
+            raise AxisError(f"axis error {status.error_id} (0x{status.error_id:04X}) during the move to "
+                            f"{position:g}", status.error_id)
         if status.done and not status.busy and abs(status.actual_position - position) <= window:
             return status
         if clock.now() - start > timeout:
@@ -309,7 +310,8 @@ class Executor:
             self.emit("pause", f"paused after point {self.next_point}: press r to resume, a to abort",
                       self.next_point - 1)
             while self.control.pause_requested() and not self.control.abort_requested():
-                self.control.wait(0.05)
+                self._tick()  # the axis stands; the laser is still read and recorded, the display lives
+                self.control.wait(self.tick_s)
             self.emit("unpause", "resumed by the operator")
         if self.control.abort_requested():
             raise KeyboardInterrupt
