@@ -272,8 +272,20 @@ class AdsAxis:
                 error = e
                 self._disconnect()
         raise AxisError(
-            f"axis {self.axis}: {what} failed {self._retries + 1} times, last: {error}"
+            f"axis {self.axis}: {what} failed {self._retries + 1} times, last: {str(error).strip().rstrip('.')}; "
+            f"{self._where(error)}"
         ) from error
+
+    def _where(self, error: Exception | None) -> str:
+        """Where axiscal looked for the PLC, and what usually keeps it from answering."""
+        net_id, port, ip = self._address
+        code = getattr(error, "err_code", None)
+        likely = {6: "the PLC runtime is not in RUN, or ams_port is wrong",
+                  7: "there is no ADS route between this PC and the PLC (add it on both sides)",
+                  1861: "no answer in time: check the cable, the IP address and the network"}.get(code, "")
+        return (f"PLC at IP {ip}, AMS Net ID {net_id}, port {port}: "
+                + (f"most likely {likely}; " if likely else "")
+                + "the usual causes are a missing ADS route, the PLC not in RUN, and the network cable")
 
     def _connect(self) -> None:
         connection = pyads.Connection(*self._address)

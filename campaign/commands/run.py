@@ -9,6 +9,7 @@ from campaign.measure.progress import RichProgress
 from campaign.measure.session import analyse_dir, dry_run, start_campaign
 from campaign.plot import check_plot_path, plot_evaluation
 from campaign.views import make_console, print_evaluation, print_json
+from protocols.hardware import AxisError, InstrumentError
 
 
 def register(sub) -> None:
@@ -89,7 +90,10 @@ def run_config(config, args, extra=None) -> int:
 def run(args) -> int:
     config = load_config(args.config)
     if args.dry_run or config["axis_driver"]["read_only"]:
-        report = dry_run(config, hardware_opener())
+        try:
+            report = dry_run(config, hardware_opener())
+        except (AxisError, InstrumentError) as exc:  # a dry run changes nothing: a set-up problem, exit 2
+            raise InputError(f"dry run: {exc}") from None
         if args.json:
             print_json(report)
         else:
