@@ -115,3 +115,15 @@ def test_plan_command(cli, tmp_path):
     assert data["travel"] == pytest.approx(2 * 2 * 130.0)
     path.write_text(BASE.replace("overrun = 5.0", "overrun = 15.0"))
     assert_one_line_error(cli("plan", path), "outside the soft limits")
+
+
+def test_plan_steps_is_a_readable_table_and_json_records(cli):
+    from tests.conftest import ROOT
+
+    text = cli("plan", ROOT / "campaign" / "demo.toml", "--steps").out
+    assert "Move(" not in text and "Point(" not in text  # no Python reprs
+    rows = [ln for ln in text.splitlines() if "capture (average)" in ln]
+    assert len(rows) == 110 and "│     1 │   1 │  +  │" in rows[0]
+    data = json.loads(cli("plan", ROOT / "campaign" / "demo.toml", "--steps", "--json").out)
+    assert data["steps"][0] == {"step": "move", "position": -5.0, "velocity": 8.0, "overrun": True}
+    assert sum(s["step"] == "capture" for s in data["steps"]) == 110

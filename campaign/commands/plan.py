@@ -5,7 +5,16 @@ from __future__ import annotations
 from rich.table import Table
 
 from campaign.config import load_config
-from campaign.plan import build_plan, check_plan, estimate_duration_s
+from campaign.plan import (
+    Capture,
+    Move,
+    Plan,
+    Settle,
+    build_plan,
+    check_plan,
+    estimate_duration_s,
+    plan_records,
+)
 from campaign.views import make_console, print_json
 
 
@@ -14,7 +23,7 @@ def register(sub) -> None:
                        description="Print the plan of a campaign config and check it against the limits.")
     p.add_argument("config", help="campaign TOML (see docs/config.md)")
     p.add_argument("--json", action="store_true", help="one JSON object")
-    p.add_argument("--steps", action="store_true", help="also list every step")
+    p.add_argument("--steps", action="store_true", help="also list every step (a table; with --json, records)")
     p.set_defaults(func=run)
 
 
@@ -33,6 +42,8 @@ def run(args) -> int:
     check_plan(plan, config)
     info = summary(config, plan)
     if args.json:
+        if args.steps:
+            info["steps"] = plan_records(plan)[1:]
         print_json(info)
         return 0
     console = make_console()
@@ -47,6 +58,31 @@ def run(args) -> int:
                                  f"max velocity {info['max_velocity']:g} {u}/s — plan within limits")
     console.print(table)
     if args.steps:
-        for i, step in enumerate(plan.steps):
-            console.print(f"{i:5d} {step}")
+        console.print(steps_table(plan, config))
     return 0
+
+
+def steps_table(plan: Plan, config) -> Table:
+    """Every step of the plan as a table: what it does, where, how fast, for which point (counted
+    from 1, as on the dashboard; plan index = point - 1) and how long."""
+    unit, dwell = config["axis"]["unit"], config["capture"]["method"] == "dwell"
+    table = Table(title="Steps", header_style="bold")
+    for head, justify in (("step", "right"), ("action", "left"), (f"position {unit}", "right"),
+                          (f"speed {unit}/s", "right"), ("point", "right"), ("run", "right"), ("dir", "center"),
+                          ("time s", "right")):
+        table.add_column(head, justify=justify)
+    for i, step in enumerate(plan.steps):
+        if isinstance(step, Move):
+            table.add_row(str(i), "move to overrun" if step.overrun else "move to target", f"{step.position:.3f}",
+                          f"{step.velocity:g}", "", "", "", "")
+        elif isinstance(step, Settle):
+            table.add_row(str(i), "settle", "", "", "", "", "", f"{step.seconds:g}")
+        elif isinstance(step, Capture):
+            p = step.point
+            how = "capture (average)" if dwell else "capture (when stable)"
+            time = f"{step.window_s:g}" if dwell else f"≤ {step.timeout_s:g}"
+            table.add_row(str(i), how, f"{p.target:.3f}", "", str(p.index + 1), str(p.run),
+                          "+" if p.direction > 0 else "-", time)
+        else:
+            table.add_row(str(i), "record the point", "", "", str(step.point.index + 1), "", "", "")
+    return table
