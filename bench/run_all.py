@@ -15,7 +15,7 @@ from pathlib import Path
 HERE = Path(__file__).parent
 SCRIPTS = (("demo_wall_time.py",), ("stable_vs_dwell.py",), ("compensation.py",),
            ("compensation.py", "--smooth", "none"), ("compensation.py", "--cycles", "10"), ("import_stream.py",),
-           ("smoothing.py",))
+           ("smoothing.py",), ("startup.py",))
 COMPENSATION = (("compensation", "5-run campaigns"),
                 ("compensation-raw-means", "5-run campaigns, table from the raw means (`--smooth none`)"),
                 ("compensation-10-runs", "10-run campaigns"))
@@ -36,7 +36,7 @@ def run_scripts() -> None:
 
 def summarise() -> int:
     r = {name: json.loads((HERE / "results" / f"{name}.json").read_text())
-         for name in ("demo_wall_time", "stable_vs_dwell", "import_stream")}
+         for name in ("demo_wall_time", "stable_vs_dwell", "import_stream", "startup")}
     demo, stable = r["demo_wall_time"], r["stable_vs_dwell"]
     lines = ["| goal | measured | ratio (goal) |", "|---|---|---|"]
     lines.append(f"| paper campaign in `axiscal demo` ≤ 10 s wall | {demo['wall_s_median']:.2f} s "
@@ -62,6 +62,11 @@ def summarise() -> int:
     imp = r["import_stream"]
     lines.append(f"| import-stream segmentation + extraction / pandas.read_csv, {imp['samples'] / 1e6:.1f} M samples | "
                  f"{imp['segment_extract_s']:.3f} s vs {imp['read_csv_s']:.3f} s | {imp['ratio']:.2f} (≤ 1.5) |")
+    start = r["startup"]
+    slowest = max(start["command_help_s"].items(), key=lambda kv: kv[1])
+    lines.append(f"| `axiscal --help` start-up / bare `python -c pass` | {start['axiscal_help_s'] * 1000:.0f} ms vs "
+                 f"{start['python_pass_s'] * 1000:.0f} ms; slowest `axiscal {slowest[0]} --help` "
+                 f"{slowest[1] * 1000:.0f} ms | {start['ratio']:.1f} (≤ {start['goal_ratio']:g}) |")
     text = "\n".join(lines) + "\n"
     (HERE / "results" / "summary.md").write_text(text)
     print(text)

@@ -15,11 +15,9 @@ import sys
 import threading
 
 from campaign import __version__
+from campaign.commands import SUMMARY
 from campaign.errors import BAD_INPUT, InputError, one_line
 from protocols.hardware import AxisError, InstrumentError
-
-COMMANDS = ("analyze", "plan", "run", "demo", "compensate", "correction", "verify", "refine",
-            "discover", "guide", "resume", "replay", "import_stream", "report")
 
 
 class Parser(argparse.ArgumentParser):
@@ -29,18 +27,19 @@ class Parser(argparse.ArgumentParser):
         raise InputError(f"{self.prog}: {message}")
 
 
-def build_parser() -> Parser:
+def build_parser(argv: list[str] | None = None) -> Parser:
+    """The parser. Only the command named in `argv` (if any) is imported and registered in full;
+    the others are listed with their one-line help, so that `axiscal --help` imports nothing heavy."""
     parser = Parser(prog="axiscal", description="Pitch-error measurement campaigns to ISO 230-2.")
     parser.add_argument("--version", action="version", version=f"axiscal {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
-    for name in COMMANDS:
-        try:
-            module = importlib.import_module(f"campaign.commands.{name}")
-        except ModuleNotFoundError as exc:
-            if exc.name == f"campaign.commands.{name}":
-                continue  # not built yet
-            raise
-        module.register(sub)
+    words = sys.argv[1:] if argv is None else argv
+    chosen = next((w for w in words if not w.startswith("-")), None)
+    for name, summary in SUMMARY.items():
+        if name == chosen:
+            importlib.import_module(f"campaign.commands.{name.replace('-', '_')}").register(sub)
+        else:
+            sub.add_parser(name, help=summary)
     return parser
 
 
@@ -50,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
         # must still halt the axis and flush the recording.
         signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
-        parser = build_parser()
+        parser = build_parser(argv)
         args = parser.parse_args(argv)
         if not getattr(args, "func", None):
             parser.print_help()

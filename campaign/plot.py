@@ -4,10 +4,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 
 from campaign.errors import InputError
@@ -16,6 +12,17 @@ from campaign.pointtable import PointTable
 
 FORMATS = (".png", ".svg")
 DIRECTION_STYLE = {1: ("+ (forward)", "tab:blue"), -1: ("- (reverse)", "tab:red")}
+
+
+def pyplot():
+    """matplotlib.pyplot with the Agg backend (no screen), imported when a plot is drawn: it is the
+    slowest import of axiscal, and most commands draw nothing."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
 
 
 def check_plot_path(path: str | Path) -> Path:
@@ -60,6 +67,7 @@ def draw_evaluation(ax, table: PointTable, ev: Evaluation, label: str = "") -> N
 def plot_evaluation(table: PointTable, ev: Evaluation, out: str | Path, title: str = "") -> Path:
     """Write the evaluation plot to `out` (.png or .svg). Returns the path written."""
     path = check_plot_path(out)
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(9, 5.5))
     draw_evaluation(ax, table, ev)
     fig.suptitle(title or f"{ev.standard.title}: {Path(table.source).name}", fontsize=11)

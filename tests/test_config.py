@@ -62,3 +62,18 @@ def test_campaign_never_imports_pyads_or_serial():
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=Path(ROOT),
                           check=False, timeout=60)
     assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
+def test_help_and_parsers_import_no_heavy_library():
+    """`axiscal --help` and every command's parser load without numpy's heavy friends or pyads;
+    they load when a command runs (bench/startup.py measures the time)."""
+    code = ("import sys\n"
+            "from campaign.cli import build_parser\n"
+            "from campaign.commands import SUMMARY\n"
+            "build_parser([])\n"
+            "for name in SUMMARY: build_parser([name])\n"
+            "heavy = [m for m in ('pandas', 'scipy', 'matplotlib', 'pyads', 'serial') if m in sys.modules]\n"
+            "print(heavy); sys.exit(1 if heavy else 0)\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=Path(ROOT),
+                          check=False, timeout=60)
+    assert proc.returncode == 0, proc.stdout + proc.stderr

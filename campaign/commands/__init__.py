@@ -1,7 +1,32 @@
-"""The subcommands of `axiscal`, one module each (see campaign/cli.py)."""
+"""The subcommands of `axiscal`, one module each (see campaign/cli.py).
+
+Each module has `register(subparsers)`, which adds its parser (with `help=SUMMARY[name]`) and sets
+`func(args) -> int`. A command module imports only what its parser needs at the top; the heavy
+libraries (numpy, pandas, scipy, matplotlib, pyads) are imported when the command runs, so that
+`axiscal --help` and every command start fast.
+"""
 
 import argparse
 import math
+
+SUMMARY = {
+    "analyze": "evaluate a point table to ISO 230-2 (or VDI 3441)",
+    "plan": "print the test plan: points, travel, estimated duration",
+    "run": "run a measurement campaign from a config",
+    "demo": "run the paper's campaign on the simulated machine",
+    "compensate": "write a pitch-error compensation table for a controller",
+    "correction": "show how a correction step is planned (rate and accel bounds)",
+    "verify": "measure again with the compensation active (before/after)",
+    "refine": "propose extra targets for a follow-up campaign",
+    "discover": "name the effects an error model is missing",
+    "guide": "guided campaign for the technician: checklist, dashboard, keys",
+    "resume": "continue an interrupted campaign: the points it left out",
+    "replay": "re-run a recorded campaign offline through the capture code",
+    "import-stream": "turn a continuous position log into a point table",
+    "report": "write the HTML report of a campaign for quality",
+}
+"""Every command's one-line help, in the order `axiscal --help` lists them. The module of a
+command is its name with '-' as '_'."""
 
 
 def positive_number(text: str) -> float:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sys
 
+from campaign.commands import SUMMARY
 from campaign.iso230 import evaluate, find_standard
 from campaign.plot import check_plot_path, plot_evaluation
 from campaign.pointtable import read_points
@@ -11,7 +12,7 @@ from campaign.views import print_evaluation, print_json
 
 
 def register(sub) -> None:
-    p = sub.add_parser("analyze", help="evaluate a point table to ISO 230-2 (or VDI 3441)",
+    p = sub.add_parser("analyze", help=SUMMARY["analyze"],
                        description="Evaluate a point table (CSV) to ISO 230-2:2014, ISO 230-2:1988 or VDI/DGQ 3441.")
     p.add_argument("file", help="point table CSV (see docs/point-table.md)")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of tables")

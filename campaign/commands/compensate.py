@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from campaign.commands import positive_number
+from campaign.commands import SUMMARY, positive_number
 from campaign.compensation.corrections import MODES, corrections
 from campaign.compensation.grid import POINT_LIMITS, resample
 from campaign.compensation.predict import predict
@@ -22,7 +22,7 @@ DEFAULT_METHOD = {"pmac": "simple"}
 
 
 def register(sub) -> None:
-    p = sub.add_parser("compensate", help="write a pitch-error compensation table for a controller",
+    p = sub.add_parser("compensate", help=SUMMARY["compensate"],
                        description="Turn a point table into a controller's compensation table "
                                    "(docs/compensation-formats.md).")
     p.add_argument("file", help="point table CSV")

@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 
+from campaign.commands import SUMMARY
 from campaign.compensation.planner import PlannerLimits, minimum_time, plan
 from campaign.errors import InputError
 from campaign.plot import check_plot_path
@@ -15,7 +16,7 @@ from campaign.views import make_console, print_json
 
 
 def register(sub) -> None:
-    p = sub.add_parser("correction", help="show how a correction step is planned (rate and accel bounds)",
+    p = sub.add_parser("correction", help=SUMMARY["correction"],
                        description="Plan a step of the correction with bounded rate and acceleration.")
     p.add_argument("--step", type=float, required=True, help="size of the step, µm")
     p.add_argument("--max-rate", type=float, required=True, help="rate bound, µm/s")

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from importlib import resources
 
-from campaign.commands import hardware_opener
+from campaign.commands import SUMMARY, hardware_opener
 from campaign.commands.run import add_run_options, apply_on_fault, finish, run_config
 from campaign.config import parse_config
 from campaign.faults import parse_inject
@@ -23,7 +23,7 @@ def demo_config_text() -> str:
 
 
 def register(sub) -> None:
-    p = sub.add_parser("demo", help="run the paper's campaign on the simulated machine",
+    p = sub.add_parser("demo", help=SUMMARY["demo"],
                        description="Run seed 000's horizontal-axis campaign on the simulated machine.")
     add_run_options(p)
     p.add_argument("--capture", choices=("dwell", "stable"), help="capture method (default dwell)")

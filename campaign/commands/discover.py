@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from campaign.commands import SUMMARY
 from campaign.discovery.data import read_campaign, read_start_model
 from campaign.discovery.search import Discovery, discover
 from campaign.errors import InputError
@@ -16,7 +17,7 @@ from campaign.views import make_console, print_json
 
 
 def register(sub) -> None:
-    p = sub.add_parser("discover", help="name the effects an error model is missing",
+    p = sub.add_parser("discover", help=SUMMARY["discover"],
                        description="Fit MODEL to a measured point table, then name, add and refit the "
                                    "effects the residual shows, until what is left is noise.")
     p.add_argument("file", help="point table CSV (see docs/point-table.md)")

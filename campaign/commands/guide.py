@@ -15,7 +15,7 @@ from pathlib import Path
 
 from rich.console import Console
 
-from campaign.commands import hardware_opener, positive_number
+from campaign.commands import SUMMARY, hardware_opener, positive_number
 from campaign.commands.demo import demo_config_text
 from campaign.config import load_config, parse_config
 from campaign.errors import BAD_INPUT, InputError
@@ -48,7 +48,7 @@ COMPENSATE_FORMATS = "twincat, csv, json"
 
 
 def register(sub) -> None:
-    p = sub.add_parser("guide", help="guided campaign for the technician: checklist, dashboard, keys",
+    p = sub.add_parser("guide", help=SUMMARY["guide"],
                        description="Check the set-up, ask before moving, run the campaign on a live "
                                    "dashboard (keys: p pause, r resume, a abort) and judge the result.")
     p.add_argument("config", nargs="?", help="campaign TOML (default: the embedded demo, simulated machine)")

@@ -6,6 +6,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from campaign.commands import SUMMARY
 from campaign.config import load_config
 from campaign.errors import InputError
 from campaign.plan import build_plan
@@ -15,7 +16,7 @@ from campaign.stream.reader import read_stream
 
 
 def register(sub) -> None:
-    p = sub.add_parser("import-stream", help="turn a continuous position log into a point table",
+    p = sub.add_parser("import-stream", help=SUMMARY["import-stream"],
                        description="Find the dwells in a continuous log (CSV with time_s and a reading), "
                                    "match them to the config's plan and write the point table.")
     p.add_argument("stream", help="CSV with time_s (s) and reading_mm / position_mm / reading / position "

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from rich.table import Table
 
+from campaign.commands import SUMMARY
 from campaign.config import load_config
 from campaign.plan import (
     Capture,
@@ -19,7 +20,7 @@ from campaign.views import make_console, print_json
 
 
 def register(sub) -> None:
-    p = sub.add_parser("plan", help="print the test plan: points, travel, estimated duration",
+    p = sub.add_parser("plan", help=SUMMARY["plan"],
                        description="Print the plan of a campaign config and check it against the limits.")
     p.add_argument("config", help="campaign TOML (see docs/config.md)")
     p.add_argument("--json", action="store_true", help="one JSON object")

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from rich.table import Table
 
+from campaign.commands import SUMMARY
 from campaign.compensation.refine import follow_up_config, propose
 from campaign.config import load_config, parse_config
 from campaign.errors import InputError
@@ -15,7 +16,7 @@ from campaign.views import make_console, print_json
 
 
 def register(sub) -> None:
-    p = sub.add_parser("refine", help="propose extra targets for a follow-up campaign",
+    p = sub.add_parser("refine", help=SUMMARY["refine"],
                        description="Find the intervals where the mean deviation changes too fast for linear "
                                    "interpolation and propose extra targets there.")
     p.add_argument("file", help="point table CSV")

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 from rich.table import Table
 
-from campaign.commands import positive_number
+from campaign.commands import SUMMARY, positive_number
 from campaign.errors import InputError
 from campaign.iso230 import evaluate
 from campaign.measure.replay import replay
@@ -19,7 +19,7 @@ DIGITS = 4
 
 
 def register(sub) -> None:
-    p = sub.add_parser("replay", help="re-run a recorded campaign offline through the capture code",
+    p = sub.add_parser("replay", help=SUMMARY["replay"],
                        description="Replay DIR's raw stream through the capture and analysis code. With the "
                                    "recorded settings it reproduces the point table; with others it shows "
                                    "what would change.")

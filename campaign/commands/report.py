@@ -4,11 +4,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from campaign.commands import SUMMARY
 from campaign.report.document import write_report
 
 
 def register(sub) -> None:
-    p = sub.add_parser("report", help="write the HTML report of a campaign for quality",
+    p = sub.add_parser("report", help=SUMMARY["report"],
                        description="Write a self-contained HTML report (plots embedded, works offline) of a "
                                    "campaign directory; with a baseline, before and after side by side.")
     p.add_argument("dir", help="campaign directory (config.toml, meta.json, points.csv)")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from campaign.commands import hardware_opener, positive_number
+from campaign.commands import SUMMARY, hardware_opener, positive_number
 from campaign.commands.run import finish
 from campaign.measure.progress import RichProgress
 from campaign.measure.session import resume_campaign
@@ -14,7 +14,7 @@ from protocols.units import DEVIATION_SCALE
 
 
 def register(sub) -> None:
-    p = sub.add_parser("resume", help="continue an interrupted campaign from the first missing point",
+    p = sub.add_parser("resume", help=SUMMARY["resume"],
                        description="Continue the campaign in DIR: re-approach the first missing point from "
                                    "the overrun in its direction, append to the same directory.")
     p.add_argument("dir", help="campaign directory")

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from campaign.commands import hardware_opener, positive_number
+from campaign.commands import SUMMARY, hardware_opener, positive_number
 from campaign.config import load_config
 from campaign.errors import InputError
 from campaign.measure.progress import RichProgress
@@ -13,7 +13,7 @@ from protocols.hardware import AxisError, InstrumentError
 
 
 def register(sub) -> None:
-    p = sub.add_parser("run", help="run a measurement campaign from a config",
+    p = sub.add_parser("run", help=SUMMARY["run"],
                        description="Run the campaign of CONFIG, record it, then print the ISO 230-2 summary.")
     p.add_argument("config", help="campaign TOML (see docs/config.md)")
     add_run_options(p)

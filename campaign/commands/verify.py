@@ -7,7 +7,7 @@ from pathlib import Path
 
 from rich.table import Table
 
-from campaign.commands import hardware_opener, positive_number
+from campaign.commands import SUMMARY, hardware_opener, positive_number
 from campaign.commands.run import add_run_options, apply_on_fault, finish
 from campaign.compensation.table_file import read_comp_json
 from campaign.config import load_config
@@ -21,7 +21,7 @@ from campaign.views import fmt, make_console
 
 
 def register(sub) -> None:
-    p = sub.add_parser("verify", help="measure again with the compensation active (before/after)",
+    p = sub.add_parser("verify", help=SUMMARY["verify"],
                        description="Write the compensation table (from `axiscal compensate --format json`) "
                                    "into the PLC, run the campaign again and compare with the baseline.")
     p.add_argument("config", help="campaign TOML")

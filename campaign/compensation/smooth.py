@@ -38,7 +38,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 SMOOTHING = ("auto", "none")
 LEVEL = 0.05
@@ -114,6 +113,8 @@ def smooth_means(targets: np.ndarray, means: np.ndarray, var_weights: np.ndarray
         return _raw(means, "the readings show no scatter to judge a fit by (one run, or identical readings)")
     if m < 4:
         return _raw(means, f"{m} targets leave no room to test a fit")
+    from scipy import stats
+
     s2, dof_s = scatter
     u = 2 * (targets - targets[0]) / (targets[-1] - targets[0]) - 1
     weights = 1 / np.sqrt(var_weights)

@@ -14,7 +14,6 @@ import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy import optimize, stats
 
 from campaign.discovery.data import CampaignData
 from campaign.discovery.effects import FORMS, period_limits
@@ -139,6 +138,8 @@ def refine(data: CampaignData, terms: list[Term]) -> Fit:
         f = linear_fit(data, with_shapes(logs))
         return data.y - f.prediction
 
+    from scipy import optimize
+
     result = optimize.least_squares(residual, start, bounds=(lower, upper), x_scale=0.1, diff_step=1e-4)
     best = linear_fit(data, with_shapes(result.x))
     first = linear_fit(data, terms)
@@ -227,6 +228,8 @@ def f_test_p(before: Fit, after: Fit, n: int) -> float:
     if q <= 0 or dof <= 0 or after.rss <= 0:
         return 1.0
     f_value = (before.rss - after.rss) / q / (after.rss / dof)
+    from scipy import stats
+
     return float(stats.f.sf(f_value, q, dof)) if f_value > 0 else 1.0
 
 

@@ -13,8 +13,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from campaign.config import Config, load_config
 from campaign.measure.capture import BeamLost, Captured, capture_dwell, capture_stable
@@ -24,6 +23,9 @@ from campaign.plan import Plan
 from campaign.record.directory import load_raw, open_campaign
 from protocols.hardware import Reading
 from protocols.units import DEVIATION_SCALE
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 TICK_EPSILON_S = 1e-6
 """Times closer than this are the same tick, s (far below the sample period)."""
@@ -45,6 +47,8 @@ class ReplayedPoint:
 
 
 def _readings(rows: pd.DataFrame) -> list[Reading]:
+    import pandas as pd
+
     def value(v):
         return None if pd.isna(v) else float(v)
 
@@ -55,6 +59,7 @@ def _readings(rows: pd.DataFrame) -> list[Reading]:
 
 def _capture(config: Config, rows: pd.DataFrame, capture_step: int, arrival: float, dwell_s: float) -> Captured:
     """Capture one point from its samples after arrival, with `config`'s capture settings."""
+
     c = config["capture"]
     if c["method"] == "dwell":
         recorded = rows[rows.step == capture_step]

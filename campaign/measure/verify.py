@@ -13,13 +13,11 @@ import dataclasses
 import json
 from pathlib import Path
 
-import matplotlib.pyplot as plt
-
 from campaign.compensation.grid import ControllerTable
 from campaign.config import Config
 from campaign.iso230 import Evaluation, evaluate
 from campaign.measure.session import Opener, Outcome, open_with_comp, start_campaign
-from campaign.plot import draw_evaluation
+from campaign.plot import draw_evaluation, pyplot
 from campaign.pointtable import PointTable, read_points
 from campaign.record.directory import COMP_FILE
 from protocols.plc_contract import CompTable
@@ -99,6 +97,7 @@ def write_report(directory: Path, after: PointTable, before: PointTable | None) 
     (directory / "verification.md").write_text("\n".join(md) + "\n", encoding="utf-8")
     panels = [(before, ev_before, "before: "), (after, ev_after, "after: ")] if before is not None \
         else [(after, ev_after, "after: ")]
+    plt = pyplot()
     fig, axes = plt.subplots(1, len(panels), figsize=(7 * len(panels), 5), squeeze=False)
     for ax, (table, ev, label) in zip(axes[0], panels):
         draw_evaluation(ax, table, ev, label)

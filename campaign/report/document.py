@@ -15,12 +15,10 @@ from dataclasses import dataclass, replace
 from html import escape
 from pathlib import Path
 
-import matplotlib.pyplot as plt
-
 from campaign.config import Config, load_config
 from campaign.errors import InputError
 from campaign.iso230 import Evaluation, evaluate
-from campaign.plot import draw_evaluation
+from campaign.plot import draw_evaluation, pyplot
 from campaign.pointtable import PointTable, read_points
 from campaign.record.directory import RUNS_FILE, CampaignDir, read_json_lines
 from campaign.report.html import (
@@ -99,6 +97,7 @@ def tolerance_of(campaign: Campaign) -> float | None:
 def plot_png(campaigns: list[tuple[str, Campaign]]) -> str:
     """The deviation plot(s) side by side (same deviation scale), as a base64 PNG data URI."""
     size = (10.0, 4.8) if len(campaigns) == 1 else (6.4 * len(campaigns), 4.6)  # inches
+    plt = pyplot()
     fig, axes = plt.subplots(1, len(campaigns), figsize=size, sharey=True, squeeze=False)
     for ax, (label, c) in zip(axes[0], campaigns):
         printable = replace(c.evaluation, unit=unit_label(c.evaluation.unit))  # µm, not um

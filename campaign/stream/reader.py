@@ -9,12 +9,15 @@ InputError naming the file and line.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from campaign.errors import InputError, read_input_bytes
 from protocols.hardware import ENV_FIELDS
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 POSITION_COLUMNS = {
     "mm": ("reading_mm", "position_mm", "reading", "position"),
@@ -57,6 +60,8 @@ def locate(path: str, row: int, time: np.ndarray | None = None) -> str:
 
 def _numeric(frame: pd.DataFrame, column: str) -> np.ndarray | int:
     """The column as float64, or the row index of its first value that is not a finite number."""
+    import pandas as pd
+
     values = pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float)
     bad = ~np.isfinite(values)
     return int(np.argmax(bad)) if bad.any() else values
@@ -64,6 +69,8 @@ def _numeric(frame: pd.DataFrame, column: str) -> np.ndarray | int:
 
 def read_stream(path: str, unit: str) -> Stream:
     """Read and check a stream CSV. InputError (exit 2) names the file, line and column."""
+    import pandas as pd
+
     head = read_input_bytes(path, "a stream CSV", limit=65536)
     if b"\x00" in head:
         raise InputError(f"{path}: not a CSV text file (binary data)")

@@ -9,12 +9,15 @@ direction) and a per-visit scatter; the readings add white noise of `noise` (axi
 from __future__ import annotations
 
 import itertools
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from campaign.config import Config
 from campaign.plan import Plan, move_time_s
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 
 def _stops(plan: Plan, config: Config, overrun_dwell_s: float, skip_point: int | None):
@@ -42,6 +45,8 @@ def synthetic_stream(plan: Plan, config: Config, rate_hz: float, seed: int = 0, 
     """The stream (columns time_s and reading_mm or reading_deg) and the true error of each plan
     point (axis unit; NaN for a skipped point). The stream starts moving at t = 0 from the first
     target."""
+    import pandas as pd
+
     rng = np.random.default_rng(seed)
     velocity, accel = config["plan"]["velocity"], config["axis"]["max_acceleration"]
     stops = _stops(plan, config, overrun_dwell_s, skip_point)
