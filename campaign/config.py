@@ -45,8 +45,14 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "machine": Key(str, "machine", "machine id, recorded in the metadata", resume=True),
         "operator": Key(str, "", "operator name, recorded in the metadata", resume=True),
         "description": Key(str, "", "free text, recorded in the metadata", resume=True),
-        "tolerance": Key(float, 0.0, "pass/fail tolerance on A, deviation unit (µm or arcsec); 0 = none",
-                         min=0, resume=True),
+        "tolerance": Key(float, 0.0, "pass/fail tolerance on the accuracy A, deviation unit (µm or arcsec); "
+                         "0 = none", min=0, resume=True),
+        "tolerance_e": Key(float, 0.0, "tolerance on the systematic deviation E, deviation unit; 0 = none", min=0,
+                           resume=True),
+        "tolerance_b": Key(float, 0.0, "tolerance on the reversal value B, deviation unit; 0 = none", min=0,
+                           resume=True),
+        "tolerance_r": Key(float, 0.0, "tolerance on the repeatability R, deviation unit; 0 = none", min=0,
+                           resume=True),
         "on_fault": Key(str, "retry", "without an operator: retry a point after a fault (up to fault_retries "
                         "times), skip it (resume measures it later), or abort at once",
                         choices=("retry", "skip", "abort"), resume=True),
@@ -107,6 +113,22 @@ SCHEMA: dict[str, dict[str, Key]] = {
                        "to stream at least this fast; the simulated instrument streams at this rate",
                        min=0.1, max=1000),
         "timeout_s": Key(float, 1.0, "serial read timeout, s", min=0.01, max=60, resume=True),
+        "model": Key(str, "", "the laser's model, for the report's traceability (e.g. Renishaw XL-80)", resume=True),
+        "serial": Key(str, "", "the laser's serial number", resume=True),
+        "certificate": Key(str, "", "the laser's calibration certificate: number, laboratory, date", resume=True),
+        "wavelength_uncertainty_ppm": Key(float, None, "expanded uncertainty (k = 2) of the laser's length "
+                                          "measurement from its calibration certificate, µm/m; absent: 0.5 µm/m, "
+                                          "a typical specification, named as such in the budget", min=0, max=100,
+                                          resume=True),
+        "angle_uncertainty_arcsec": Key(float, None, "rotary axis: expanded uncertainty (k = 2) of the angular "
+                                        "measurement from the certificate, arcsec; absent: 1 arcsec (typical "
+                                        "specification)", min=0, max=100, resume=True),
+        "resolution": Key(float, 0.001, "the reading's resolution, deviation unit (µm or arcsec)", min=0,
+                          resume=True),
+        "misalignment_mm": Key(float, 0.5, "largest lateral walk of the beam over the travel seen when aligning, "
+                               "mm (the cosine error)", min=0, resume=True),
+        "dead_path_mm": Key(float, 0.0, "distance from the interferometer optic to the laser's datum, mm (dead "
+                            "path)", min=0, resume=True),
     },
     "environment": {
         "air_correction": Key(str, "none", "none (instrument corrects for air) or edlen (axiscal "
@@ -120,6 +142,16 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "humidity_pct": Key(float, None, "relative humidity when the instrument gives none, %", min=0, max=100),
         "normalise_to_20c": Key(bool, False, "normalise readings to 20 °C with the material temperature"),
         "expansion_ppm_per_k": Key(float, 11.5, "material expansion coefficient, µm/m per K", min=0, max=100),
+        "air_temp_uncertainty_c": Key(float, 0.2, "expanded uncertainty (k = 2) of the air temperature sensor, °C",
+                                      min=0, resume=True),
+        "air_pressure_uncertainty_hpa": Key(float, 1.0, "expanded uncertainty (k = 2) of the air pressure "
+                                            "sensor, hPa", min=0, resume=True),
+        "humidity_uncertainty_pct": Key(float, 6.0, "expanded uncertainty (k = 2) of the humidity sensor, % RH",
+                                        min=0, resume=True),
+        "material_temp_uncertainty_c": Key(float, 0.1, "expanded uncertainty (k = 2) of the material "
+                                           "temperature sensor, °C", min=0, resume=True),
+        "expansion_uncertainty_ppm_per_k": Key(float, 1.0, "half-width of the range the expansion coefficient "
+                                               "may lie in, µm/m per K", min=0, resume=True),
     },
     "capture": {
         "method": Key(str, "dwell", "dwell (average the end of a fixed dwell) or stable (capture when "

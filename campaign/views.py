@@ -49,6 +49,59 @@ def summary_table(ev: Evaluation, title: str | None = None) -> Table:
     return table
 
 
+def unit_label(unit: str) -> str:
+    """A deviation unit as people read it: µm or arcsec."""
+    return {"um": "µm"}.get(unit, unit)
+
+
+def verdict_line(verdict) -> str:
+    """The verdict in one coloured word with its reasons (rich markup)."""
+    colour = {"pass": "bold green", "fail": "bold red"}.get(verdict.verdict, "bold yellow")
+    return f"[{colour}]{verdict.word}[/]: " + "; ".join(verdict.reasons)
+
+
+def budget_table(budget) -> Table:
+    """The uncertainty budget: each term's standard uncertainty and source, then U (k = 2)."""
+    unit = unit_label(budget.unit)
+    table = Table(title=f"Measurement uncertainty (k = {budget.k:g})", header_style="bold")
+    table.add_column("term")
+    table.add_column(f"u {unit}", justify="right")
+    table.add_column("for")
+    table.add_column("input")
+    for term in budget.terms:
+        table.add_row(term.name, f"{term.u:.3f}", " ".join(term.applies), term.source)
+    for key, value in budget.expanded.items():
+        table.add_row(f"[bold]U({key})[/]", f"[bold]{value:.3f}[/]", key, "expanded, k = 2")
+    return table
+
+
+def outlier_lines(outliers, unit: str) -> list[str]:
+    """One line per outlier, and what it does to the scatter (empty when there is none)."""
+    u = unit_label(unit)
+    if not outliers.found:
+        return []
+    lines = [(f"{len(outliers.found)} outlier(s) (studentised residual against the pooled scatter, "
+              f"{100 * outliers.alpha:g} % for the campaign; they stay in the result):")]
+    for o in outliers.found:
+        lines.append(f"  run {o.run}, direction {'+' if o.direction > 0 else '-'}, target {o.target:g}: "
+                     f"deviation {o.deviation:+.3f} {u}, score {o.score:.1f} > {o.critical:.1f}")
+    lines.append(f"  pooled scatter s = {outliers.s_with:.3f} {u} with them, {outliers.s_without:.3f} {u} without")
+    return lines
+
+
+def print_assessment(a, console: Console, per_target: bool = True) -> None:
+    """Evaluation, outliers, uncertainty and verdict of an Assessment (campaign/assess.py)."""
+    print_evaluation(a.evaluation, console, per_target)
+    for line in outlier_lines(a.outliers, a.evaluation.unit):
+        console.print(f"[yellow]{line}[/]" if line.endswith(":") else line)
+    if per_target:
+        console.print(budget_table(a.uncertainty))
+    console.print(verdict_line(a.verdict))
+    for note in a.verdict.notes:
+        console.print(f"note: {note}")
+    console.print(f"[dim]decision rule: {a.verdict.rule}[/]")
+
+
 def make_console() -> Console:
     """A rich console; wide enough for the per-target table when stdout is not a terminal."""
     return Console() if sys.stdout.isatty() else Console(width=160)

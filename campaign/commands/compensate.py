@@ -52,13 +52,22 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from campaign import __version__
+    from campaign.assess import incomplete
+
     table = read_points(args.file)
+    console = make_console()
+    for problem in incomplete(args.file):
+        console.print(f"[yellow]warning:[/] incomplete campaign: {problem}; the table is built from the points "
+                      "measured (resume the campaign first for a complete one)")
     method = args.method or DEFAULT_METHOD.get(args.format, "inverse")
     corr = corrections(table, args.mode, method, args.smooth)
     max_points = args.max_points or POINT_LIMITS[args.format]
     ctable = resample(corr, max_points, args.spacing, args.reference, args.overrun)
     axis = args.axis_name or ("AX1" if args.format == "siemens" else "X")
-    rendered = render(args.format, ctable, FormatOptions(axis, args.joint, 1, args.counts_per_unit))
+    provenance = (("points", str(Path(args.file).resolve())), ("machine", table.meta.get("machine", "")),
+                  ("axis", table.meta.get("axis", "")), ("software", f"axiscal {__version__}"))
+    rendered = render(args.format, ctable, FormatOptions(axis, args.joint, 1, args.counts_per_unit, provenance))
     out = Path(args.output)
     try:
         out.write_text(rendered.text, encoding="utf-8")
@@ -66,7 +75,6 @@ def run(args) -> int:
         raise InputError(f"-o: {out}: cannot write ({exc.strerror})") from None
     pred = predict(table, ctable)
     unit = table.deviation_unit
-    console = make_console()
     console.print(f"mode: [bold]{corr.mode}[/] ({corr.reason})")
     if corr.backlash is not None:
         console.print(f"backlash B̄ (mean reversal): {corr.backlash:.3f} {unit}")

@@ -34,7 +34,6 @@ from campaign.guide.keys import CtrlC, Keys
 from campaign.measure.executor import Control
 from campaign.measure.session import (
     Outcome,
-    analyse_dir,
     default_out_dir,
     start_campaign,
 )
@@ -43,8 +42,10 @@ from campaign.plan import build_plan
 from campaign.record.directory import open_campaign, recorded_point_indices
 from campaign.views import make_console, print_json, summary_table
 from protocols.hardware import AxisError, InstrumentError
+from protocols.tables import FORMATS
 
-COMPENSATE_FORMATS = "twincat, csv, json"
+COMPENSATE_FORMATS = ", ".join(FORMATS)
+"""What `axiscal compensate --format` takes, for the next-step hint."""
 
 
 def register(sub) -> None:
@@ -185,24 +186,13 @@ def recorded_outcome(directory: Path, planned: int, reason: str | None) -> Outco
                    campaign.duration_s, reason or campaign.message or "aborted")
 
 
-def judge(ev, outcome: Outcome, tolerance: float) -> tuple[str, str]:
-    """(PASS | FAIL | NOT JUDGED, the reason in one sentence with units)."""
-    unit = "µm" if ev is None or ev.unit == "um" else ev.unit
-    if outcome.points < outcome.planned:
-        return "NOT JUDGED", f"{outcome.planned - outcome.points} of {outcome.planned} points are missing"
-    a = ev.summary.get("A")
-    if not tolerance:
-        return "NOT JUDGED", "the config gives no tolerance (campaign.tolerance)"
-    if a is None:
-        return "NOT JUDGED", "the accuracy A could not be computed"
-    if a <= tolerance:
-        return "PASS", f"accuracy A = {a:.2f} {unit} is within the tolerance of {tolerance:g} {unit}"
-    return "FAIL", f"accuracy A = {a:.2f} {unit} is above the tolerance of {tolerance:g} {unit}"
-
-
 def conclude(outcome: Outcome, config, args, console) -> int:
-    """The ISO 230-2 summary, the verdict, where the record is and what comes next. Exit 0 when
-    the campaign completed, 3 when it was interrupted (resumable)."""
+    """The ISO 230-2 summary so far, the outliers, the verdict (campaign/assess.py: the same as
+    `analyze` and `report`), where the record is and what comes next. Exit 0 when the campaign
+    completed, 3 when it stopped (resumable)."""
+    from campaign.assess import assess_path
+    from campaign.views import outlier_lines, verdict_line
+
     d = outcome.dir
 
     def say(text: str) -> None:  # paths and commands: never wrapped, never read as markup
@@ -211,27 +201,33 @@ def conclude(outcome: Outcome, config, args, console) -> int:
     if not (d / "meta.json").exists():
         say(f"Stopped: {outcome.message}.")
         return 3
-    ev = analyse_dir(d)[1] if outcome.points else None
-    tolerance = config["campaign"]["tolerance"]
-    verdict, reason = judge(ev, outcome, tolerance)
-    if ev is not None:
-        console.print(summary_table(ev))
+    assessment = assess_path(d) if outcome.points else None
+    if assessment is not None:
+        console.print(summary_table(assessment.evaluation))
+        for line in outlier_lines(assessment.outliers, assessment.evaluation.unit):
+            console.print(line, markup=False)
     console.print(f"Campaign {outcome.status}: {outcome.points} of {outcome.planned} points in "
                   f"{outcome.duration_s / 60:.1f} min of campaign time.")
-    colour = {"PASS": "bold green", "FAIL": "bold red"}.get(verdict, "bold yellow")
-    console.print(f"[{colour}]{verdict}[/]: {reason}.")
-    if outcome.status == "completed":
+    if assessment is not None:
+        console.print(verdict_line(assessment.verdict) + ".")
+    else:
+        console.print("[bold yellow]NOT JUDGED[/]: no point was recorded.")
+    if outcome.status == "completed" and outcome.points == outcome.planned:
         say(f"Record: {d} (points.csv, raw.csv, events.jsonl, plan.jsonl, meta.json).")
         say(f"Report for quality:\n  axiscal report {d} -o {d}/report.html")
         say(f"Next step, compensation (FMT: {COMPENSATE_FORMATS}):\n"
             f"  axiscal compensate {d}/points.csv --format FMT -o FILE")
+    elif outcome.status == "completed":
+        say(f"Record: {d}. {outcome.planned - outcome.points} point(s) were skipped.\n"
+            f"Measure them with:\n  axiscal resume {d}")
     else:
         say(f"Stopped: {outcome.message}. Record: {d}.\nContinue with:\n  axiscal resume {d}")
     if args.json:
         result = {"dir": str(d), "status": outcome.status, "points": outcome.points, "planned": outcome.planned,
-                  "duration_s": round(outcome.duration_s, 3), "verdict": verdict, "reason": reason,
-                  "tolerance": tolerance}
-        if ev is not None:
-            result.update(ev.summary, unit=ev.unit)
+                  "duration_s": round(outcome.duration_s, 3)}
+        if assessment is not None:
+            result.update(assessment.as_json())
+        else:
+            result.update(verdict="not judged", reasons=["no point was recorded"])
         print_json(result)
     return 0 if outcome.status == "completed" else 3

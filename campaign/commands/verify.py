@@ -9,12 +9,12 @@ from rich.table import Table
 
 from campaign.commands import SUMMARY, hardware_opener, positive_number
 from campaign.commands.run import add_run_options, apply_on_fault, finish
-from campaign.compensation.table_file import read_comp_json
+from campaign.compensation.table_file import read_comp_json, read_comp_provenance
 from campaign.config import load_config
 from campaign.errors import InputError
 from campaign.measure.progress import RichProgress
 from campaign.measure.session import default_out_dir
-from campaign.measure.verify import SUMMARY_KEYS, baseline_points, run_verification, write_report
+from campaign.measure.verify import SUMMARY_KEYS, baseline_points, run_verification, table_fits, write_report
 from campaign.plan import build_plan, check_plan
 from campaign.plot import check_plot_path
 from campaign.views import fmt, make_console
@@ -41,9 +41,13 @@ def run(args) -> int:
         check_plot_path(args.plot)
     if table.kind != config["axis"]["kind"]:
         raise InputError(f"{args.comp}: a {table.kind} table does not fit the {config['axis']['kind']} axis")
+    plan = build_plan(config)
+    check_plan(plan, config)
+    console = make_console()
+    for warning in table_fits(table, read_comp_provenance(args.comp), config, plan, args.comp):
+        console.print(f"[yellow]warning:[/] {warning}")
     baseline = Path(args.before) if args.before else None
     before = baseline_points(baseline) if baseline else None
-    check_plan(build_plan(config), config)
     out = Path(args.out) if args.out else default_out_dir(config)
     unit = config["axis"]["unit"]
     with RichProgress(unit) as observer:
@@ -62,7 +66,6 @@ def run(args) -> int:
             for key, name in SUMMARY_KEYS:
                 b = summaries["before"].get(key) if summaries["before"] else None
                 shown.add_row(name, fmt(b), fmt(summaries["after"].get(key)))
-            console = make_console()
             console.print(shown)
             console.print(f"tables: {outcome.dir / 'verification.md'}; plot: {outcome.dir / 'verification.png'}")
     return finish(outcome, args, {"before": summaries.get("before")})

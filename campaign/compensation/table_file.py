@@ -14,6 +14,14 @@ from campaign.errors import InputError
 KINDS = {"mm": "linear", "deg": "rotary"}
 
 
+def read_comp_provenance(path: str | Path) -> dict[str, str]:
+    """The `provenance` of a compensate JSON file (machine, axis, points file, software); empty
+    for a file written before axiscal recorded it."""
+    doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    value = doc.get("provenance") if isinstance(doc, dict) else None
+    return {str(k): str(v) for k, v in value.items()} if isinstance(value, dict) else {}
+
+
 def read_comp_json(path: str | Path) -> ControllerTable:
     """The ControllerTable in a compensate JSON file; InputError naming the file and key."""
     name = str(path)

@@ -15,8 +15,10 @@ from pathlib import Path
 
 from campaign.compensation.grid import ControllerTable
 from campaign.config import Config
+from campaign.errors import InputError
 from campaign.iso230 import Evaluation, evaluate
 from campaign.measure.session import Opener, Outcome, open_with_comp, start_campaign
+from campaign.plan import Plan
 from campaign.plot import draw_evaluation, pyplot
 from campaign.pointtable import PointTable, read_points
 from campaign.record.directory import COMP_FILE
@@ -33,6 +35,30 @@ def correction_limits(config: Config, max_rate: float | None, max_accel: float |
     proportional to the axis' maximum acceleration)."""
     axis = config["axis"]
     return (max_rate or 0.1 * axis["max_velocity"], max_accel or 0.1 * axis["max_acceleration"])
+
+
+def table_fits(table: ControllerTable, provenance: dict[str, str], config: Config, plan: Plan,
+               where: str) -> list[str]:
+    """Warnings where the table and the campaign about to measure disagree (its span, machine or
+    axis); InputError when the table's range does not cover the plan's targets: the controller
+    would get no compensation at some of them."""
+    end = table.start + table.spacing * (len(table.forward) - 1)
+    unit = config["axis"]["unit"]
+    lo, hi = min(plan.targets), max(plan.targets)
+    if lo < table.start - 1e-9 or hi > end + 1e-9:
+        raise InputError(f"{where}: the table covers {table.start:g} to {end:g} {unit}, the plan's targets "
+                         f"{lo:g} to {hi:g} {unit}: made for another axis or range; refused")
+    warnings = []
+    if (end - table.start) > 1.5 * (hi - lo):
+        warnings.append(f"the table spans {table.start:g} to {end:g} {unit}, the plan only {lo:g} to {hi:g} {unit}: "
+                        "is it the table of this axis?")
+    for key, now in (("machine", config["campaign"]["machine"]), ("axis", config["axis"]["name"])):
+        then = provenance.get(key)
+        if then and then != now:
+            warnings.append(f"the table was made for {key} '{then}', the config measures {key} '{now}'")
+    if not provenance:
+        warnings.append("the table does not say which machine and axis it was made for (written by an older axiscal)")
+    return warnings
 
 
 def run_verification(config: Config, table: ControllerTable, out: Path, *, opener: Opener,

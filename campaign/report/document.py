@@ -1,32 +1,35 @@
 """The HTML report a technician hands to quality: one self-contained file (CSS inline, plots as
 base64 PNG, nothing fetched), readable offline and printable.
 
-It shows the campaign (machine, axis, operator, date), the environment (from points.csv), the
-plan, the ISO 230-2 summary and per-target table with units, the plot, pass or fail against
-`[campaign] tolerance` (on A), and, when a baseline campaign is given, before and after side by side.
+It shows the verdict with its decision rule and reasons (campaign/assess.py: the same verdict
+`analyze` and the guide give), the key figures, the campaign (machine, axis, operator, date, a
+SIMULATED mark for the simulated machine), the instrument's traceability and the correction
+methods, the plan, the environment, the ISO 230-2 summary, the uncertainty budget, the outliers,
+the plot, the per-target and per-run tables, and, when a baseline campaign is given, before and
+after side by side. It takes a campaign directory or a point table file.
 """
 
 from __future__ import annotations
 
 import base64
 import io
-import json
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from html import escape
 from pathlib import Path
 
-from campaign.config import Config, load_config
+from campaign.assess import Assessment, assess_path
 from campaign.errors import InputError
-from campaign.iso230 import Evaluation, evaluate
 from campaign.plot import draw_evaluation, pyplot
-from campaign.pointtable import PointTable, read_points
-from campaign.record.directory import RUNS_FILE, CampaignDir, read_json_lines
+from campaign.record.directory import open_campaign
 from campaign.report.html import (
+    budget_table,
     comparison_table,
     environment_table,
     facts_table,
     key_figures,
+    outliers_table,
     page,
+    per_run_table,
     section,
     summary_table,
     target_table,
@@ -35,69 +38,20 @@ from campaign.report.html import (
 )
 
 
-@dataclass
-class Campaign:
-    """A recorded campaign directory, read and evaluated. `config` is None without config.toml."""
-
-    directory: Path
-    meta: dict
-    config: Config | None
-    table: PointTable
-    evaluation: Evaluation
-
-
-def load_campaign(directory: str | Path) -> Campaign:
-    """Read DIR/meta.json, DIR/points.csv and DIR/config.toml; InputError if it is no campaign."""
-    path = Path(directory)
-    if not path.is_dir():
-        raise InputError(f"{path}: not a campaign directory (no such directory)")
-    for name in ("meta.json", "points.csv"):
-        if not (path / name).is_file():
-            raise InputError(f"{path}: not a campaign directory (no {name})")
-    try:
-        meta = json.loads((path / "meta.json").read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        reason = " ".join(str(exc).split())[:80]
-        raise InputError(f"{path / 'meta.json'}: not valid JSON ({reason})") from None
-    if not isinstance(meta, dict):
-        raise InputError(f"{path / 'meta.json'}: not a JSON object")
-    config = load_config(path / "config.toml") if (path / "config.toml").is_file() else None
-    table = read_points(path / "points.csv")
-    recorded = CampaignDir(path, meta, read_json_lines(path / RUNS_FILE))  # status from the run records
-    meta = {**meta, "status": recorded.status, "duration_s": recorded.duration_s}
-    return Campaign(path, meta, config, table, evaluate(table))
-
-
-def baseline_of(campaign: Campaign) -> Path | None:
+def baseline_of(a: Assessment) -> Path | None:
     """meta.json's `baseline_dir` (absolute, or relative to the campaign directory), if set."""
-    value = campaign.meta.get("baseline_dir")
-    if not value:
+    value = (a.meta or {}).get("baseline_dir")
+    if not value or a.directory is None:
         return None
     path = Path(str(value))
-    beside = campaign.directory / path
+    beside = a.directory / path
     return beside if not path.is_absolute() and beside.exists() else path
 
 
-def accuracy(ev: Evaluation) -> tuple[str, float | None]:
-    """The accuracy the tolerance applies to: A, or the worse one-direction A when A is unavailable."""
-    s = ev.summary
-    if s.get("A") is not None:
-        return "A", s["A"]
-    one_way = [(k, s[k]) for k in ("A_up", "A_down") if s.get(k) is not None]
-    return max(one_way, key=lambda kv: kv[1]) if one_way else ("A", None)
-
-
-def tolerance_of(campaign: Campaign) -> float | None:
-    """`[campaign] tolerance` (deviation unit), or None when it is not set (0)."""
-    if campaign.config is None or not campaign.config["campaign"]["tolerance"]:
-        return None
-    return float(campaign.config["campaign"]["tolerance"])
-
-
-def plot_png(campaigns: list[tuple[str, Campaign]]) -> str:
+def plot_png(campaigns: list[tuple[str, Assessment]]) -> str:
     """The deviation plot(s) side by side (same deviation scale), as a base64 PNG data URI."""
-    size = (10.0, 4.8) if len(campaigns) == 1 else (6.4 * len(campaigns), 4.6)  # inches
     plt = pyplot()
+    size = (10.0, 4.8) if len(campaigns) == 1 else (6.4 * len(campaigns), 4.6)  # inches
     fig, axes = plt.subplots(1, len(campaigns), figsize=size, sharey=True, squeeze=False)
     for ax, (label, c) in zip(axes[0], campaigns):
         printable = replace(c.evaluation, unit=unit_label(c.evaluation.unit))  # µm, not um
@@ -109,98 +63,135 @@ def plot_png(campaigns: list[tuple[str, Campaign]]) -> str:
     return "data:image/png;base64," + base64.b64encode(buffer.getvalue()).decode("ascii")
 
 
-def _date(c: Campaign) -> str:
-    return str(c.meta.get("created", c.meta.get("start_time", "date unknown"))).replace("T", " ").replace("+00:00", " UTC")
+def _date(a: Assessment) -> str:
+    meta = a.meta or {}
+    return str(meta.get("created", meta.get("start_time", "date unknown"))).replace("T", " ").replace("+00:00", " UTC")
 
 
-def _campaign_facts(c: Campaign) -> list[tuple[str, str]]:
-    m = c.meta
-    axis = m.get("axis", c.config["axis"]["name"] if c.config else "?")
-    kind = f"{m.get('kind', c.table.kind)}, {c.table.position_unit}"
-    seconds = m.get("duration_s")
-    duration = f"{seconds / 60:.1f} min" if isinstance(seconds, (int, float)) else "–"
-    rows = [("Machine", m.get("machine", "unknown")), ("Axis", f"{axis} ({kind})"),
-            ("Operator", m.get("operator") or "not recorded"), ("Date", _date(c)),
-            ("Status", f"{m.get('status', 'unknown')}, {len(c.table)} points"), ("Duration", duration),
-            ("Software", m.get("software", "axiscal")), ("Campaign directory", str(c.directory))]
-    if c.config and c.config["campaign"]["description"]:
-        rows.insert(2, ("Description", c.config["campaign"]["description"]))
+def _label(a: Assessment) -> str:
+    return a.directory.name if a.directory is not None else Path(a.source).name
+
+
+def _campaign_facts(a: Assessment) -> list[tuple[str, str]]:
+    m = a.meta or {}
+    axis = m.get("axis", a.config["axis"]["name"] if a.config else a.table.meta.get("axis", "?"))
+    kind = f"{m.get('kind', a.table.kind)}, {a.table.position_unit}"
+    rows = [("Machine", m.get("machine", a.table.meta.get("machine", "unknown"))), ("Axis", f"{axis} ({kind})"),
+            ("Operator", m.get("operator") or a.table.meta.get("operator") or "not recorded"), ("Date", _date(a))]
+    if a.simulated:
+        rows.insert(0, ("Machine type", "SIMULATED machine (axiscal's simulator), not a measurement of a real axis"))
+    if a.directory is not None:
+        recorded = open_campaign(a.directory)
+        planned = f" of {a.planned.points} planned" if a.planned else ""
+        rows += [("Status", f"{recorded.status}, {len(a.table)}{planned} points"),
+                 ("Duration", f"{recorded.duration_s / 60:.1f} min"),
+                 ("Software", m.get("software", "axiscal")), ("Campaign directory", str(a.directory))]
+    else:
+        rows += [("Points", str(len(a.table))), ("Point table", a.source)]
+    if a.config and a.config["campaign"]["description"]:
+        rows.insert(2, ("Description", a.config["campaign"]["description"]))
     return rows
 
 
-def _plan_facts(c: Campaign) -> list[tuple[str, str]]:
-    unit = c.table.position_unit
-    targets = sorted({float(t) for t in c.table.target})
+def _instrument_facts(a: Assessment) -> list[tuple[str, str]]:
+    """Traceability: the laser and its certificate, and how the readings were corrected."""
+    if a.config is None:
+        return [("Instrument", "not recorded (a point table without its campaign)"),
+                ("Corrections", "not recorded")]
+    inst, env = a.config["instrument"], a.config["environment"]
+    model = inst["model"] or ("axiscal's simulated interferometer" if a.simulated else "not recorded")
+    certificate = inst["certificate"] or "not recorded"
+    ppm = inst["wavelength_uncertainty_ppm"]
+    air = ("by axiscal: updated Edlén equation (NIST form) from the air sensors, readings taken in vacuum "
+           f"wavelength {env['wavelength_nm']:g} nm" if env["air_correction"] == "edlen" else
+           "by the instrument (its own environmental compensation)")
+    material = (f"normalised to 20 °C with the material temperature, α = {env['expansion_ppm_per_k']:g} µm/m·K"
+                if env["normalise_to_20c"] else "not normalised to 20 °C (the uncertainty budget counts the "
+                                                "uncorrected expansion)")
+    return [("Laser", model), ("Serial number", inst["serial"] or "not recorded"),
+            ("Calibration certificate", certificate),
+            ("Length uncertainty", f"{ppm:g} µm/m (k = 2), from the certificate" if ppm is not None else
+             "not given: the budget uses 0.5 µm/m, a typical specification"),
+            ("Air correction", air), ("Material temperature", material)]
+
+
+def _plan_facts(a: Assessment) -> list[tuple[str, str]]:
+    unit = a.table.position_unit
+    targets = sorted({float(t) for t in a.table.target})
     listed = ", ".join(f"{t:g}" for t in targets)
-    rows = [("Targets", f"{len(targets)}: {listed} {unit}"), ("Runs", str(c.evaluation.runs)),
-            ("Directions", " and ".join("+" if d > 0 else "−" for d in c.table.directions))]
-    if c.config:
-        p, cap = c.config["plan"], c.config["capture"]
+    rows = [("Targets", f"{len(targets)}: {listed} {unit}"), ("Runs", str(a.evaluation.runs)),
+            ("Directions", " and ".join("+" if d > 0 else "−" for d in a.table.directions))]
+    if a.config:
+        p, cap = a.config["plan"], a.config["capture"]
         method = (f"fixed dwell, mean of the last {cap['average_s']:g} s" if cap["method"] == "dwell" else
-                  f"stability trigger, {cap['stable_tolerance']:g} {unit_label(c.evaluation.unit)} band "
+                  f"stability trigger, {cap['stable_tolerance']:g} {unit_label(a.evaluation.unit)} band "
                   f"for {cap['stable_window_s']:g} s")
         rows += [("Cycle", f"{p['cycle']}, overrun {p['overrun']:g} {unit}"),
                  ("Dwell", f"{p['dwell_s']:g} s"), ("Velocity", f"{p['velocity']:g} {unit}/s"),
                  ("Capture", method), ("Target offsets", p["offsets"])]
-    rows.append(("Plan seed", str(c.meta.get("plan_seed", c.table.meta.get("plan_seed", "not recorded")))))
+    seed = (a.meta or {}).get("plan_seed", a.table.meta.get("plan_seed", "not recorded"))
+    rows.append(("Plan seed", str(seed)))
     return rows
 
 
-def _comparison(before: Campaign, after: Campaign) -> str:
-    plots = plot_png([(f"before ({before.directory.name})", before),
-                      (f"after ({after.directory.name})", after)])
-    name, value_after = accuracy(after.evaluation)
-    value_before = before.evaluation.summary.get(name)
+def _comparison(before: Assessment, after: Assessment) -> str:
+    plots = plot_png([(f"before ({_label(before)})", before), (f"after ({_label(after)})", after)])
     unit = unit_label(after.evaluation.unit)
+    value_after, value_before = after.evaluation.summary.get("A"), before.evaluation.summary.get("A")
     if value_after is not None and value_before:
-        lead = (f"{name} went from {value_before:.2f} {unit} to {value_after:.2f} {unit}: "
+        lead = (f"A went from {value_before:.2f} {unit} to {value_after:.2f} {unit}: "
                 f"{abs(1 - value_after / value_before) * 100:.0f} % "
                 f"{'smaller' if value_after <= value_before else 'larger'}.")
     else:
-        lead = f"{name} cannot be compared: it is unavailable in one of the campaigns."
-    sources = (f"Before: {before.directory} ({_date(before)}). After: {after.directory} ({_date(after)}). "
-               "Ratio = after / before; smaller is better.")
+        lead = "A cannot be compared: it is unavailable in one of the campaigns."
+    sources = (f"Before: {before.source} ({_date(before)}). After: {after.source} ({_date(after)}). "
+               "Changes compare magnitudes (|after| / |before|); smaller is better.")
     return section("Before and after", f"<p class='lead'>{escape(lead)}</p><p>{escape(sources)}</p>"
                    + comparison_table(before.evaluation, after.evaluation)
                    + f"<img class='plot' alt='Deviation before and after' src='{plots}'>")
 
 
-def render_report(campaign: Campaign, before: Campaign | None = None) -> str:
-    """The whole HTML document for `campaign` (the after campaign when `before` is given)."""
-    ev = campaign.evaluation
-    machine, axis = campaign.meta.get("machine", "?"), campaign.meta.get("axis", "?")
-    title = f"Positioning accuracy: machine {machine}, axis {axis}"
-    name, value = accuracy(ev)
-    parts = [verdict_box(name, value, tolerance_of(campaign), unit_label(ev.unit)), key_figures(ev),
-             "<div class='columns'>" + section("Campaign", facts_table(_campaign_facts(campaign)))
-             + section("Plan", facts_table(_plan_facts(campaign))) + "</div>",
-             section("Environment", environment_table(campaign.table.optional))]
+def render_report(a: Assessment, before: Assessment | None = None) -> str:
+    """The whole HTML document for `a` (the after campaign when `before` is given)."""
+    ev = a.evaluation
+    meta = a.meta or {}
+    machine = meta.get("machine", a.table.meta.get("machine", "?"))
+    axis = meta.get("axis", a.table.meta.get("axis", "?"))
+    title = f"Positioning accuracy: machine {machine}, axis {axis}" + (" (SIMULATED)" if a.simulated else "")
+    parts = [verdict_box(a.verdict), key_figures(ev, a.uncertainty),
+             "<div class='columns'>" + section("Campaign", facts_table(_campaign_facts(a)))
+             + section("Plan", facts_table(_plan_facts(a))) + "</div>",
+             "<div class='columns'>" + section("Instrument and corrections", facts_table(_instrument_facts(a)))
+             + section("Environment", environment_table(a.table.optional)) + "</div>"]
     if before is not None:
-        parts.append(_comparison(before, campaign))
-    plot = plot_png([("", campaign)])
+        parts.append(_comparison(before, a))
+    plot = plot_png([("", a)])
     parts += [section(f"Result ({ev.standard.title}, {ev.runs} runs)", summary_table(ev)),
+              section("Measurement uncertainty", budget_table(a.uncertainty)),
+              section("Outliers", outliers_table(a.outliers, ev.unit)),
               section("Deviation plot", f"<img class='plot' alt='Deviation per target' src='{plot}'>"),
-              section("Per target", target_table(ev))]
+              section("Per target", target_table(ev)),
+              section("Per run", per_run_table(a.table))]
     if ev.warnings:
         items = "".join(f"<li>{escape(w)}</li>" for w in ev.warnings)
         parts.append(section("Warnings", f"<ul class='warnings'>{items}</ul>"))
-    operator = campaign.meta.get("operator") or "not recorded"
-    subtitle = f"{ev.standard.title}. Measured {_date(campaign)}. Operator: {operator}."
+    operator = meta.get("operator") or "not recorded"
+    subtitle = f"{ev.standard.title}. Measured {_date(a)}. Operator: {operator}."
     return page(title, "".join(parts), subtitle)
 
 
-def write_report(directory: str | Path, out: str | Path, before: str | Path | None = None) -> Path:
-    """Read the campaign (and the baseline: `before`, else meta.json's baseline_dir), write the HTML."""
-    campaign = load_campaign(directory)
-    baseline = Path(before) if before else baseline_of(campaign)
-    previous = load_campaign(baseline) if baseline else None
-    if previous is not None and previous.table.kind != campaign.table.kind:
-        raise InputError(f"{baseline}: a {previous.table.kind} axis, but {directory} is "
-                         f"a {campaign.table.kind} axis")
+def write_report(source: str | Path, out: str | Path, before: str | Path | None = None) -> Path:
+    """Assess the campaign directory or point table `source` (and the baseline: `before`, else
+    meta.json's baseline_dir), write the HTML."""
+    a = assess_path(source)
+    baseline = Path(before) if before else baseline_of(a)
+    previous = assess_path(baseline) if baseline else None
+    if previous is not None and previous.table.kind != a.table.kind:
+        raise InputError(f"{baseline}: a {previous.table.kind} axis, but {source} is a {a.table.kind} axis")
     path = Path(out)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(render_report(campaign, previous), encoding="utf-8")
+        path.write_text(render_report(a, previous), encoding="utf-8")
     except OSError as exc:
         raise InputError(f"{path}: cannot write ({exc.strerror})") from None
     return path

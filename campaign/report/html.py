@@ -8,6 +8,10 @@ from html import escape
 import numpy as np
 
 from campaign.iso230 import Evaluation
+from campaign.outliers import Outliers
+from campaign.pointtable import UNITS, PointTable
+from campaign.uncertainty import Budget
+from campaign.verdict import Verdict
 from campaign.views import SUMMARY_ROWS, fmt
 
 ENVIRONMENT = (("air_temp_c", "Air temperature", "°C", 2), ("air_pressure_hpa", "Air pressure", "hPa", 1),
@@ -33,7 +37,8 @@ table.facts th { width: 34%; background: none; color: #52606d; font-weight: norm
 .verdict { display: flex; align-items: center; gap: 20px; padding: 14px 20px; border-radius: 8px;
            margin: 0 0 22px; border: 2px solid; }
 .verdict .word { font-size: 34px; font-weight: 700; letter-spacing: 2px; }
-.verdict p { margin: 0; font-size: 17px; }
+.verdict p, .verdict ul { margin: 0; font-size: 16px; }
+.verdict p.rule { font-size: 13px; margin-top: 6px; }
 .pass { background: #e6f4ea; border-color: #2e7d32; color: #1b5e20; }
 .fail { background: #fdecea; border-color: #c62828; color: #8e1b1b; }
 .none { background: #f4f6f8; border-color: #9aa5b1; color: #3e4c59; }
@@ -70,10 +75,15 @@ def section(title: str, body: str) -> str:
     return f"<section>\n<h2>{escape(title)}</h2>\n{body}\n</section>\n"
 
 
-def _table(head: list[str], rows: list[list[str]], numeric_from: int = 1, css: str = "") -> str:
-    """A table; columns from `numeric_from` on are right-aligned. Cells are escaped here."""
+def _table(head: list[str], rows: list[list[str]], numeric_from: int = 1, css: str = "",
+           numeric: tuple[int, ...] | None = None) -> str:
+    """A table; columns from `numeric_from` on (or the columns `numeric`) are right-aligned numbers.
+    Cells are escaped here."""
+    def is_num(i: int) -> bool:
+        return i in numeric if numeric is not None else i >= numeric_from
+
     def cells(tag: str, values: list[str]) -> str:
-        return "".join(f"<{tag}{' class=num' if i >= numeric_from else ''}>{escape(str(v))}</{tag}>"
+        return "".join(f"<{tag}{' class=num' if is_num(i) else ''}>{escape(str(v))}</{tag}>"
                        for i, v in enumerate(values))
     body = "".join(f"<tr>{cells('td', r)}</tr>" for r in rows)
     return f"<table class='{css}'><thead><tr>{cells('th', head)}</tr></thead><tbody>{body}</tbody></table>"
@@ -110,16 +120,18 @@ def target_table(ev: Evaluation) -> str:
 
 
 def _change(before: float | None, after: float | None) -> tuple[str, str]:
-    """(text, css class) of the change from before to after; smaller is better."""
+    """(text, css class) of the change in magnitude from before to after; smaller is better. Signed
+    values are compared by their magnitudes, never by a ratio across zero."""
     if before is None or after is None or before == 0:
         return "–", ""
-    ratio = after / before
+    ratio = abs(after) / abs(before)
     word = "smaller" if ratio <= 1 else "larger"
-    return f"× {ratio:.2f} ({abs(1 - ratio) * 100:.0f} % {word})", "better" if ratio <= 1 else "worse"
+    sign = "; sign changed" if (before < 0) != (after < 0) and after != 0 else ""
+    return f"|×| {ratio:.2f} ({abs(1 - ratio) * 100:.0f} % {word}{sign})", "better" if ratio <= 1 else "worse"
 
 
 def comparison_table(before: Evaluation, after: Evaluation) -> str:
-    """The summary parameters before and after, with the ratio after / before."""
+    """The summary parameters before and after, with the change in magnitude |after| / |before|."""
     unit = unit_label(after.unit)
     rows = []
     for key, meaning in SUMMARY_ROWS:
@@ -131,30 +143,72 @@ def comparison_table(before: Evaluation, after: Evaluation) -> str:
                     f"<td class=num>{fmt(after.summary[key])}</td><td class=num>{unit}</td>"
                     f"<td class='num {css}'>{escape(text)}</td></tr>")
     head = "".join(f"<th{' class=num' if i > 1 else ''}>{h}</th>" for i, h in
-                   enumerate(["Parameter", "Meaning", "Before", "After", "Unit", "Change"]))
+                   enumerate(["Parameter", "Meaning", "Before", "After", "Unit", "Change in magnitude"]))
     return f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(rows)}</tbody></table>"
 
 
-def key_figures(ev: Evaluation) -> str:
-    """The main parameters in large type: A, E, B and R (or their one-direction values)."""
+def key_figures(ev: Evaluation, budget: Budget) -> str:
+    """The main parameters in large type: A, E, B and R (or their one-direction values), each with
+    its expanded uncertainty."""
     unit = unit_label(ev.unit)
     keys = ("A", "E", "B", "R") if ev.summary.get("A") is not None or ev.summary.get("E") is not None else \
         ("A_up", "E_up", "R_up", "A_down", "E_down", "R_down")
-    cells = "".join(f"<div><span class='key'>{k}</span><span class='value'>{fmt(ev.summary.get(k), 2)}</span>"
-                    f"<span class='unit'>{unit}</span></div>" for k in keys if k in ev.summary)
-    return f"<div class='figures'>{cells}</div>"
+    cells = []
+    for k in keys:
+        if k not in ev.summary:
+            continue
+        u = budget.expanded.get(k[0])
+        plus = f"<span class='unit'>± {u:.2f} (U, k = 2)</span>" if u is not None and ev.summary.get(k) is not None else ""
+        cells.append(f"<div><span class='key'>{k}</span><span class='value'>{fmt(ev.summary.get(k), 2)}</span>"
+                     f"<span class='unit'>{unit}</span> {plus}</div>")
+    return f"<div class='figures'>{''.join(cells)}</div>"
 
 
-def verdict_box(name: str, value: float | None, tolerance: float | None, unit: str) -> str:
-    """PASS or FAIL of the accuracy `name` against the tolerance; a neutral box without one."""
-    if value is None:
-        css, word, text = "none", "NOT ASSESSED", f"{name} is unavailable (one run only?)."
-    elif tolerance is None:
-        css, word, text = "none", "NO TOLERANCE", f"{name} = {value:.2f} {unit}. No tolerance set."
-    elif value <= tolerance:
-        css, word = "pass", "PASS"
-        text = f"{name} = {value:.2f} {unit}, within the tolerance of {tolerance:g} {unit}."
-    else:
-        css, word = "fail", "FAIL"
-        text = f"{name} = {value:.2f} {unit}, above the tolerance of {tolerance:g} {unit}."
-    return f"<div class='verdict {css}'><span class='word'>{word}</span><p>{escape(text)}</p></div>"
+def verdict_box(verdict: Verdict) -> str:
+    """PASS, FAIL or NOT JUDGED with its reasons and the decision rule."""
+    css = {"pass": "pass", "fail": "fail"}.get(verdict.verdict, "none")
+    reasons = "".join(f"<li>{escape(r)}</li>" for r in verdict.reasons)
+    notes = "".join(f"<li>{escape(n)}</li>" for n in verdict.notes)
+    return (f"<div class='verdict {css}'><span class='word'>{verdict.word}</span><div><ul>{reasons}{notes}</ul>"
+            f"<p class='rule'>Decision rule: {escape(verdict.rule)}.</p></div></div>")
+
+
+def budget_table(budget: Budget) -> str:
+    """Every term of the uncertainty budget, then the expanded uncertainties."""
+    unit = unit_label(budget.unit)
+    rows = [[t.name, f"{t.u:.3f}", " ".join(t.applies), t.source] for t in budget.terms]
+    rows += [[f"U({k}), k = {budget.k:g}", f"{v:.3f}", k, "expanded uncertainty"] for k, v in budget.expanded.items()]
+    table = _table(["Term", f"u ({unit})", "For", "Input and source"], rows, numeric=(1,))
+    missing = "".join(f"<li>{escape(m)}</li>" for m in budget.missing)
+    return table + (f"<p>Not evaluated:</p><ul class='warnings'>{missing}</ul>" if missing else "")
+
+
+def outliers_table(outliers: Outliers, unit: str) -> str:
+    """The readings the outlier test flags (they stay in the result), and the scatter with and
+    without them."""
+    u = unit_label(unit)
+    test = (f"Studentised deleted residual against the scatter pooled over the campaign, "
+            f"{100 * outliers.alpha:g} % significance for the whole campaign (Bonferroni)")
+    if not outliers.found:
+        return f"<p>None found. {escape(test)}.</p>"
+    rows = [[str(o.run), "+" if o.direction > 0 else "−", f"{o.target:g}", f"{o.deviation:+.3f}", f"{o.score:.1f}",
+             f"{o.critical:.1f}"] for o in outliers.found]
+    scatter = (f"Pooled scatter s = {outliers.s_with:.3f} {u} with them, {outliers.s_without:.3f} {u} without. "
+               "They are included in every result above.")
+    return (_table(["Run", "Direction", "Target", f"Deviation ({u})", "Score", "Critical"], rows, numeric_from=2)
+            + f"<p>{escape(scatter)} {escape(test)}.</p>")
+
+
+def per_run_table(table: PointTable) -> str:
+    """Every reading: one row per target and direction, one column per run (seed 000 tables 7, 8)."""
+    u = unit_label(UNITS[table.kind][1])
+    runs = sorted({int(r) for r in table.run})
+    cells = {(float(t), int(d), int(r)): float(x)
+             for t, d, r, x in zip(table.target, table.direction, table.run, table.deviation)}
+    rows = []
+    for d in sorted({int(x) for x in table.direction}, reverse=True):
+        for t in sorted({float(x) for x in table.target}):
+            rows.append([f"{t:g}", "+" if d > 0 else "−"] +
+                        [f"{cells[(t, d, r)]:.3f}" if (t, d, r) in cells else "–" for r in runs])
+    return _table([f"Target ({table.position_unit})", "Direction"] + [f"Run {r} ({u})" for r in runs], rows,
+                  numeric_from=2)

@@ -24,6 +24,9 @@ class FormatOptions:
     joint: int = 0
     motor: int = 1
     counts_per_unit: float | None = None
+    provenance: tuple[tuple[str, str], ...] = ()
+    """Where the table comes from (machine, axis, points file, software), for formats that can
+    carry it."""
 
 
 @dataclass(frozen=True)

@@ -18,5 +18,6 @@ def render(table, options: FormatOptions) -> Rendered:
         "positions": [float(p) for p in table.positions],
         "forward": [float(v) for v in table.forward], "reverse": [float(v) for v in table.reverse],
         "common": [float(v) for v in table.common],
+        "provenance": dict(options.provenance),
     }
     return Rendered(json.dumps(doc, indent=1, allow_nan=False) + "\n")

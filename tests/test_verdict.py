@@ -1,0 +1,136 @@
+"""One verdict for every command (campaign/verdict.py, campaign/assess.py) and the uncertainty
+budget (campaign/uncertainty.py): incomplete campaigns are not judged, the decision rule, the
+budget's terms against hand calculation."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from campaign.config import parse_config
+from campaign.iso230 import evaluate
+from campaign.measure.session import start_campaign
+from campaign.pointtable import PointTable
+from campaign.uncertainty import budget
+from campaign.verdict import Planned, judge
+from tests.fakes import SMALL, AxisFault, FakeMachine
+
+
+def table(runs=5, targets=11, sigma=0.5, seed=1, material=20.1):
+    rng = np.random.default_rng(seed)
+    rows = [(r, d, 60.0 * i) for r in range(1, runs + 1) for d in (1, -1) for i in range(targets)]
+    run, direction, target = (np.array(c) for c in zip(*rows))
+    deviation = -0.0124 * target + 0.5 * direction + rng.normal(0, sigma, len(rows))
+    optional = {"material_temp_c": np.full(len(rows), material), "air_temp_c": np.full(len(rows), 20.0),
+                "air_pressure_hpa": np.full(len(rows), 1013.25), "humidity_pct": np.full(len(rows), 50.0)}
+    return PointTable("linear", run, direction, target.astype(float), deviation, optional)
+
+
+def test_budget_terms_against_hand_calculation():
+    t = table()
+    ev = evaluate(t)
+    b = budget(t, ev)
+    terms = {term.name: term.u for term in b.terms}
+    assert terms["laser wavelength"] == pytest.approx(0.5 / 2 * 600e-3)  # 0.5 µm/m, k = 2, over 600 mm
+    # air: about 0.95 µm/m per K (reference §6) × 0.1 K, 0.27 µm/m per hPa × 0.5 hPa, 0.0085 × 3 %RH
+    expected_air = 0.6 * math.sqrt((0.95 * 0.1) ** 2 + (0.27 * 0.5) ** 2 + (0.0085 * 3) ** 2)
+    assert terms["air refractive index"] == pytest.approx(expected_air, rel=0.03)
+    assert terms["uncorrected expansion"] == pytest.approx(11.5 * 0.6 * 0.1 / math.sqrt(3), rel=1e-6)
+    assert terms["misalignment (cosine error)"] == pytest.approx(0.5 ** 2 / 1200 * 1000 / math.sqrt(3))
+    s = max(x for r in ev.targets for x in (r.s_up, r.s_down))
+    assert terms["statistics: the means (finite runs)"] == pytest.approx(math.sqrt(2) * s / math.sqrt(5))
+    linear = [u for term in b.terms if "A" in term.applies for u in [term.u]]
+    assert b.expanded["A"] == pytest.approx(2 * math.sqrt(sum(u * u for u in linear)))
+    assert b.expanded["B"] < b.expanded["E"] < b.expanded["A"]  # length terms cancel in B
+
+
+def test_a_certificate_value_replaces_the_typical_one():
+    t = table()
+    config = parse_config(SMALL + "\n[instrument]\nwavelength_uncertainty_ppm = 0.2\nmodel = \"XL-80\"\n", "c.toml")
+    b = budget(t, evaluate(t), config)
+    term = next(x for x in b.terms if x.name == "laser wavelength")
+    assert term.u == pytest.approx(0.1 * 0.6) and "certificate" in term.source and "NOT" not in term.source
+    default = next(x for x in budget(t, evaluate(t)).terms if x.name == "laser wavelength")
+    assert "NOT from a certificate" in default.source
+
+
+@pytest.mark.parametrize("margin, expected", [(0.01, "pass"), (-0.01, "not judged")])
+def test_decision_rule_at_the_edges(margin, expected):
+    t = table()
+    ev = evaluate(t)
+    b = budget(t, ev)
+    a, u = ev.summary["A"], b.expanded["A"]
+    assert judge(t, ev, {"A": a + u + margin}, b).verdict == expected
+    assert judge(t, ev, {"A": a - u - 0.01}, b).verdict == "fail"
+    assert judge(t, ev, {"A": a - u + 0.01}, b).verdict == "not judged"
+
+
+def test_missing_points_against_the_plan_are_not_judged():
+    t = table()
+    ev = evaluate(t)
+    v = judge(t, ev, {"A": 100.0}, budget(t, ev), plan=Planned(points=120, runs=6))
+    assert v.verdict == "not judged"
+    assert v.reasons[:2] == ("incomplete campaign: 10 of 120 planned points are missing",
+                             "incomplete campaign: 5 of 6 planned runs measured")
+
+
+def test_other_tolerances_are_judged_too():
+    t = table()
+    ev = evaluate(t)
+    v = judge(t, ev, {"A": 100.0, "B": 0.01}, budget(t, ev))
+    assert v.verdict == "fail" and [c["parameter"] for c in v.checks] == ["A", "B"]
+    assert "reversal value B" in v.reasons[0]
+
+
+def test_an_interrupted_campaign_directory_is_not_judged(cli, tmp_path):
+    cfg = parse_config(SMALL + "\n[environment]\nnormalise_to_20c = false\n", "small.toml")
+    cfg.sections["campaign"]["on_fault"] = "abort"
+    start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(6))))
+    result = cli("analyze", tmp_path / "c", "--json")
+    assert result.code == 0, result.err
+    data = json.loads(result.out)
+    assert data["verdict"] == "not judged" and data["planned_points"] == 12 and data["points"] == 3
+    assert "incomplete campaign: 9 of 12 planned points are missing" in data["reasons"]
+    same = json.loads(cli("analyze", tmp_path / "c" / "points.csv", "--json").out)  # its points.csv: the same
+    assert same["reasons"] == data["reasons"]
+
+
+def test_the_report_of_an_interrupted_campaign_has_no_pass(cli, tmp_path):
+    cfg = parse_config(SMALL, "small.toml")
+    cfg.sections["campaign"]["on_fault"] = "abort"
+    start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(8))))
+    assert cli("report", tmp_path / "c", "-o", tmp_path / "r.html").code == 0
+    html = (tmp_path / "r.html").read_text()
+    assert "<span class='word'>NOT JUDGED</span>" in html and "PASS" not in html
+    assert "planned points are missing" in html and "Per run" in html and "SIMULATED" in html
+
+
+def test_report_takes_a_point_table_file(cli, tmp_path):
+    from tests.conftest import PAPER
+
+    assert cli("report", PAPER / "horizontal_before.csv", "-o", tmp_path / "r.html").code == 0
+    html = (tmp_path / "r.html").read_text()
+    assert "NOT JUDGED" in html and "material temperature" in html and "9.152" in html
+
+
+def test_compensate_warns_about_an_incomplete_campaign(cli, tmp_path):
+    cfg = parse_config(SMALL.replace("cycles = 2", "cycles = 3"), "small.toml")
+    cfg.sections["campaign"]["on_fault"] = "abort"
+    # move 17 is the overrun before run 3: runs 1 and 2 are complete, run 3 is missing
+    start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(17))))
+    result = cli("compensate", tmp_path / "c" / "points.csv", "--format", "csv", "-o", tmp_path / "t.csv")
+    assert result.code == 0, result.err
+    assert "warning: incomplete campaign: 6 of 18 planned points are missing" in result.out
+    clean = cli("compensate", tmp_path / "c" / "points.csv", "--format", "json", "-o", tmp_path / "t.json")
+    assert json.loads((tmp_path / "t.json").read_text())["provenance"]["machine"] == "fake"
+    assert clean.code == 0
+
+
+def test_verify_refuses_a_table_that_does_not_cover_the_plan(cli, tmp_path):
+    from tests.conftest import PAPER, ROOT, assert_one_line_error
+
+    assert cli("compensate", PAPER / "vertical_before.csv", "--format", "json", "-o", tmp_path / "v.json").code == 0
+    result = cli("verify", ROOT / "campaign" / "demo.toml", "--comp", tmp_path / "v.json", "--out", tmp_path / "x")
+    assert_one_line_error(result, "v.json: the table covers 0 to 300 mm, the plan's targets 0 to 600 mm", "refused")
+    assert not (tmp_path / "x").exists()
