@@ -159,7 +159,10 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "average_s": Key(float, 1.0, "dwell method: averaging window at the end of the dwell, s", min=0.01),
         "stable_tolerance": Key(float, 0.5, "stable method: band the reading must stay in, deviation unit",
                                 min=0),
-        "stable_window_s": Key(float, 0.5, "stable method: how long the reading must stay in the band, s",
+        "stable_drift": Key(float, 0.08, "stable method: largest difference between the means of the window's "
+                            "two halves, deviation unit (raised to the noise's own uncertainty when that is larger)",
+                            min=0),
+        "stable_window_s": Key(float, 0.7, "stable method: how long the reading must stay in the band, s",
                                min=0.01),
         "stable_timeout_s": Key(float, 10.0, "stable method: longest wait after arrival, s", min=0.1),
         "retries": Key(int, 2, "captures retried at a point after beam loss before the campaign stops",

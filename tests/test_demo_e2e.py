@@ -5,6 +5,7 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from campaign.pointtable import read_points
@@ -18,12 +19,18 @@ def axiscal(*args, timeout=120):
                           cwd=ROOT, check=False)
 
 
-@pytest.mark.machine
-def test_demo_runs_the_paper_campaign(tmp_path):
-    out = tmp_path / "demo"
-    proc = axiscal("demo", "--out", out, "--json", "--plot", tmp_path / "demo.png")
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    """The demo with its fixed 4 s dwell: (its --json result, its directory, the plot)."""
+    tmp = tmp_path_factory.mktemp("demo")
+    proc = axiscal("demo", "--out", tmp / "demo", "--json", "--plot", tmp / "demo.png")
     assert proc.returncode == 0, proc.stderr
-    data = json.loads(proc.stdout)
+    return json.loads(proc.stdout), tmp / "demo", tmp / "demo.png"
+
+
+@pytest.mark.machine
+def test_demo_runs_the_paper_campaign(demo):
+    data, out, plot = demo
     assert data["dir"] == str(out) and data["status"] == "completed"
     assert data["points"] == 110
     assert 1100 < data["duration_s"] < 1400  # about 20 simulated minutes
@@ -38,19 +45,28 @@ def test_demo_runs_the_paper_campaign(tmp_path):
     assert (out / "config.toml").read_text().startswith("# The embedded demo")
     raw_lines = (out / "raw.csv").read_text().splitlines()
     assert len(raw_lines) > 10000  # every sample of 20 minutes at 10 Hz
-    assert (tmp_path / "demo.png").read_bytes()[:4] == b"\x89PNG"
+    assert plot.read_bytes()[:4] == b"\x89PNG"
 
 
 @pytest.mark.machine
-def test_stable_capture_waits_less_than_the_dwell(tmp_path):
+def test_the_complete_demo_passes_with_its_uncertainty_and_a_tight_tolerance_is_not_judged(demo, cli):
+    _, out, _ = demo
+    data = json.loads(cli("analyze", out, "--json").out)
+    assert data["verdict"] == "pass" and data["uncertainty"]["U_A_um"] > 0
+    a, u = data["A"], data["uncertainty"]["U_A_um"]
+    tight = json.loads(cli("analyze", out, "--json", "--tolerance", f"{a + u / 2:.3f}").out)
+    assert tight["verdict"] == "not judged" and "cannot decide" in tight["reasons"][0]
+
+
+@pytest.mark.machine
+def test_stable_capture_agrees_with_the_dwell_and_waits_at_most_half(demo, tmp_path):
     proc = axiscal("demo", "--out", tmp_path / "s", "--capture", "stable", "--json")
     assert proc.returncode == 0, proc.stderr
     data = json.loads(proc.stdout)
     assert data["points"] == 110
-    lines = (tmp_path / "s" / "points.csv").read_text().splitlines()
-    header = next(ln for ln in lines if ln.startswith("run,")).split(",")
-    waits = [float(ln.split(",")[header.index("capture_wait_s")]) for ln in lines[lines.index(",".join(header)) + 1:]]
-    assert max(waits) < 4.0 and min(waits) > 0.5  # stable before a 4 s dwell, after the 0.5 s window
+    assert data["A"] == pytest.approx(demo[0]["A"], rel=0.05)  # the same axis, the same scatter per approach
+    waits = read_points(tmp_path / "s" / "points.csv").extra["capture_wait_s"]
+    assert np.mean(waits) <= 0.5 * 4.0 and min(waits) >= 0.7  # half the 4 s dwell; never before the window
 
 
 @pytest.mark.machine

@@ -94,7 +94,7 @@ def spy_on_moves(moves):
 # -- scripts -----------------------------------------------------------------------------------
 
 @pytest.mark.machine
-@pytest.mark.parametrize("tolerance, verdict", [(10.0, "PASS"), (1.0, "FAIL")])
+@pytest.mark.parametrize("tolerance, verdict", [(10.0, "PASS"), (0.3, "FAIL")])
 def test_a_script_runs_the_whole_session(tmp_path, small_config, tolerance, verdict):
     out = tmp_path / "run"
     proc = subprocess.run([sys.executable, "-m", "campaign", "guide", small_config(tolerance), "--out", out,

@@ -34,7 +34,10 @@ def test_compensation_removes_the_systematic_error(vertical):
     assert after["points"] == 110 and after["status"] == "completed"
     floor = max(after["R_up"], after["R_down"])  # 4 s_max: what is left once every mean is removed
     assert after["A"] < 1.5 * floor
-    assert after["B"] < 2.0 and after["E"] < 3.0
+    # what is left of the reversal and the systematic deviation is the means' own scatter: B is a
+    # difference of two 5-run means (sd √2·s/√5 ≈ 0.16 of 4s), E a spread of 22 means
+    assert after["B"] < 0.5 * floor and after["E"] < 0.75 * floor
+    assert before["B"] / after["B"] > 100
 
 
 @pytest.mark.machine

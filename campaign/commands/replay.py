@@ -28,6 +28,7 @@ def register(sub) -> None:
     p.add_argument("--capture", choices=("dwell", "stable"), help="capture method (default: as recorded)")
     p.add_argument("--average-s", type=positive_number, help="dwell: averaging window, s")
     p.add_argument("--stable-tolerance", type=positive_number, help="stable: band, µm (arcsec)")
+    p.add_argument("--stable-drift", type=positive_number, help="stable: drift between the window's halves, µm (arcsec)")
     p.add_argument("--stable-window-s", type=positive_number, help="stable: window, s")
     p.add_argument("--stable-timeout-s", type=positive_number, help="stable: timeout after arrival, s")
     p.add_argument("--json", action="store_true", help="one JSON object")
@@ -36,7 +37,7 @@ def register(sub) -> None:
 
 def _overrides(args) -> dict:
     out = {"method": args.capture} if args.capture else {}
-    for key in ("average_s", "stable_tolerance", "stable_window_s", "stable_timeout_s"):
+    for key in ("average_s", "stable_tolerance", "stable_drift", "stable_window_s", "stable_timeout_s"):
         if getattr(args, key) is not None:
             out[key] = getattr(args, key)
     return out

@@ -4,8 +4,9 @@ Pure code, used by the executor while a campaign runs and by replay on a recorde
 
 - Fixed dwell (the paper's method): the mean of the readings over the capture window, which is the
   last part of the dwell.
-- Stability trigger (a position trigger in laser software): capture as soon as the readings have
-  stayed within a tolerance band for a stability window, with a timeout; the wait is recorded.
+- Stability trigger (a position trigger in laser software): capture as soon as the readings of a
+  stability window stay within a band and no longer drift, with a timeout; the wait is recorded
+  (see `capture_stable`).
 
 Readings with the beam not OK are never averaged: in a dwell they fail the capture (BeamLost), in
 the stable method they restart the stability window. Times are in s, positions in axis unit.
@@ -15,6 +16,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from statistics import fmean
+
+import numpy as np
 
 from protocols.hardware import ENV_FIELDS, Reading
 
@@ -58,26 +61,43 @@ def capture_dwell(readings: list[Reading], wait_s: float) -> Captured:
     return _captured(readings, wait_s)
 
 
-def capture_stable(readings: list[Reading], window_s: float, tolerance: float, wait_s: float,
+def capture_stable(readings: list[Reading], window_s: float, tolerance: float, drift: float, wait_s: float,
                    ) -> Captured | None:
     """The stability trigger, applied to the readings since arrival (instrument times, s).
 
-    Returns the capture as soon as the last readings span at least `window_s` and stay within
-    `tolerance` (axis unit, max - min); None while that has not happened yet. `wait_s` is the time
-    since arrival now (s), recorded with the capture. The caller enforces the timeout.
+    It captures as soon as the last readings span at least `window_s` and are still:
+    - band: max - min within `tolerance`, or within 4.5 times the reading noise when the noise is
+      larger (the noise is the scatter about a line fitted through the window: a noisier laser
+      gets a wider band instead of a timeout);
+    - drift: the means of the window's two halves differ by at most `drift`, or by twice the
+      noise's own uncertainty of that difference when that is larger. A settling axis still
+      creeps: the band alone lets it through while its settling is visible (a bias toward the
+      approach direction, like backlash), the drift test waits until the creep has died out.
+    The captured position is the fitted line's value at the end of the window: the axis' position
+    now, not the mean of a window it was still creeping through. Positions in axis unit; `wait_s`
+    is the time since arrival now (s), recorded with the capture. None while not stable; the caller
+    enforces the timeout.
     """
     start = 0
     for i, r in enumerate(readings):
         if not r.signal_ok:
             start = i + 1
     good = readings[start:]
-    if len(good) < 2:
+    if len(good) < 4:
         return None
     end_t = good[-1].time_s
     if good[0].time_s > end_t - window_s + 1e-9:
         return None  # the good readings do not yet span a whole stability window
     window = [r for r in good if r.time_s >= end_t - window_s - 1e-9]
-    positions = [r.position for r in window]
-    if max(positions) - min(positions) > tolerance:
+    if len(window) < 4:
         return None
-    return _captured(window, wait_s)
+    t = np.array([r.time_s for r in window]) - end_t
+    x = np.array([r.position for r in window])
+    slope, level = np.polyfit(t, x, 1)
+    noise = float(np.sqrt(np.sum((x - (slope * t + level)) ** 2) / (len(x) - 2)))
+    half = len(x) // 2
+    if float(np.ptp(x)) > max(tolerance, 4.5 * noise):
+        return None
+    if abs(float(np.mean(x[half:]) - np.mean(x[:half]))) > max(drift, 2 * noise * np.sqrt(4 / len(x))):
+        return None
+    return Captured(float(level), len(window), wait_s, _mean_env(window))

@@ -402,10 +402,11 @@ class Executor:
             self._wait(step.window_s)
             return capture_dwell(self.readings, self.now() - self.arrival_s)
         tolerance = self.config["capture"]["stable_tolerance"] / self.scale
+        drift = self.config["capture"]["stable_drift"] / self.scale
         end = self.now() + step.timeout_s
         while self.now() < end:
             self._tick()
-            got = capture_stable(self.readings, step.window_s, tolerance, self.now() - self.arrival_s)
+            got = capture_stable(self.readings, step.window_s, tolerance, drift, self.now() - self.arrival_s)
             if got is not None:
                 return got
         if any(not r.signal_ok for r in self.readings):

@@ -72,12 +72,13 @@ def _capture(config: Config, rows: pd.DataFrame, capture_step: int, arrival: flo
         window = rows[rows.t_s > end - average_s + TICK_EPSILON_S]
         return capture_dwell(_readings(window), end - arrival)
     tolerance = c["stable_tolerance"] / DEVIATION_SCALE[config["axis"]["unit"]]
+    drift = c["stable_drift"] / DEVIATION_SCALE[config["axis"]["unit"]]
     readings: list[Reading] = []
     for t, tick in rows.groupby("t_s", sort=True):
         if t - arrival > c["stable_timeout_s"] + TICK_EPSILON_S:
             break
         readings.extend(_readings(tick))
-        got = capture_stable(readings, c["stable_window_s"], tolerance, float(t) - arrival)
+        got = capture_stable(readings, c["stable_window_s"], tolerance, drift, float(t) - arrival)
         if got is not None:
             return got
     raise BeamLost("never stable within the recorded samples and the timeout")

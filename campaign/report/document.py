@@ -124,8 +124,8 @@ def _plan_facts(a: Assessment) -> list[tuple[str, str]]:
     if a.config:
         p, cap = a.config["plan"], a.config["capture"]
         method = (f"fixed dwell, mean of the last {cap['average_s']:g} s" if cap["method"] == "dwell" else
-                  f"stability trigger, {cap['stable_tolerance']:g} {unit_label(a.evaluation.unit)} band "
-                  f"for {cap['stable_window_s']:g} s")
+                  f"stability trigger, {cap['stable_tolerance']:g} {unit_label(a.evaluation.unit)} band and "
+                  f"{cap['stable_drift']:g} {unit_label(a.evaluation.unit)} drift over {cap['stable_window_s']:g} s")
         rows += [("Cycle", f"{p['cycle']}, overrun {p['overrun']:g} {unit}"),
                  ("Dwell", f"{p['dwell_s']:g} s"), ("Velocity", f"{p['velocity']:g} {unit}/s"),
                  ("Capture", method), ("Target offsets", p["offsets"])]

@@ -6,7 +6,12 @@ air or material correction is applied.
 
 1. Dwells: a sample is still when the reading is within `still_tolerance` of the reading a quarter
    of the planned dwell earlier; a dwell is a run of still samples (extended back by that quarter)
-   that lasts at least half the planned dwell and does not begin at the start of the stream.
+   that lasts at least half the planned dwell and does not begin at the start of the stream. The
+   end of such a run lies after the next move has begun (its first samples are still within the
+   tolerance of the readings a quarter dwell earlier), so the end is trimmed the same quarter, then
+   extended again only while the reading stays at the dwell's level (groups of 5 samples within 4
+   standard errors of it): the still part is found by the reading itself, and a slow start of the
+   next move does not enter the capture.
 2. Matching: the dwells are matched in order to the plan's move endpoints. Every measured point
    needs a dwell at its target; overrun stops may be missing (they are motion only); stops after the
    last point are ignored.
@@ -76,6 +81,36 @@ def find_dwells(time: np.ndarray, reading: np.ndarray, tolerance: float, dwell_s
     start[1:] = np.maximum(start[1:], last[:-1] + 1)  # a run may reach back into the previous one
     keep = (start > 0) & (time[last] - time[np.maximum(start, 0)] >= dwell_s / 2 - dt / 2)
     return Dwells(start[keep], last[keep])
+
+
+def still_ends(time: np.ndarray, reading: np.ndarray, dwells: Dwells, dwell_s: float) -> Dwells:
+    """The dwells with their ends where the reading leaves the dwell's level (see the module text):
+    trimmed back a quarter of `dwell_s` (s), then extended up to the first group of SMOOTH samples
+    whose mean departs from the level (the median of the last quarter) by more than 4 standard
+    errors. The noise is the instrument's, one value for the whole stream: the median over the
+    dwells of 1.4826 · the median absolute deviation of each dwell after its first quarter."""
+    dt = sample_interval(time) or 1e-9
+    lag = int(max(1.0, np.ceil(dwell_s / 4 / dt)))
+    trimmed = np.maximum(dwells.start + 1, dwells.end - lag)
+    spreads = []
+    for start, end in zip(dwells.start, trimmed):
+        settled = reading[min(int(start) + lag, int(end)):int(end) + 1]
+        spreads.append(1.4826 * float(np.median(np.abs(settled - np.median(settled)))))
+    noise = float(np.median(spreads)) if spreads else 0.0
+    limit = max(4 * noise / np.sqrt(SMOOTH), 1e-12)
+    ends = trimmed.copy()
+    for i, (start, cut, end) in enumerate(zip(dwells.start, trimmed, dwells.end)):
+        level = float(np.median(reading[max(int(start), int(cut) - lag):int(cut) + 1]))
+        ahead = reading[int(cut) + 1:int(end) + 1]
+        if len(ahead) >= SMOOTH:
+            means = np.convolve(ahead, np.ones(SMOOTH) / SMOOTH, mode="valid")  # means[j]: ahead[j:j+SMOOTH]
+            away = np.abs(means - level) > limit
+            ends[i] = cut + (int(np.argmax(away)) if away.any() else len(ahead))
+    return Dwells(dwells.start, ends)
+
+
+SMOOTH = 5
+"""Samples averaged when looking for the end of a dwell (`still_ends`)."""
 
 
 def _window_means(values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -157,6 +192,7 @@ def extract_points(stream: Stream, plan: Plan, config: Config, still_tolerance: 
     unit, kind = config["axis"]["unit"], config["axis"]["kind"]
     tolerance = still_tolerance / SCALE[unit]  # axis unit
     dwells = find_dwells(stream.time, stream.reading, tolerance, config["plan"]["dwell_s"])
+    dwells = still_ends(stream.time, stream.reading, dwells, config["plan"]["dwell_s"])
     lo, hi = capture_windows(stream, dwells, config["capture"]["average_s"])
     positions = _window_means(stream.reading, lo, hi) if len(lo) else np.zeros(0)
     assigned, overruns, ignored = assign_dwells(stream, dwells, positions, plan, unit)

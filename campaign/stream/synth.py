@@ -40,11 +40,13 @@ def _trapezoid(tau: np.ndarray, distance: np.ndarray, velocity: float, accel: fl
 
 def synthetic_stream(plan: Plan, config: Config, rate_hz: float, seed: int = 0, noise: float = 0.3e-3,
                      ppm: float = -12.0, backlash: float = 2e-3, scatter: float = 0.5e-3,
-                     overrun_dwell_s: float = 0.0, skip_point: int | None = None,
-                     ) -> tuple[pd.DataFrame, np.ndarray]:
+                     overrun_dwell_s: float = 0.0, skip_point: int | None = None, creep_s: float = 0.0,
+                     creep: float = 0.0) -> tuple[pd.DataFrame, np.ndarray]:
     """The stream (columns time_s and reading_mm or reading_deg) and the true error of each plan
     point (axis unit; NaN for a skipped point). The stream starts moving at t = 0 from the first
-    target."""
+    target. `creep_s`, `creep`: a slow start, as a real axis shows: over the last `creep_s` s of
+    each dwell the axis already creeps `creep` (axis unit, growing with the square of time) toward
+    the next stop; the move then makes up the difference."""
     import pandas as pd
 
     rng = np.random.default_rng(seed)
@@ -64,6 +66,12 @@ def synthetic_stream(plan: Plan, config: Config, rate_hz: float, seed: int = 0, 
     travel = positions[1:] + error - start
     covered = _trapezoid(np.clip(t - (arrive[k] - moves[k]), 0, moves[k]), np.abs(travel[k]), velocity, accel)
     reading = start[k] + np.sign(travel[k]) * covered + rng.normal(0, noise, len(t))
+    if creep_s > 0 and creep:
+        ahead = np.sign(travel[np.minimum(k + 1, len(stops) - 1)])  # the next move's direction
+        early = np.clip((t - (leave[k] - creep_s)) / creep_s, 0, 1) ** 2 * (k + 1 < len(stops))
+        left = 1 - covered / np.maximum(np.abs(travel[k]), 1e-12)  # of this move (it began creeping)
+        came = np.concatenate([[0.0], np.sign(travel[1:])])[k] * (k > 0)
+        reading += ahead * creep * early * (t >= arrive[k]) + came * creep * left * (t < arrive[k])
     truth = np.full(len(plan.points), np.nan)
     measured = np.array([s[2] for s in stops])
     truth[measured[measured >= 0]] = error[measured >= 0]

@@ -31,7 +31,10 @@ class SimAxisPhysics:
                  air: tuple[float, float, float] = (20.0, 1013.25, 50.0), material_temp_c: float = 20.0,
                  vacuum_readings: bool = False):
         self.plc, self.model, self.unit = plc, model, unit
-        self.rng = np.random.default_rng(seed)
+        # Two streams: the k-th approach gets the same scatter however many readings were taken
+        # before it (a stable capture reads fewer than a fixed dwell), so capture methods compare.
+        self.rng = np.random.default_rng([seed, 2])
+        self.scatter_rng = np.random.default_rng([seed, 1])
         self.air = air
         self.material_temp_c = material_temp_c
         self.vacuum_readings = vacuum_readings
@@ -47,7 +50,7 @@ class SimAxisPhysics:
         arrival = self.plc.arrival_time
         if arrival is not None and arrival != self._arrival:
             self._arrival = arrival
-            self._scatter_um = float(self.rng.normal(0.0, self.model.sigma_um)) if self.model.sigma_um else 0.0
+            self._scatter_um = float(self.scatter_rng.normal(0.0, self.model.sigma_um)) if self.model.sigma_um else 0.0
         wait = 0.0 if arrival is None else max(0.0, t - arrival)
         e_um = float(self.model.deviation_um(x, self.plc.last_direction, t, wait))
         if arrival is not None:
