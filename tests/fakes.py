@@ -119,6 +119,8 @@ class FakeLaser:
         self.beam_off: list[tuple[float, float]] = []
         self.gone_at: float | None = None
         self.skipped_lines = 0
+        self.offset = 0.0
+        """A datum shift, mm (a laser re-zeroed elsewhere)."""
         self.garbage_at: dict[float, int] = {}
         self.closed = False
         self._pending: list[Reading] = []
@@ -129,7 +131,7 @@ class FakeLaser:
         while self._next <= t + 1e-9:
             x = self.axis.position
             ok = not any(a <= self._next < b for a, b in self.beam_off)
-            reading = x + self.error_um(x, self.axis.direction) / 1000.0 + (0.0 if ok else 1.0)  # junk without beam
+            reading = x + self.offset + self.error_um(x, self.axis.direction) / 1000.0 + (0.0 if ok else 1.0)
             self._pending.append(Reading(self._next, reading, ok, 90.0 if ok else 0.0, **self.env))
             for at, lines in list(self.garbage_at.items()):
                 if at <= self._next:

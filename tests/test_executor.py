@@ -295,3 +295,24 @@ def test_skip_policy_without_an_operator(tmp_path):
     outcome = start_campaign(cfg, tmp_path / "c", opener=machine)
     assert outcome.status == "completed" and outcome.points == 11
     assert [e["point"] for e in events(tmp_path / "c", "skip")] == [2]
+
+
+@pytest.mark.parametrize("shift_mm, ok", [(0.0, True), (0.5, False)])
+def test_the_resume_checklist_sees_a_re_zeroed_laser(tmp_path, shift_mm, ok):
+    from campaign.guide.checklist import datum_item
+    from campaign.measure.session import prepare_resume
+    from campaign.record.directory import last_reading_offset
+
+    cfg = config()
+    cfg.sections["campaign"]["on_fault"] = "abort"
+    start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(6))))
+    r = prepare_resume(tmp_path / "c")
+    recorded = last_reading_offset(r.path, r.plan)
+    assert recorded == pytest.approx(linear_error_um(100.0, 1) / 1000, abs=1e-6)  # the last point: 100 mm, +
+    hw, parts = r.open(FakeMachine(setup=lambda p: setattr(p.laser, "offset", shift_mm)))
+    try:
+        item = datum_item(hw, r.config, recorded)
+    finally:
+        hw.close()
+        r.close()
+    assert item.ok is ok, item.value

@@ -306,3 +306,58 @@ def test_a_fault_asks_the_operator_in_a_terminal(tmp_path, small_config):
     assert child.exitstatus == 3 and "Traceback" not in screen
     assert "beam lost" in screen
     assert [e["point"] for e in events(out, "skip")][:1] == [skipped_at]
+
+
+def spawn(*argv, speed="10"):
+    env = dict(os.environ, TERM="xterm")
+    env.pop("NO_COLOR", None)
+    child = pexpect.spawn(sys.executable, ["-m", "campaign", *map(str, argv), "--speed", speed], cwd=str(ROOT),
+                          env=env, dimensions=(40, 120), encoding="utf-8", timeout=30)
+    child.logfile_read = io.StringIO()
+    return child
+
+
+@pytest.mark.machine
+def test_a_during_run_1_ends_with_the_summary_so_far_and_the_resume_hint(tmp_path, small_config):
+    out = tmp_path / "run"
+    child = spawn_guide(small_config(), out)
+    try:
+        confirm_and_wait_for_points(child, out, 2)  # run 1 has 12 points: target 0 has one direction only
+        child.send("a")
+        child.expect(pexpect.EOF)
+    finally:
+        child.close(force=True)
+    screen = child.logfile_read.getvalue()
+    assert child.exitstatus == 3, screen[-2000:]
+    assert "Traceback" not in screen and "error:" not in screen
+    assert "Axis summary" in screen and "NOT JUDGED" in screen and f"axiscal resume {out}" in screen
+
+
+@pytest.mark.machine
+def test_resume_on_a_terminal_is_guided_and_finishes_the_campaign(tmp_path, small_config):
+    out = tmp_path / "run"
+    child = spawn_guide(small_config(), out)
+    try:
+        confirm_and_wait_for_points(child, out, 3)
+        child.send("a")
+        child.expect(pexpect.EOF)
+    finally:
+        child.close(force=True)
+    stopped_at = count_points(out)
+    child = spawn("resume", out, speed="20")
+    try:
+        child.expect("Setup checklist")
+        child.expect("laser datum")
+        child.expect("re-approach")
+        child.expect("Start the motion")
+        assert count_points(out) == stopped_at  # nothing moved or recorded before the confirmation
+        child.sendline("y")
+        child.expect("RUNNING")
+        child.expect(pexpect.EOF, timeout=120)
+    finally:
+        child.close(force=True)
+    screen = child.logfile_read.getvalue()
+    assert child.exitstatus == 0, screen[-2000:]
+    assert count_points(out) == 60 and status(out) == "completed"
+    assert "PASS" in screen and "Traceback" not in screen
+    assert [e["data"]["first_point"] for e in events(out, "resume")] == [stopped_at]

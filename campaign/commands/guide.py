@@ -59,6 +59,8 @@ def register(sub) -> None:
     p.add_argument("--on-fault", choices=("retry", "skip", "abort"),
                    help="answer every fault without asking; retry at most campaign.fault_retries times per "
                         "point (default: ask on a terminal, else the config's [campaign] on_fault)")
+    p.add_argument("--operator", metavar="NAME", help="the operator's name (default: the config's; asked on a "
+                                                     "terminal when it has none)")
     p.add_argument("--json", action="store_true", help="print one JSON object at the end (the rest to stderr)")
     p.set_defaults(func=run)
 
@@ -72,6 +74,10 @@ def run(args, on_hardware=None) -> int:
     plan = build_plan(config)
     out = Path(args.out) if args.out else default_out_dir(config)
     c = config["campaign"]
+    if args.operator:
+        c["operator"] = args.operator
+    elif not c["operator"] and interactive:
+        c["operator"] = ask_operator(console)
     console.print(f"[bold]axiscal guide[/]: machine {c['machine']}, axis {config['axis']['name']}, "
                   f"operator {c['operator'] or '-'}, config {config.source}")
     console.print(plan_preview(plan, config, args.speed))
@@ -79,39 +85,52 @@ def run(args, on_hardware=None) -> int:
     if failures(offline):
         console.print(checklist_table(offline))
         stop_on(failures(offline)[0])
-    model = None
-    if config["axis_driver"]["type"] == "sim":
-        model = sim_model(config)
-    hw, sim = open_and_check(config, args, model, offline, console, interactive, on_hardware)
+    model = sim_model(config) if config["axis_driver"]["type"] == "sim" else None
+    opened = open_and_check(lambda: hardware_opener()(config, speed=args.speed, model=model), config, offline,
+                            console, interactive, on_hardware)
     try:
-        confirm(args, console, interactive, plan, config)
-        outcome = measure(config, plan, args, out, (hw, sim), model, console, interactive)
+        lo, hi = plan.ends()
+        unit = config["axis"]["unit"]
+        confirm(args, console, interactive, f"alignment check to {hi:g} {unit} and back to {lo:g} {unit}, then the "
+                                            f"campaign ({len(plan.points)} points)")
+        outcome = on_dashboard(config, plan, args, opened, console, interactive, out,
+                               lambda dashboard, control: start_campaign(config, out, speed=args.speed, model=model,
+                                                                         observer=dashboard, control=control,
+                                                                         opened=opened),
+                               before=lambda control, keys: check_alignment(opened[0], plan, config, control,
+                                                                           console, keys))
     finally:
-        hw.close()
+        opened[0].close()
     return conclude(outcome, config, args, console)
+
+
+def ask_operator(console) -> str:
+    """The operator's name, asked once when the config has none (recorded with the campaign)."""
+    return console.input("Operator's name (recorded with the campaign; Enter to leave it empty): ").strip()
 
 
 def stop_on(item: CheckItem):
     raise InputError(f"setup check failed: {item.name}: {item.value}")
 
 
-def open_and_check(config, args, model, offline, console, interactive, on_hardware):
-    """Open the hardware and run the checklist until it passes; on a failure ask to retry
-    (interactive) or stop with InputError (scripts). Nothing moves here. The hardware is closed
-    again when this ends without a pass."""
+def open_and_check(open_hardware, config, offline, console, interactive, on_hardware=None, more_items=None):
+    """Open the hardware (`open_hardware()` -> (Hardware, parts)) and run the checklist until it
+    passes; on a failure ask to retry (interactive) or stop with InputError (scripts). Nothing
+    moves here. `more_items(hw)`: further checks. The hardware is closed again when this ends
+    without a pass."""
     hw = sim = None
     try:
         while True:
             if hw is None:
                 try:
-                    hw, sim = hardware_opener()(config, speed=args.speed, model=model)
+                    hw, sim = open_hardware()
                 except (AxisError, InstrumentError, *BAD_INPUT, OSError) as exc:
                     items = [CheckItem("controller", False, f"cannot open the hardware: {exc}")]
                 else:
                     if on_hardware:
                         on_hardware(hw, sim)
             if hw is not None:
-                items = hardware_items(hw, config)
+                items = hardware_items(hw, config) + (more_items(hw) if more_items else [])
             items += offline
             console.print(checklist_table(items))
             if not failures(items):
@@ -127,11 +146,9 @@ def open_and_check(config, args, model, offline, console, interactive, on_hardwa
         raise
 
 
-def confirm(args, console, interactive, plan, config) -> None:
-    lo, hi = plan.ends()
-    unit = config["axis"]["unit"]
-    console.print(f"[bold]The axis will move[/]: alignment check to {hi:g} {unit} and back to {lo:g} {unit}, "
-                  f"then the campaign ({len(plan.points)} points). Keep clear of the machine.")
+def confirm(args, console, interactive, motion: str) -> None:
+    """Say how the axis will move and ask before it does (--yes answers for scripts)."""
+    console.print(f"[bold]The axis will move[/]: {motion}. Keep clear of the machine.")
     if args.yes:
         console.print("Motion confirmed by --yes.")
         return
@@ -141,9 +158,10 @@ def confirm(args, console, interactive, plan, config) -> None:
         raise InputError("not confirmed: nothing moved")
 
 
-def measure(config, plan, args, out: Path, opened, model, console, interactive) -> Outcome:
-    """The motion phase: alignment check (retried on request), then the campaign on the dashboard.
-    Keys and Ctrl-C are live throughout; the terminal and SIGINT are restored at the end."""
+def on_dashboard(config, plan, args, opened, console, interactive, out: Path, campaign, before=None) -> Outcome:
+    """The motion phase on the dashboard: `before(control, keys)` (the alignment check), then
+    `campaign(dashboard, control)`. Keys and Ctrl-C are live throughout; an abort at any point ends
+    with the outcome so far; the terminal and SIGINT are restored at the end."""
     hw, _ = opened
     control = Control()
     with ExitStack() as stack:
@@ -151,15 +169,15 @@ def measure(config, plan, args, out: Path, opened, model, console, interactive) 
         if interactive:
             dashboard.keys = stack.enter_context(Keys(dashboard.on_key))
         stack.enter_context(CtrlC(dashboard, hw))
-        try:
-            check_alignment(hw, plan, config, control, console, dashboard.keys)
-        except KeyboardInterrupt:
-            return Outcome(out, "interrupted", 0, len(plan.points), 0.0,
-                           "aborted during the alignment check: the axis is halted, nothing was recorded")
+        if before is not None:
+            try:
+                before(control, dashboard.keys)
+            except KeyboardInterrupt:
+                return Outcome(out, "interrupted", 0, len(plan.points), 0.0,
+                               "aborted during the alignment check: the axis is halted, nothing was recorded")
         try:
             with dashboard:
-                return start_campaign(config, out, speed=args.speed, model=model, observer=dashboard,
-                                      control=control, opened=opened)
+                return campaign(dashboard, control)
         except KeyboardInterrupt:
             return recorded_outcome(out, len(plan.points), dashboard.abort_reason)
 

@@ -18,7 +18,7 @@ from rich.table import Table
 from campaign.config import Config
 from campaign.errors import SafetyError
 from campaign.measure.executor import Control, move_and_wait
-from campaign.plan import Plan, check_plan, estimate_duration_s
+from campaign.plan import Plan, check_motion, check_plan, estimate_duration_s
 from protocols.hardware import AxisError, Hardware, InstrumentError, Reading
 
 SAMPLE_S = 1.0
@@ -214,3 +214,46 @@ def checklist_table(items: list[CheckItem]) -> Table:
     for item in items:
         table.add_row(item.name, marks[item.ok], item.value)
     return table
+
+
+DATUM_CHANGE = {"mm": 0.05, "deg": 0.005}
+"""Largest change of (reading - axis position) between the stop and a resume, axis unit: more
+means the laser was re-zeroed or moved, and the old and new points would not share a datum."""
+
+
+def datum_item(hw: Hardware, config: Config, recorded_offset: float | None) -> CheckItem:
+    """At rest: is the laser's reading still where it was relative to the axis when the campaign
+    stopped? A laser re-zeroed (or knocked) since then would shift every new point."""
+    unit = config["axis"]["unit"]
+    if recorded_offset is None:
+        return CheckItem("laser datum", None, "no reading with the axis position was recorded before the stop")
+    try:
+        status = hw.axis.status()
+        readings = [r for r in sample_readings(hw, SAMPLE_S, config["instrument"]["rate_hz"]) if r.signal_ok]
+    except (AxisError, InstrumentError) as exc:
+        return CheckItem("laser datum", False, str(exc))
+    if not readings:
+        return CheckItem("laser datum", False, "no reading with the beam OK")
+    now = median(r.position for r in readings) - status.actual_position
+    change = now - recorded_offset
+    limit = DATUM_CHANGE[unit]
+    ok = abs(change) <= limit
+    verdict = "" if ok else "; the laser was re-zeroed or moved: set it back as it was, or start a new campaign"
+    return CheckItem("laser datum", ok, f"reading - axis {now:+.4f} {unit} now, {recorded_offset:+.4f} {unit} at the stop "
+                                        f"(change {change:+.4f} {unit}, limit {limit:g} {unit}){verdict}")
+
+
+def reapproach_item(plan: Plan, config: Config, todo: list[int], again: list[int]) -> CheckItem:
+    """Where the axis goes first, and what is left: the first missing point, re-approached from the
+    overrun in its own direction (checked against the limits)."""
+    unit = config["axis"]["unit"]
+    point = plan.points[todo[0]]
+    start = point.target - point.direction * config["plan"]["overrun"]
+    try:
+        check_motion(start, config["plan"]["velocity"], config)
+    except SafetyError as exc:
+        return CheckItem("re-approach", False, str(exc))
+    skipped = f"; {len(again)} skipped earlier, measured again first" if again else ""
+    return CheckItem("re-approach", True, f"point {point.index + 1} of {len(plan.points)} (run {point.run}, "
+                                          f"{'+' if point.direction > 0 else '-'}) at {point.target:g} {unit}, from "
+                                          f"the overrun at {start:g} {unit}; {len(todo)} points to measure{skipped}")

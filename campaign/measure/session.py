@@ -17,7 +17,7 @@ from campaign.config import Config, load_config, recorded_sections
 from campaign.errors import InputError
 from campaign.iso230 import Evaluation, evaluate
 from campaign.measure.executor import CampaignStopped, Control, Executor, Observer
-from campaign.model import read_model, sim_model
+from campaign.model import ErrorModel, read_model, sim_model
 from campaign.plan import Plan, build_plan, check_plan, estimate_duration_s, plan_records
 from campaign.pointtable import read_points
 from campaign.record.directory import last_raw_state, open_campaign, recorded_point_indices
@@ -152,12 +152,43 @@ def open_with_comp(opener: Opener, config: Config, comp: CompTable, speed=None, 
     return opened
 
 
-def resume_campaign(directory: str | Path, faults: dict | None = None, *, opener: Opener, **kwargs) -> Outcome:
-    """Measure the points an earlier run of the campaign in `directory` left out: those skipped
-    after a fault, and those after the last one recorded. Each is re-approached from the overrun
-    in its own direction, in plan order, appending to the same files, with the recorded plan
-    (see `CampaignDir.plan_for`). `faults`: a [sim.faults] table to rehearse in the resumed part
-    (the config's own faults are not injected again)."""
+@dataclass
+class Resumption:
+    """An interrupted campaign, read and ready to continue: its config, the recorded plan, the
+    points left to measure (plan indices; `again`: those skipped after a fault) and where and when
+    it stopped (campaign time t_last in s, axis position in axis unit or None). Its recorder is open
+    (torn tails cut): `close()` it when not continuing."""
+
+    path: Path
+    config: Config
+    plan: Plan
+    todo: list[int]
+    again: list[int]
+    t_last: float
+    position: float | None
+    recorder: Recorder
+    model: ErrorModel | None = None
+    comp: CompTable | None = None
+
+    def open(self, opener: Opener, speed=None):
+        """The hardware to continue on: a simulated machine starts where and when the campaign
+        stopped, with its recorded model; a campaign measured with compensation gets its table
+        written again first."""
+        if self.comp is not None:
+            return open_with_comp(opener, self.config, self.comp, speed, self.model, self.position, self.t_last)
+        return opener(self.config, speed=speed, model=self.model, start_position=self.position,
+                      start_time=self.t_last)
+
+    def close(self) -> None:
+        self.recorder.close()
+
+
+def prepare_resume(directory: str | Path, faults: dict | None = None) -> Resumption:
+    """Read an interrupted campaign for `continue_campaign`: the recorded plan (see
+    `CampaignDir.plan_for`), checked against the limits before anything is touched, and the points
+    an earlier run left out: those skipped after a fault, and those after the last one recorded.
+    `faults`: a [sim.faults] table to rehearse in the resumed part (the config's own faults are not
+    injected again). InputError for a completed campaign."""
     path = Path(directory)
     campaign = open_campaign(path)
     config = load_config(path / "config.toml")
@@ -172,27 +203,50 @@ def resume_campaign(directory: str | Path, faults: dict | None = None, *, opener
     try:
         todo = missing_points(path, plan)
         t_last, position = last_raw_state(path)
-        if not todo:  # stopped after its last point, before its stop record
-            recorder.stop(t_last, "completed", "nothing left to measure")
-            recorder.close()
-            return Outcome(path, "completed", len(plan.points), len(plan.points), t_last, "nothing left to measure")
-        if (path / SIM_MODEL_FILE).exists() and kwargs.get("model") is None:
-            kwargs["model"] = read_model(path / SIM_MODEL_FILE)
-        comp = campaign.comp_table()
-        if comp is not None:  # measured with compensation: the controller gets its table again first
-            kwargs["opened"] = open_with_comp(opener, config, comp, kwargs.get("speed"), kwargs.get("model"),
-                                              position, t_last)
         last_done = max(set(range(len(plan.points))) - set(todo), default=-1)
-        again = [i for i in todo if i < last_done]  # skipped after a fault
-        text = f"resumed: {len(todo)} of {len(plan.points)} points to measure, from point {todo[0] + 1}"
-        if again:
-            text += f"; measured again after a skip: {', '.join(str(i + 1) for i in again)}"
-        recorder.emit(Event(t_last, "resume", text, todo[0], {"first_point": todo[0], "points": len(todo),
-                                                                "skipped": again}))
+        model = read_model(path / SIM_MODEL_FILE) if (path / SIM_MODEL_FILE).exists() else None
+        return Resumption(path, config, plan, todo, [i for i in todo if i < last_done], t_last, position, recorder,
+                          model, campaign.comp_table())
     except BaseException:
         recorder.close()
         raise
-    return execute(config, plan, recorder, todo, opener=opener, t_offset=t_last, start=position, **kwargs)
+
+
+def continue_campaign(r: Resumption, **kwargs) -> Outcome:
+    """Measure the points `r` left out, each re-approached from the overrun in its own direction,
+    in plan order, appending to the same files. The keywords go to `execute` (`opener` or
+    `opened`)."""
+    if not r.todo:  # stopped after its last point, before its stop record
+        r.recorder.stop(r.t_last, "completed", "nothing left to measure")
+        r.recorder.close()
+        return Outcome(r.path, "completed", len(r.plan.points), len(r.plan.points), r.t_last, "nothing left to measure")
+    try:
+        text = f"resumed: {len(r.todo)} of {len(r.plan.points)} points to measure, from point {r.todo[0] + 1}"
+        if r.again:
+            text += f"; measured again after a skip: {', '.join(str(i + 1) for i in r.again)}"
+        r.recorder.emit(Event(r.t_last, "resume", text, r.todo[0], {"first_point": r.todo[0], "points": len(r.todo),
+                                                                    "skipped": r.again}))
+    except BaseException:
+        r.recorder.close()
+        if kwargs.get("opened") is not None:
+            kwargs["opened"][0].close()
+        raise
+    kwargs.setdefault("model", r.model)
+    return execute(r.config, r.plan, r.recorder, r.todo, t_offset=r.t_last, start=r.position, **kwargs)
+
+
+def resume_campaign(directory: str | Path, faults: dict | None = None, *, opener: Opener, speed=None,
+                    **kwargs) -> Outcome:
+    """`prepare_resume`, open the hardware, `continue_campaign`: the script way of resuming."""
+    r = prepare_resume(directory, faults)
+    if not r.todo:
+        return continue_campaign(r)
+    try:
+        opened = r.open(opener, speed)
+    except BaseException:
+        r.close()
+        raise
+    return continue_campaign(r, opened=opened, speed=speed, **kwargs)
 
 
 def missing_points(directory: Path, plan: Plan) -> list[int]:

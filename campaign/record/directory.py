@@ -208,3 +208,16 @@ def last_raw_state(directory: Path) -> tuple[float, float | None]:
         return 0.0, None
     positions = raw.axis_position.dropna()
     return float(raw.t_s.iloc[-1]), float(positions.iloc[-1]) if len(positions) else None
+
+
+def last_reading_offset(directory: Path, plan: Plan) -> float | None:
+    """reading − axis position (axis unit) in the last capture window recorded with the beam OK (the
+    axis at rest on a target): what the laser's datum was when the campaign stopped; None when
+    there is none. Samples taken while moving are left out: their axis position is a tick old."""
+    raw = load_raw(directory)
+    captures = [v.capture_step for v in plan.visits()]
+    still = raw[raw.step.isin(captures) & raw.axis_position.notna() & raw.reading.notna() & (raw.signal_ok == 1)]
+    if still.empty:
+        return None
+    last = still.iloc[-1]
+    return float(last.reading - last.axis_position)
