@@ -309,7 +309,7 @@ def test_the_resume_checklist_sees_a_re_zeroed_laser(tmp_path, shift_mm, ok):
     r = prepare_resume(tmp_path / "c")
     recorded = last_reading_offset(r.path, r.plan)
     assert recorded == pytest.approx(linear_error_um(100.0, 1) / 1000, abs=1e-6)  # the last point: 100 mm, +
-    hw, parts = r.open(FakeMachine(setup=lambda p: setattr(p.laser, "offset", shift_mm)))
+    hw, _ = r.open(FakeMachine(setup=lambda p: setattr(p.laser, "offset", shift_mm)))
     try:
         item = datum_item(hw, r.config, recorded)
     finally:
