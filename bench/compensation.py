@@ -1,6 +1,6 @@
 """Bench: accuracy after compensation against the repeatability floor (issue 7).
 
-For each of seed 000's axes (data/configs/horizontal-sim.toml without its target offsets and
+For each of Li et al. 2022's axes (data/configs/horizontal-sim.toml without its target offsets and
 data/configs/vertical-sim.toml, i.e. the paper's 11 targets, 5 runs, 4 s dwell, with the models
 fitted to the paper's tables): measure, build the table (`compensate`, auto mode, inverse
 interpolation, end zones over the overrun), write it into the simulated PLC over ADS and measure

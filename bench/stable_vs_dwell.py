@@ -1,6 +1,6 @@
 """Bench: the stability trigger against the fixed 4 s dwell on the demo axis itself (issue 13).
 
-The axis and every setting are those of `axiscal demo` (campaign/demo.toml: seed 000's horizontal
+The axis and every setting are those of `axiscal demo` (campaign/demo.toml: Li et al. 2022's horizontal
 axis with settling, 1.5 µm decaying with 0.6 s, 8 mm/s), the capture at its default settings.
 Goals: A within 5 % of the fixed dwell's A, with at most half the waiting at the targets (the mean
 capture wait over the 4 s dwell). Several seeds of the simulated machine; for each seed both

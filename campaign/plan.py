@@ -1,6 +1,6 @@
 """The test plan: a list of immutable steps that the executor interprets. A dry run walks the list.
 
-The linear cycle (seed 000, ISO 230-2): from the start move to -L1 (overrun), visit 0, L ... nL,
+The linear cycle (Li et al. 2022, ISO 230-2): from the start move to -L1 (overrun), visit 0, L ... nL,
 then nL+L1 (overrun), then come back down through nL ... 0 to -L1; repeat for N cycles. Overrun
 moves are motion only. The pilgrim (step) cycle visits one target at a time: from below (+), then
 from above (-), N times, before going on to the next target.

@@ -9,6 +9,7 @@ import numpy as np
 from campaign.errors import InputError
 from campaign.iso230 import Evaluation
 from campaign.pointtable import PointTable
+from protocols.units import unit_label
 
 FORMATS = (".png", ".svg")
 DIRECTION_STYLE = {1: ("+ (forward)", "tab:blue"), -1: ("- (reverse)", "tab:red")}
@@ -56,9 +57,9 @@ def draw_evaluation(ax, table: PointTable, ev: Evaluation, label: str = "") -> N
         ax.plot(table.target[pick], table.deviation[pick], ".", color=colour, ms=4, alpha=0.6)
     s = ev.summary
     ax.set_title(f"{label}A = {_fmt(s['A'] if s['A'] is not None else s['A_up'] or s['A_down'])}  "
-                 f"E = {_fmt(s['E'])}  B = {_fmt(s['B'])}  R = {_fmt(s['R'])} {ev.unit}", fontsize=10)
+                 f"E = {_fmt(s['E'])}  B = {_fmt(s['B'])}  R = {_fmt(s['R'])} {unit_label(ev.unit)}", fontsize=10)
     ax.set_xlabel(f"target ({ev.position_unit})")
-    ax.set_ylabel(f"deviation ({ev.unit})")
+    ax.set_ylabel(f"deviation ({unit_label(ev.unit)})")
     ax.axhline(0, color="grey", lw=0.6)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8, loc="best")

@@ -40,9 +40,9 @@ from campaign.config import SCHEMA, Config
 from campaign.edlen import REFERENCE_TEMPERATURE_C, refractive_index
 from campaign.iso230 import Evaluation
 from campaign.pointtable import PointTable
+from protocols.units import unit_label
 
 K = 2.0
-UNIT_LABEL = {"um": "µm"}
 """Coverage factor of the expanded uncertainty (about 95 %)."""
 
 EDLEN_RELATIVE = 1e-8
@@ -122,7 +122,7 @@ def budget(table: PointTable, ev: Evaluation, config: Config | None = None) -> B
     linear = table.kind == "linear"
     res = _setting(config, "instrument", "resolution")
     terms.append(Term("reading resolution", res / math.sqrt(12), ("A", "E", "B", "R"),
-                      _source(config, "instrument", "resolution", f"{res:g} {UNIT_LABEL.get(ev.unit, ev.unit)}")))
+                      _source(config, "instrument", "resolution", f"{res:g} {unit_label(ev.unit)}")))
     if linear:
         _length_terms(table, ev, config, terms, missing, notes)
     else:

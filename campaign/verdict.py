@@ -25,6 +25,7 @@ from campaign.iso230 import Evaluation
 from campaign.outliers import Outliers
 from campaign.pointtable import PointTable
 from campaign.uncertainty import Budget
+from protocols.units import unit_label
 
 PASS, FAIL, NOT_JUDGED = "pass", "fail", "not judged"
 
@@ -88,7 +89,7 @@ def judge(table: PointTable, ev: Evaluation, tolerances: dict[str, float], uncer
           outliers: Outliers | None = None, plan: Planned | None = None) -> Verdict:
     """The verdict on `ev` (the evaluation of `table`). tolerances: parameter (A, E, B, R) -> T in
     the deviation unit; 0 or absent: not set. plan: what the campaign planned, when known."""
-    unit = {"um": "µm"}.get(ev.unit, ev.unit)
+    unit = unit_label(ev.unit)
     reasons: list[str] = []
     notes: list[str] = []
     if outliers is not None and outliers.found:

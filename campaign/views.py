@@ -1,14 +1,22 @@
-"""Rich renderings shared by the commands: the ISO 230-2 per-target table and axis summary."""
+"""Rich renderings shared by the commands: the ISO 230-2 per-target table and axis summary, the
+verdict, the uncertainty budget, the outliers.
+
+Tables fit the console (80 columns and up): a number is never cut. The per-target table is split
+in two below WIDE columns unless asked for wide; every number column folds rather than crop.
+Units are printed as people read them (µm, arcsec).
+"""
 
 from __future__ import annotations
 
 import json
+import os
 import sys
 
 from rich.console import Console
 from rich.table import Table
 
 from campaign.iso230 import Evaluation
+from protocols.units import unit_label
 
 SUMMARY_ROWS = (
     ("A", "accuracy, bidirectional"), ("A_up", "accuracy, + direction"), ("A_down", "accuracy, - direction"),
@@ -26,32 +34,53 @@ def fmt(value: float | None, digits: int = 3) -> str:
     return "n/a" if value is None else f"{value:.{digits}f}"
 
 
+WIDE = 110
+"""Console width (columns) from which the per-target table is one table."""
+
+
+def number_column(table: Table, head: str) -> None:
+    """A right-aligned column whose numbers are never cut (they fold onto a second line instead)."""
+    table.add_column(head, justify="right", overflow="fold")
+
+
+def target_tables(ev: Evaluation, wide: bool = True) -> list[Table]:
+    """The per-target statistics: one table when `wide`, else two that fit 80 columns (the means
+    and scatter per direction; the reversal, repeatabilities and bidirectional mean)."""
+    u = unit_label(ev.unit)
+    columns = [(f"target {ev.position_unit}", lambda t: f"{t.target:g}"), ("n+", lambda t: str(t.n_up)),
+               ("n-", lambda t: str(t.n_down)), (f"x̄↑ {u}", lambda t: fmt(t.mean_up)),
+               (f"x̄↓ {u}", lambda t: fmt(t.mean_down)), (f"s↑ {u}", lambda t: fmt(t.s_up)),
+               (f"s↓ {u}", lambda t: fmt(t.s_down)), (f"B_i {u}", lambda t: fmt(t.B)),
+               (f"R↑_i {u}", lambda t: fmt(t.R_up)), (f"R↓_i {u}", lambda t: fmt(t.R_down)),
+               (f"R_i {u}", lambda t: fmt(t.R)), (f"x̄_i {u}", lambda t: fmt(t.mean))]
+    groups = [columns] if wide else [columns[:7], columns[:1] + columns[7:]]
+    titles = [f"Per target ({ev.standard.title})"] if wide else \
+        [f"Per target ({ev.standard.title}): means and scatter", "Per target: reversal, repeatability, mean"]
+    tables = []
+    for title, group in zip(titles, groups):
+        table = Table(title=title, header_style="bold")
+        for head, _ in group:
+            number_column(table, head)
+        for t in ev.targets:
+            table.add_row(*(cell(t) for _, cell in group))
+        tables.append(table)
+    return tables
+
+
 def target_table(ev: Evaluation) -> Table:
-    u = ev.unit
-    table = Table(title=f"Per target ({ev.standard.title})", header_style="bold")
-    for head in (f"target {ev.position_unit}", "n+", "n-", f"x̄↑ {u}", f"x̄↓ {u}", f"s↑ {u}", f"s↓ {u}",
-                 f"B_i {u}", f"R↑_i {u}", f"R↓_i {u}", f"R_i {u}", f"x̄_i {u}"):
-        table.add_column(head, justify="right")
-    for t in ev.targets:
-        table.add_row(f"{t.target:g}", str(t.n_up), str(t.n_down), fmt(t.mean_up), fmt(t.mean_down),
-                      fmt(t.s_up), fmt(t.s_down), fmt(t.B), fmt(t.R_up), fmt(t.R_down), fmt(t.R), fmt(t.mean))
-    return table
+    """The per-target statistics in one table."""
+    return target_tables(ev)[0]
 
 
 def summary_table(ev: Evaluation, title: str | None = None) -> Table:
     table = Table(title=title or f"Axis summary ({ev.standard.title}, {ev.runs} runs)", header_style="bold")
     table.add_column("parameter")
     table.add_column("meaning")
-    table.add_column(f"value ({ev.unit})", justify="right")
+    number_column(table, f"value ({unit_label(ev.unit)})")
     for key, meaning in SUMMARY_ROWS:
         if key in ev.summary:
             table.add_row(key, meaning, fmt(ev.summary[key]))
     return table
-
-
-def unit_label(unit: str) -> str:
-    """A deviation unit as people read it: µm or arcsec."""
-    return {"um": "µm"}.get(unit, unit)
 
 
 def verdict_line(verdict) -> str:
@@ -64,10 +93,10 @@ def budget_table(budget) -> Table:
     """The uncertainty budget: each term's standard uncertainty and source, then U (k = 2)."""
     unit = unit_label(budget.unit)
     table = Table(title=f"Measurement uncertainty (k = {budget.k:g})", header_style="bold")
-    table.add_column("term")
-    table.add_column(f"u {unit}", justify="right")
-    table.add_column("for")
-    table.add_column("input")
+    table.add_column("term", overflow="fold")
+    number_column(table, f"u {unit}")
+    table.add_column("for", overflow="fold")
+    table.add_column("input", overflow="fold")
     for term in budget.terms:
         table.add_row(term.name, f"{term.u:.3f}", " ".join(term.applies), term.source)
     for key, value in budget.expanded.items():
@@ -89,9 +118,9 @@ def outlier_lines(outliers, unit: str) -> list[str]:
     return lines
 
 
-def print_assessment(a, console: Console, per_target: bool = True) -> None:
+def print_assessment(a, console: Console, per_target: bool = True, wide: bool = False) -> None:
     """Evaluation, outliers, uncertainty and verdict of an Assessment (campaign/assess.py)."""
-    print_evaluation(a.evaluation, console, per_target)
+    print_evaluation(a.evaluation, console, per_target, wide)
     for line in outlier_lines(a.outliers, a.evaluation.unit):
         console.print(f"[yellow]{line}[/]" if line.endswith(":") else line)
     if per_target:
@@ -103,14 +132,20 @@ def print_assessment(a, console: Console, per_target: bool = True) -> None:
 
 
 def make_console() -> Console:
-    """A rich console; wide enough for the per-target table when stdout is not a terminal."""
-    return Console() if sys.stdout.isatty() else Console(width=160)
+    """A rich console: the terminal's width, or COLUMNS when set; 120 columns when stdout is not
+    a terminal (a file or a pipe)."""
+    if sys.stdout.isatty() or os.environ.get("COLUMNS"):
+        return Console()
+    return Console(width=120)
 
 
-def print_evaluation(ev: Evaluation, console: Console | None = None, per_target: bool = True) -> None:
+def print_evaluation(ev: Evaluation, console: Console | None = None, per_target: bool = True,
+                     wide: bool = False) -> None:
+    """The per-target table(s) (one when the console is WIDE or `wide`) and the axis summary."""
     console = console or make_console()
     if per_target:
-        console.print(target_table(ev))
+        for table in target_tables(ev, wide or console.width >= WIDE):
+            console.print(table)
     console.print(summary_table(ev))
     for warning in ev.warnings:
         console.print(f"[yellow]warning:[/] {warning}")

@@ -1,6 +1,7 @@
 """`axiscal analyze`: JSON output, the plot, standards, and one-line errors for every bad input."""
 
 import json
+import re
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -27,7 +28,7 @@ def test_json_has_every_key(cli):
 def test_default_output_is_tables_with_units(cli):
     result = cli("analyze", HORIZONTAL)
     assert result.code == 0
-    assert "9.152" in result.out and "value (um)" in result.out and "target mm" in result.out
+    assert "9.152" in result.out and "value (µm)" in result.out and not re.search(r"\bum\b", result.out) and "target mm" in result.out
 
 
 @pytest.mark.parametrize("name", ["GB/T 17421.2", "JIS B 6190-2", "iso230-2"])
@@ -226,3 +227,28 @@ def test_without_the_material_temperature_the_budget_is_incomplete_and_nothing_i
     data = json.loads(cli("analyze", HORIZONTAL, "--json", "--tolerance", "50").out)
     assert data["verdict"] == "not judged"
     assert any("material temperature" in r for r in data["reasons"]) and data["uncertainty"]["missing"]
+
+
+def display_width(line: str) -> int:
+    import unicodedata
+
+    return sum(0 if unicodedata.combining(c) else 1 for c in line)
+
+
+@pytest.mark.parametrize("argv", [("analyze", HORIZONTAL), ("refine", HORIZONTAL), ("discover", HORIZONTAL),
+                                  ("compensate", HORIZONTAL, "--format", "csv", "-o", "{tmp}/t.csv")])
+def test_80_columns_cut_no_number_and_print_micrometres(cli, tmp_path, monkeypatch, argv):
+    monkeypatch.setenv("COLUMNS", "80")
+    result = cli(*(str(a).format(tmp=tmp_path) for a in argv))
+    assert result.code == 0, result.err
+    lines = result.out.splitlines()
+    assert max(display_width(ln) for ln in lines) <= 80
+    assert "…" not in result.out
+    assert not [ln for ln in lines if re.search(r"\bum\b", ln)], "um instead of µm"
+    if argv[0] == "analyze":
+        data = json.loads(cli("analyze", HORIZONTAL, "--json").out)
+        for target in data["targets"]:  # every per-target number, whole
+            for key in ("mean_up", "mean_down", "s_up", "R"):
+                assert f"{target[key]:.3f}" in result.out
+        wide = cli("analyze", HORIZONTAL, "--wide").out
+        assert "means and scatter" not in wide and "means and scatter" in result.out

@@ -189,3 +189,18 @@ def test_compensate_cli_errors(cli, tmp_path):
                               "-o", tmp_path / "o"), "counts-per-unit")
     assert_one_line_error(cli("compensate", PAPER / "horizontal_before.csv", "--format", "csv",
                               "-o", tmp_path / "o", "--spacing", "0.5"), "at most")
+
+
+@pytest.mark.parametrize(("option", "value", "says"), [
+    ("--counts-per-unit", "nan", "finite number > 0, found 'nan'"),
+    ("--counts-per-unit", "-1000", "finite number > 0, found '-1000'"),
+    ("--spacing", "0", "finite number > 0"),
+    ("--max-points", "2.5", "not a whole number"),
+    ("--overrun", "-1", "≥ 0"),
+    ("--reference", "inf", "finite number"),
+])
+def test_compensate_numeric_options_are_checked(cli, tmp_path, option, value, says):
+    result = cli("compensate", PAPER / "horizontal_before.csv", "--format", "pmac", "-o", tmp_path / "o",
+                 f"{option}={value}")
+    assert_one_line_error(result, says)
+    assert option in result.err and not (tmp_path / "o").exists()

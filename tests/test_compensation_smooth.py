@@ -151,7 +151,7 @@ def test_compensate_prints_the_smoothing(cli, tmp_path):
     result = cli("compensate", source, "--format", "csv", "-o", tmp_path / "t.csv", "--mode", "uni")
     assert result.code == 0, result.err
     assert ("smoothing, mean of both directions: polynomial of degree 1" in result.out
-            and "the means move by at most 0.050 um" in result.out)
+            and "the means move by at most 0.050 µm" in result.out)
     raw = cli("compensate", source, "--format", "csv", "-o", tmp_path / "r.csv", "--smooth", "none")
     assert "not smoothed (--smooth none)" in raw.out
 

@@ -1,4 +1,4 @@
-"""The motion-planned correction (campaign/compensation/planner.py, seed 004)."""
+"""The motion-planned correction (campaign/compensation/planner.py, the 2024 motion-planning patent)."""
 
 from __future__ import annotations
 
@@ -159,7 +159,7 @@ def test_correction_cli_plot_and_bad_input(cli, tmp_path):
     assert result.code == 0 and out.stat().st_size > 0
     assert "planned" in result.out
     assert_one_line_error(cli("correction", "--step", "5", "--max-rate", "0", "--max-accel", "1",
-                              "--cycle-ms", "1"), "max_rate")
+                              "--cycle-ms", "1"), "--max-rate: must be a finite number > 0")
 
 
 def test_st_block_parses_and_mirrors_the_planner_constants():

@@ -1,4 +1,4 @@
-"""`axiscal discover` on files: JSON, plot, saved model, bad input, seed 000's horizontal axis, and
+"""`axiscal discover` on files: JSON, plot, saved model, bad input, the horizontal axis of Li et al. 2022, and
 agreement of the fast simulator (campaign/discovery/simulate.py) with the real simulated machine (`axiscal
 run`: real pyads against the loopback ADS server, one campaign at a time)."""
 

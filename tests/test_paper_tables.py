@@ -1,4 +1,4 @@
-"""The seed paper's published summary tables (seed 000, tables 3, 6, 9, 12) are reproduced
+"""The seed paper's published summary tables (Li et al. 2022, tables 3, 6, 9, 12) are reproduced
 exactly from its data tables, to the printed 0.001 µm."""
 
 import json

@@ -56,7 +56,7 @@ def test_pmac_hand_worked():
 
 
 def test_pmac_paper_turntable():
-    # seed 003: the paper's table 3 is round(-error_counts * 16) at 10..90 deg, 0 at 0 deg (the
+    # Han et al. 2012: the paper's table 3 is round(-error_counts * 16) at 10..90 deg, 0 at 0 deg (the
     # simple method), 1000 counts per degree, 10 entries of 10000 counts
     table = read_points(DATA / "paper-2012-pmac-turntable" / "forward_errors.csv")
     ctable = resample(corrections(table, "auto", "simple"), 256)

@@ -40,6 +40,47 @@ def positive_number(text: str) -> float:
     return value
 
 
+def finite_number(text: str) -> float:
+    """argparse type: a finite number (nan and inf are refused)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, found '{text}'")
+    return value
+
+
+def non_negative_number(text: str) -> float:
+    """argparse type: a finite number ≥ 0."""
+    value = finite_number(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be ≥ 0, found '{text}'")
+    return value
+
+
+def positive_integer(text: str) -> int:
+    """argparse type: a whole number > 0."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a whole number > 0, found '{text}'")
+    return value
+
+
+def non_negative_integer(text: str) -> int:
+    """argparse type: a whole number ≥ 0."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be a whole number ≥ 0, found '{text}'")
+    return value
+
+
 def hardware_opener():
     """The drivers' hardware factory (campaign.measure.session.Opener), imported when a command
     needs hardware: the commands are the one place where the domain meets the drivers."""

@@ -18,6 +18,7 @@ def register(sub) -> None:
     p.add_argument("--tolerance", type=positive_number, metavar="T",
                    help="tolerance on A, µm (arcsec on a rotary axis); default: the campaign's [campaign] tolerance")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of tables")
+    p.add_argument("--wide", action="store_true", help="the per-target statistics in one table, however wide")
     p.add_argument("--plot", metavar="OUT", help="write the deviation plot to OUT.png or OUT.svg")
     p.add_argument("--standard", default="ISO230-2:2014",
                    help="ISO230-2:2014 (default; aliases GB/T17421.2, JIS B 6190-2), ISO230-2:1988, VDI3441")
@@ -41,7 +42,7 @@ def run(args) -> int:
         print_json(a.as_json())
     else:
         console = make_console()
-        print_assessment(a, console)
+        print_assessment(a, console, wide=args.wide)
         if plot_path:
             console.print(f"plot written to {plot_path}")
     return 0

@@ -6,7 +6,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from campaign.commands import SUMMARY, positive_number
+from campaign.commands import (
+    SUMMARY,
+    finite_number,
+    non_negative_integer,
+    non_negative_number,
+    positive_integer,
+    positive_number,
+)
 from campaign.compensation.corrections import MODES, corrections
 from campaign.compensation.grid import POINT_LIMITS, resample
 from campaign.compensation.predict import predict
@@ -15,9 +22,10 @@ from campaign.errors import InputError
 from campaign.pointtable import read_points
 from campaign.views import fmt, make_console
 from protocols.tables import FORMATS, FormatOptions, render
+from protocols.units import DEVIATION_SCALE, UNITS, unit_label
 
 DEFAULT_METHOD = {"pmac": "simple"}
-"""Formats whose default is the simple -error table: PMAC practice and seed 003's published table
+"""Formats whose default is the simple -error table: PMAC practice and Han et al. 2012's published table
 (the inverse method moves its 80° entry across a rounding boundary, 40 -> 41)."""
 
 
@@ -31,23 +39,25 @@ def register(sub) -> None:
     p.add_argument("--mode", default="auto", choices=MODES, help="uni, bi or auto (default)")
     p.add_argument("--method", choices=("inverse", "simple"),
                    help="inverse interpolation (default) or simple -error (default for pmac: its table "
-                        "is the published, simple one of seed 003)")
+                        "is the published, simple one of Han et al. 2012)")
     p.add_argument("--smooth", default="auto", choices=SMOOTHING,
                    help="auto (default): fit the means with the lowest polynomial that agrees with their "
                         "scatter, where one does; none: the raw means")
-    p.add_argument("--overrun", type=float, default=0.0, help="end-zone length L1, mm or deg (default 0)")
-    p.add_argument("--max-points", type=int, help="point limit (default: the controller's)")
-    p.add_argument("--spacing", type=float, help="table spacing, mm or deg (default: from the targets)")
-    p.add_argument("--reference", type=float, help="reference position where the table is 0, mm or deg")
-    p.add_argument("--counts-per-unit", type=float,
+    p.add_argument("--overrun", type=non_negative_number, default=0.0, help="end-zone length L1, mm or deg (default 0)")
+    p.add_argument("--max-points", type=positive_integer, help="point limit (default: the controller's)")
+    p.add_argument("--spacing", type=positive_number, help="table spacing, mm or deg (default: from the targets)")
+    p.add_argument("--reference", type=finite_number, help="reference position where the table is 0, mm or deg")
+    p.add_argument("--counts-per-unit", type=positive_number,
                    help="counts (pmac) or detection units (fanuc) per mm or deg")
     p.add_argument("--axis-name", default=None, help="controller axis name (default X; siemens AX1)")
-    p.add_argument("--joint", type=int, default=0, help="LinuxCNC joint number")
+    p.add_argument("--joint", type=non_negative_integer, default=0, help="LinuxCNC joint number")
     p.add_argument("--write-plc", metavar="CONFIG",
                    help="TwinCAT: also write the tables into the PLC of CONFIG over ADS "
                         "(GVL_Axiscal.astComp[n]), read them back, compare, then enable them")
-    p.add_argument("--max-rate", type=positive_number, help="with --write-plc: correction rate limit, axis unit/s")
-    p.add_argument("--max-accel", type=positive_number, help="with --write-plc: correction acceleration limit, axis unit/s²")
+    p.add_argument("--max-rate", type=positive_number, metavar="UM_PER_S",
+                   help="with --write-plc: correction rate limit, µm/s (arcsec/s on a rotary axis)")
+    p.add_argument("--max-accel", type=positive_number, metavar="UM_PER_S2",
+                   help="with --write-plc: correction acceleration limit, µm/s² (arcsec/s²)")
     p.set_defaults(func=run)
 
 
@@ -74,7 +84,7 @@ def run(args) -> int:
     except OSError as exc:
         raise InputError(f"-o: {out}: cannot write ({exc.strerror})") from None
     pred = predict(table, ctable)
-    unit = table.deviation_unit
+    unit = unit_label(table.deviation_unit)
     console.print(f"mode: [bold]{corr.mode}[/] ({corr.reason})")
     if corr.backlash is not None:
         console.print(f"backlash B̄ (mean reversal): {corr.backlash:.3f} {unit}")
@@ -113,5 +123,6 @@ def write_plc(args, ctable, console) -> None:
         back = hardware.axis.read_comp_table()
     finally:
         hardware.close()
+    scale, dev = DEVIATION_SCALE[config["axis"]["unit"]], unit_label(UNITS[ctable.kind][1])
     console.print(f"PLC tables written over ADS ({back.points} points), read back equal, enabled; "
-                  f"correction limits {rate:g} /s, {accel:g} /s² (axis unit)")
+                  f"correction limits {rate * scale:g} {dev}/s, {accel * scale:g} {dev}/s²")

@@ -1,5 +1,5 @@
 """`axiscal correction --step UM --max-rate UM_PER_S --max-accel UM_PER_S2 --cycle-ms MS`: a
-step of the desired correction next to the planned correction (seed 004), with the largest
+step of the desired correction next to the planned correction (the 2024 motion-planning patent), with the largest
 change per cycle and the largest acceleration of each."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from campaign.commands import SUMMARY
+from campaign.commands import SUMMARY, finite_number, positive_number
 from campaign.compensation.planner import PlannerLimits, minimum_time, plan
 from campaign.errors import InputError
 from campaign.plot import check_plot_path
@@ -18,10 +18,10 @@ from campaign.views import make_console, print_json
 def register(sub) -> None:
     p = sub.add_parser("correction", help=SUMMARY["correction"],
                        description="Plan a step of the correction with bounded rate and acceleration.")
-    p.add_argument("--step", type=float, required=True, help="size of the step, µm")
-    p.add_argument("--max-rate", type=float, required=True, help="rate bound, µm/s")
-    p.add_argument("--max-accel", type=float, required=True, help="acceleration bound, µm/s²")
-    p.add_argument("--cycle-ms", type=float, required=True, help="control cycle, ms")
+    p.add_argument("--step", type=finite_number, required=True, help="size of the step, µm")
+    p.add_argument("--max-rate", type=positive_number, required=True, metavar="UM_PER_S", help="rate bound, µm/s")
+    p.add_argument("--max-accel", type=positive_number, required=True, metavar="UM_PER_S2", help="acceleration bound, µm/s²")
+    p.add_argument("--cycle-ms", type=positive_number, required=True, help="control cycle, ms")
     p.add_argument("--plot", metavar="OUT", help="write the plot to OUT.png or OUT.svg")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)

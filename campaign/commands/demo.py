@@ -1,6 +1,6 @@
 """`axiscal demo [--out DIR] [--speed N] [--capture dwell|stable] [--json] [--plot OUT]`.
 
-The main job: a complete campaign on the simulated machine (seed 000's horizontal axis) through
+The main job: a complete campaign on the simulated machine (the horizontal axis of Li et al. 2022) through
 the real ADS client against the loopback test server and the real serial stack over a pty,
 followed by the ISO 230-2 analysis.
 """
@@ -24,7 +24,7 @@ def demo_config_text() -> str:
 
 def register(sub) -> None:
     p = sub.add_parser("demo", help=SUMMARY["demo"],
-                       description="Run seed 000's horizontal-axis campaign on the simulated machine.")
+                       description="Run the horizontal-axis campaign of Li et al. 2022 on the simulated machine.")
     add_run_options(p)
     p.add_argument("--capture", choices=("dwell", "stable"), help="capture method (default dwell)")
     p.add_argument("--inject", metavar="NAME[@S],...",

@@ -6,7 +6,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from campaign.commands import SUMMARY
+from campaign.commands import SUMMARY, positive_number
 from campaign.config import load_config
 from campaign.errors import InputError
 from campaign.plan import build_plan
@@ -22,8 +22,8 @@ def register(sub) -> None:
     p.add_argument("stream", help="CSV with time_s (s) and reading_mm / position_mm / reading / position "
                                   "(or _deg for a rotary axis); see docs/import-stream.md")
     p.add_argument("--config", required=True, help="the campaign config (TOML) the log was measured with")
-    p.add_argument("-o", "--out", required=True, help="point table CSV to write")
-    p.add_argument("--still-tolerance", type=float, default=5.0, metavar="T",
+    p.add_argument("-o", "--output", required=True, help="point table CSV to write")
+    p.add_argument("--still-tolerance", type=positive_number, default=5.0, metavar="T",
                    help="band the reading stays in while the axis dwells, µm or arcsec (default 5)")
     p.set_defaults(func=run)
 
@@ -35,7 +35,7 @@ def run(args) -> int:
     plan = build_plan(config)
     stream = read_stream(args.stream, config["axis"]["unit"])
     result = extract_points(stream, plan, config, args.still_tolerance)
-    out = Path(args.out)
+    out = Path(args.output)
     try:
         write_points(out, result.table)
     except OSError as exc:

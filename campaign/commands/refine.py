@@ -7,12 +7,13 @@ from pathlib import Path
 
 from rich.table import Table
 
-from campaign.commands import SUMMARY
+from campaign.commands import SUMMARY, positive_integer, positive_number
 from campaign.compensation.refine import follow_up_config, propose
 from campaign.config import load_config, parse_config
 from campaign.errors import InputError
 from campaign.pointtable import read_points
 from campaign.views import make_console, print_json
+from protocols.units import unit_label
 
 
 def register(sub) -> None:
@@ -20,9 +21,9 @@ def register(sub) -> None:
                        description="Find the intervals where the mean deviation changes too fast for linear "
                                    "interpolation and propose extra targets there.")
     p.add_argument("file", help="point table CSV")
-    p.add_argument("--threshold", type=float, help="acceptable interpolation error, µm or arcsec "
+    p.add_argument("--threshold", type=positive_number, help="acceptable interpolation error, µm or arcsec "
                                                    "(default: the pooled s)")
-    p.add_argument("--max-per-interval", type=int, default=3, help="most new targets in one interval (3)")
+    p.add_argument("--max-per-interval", type=positive_integer, default=3, help="most new targets in one interval (3)")
     p.add_argument("--config", help="the campaign config to turn into a follow-up config")
     p.add_argument("-o", "--output", help="with --config: write the follow-up config here")
     p.add_argument("--json", action="store_true", help="one JSON object")
@@ -43,7 +44,7 @@ def run(args) -> int:
         text = follow_up_config(config.text, proposal.all_targets)
         parse_config(text, str(args.output))  # the follow-up config must be valid
         Path(args.output).write_text(text, encoding="utf-8")
-    unit = table.deviation_unit
+    unit = unit_label(table.deviation_unit)
     if args.json:
         print_json({"targets": proposal.targets, "new": proposal.new, "all": proposal.all_targets,
                     "threshold": proposal.threshold, "unit": unit,

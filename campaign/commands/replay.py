@@ -13,6 +13,7 @@ from campaign.iso230 import evaluate
 from campaign.measure.replay import replay
 from campaign.pointtable import PointTable, read_points
 from campaign.views import fmt, make_console, print_json
+from protocols.units import unit_label
 
 DIGITS = 4
 """The point table records deviations to 1e-4 µm (arcsec): 'identical' means equal at that."""
@@ -87,7 +88,7 @@ def run(args) -> int:
             table.add_row(str(d["point"]), str(d["run"]), d["direction"], f"{d['target']:g}", fmt(d["recorded"]),
                           fmt(d["replayed"]), fmt(d["difference"]), fmt(d["wait_s"], 2), d["note"])
         console.print(table)
-    summary = Table(title=f"ISO 230-2 summary ({recorded.deviation_unit})")
+    summary = Table(title=f"ISO 230-2 summary ({unit_label(recorded.deviation_unit)})")
     for head in ("parameter", "recorded", "replayed"):
         summary.add_column(head, justify="right")
     for key in ("A", "E", "M", "B", "R"):

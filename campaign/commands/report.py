@@ -13,14 +13,14 @@ def register(sub) -> None:
                        description="Write a self-contained HTML report (plots embedded, works offline) of a "
                                    "campaign directory; with a baseline, before and after side by side.")
     p.add_argument("dir", help="campaign directory (config.toml, meta.json, points.csv)")
-    p.add_argument("-o", "--out", help="HTML file to write (default DIR/report.html)")
+    p.add_argument("-o", "--output", help="HTML file to write (default DIR/report.html)")
     p.add_argument("--before", metavar="DIR0",
                    help="baseline campaign to compare with (default: meta.json's baseline_dir, if set)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    out = Path(args.out) if args.out else Path(args.dir) / "report.html"
+    out = Path(args.output) if args.output else Path(args.dir) / "report.html"
     path = write_report(args.dir, out, args.before)
     print(f"report written to {path}")
     return 0

@@ -27,8 +27,10 @@ def register(sub) -> None:
     p.add_argument("config", help="campaign TOML")
     p.add_argument("--comp", required=True, metavar="TABLE.json", help="table from compensate --format json")
     p.add_argument("--before", metavar="DIR|POINTS.csv", help="the baseline campaign (before compensation)")
-    p.add_argument("--max-rate", type=positive_number, help="rate limit of the correction, axis unit/s")
-    p.add_argument("--max-accel", type=positive_number, help="acceleration limit of the correction, axis unit/s²")
+    p.add_argument("--max-rate", type=positive_number, metavar="UM_PER_S",
+                   help="rate limit of the correction, µm/s (arcsec/s on a rotary axis)")
+    p.add_argument("--max-accel", type=positive_number, metavar="UM_PER_S2",
+                   help="acceleration limit of the correction, µm/s² (arcsec/s²)")
     add_run_options(p)
     p.set_defaults(func=run)
 

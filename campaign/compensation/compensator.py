@@ -20,9 +20,9 @@ def table_lookup(values: tuple[float, ...] | list[float], start: float, spacing:
                  position: float) -> float:
     """The correction (axis unit) of one equidistant table at `position` (axis unit).
 
-    Point i is at start + i*spacing. Inside the table: linear interpolation (seed 000 eq. 1).
+    Point i is at start + i*spacing. Inside the table: linear interpolation (Li et al. 2022 eq. 1).
     Below the first point: a ramp from 0 at start - overrun to values[0] at start; above the last
-    point: from values[-1] at the last point to 0 at last + overrun (seed 000 eq. 2-3). Beyond
+    point: from values[-1] at the last point to 0 at last + overrun (Li et al. 2022 eq. 2-3). Beyond
     the ramps, and everywhere outside the table when overrun is 0: 0.
     """
     count = len(values)

@@ -10,7 +10,7 @@ Signs, everywhere in axiscal:
 Steps: the mean unidirectional deviations x̄↑, x̄↓ per target (iso230.evaluate); the mode
 (`uni`: one table from the mean of both directions and a constant backlash B̄; `bi`: one table
 per direction; `auto`: see `choose_mode`); per direction, the correction at each target by
-inverse interpolation (seed 004, see `inverse_corrections`) of the means, smoothed where they
+inverse interpolation (the 2024 motion-planning patent, see `inverse_corrections`) of the means, smoothed where they
 lie on a polynomial within their scatter (campaign/compensation/smooth.py). Resampling to a
 controller's grid and the end zones are in campaign/compensation/grid.py; the predicted result
 in campaign/compensation/predict.py.
@@ -78,7 +78,7 @@ def interp_extended(x: np.ndarray | float, xp: np.ndarray, fp: np.ndarray) -> np
 
 
 def inverse_corrections(targets: np.ndarray, errors: np.ndarray, unit_factor: float) -> np.ndarray:
-    """Corrections (deviation unit) that put the actual position on each target (seed 004).
+    """Corrections (deviation unit) that put the actual position on each target (the 2024 motion-planning patent).
 
     The measured actual positions a_i = P_i + e_i * unit_factor (axis unit) form the grid of
     the mapping command -> actual. The command that lands on target P_k is found by linear
@@ -133,7 +133,7 @@ def corrections(table: PointTable, mode: str = "auto", method: str = "inverse",
                 smooth: str = "auto") -> Corrections:
     """The corrections at the measured targets of `table` (see `Corrections`).
 
-    mode: uni, bi or auto (`choose_mode`). method: `inverse` (seed 004, default) or `simple`
+    mode: uni, bi or auto (`choose_mode`). method: `inverse` (the 2024 motion-planning patent, default) or `simple`
     (c = -e at each target). smooth: `auto` (default, `smooth_means`) or `none` (the raw means).
     """
     if method not in ("inverse", "simple"):

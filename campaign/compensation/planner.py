@@ -1,4 +1,4 @@
-"""Motion-planned correction (seed 004): the applied compensation follows its desired value with a
+"""Motion-planned correction (the 2024 motion-planning patent): the applied compensation follows its desired value with a
 bounded rate and a bounded acceleration, one control cycle at a time.
 
 The planner works on a sampled grid. Its state is the applied value y (axis unit) and the change

@@ -17,7 +17,7 @@ pass the overall test, F = χ²/ν against s² (F distribution with ν = m-d-1 a
 freedom of s²), p ≥ `LEVEL` (5 %). Keep it if it also passes the local test: no target's
 studentised residual r_i / √(var(x̄_i)·(1-h_ii)) exceeds the two-sided t quantile at 5 %/m
 (Bonferroni), since the overall test averages a feature at one target over all of them. If the
-local test fails, or no degree passes, the raw means are kept and a sharp feature (seed 000's
+local test fails, or no degree passes, the raw means are kept and a sharp feature (Li et al. 2022's
 vertical axis between 0 and 30 mm) is followed target by target. Degree 1 is the lowest: a
 scale error (a line) is always expected on a screw.
 

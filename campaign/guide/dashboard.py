@@ -21,14 +21,13 @@ from rich.table import Table
 from campaign.guide.keys import Keys
 from campaign.measure.capture import BeamLost, NotStable
 from campaign.measure.executor import Control, Observer
+from campaign.measure.live import live_text
 from campaign.plan import Plan
 from campaign.record.events import Event
 from protocols.hardware import AxisError, InstrumentError
-from protocols.units import DEVIATION_SCALE
+from protocols.units import deviation_label
 
 BLOCKS = "▁▂▃▄▅▆▇█"
-LIVE_DEVIATION_BAND = 100.0
-"""The live deviation is shown within this distance of the target, µm (arcsec); else the distance."""
 QUIET_KINDS = ("start", "point", "interrupt", "fault", "halt", "stop", "skip", "retry")
 """Events the dashboard shows its own way (progress, the fault prompt, abort()) or not at all."""
 
@@ -92,8 +91,7 @@ class Dashboard(Observer):
         self.hw, self.tick_s = hw, 1.0 / config["instrument"]["rate_hz"]
         self.max_retries, self.retries = config["campaign"]["fault_retries"], {}
         self.unit = config["axis"]["unit"]
-        self.dev_unit = "µm" if self.unit == "mm" else "arcsec"
-        self.scale = DEVIATION_SCALE[self.unit]
+        self.dev_unit = deviation_label(self.unit)
         self.runs = config["plan"]["cycles"]
         self.per_run = len(plan.points) // self.runs
         self.state = "starting"
@@ -215,18 +213,7 @@ class Dashboard(Observer):
 
     def reading(self, t_s, reading, target) -> None:
         self.t_s = t_s
-        if not reading.signal_ok:
-            signal = "" if reading.signal_pct is None else f" (signal {reading.signal_pct:.0f} %)"
-            self.live_text = f"[bold red]BEAM LOST[/]{signal}: no valid reading"
-            return
-        text = f"reading {reading.position:.4f} {self.unit}"
-        if target is not None:
-            deviation = (reading.position - target) * self.scale
-            text += (f", deviation {deviation:+.2f} {self.dev_unit}" if abs(deviation) <= LIVE_DEVIATION_BAND
-                     else f", {target - reading.position:+.3f} {self.unit} to the target")
-        if reading.signal_pct is not None:
-            text += f", signal {reading.signal_pct:.0f} %"
-        self.live_text = text
+        self.live_text = live_text(reading, target, self.unit)
 
     def point_done(self, point, deviation, t_s: float) -> None:
         self.deviations[point.direction][point.target_index].append(deviation)

@@ -23,7 +23,7 @@ from campaign.plan import Capture, Checkpoint, Move, Plan, Settle, Step, check_m
 from campaign.record.events import Event
 from campaign.record.recorder import Recorder, RecordingError
 from protocols.hardware import Axis, AxisError, AxisStatus, Clock, Hardware, InstrumentError, Reading
-from protocols.units import DEVIATION_SCALE
+from protocols.units import DEVIATION_SCALE, deviation_label
 
 
 def move_and_wait(axis: Axis, clock: Clock, tick, position: float, velocity: float, config: Config,
@@ -433,7 +433,7 @@ class Executor:
                         "samples": got.samples})
         sign = "+" if point.direction > 0 else "-"
         pos_unit = self.config["axis"]["unit"]
-        dev_unit = "µm" if pos_unit == "mm" else "arcsec"
+        dev_unit = deviation_label(pos_unit)
         self.emit("point", f"point {point.index + 1}: run {point.run} {sign}, target {point.target:g} {pos_unit}: "
                            f"deviation {deviation:+.4f} {dev_unit}", point.index,
                   run=point.run, direction=point.direction, target=point.target, deviation=round(deviation, 4))

@@ -6,22 +6,21 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
 from campaign.measure.executor import Observer
+from campaign.measure.live import live_text
 from campaign.plan import Plan
 from campaign.record.events import Event
-from protocols.units import DEVIATION_SCALE
 
 
 class RichProgress(Observer):
     """Shows the campaign on stderr; use as a context manager around the run."""
 
     def __init__(self, unit: str = "mm"):
-        """`unit`: the axis unit, mm or deg; the live deviation is shown in µm or arcsec."""
+        """`unit`: the axis unit, mm or deg; the live reading as campaign.measure.live shows it."""
         self.console = Console(stderr=True)
         self.progress = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                                  TimeRemainingColumn(), TextColumn("{task.fields[live]}"),
                                  console=self.console, transient=False)
-        self.unit, self.scale = unit, DEVIATION_SCALE[unit]
-        self.dev_unit = "µm" if unit == "mm" else "arcsec"
+        self.unit = unit
         self.overall = self.run_task = None
         self.per_run = 0
         self._last_reading_t = -1.0
@@ -51,11 +50,7 @@ class RichProgress(Observer):
         if t_s - self._last_reading_t < 0.5 or self.overall is None:
             return
         self._last_reading_t = t_s
-        text = f"{reading.position:10.4f} {self.unit}"
-        if target is not None:
-            text += f"  dev {(reading.position - target) * self.scale:+8.2f} {self.dev_unit}"
-        if not reading.signal_ok:
-            text += "  [red]BEAM LOST[/]"
+        text = live_text(reading, target, self.unit)
         self.progress.update(self.overall, live=f"t={t_s:7.1f} s")
         self.progress.update(self.run_task, live=text)
 

@@ -3,7 +3,7 @@
 The table goes into the PLC's compensation variables over ADS (written, read back, compared, then
 enabled) — on a real PLC and on the simulated one alike; the simulated PLC then applies it exactly
 as FB_AxiscalCompensation does. The campaign runs as usual into a new directory whose meta.json
-names the baseline. The before and after are written as tables like seed 000's tables 7–12
+names the baseline. The before and after are written as tables like Li et al. 2022's tables 7–12
 (`verification.md`) and as a plot (`verification.png`).
 """
 
@@ -23,6 +23,7 @@ from campaign.plot import draw_evaluation, pyplot
 from campaign.pointtable import PointTable, read_points
 from campaign.record.directory import COMP_FILE
 from protocols.plc_contract import CompTable
+from protocols.units import DEVIATION_SCALE, unit_label
 
 SUMMARY_KEYS = (("M", "mean bidirectional deviation range M"), ("E", "systematic deviation E"),
                 ("R_up", "repeatability R↑"), ("R_down", "repeatability R↓"), ("B", "reversal B"),
@@ -30,11 +31,15 @@ SUMMARY_KEYS = (("M", "mean bidirectional deviation range M"), ("E", "systematic
 
 
 def correction_limits(config: Config, max_rate: float | None, max_accel: float | None) -> tuple[float, float]:
-    """(rate limit axis unit/s, acceleration limit axis unit/s²) of the applied correction.
-    Defaults: a tenth of the axis' velocity and acceleration limits (seed 004 makes the bound
-    proportional to the axis' maximum acceleration)."""
+    """(rate limit axis unit/s, acceleration limit axis unit/s²) of the applied correction, from
+    `max_rate` in µm/s and `max_accel` in µm/s² (arcsec on a rotary axis): the one unit of every
+    correction rate axiscal takes, as in `axiscal correction`. Defaults: a tenth of the axis'
+    velocity and acceleration limits (the 2024 motion-planning patent makes the bound proportional to the axis' maximum
+    acceleration)."""
     axis = config["axis"]
-    return (max_rate or 0.1 * axis["max_velocity"], max_accel or 0.1 * axis["max_acceleration"])
+    scale = DEVIATION_SCALE[axis["unit"]]
+    return (max_rate / scale if max_rate else 0.1 * axis["max_velocity"],
+            max_accel / scale if max_accel else 0.1 * axis["max_acceleration"])
 
 
 def table_fits(table: ControllerTable, provenance: dict[str, str], config: Config, plan: Plan,
@@ -88,7 +93,7 @@ def baseline_points(path: Path) -> PointTable:
 
 
 def direction_table(table: PointTable, ev: Evaluation, direction: int) -> list[str]:
-    """Markdown rows: per target each run's deviation, the mean and s (seed 000 tables 7, 8)."""
+    """Markdown rows: per target each run's deviation, the mean and s (Li et al. 2022 tables 7, 8)."""
     runs = sorted({int(r) for r in table.run})
     suffix = "up" if direction > 0 else "down"
     lines = ["| target " + table.position_unit + " | " + " | ".join(str(r) for r in runs) + " | mean | s |",
@@ -107,7 +112,7 @@ def write_report(directory: Path, after: PointTable, before: PointTable | None) 
     """verification.md and verification.png in `directory`; returns the before/after summaries."""
     ev_after = evaluate(after)
     ev_before = evaluate(before) if before is not None else None
-    unit = ev_after.unit
+    unit = unit_label(ev_after.unit)
     md = [f"# Verification: {directory}", ""]
     for label, table, ev in (("Before compensation", before, ev_before), ("After compensation", after, ev_after)):
         if table is None:

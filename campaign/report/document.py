@@ -33,9 +33,9 @@ from campaign.report.html import (
     section,
     summary_table,
     target_table,
-    unit_label,
     verdict_box,
 )
+from protocols.units import unit_label
 
 
 def baseline_of(a: Assessment) -> Path | None:

@@ -13,6 +13,7 @@ from campaign.pointtable import UNITS, PointTable
 from campaign.uncertainty import Budget
 from campaign.verdict import Verdict
 from campaign.views import SUMMARY_ROWS, fmt
+from protocols.units import unit_label
 
 ENVIRONMENT = (("air_temp_c", "Air temperature", "°C", 2), ("air_pressure_hpa", "Air pressure", "hPa", 1),
                ("humidity_pct", "Relative humidity", "%", 1),
@@ -54,11 +55,6 @@ ul.warnings { margin: 0; padding-left: 20px; color: #8a5a00; }
 footer { color: #7b8794; font-size: 12px; margin-top: 28px; }
 @media print { body { background: #fff; } main { padding: 0; } .columns { display: block; } }
 """
-
-
-def unit_label(unit: str) -> str:
-    """A deviation unit as printed: µm or arcsec."""
-    return {"um": "µm"}.get(unit, unit)
 
 
 def page(title: str, body: str, subtitle: str = "") -> str:
@@ -200,7 +196,7 @@ def outliers_table(outliers: Outliers, unit: str) -> str:
 
 
 def per_run_table(table: PointTable) -> str:
-    """Every reading: one row per target and direction, one column per run (seed 000 tables 7, 8)."""
+    """Every reading: one row per target and direction, one column per run (Li et al. 2022 tables 7, 8)."""
     u = unit_label(UNITS[table.kind][1])
     runs = sorted({int(r) for r in table.run})
     cells = {(float(t), int(d), int(r)): float(x)
