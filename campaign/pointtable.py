@@ -40,7 +40,7 @@ MINUS_SIGNS = str.maketrans({"\u2212": "-", "\u2013": "-"})
 
 @dataclass
 class PointTable:
-    """A parsed point table; one array element per captured point, in file order.
+    """A parsed point table; one array element per captured point, in file order, or in plan order when the table has a `point` column.
 
     run: run number (>= 1). direction: +1 or -1. target: axis unit (mm or deg).
     deviation: measured - target, in µm (linear) or arcsec (rotary).

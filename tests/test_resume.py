@@ -87,3 +87,24 @@ def test_demo_refuses_to_overwrite_a_campaign(tmp_path):
     assert axiscal("demo", "--out", out).returncode == 0
     again = axiscal("demo", "--out", out)
     assert again.returncode == 2 and again.stderr.startswith("error: ") and "resume" in again.stderr
+
+
+@pytest.mark.machine
+def test_a_point_skipped_after_a_fault_is_measured_on_resume(tmp_path, uninterrupted):
+    from campaign.pointtable import read_points
+
+    out = tmp_path / "s"
+    first = axiscal("demo", "--inject", "axis_error@300", "--on-fault", "skip", "--json", "--out", out)
+    assert first.returncode == 0, first.stderr
+    assert json.loads(first.stdout)["points"] == 109
+    skipped = events(out, "skip")
+    assert len(skipped) == 1
+    result = axiscal("resume", out, "--yes", "--json")
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["points"] == 110
+    table = read_points(out / "points.csv")
+    keys = [(str(r), "+" if d > 0 else "-", f"{t:.6f}") for r, d, t in zip(table.run, table.direction, table.target)]
+    assert keys == uninterrupted  # the plan's order, nothing duplicated
+    assert list(table.extra["point"]) == list(range(110))
+    assert point_keys(out / "points.csv")[-1] == uninterrupted[skipped[0]["point"]]  # appended, file untouched
+    assert status(out) == "completed"
