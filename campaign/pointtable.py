@@ -260,12 +260,18 @@ def format_row(run: int, direction: int, target: float, deviation: float,
     return ",".join(cells) + "\n"
 
 
-def write_points(path: str | Path, table: PointTable) -> None:
-    """Write a whole point table (used by import and replay; recording appends row by row)."""
+def write_points_text(table: PointTable) -> str:
+    """The CSV text of a whole point table: its metadata as `# key: value` comments, the header,
+    the rows."""
     optional = tuple(table.optional)
     lines = [f"# {k}: {v}\n" for k, v in table.meta.items()]
     lines.append(",".join(header_for(table.kind, optional)) + "\n")
     for i in range(len(table)):
         lines.append(format_row(int(table.run[i]), int(table.direction[i]), float(table.target[i]),
                                 float(table.deviation[i]), tuple(float(table.optional[c][i]) for c in optional)))
-    Path(path).write_text("".join(lines), encoding="utf-8")
+    return "".join(lines)
+
+
+def write_points(path: str | Path, table: PointTable) -> None:
+    """Write a whole point table (used by import and replay; recording appends row by row)."""
+    Path(path).write_text(write_points_text(table), encoding="utf-8")

@@ -131,12 +131,13 @@ def print_assessment(a, console: Console, per_target: bool = True, wide: bool = 
     console.print(f"[dim]decision rule: {a.verdict.rule}[/]")
 
 
-def make_console() -> Console:
-    """A rich console: the terminal's width, or COLUMNS when set; 120 columns when stdout is not
-    a terminal (a file or a pipe)."""
-    if sys.stdout.isatty() or os.environ.get("COLUMNS"):
-        return Console()
-    return Console(width=120)
+def make_console(stderr: bool = False) -> Console:
+    """A rich console on stdout (stderr with `stderr`, when stdout carries JSON): the terminal's
+    width, or COLUMNS when set; 120 columns when the stream is not a terminal (a file or a pipe)."""
+    stream = sys.stderr if stderr else sys.stdout
+    if stream.isatty() or os.environ.get("COLUMNS"):
+        return Console(stderr=stderr)
+    return Console(width=120, stderr=stderr)
 
 
 def print_evaluation(ev: Evaluation, console: Console | None = None, per_target: bool = True,

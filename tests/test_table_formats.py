@@ -104,11 +104,12 @@ def test_fanuc_unidirectional_hand_worked():
 
 def test_fanuc_bidirectional_hand_worked():
     # forward [-5, 3, 0] -> [0, 8, -3]; reverse [-7, 1, 2] -> [0, 8, 1] at points 3..5;
-    # reference 10 mm = point 1; 3627 = reverse correction at the reference = 1
+    # reference 10 mm = point 1; 3627 = reverse correction at the reference less the forward
+    # one there (the + reference return makes the forward correction the datum) = 1 - 3 = -2
     text = render("fanuc", BI, FormatOptions(counts_per_unit=1000)).text
     lines = text.splitlines()
     assert lines[:8] == ["3620 = 1", "3621 = 0", "3622 = 2", "3623 = 1", "3624 = 10000",
-                         "3605#0 = 1", "3626 = 3", "3627 = 1"]
+                         "3605#0 = 1", "3626 = 3", "3627 = -2"]
     assert lines[8:] == [f"pitch[{i}] = {v}" for i, v in enumerate([0, 8, -3, 0, 8, 1])]
 
 

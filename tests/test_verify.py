@@ -111,3 +111,20 @@ def test_simulated_plc_takes_a_rewritten_table(tmp_path):
         assert np.isfinite(sim.plc.correction)
     finally:
         hardware.close()
+
+
+@pytest.mark.machine
+def test_verify_takes_a_linuxcnc_table_like_the_json_one(vertical):
+    """The same compensation written as a LinuxCNC comp file (1 nm resolution) verifies to the
+    same result as the JSON table: the simulated machine draws the same readings."""
+    base, from_json = vertical
+    comp = axiscal("compensate", base / "before" / "points.csv", "--format", "linuxcnc", "-o", base / "t.comp",
+                   "--overrun", "5")
+    assert comp.returncode == 0, comp.stderr
+    proc = axiscal("verify", CONFIGS / "vertical-sim.toml", "--comp", base / "t.comp", "--out", base / "after-lcnc",
+                   "--json")
+    assert proc.returncode == 0, proc.stderr
+    from_file = json.loads(proc.stdout)
+    assert from_file["points"] == 110
+    for key in ("A", "B", "E", "R"):
+        assert from_file[key] == pytest.approx(from_json[key], abs=0.01), key

@@ -1,4 +1,4 @@
-"""`axiscal verify CONFIG --comp TABLE.json [--before DIR|POINTS] [--out DIR] ...`: measure again
+"""`axiscal verify CONFIG --comp TABLE [--comp-format F] [--before DIR|POINTS] [--out DIR] ...`: measure again
 with the compensation active and show the before and after."""
 
 from __future__ import annotations
@@ -7,9 +7,9 @@ from pathlib import Path
 
 from rich.table import Table
 
-from campaign.commands import SUMMARY, hardware_opener, positive_number
+from campaign.commands import SUMMARY, finite_number, hardware_opener, positive_number
 from campaign.commands.run import add_run_options, apply_on_fault, finish
-from campaign.compensation.table_file import read_comp_json, read_comp_provenance
+from campaign.compensation.table_file import read_comp_provenance, read_comp_table
 from campaign.config import load_config
 from campaign.errors import InputError
 from campaign.measure.progress import RichProgress
@@ -18,14 +18,20 @@ from campaign.measure.verify import SUMMARY_KEYS, baseline_points, run_verificat
 from campaign.plan import build_plan, check_plan
 from campaign.plot import check_plot_path
 from campaign.views import fmt, make_console
+from protocols.tables import FORMATS, FormatOptions
 
 
 def register(sub) -> None:
     p = sub.add_parser("verify", help=SUMMARY["verify"],
-                       description="Write the compensation table (from `axiscal compensate --format json`) "
+                       description="Write the compensation table (any format `axiscal compensate` writes) "
                                    "into the PLC, run the campaign again and compare with the baseline.")
     p.add_argument("config", help="campaign TOML")
-    p.add_argument("--comp", required=True, metavar="TABLE.json", help="table from compensate --format json")
+    p.add_argument("--comp", required=True, metavar="TABLE", help="table from axiscal compensate, any --format")
+    p.add_argument("--comp-format", choices=FORMATS, help="the table's format (default: recognised from its text)")
+    p.add_argument("--counts-per-unit", type=positive_number,
+                   help="pmac and fanuc tables: encoder counts (detection units) per mm or degree")
+    p.add_argument("--reference", type=finite_number, default=0.0,
+                   help="fanuc tables: the reference position, mm or deg (default 0)")
     p.add_argument("--before", metavar="DIR|POINTS.csv", help="the baseline campaign (before compensation)")
     p.add_argument("--max-rate", type=positive_number, metavar="UM_PER_S",
                    help="rate limit of the correction, µm/s (arcsec/s on a rotary axis)")
@@ -38,14 +44,15 @@ def register(sub) -> None:
 def run(args) -> int:
     config = load_config(args.config)
     apply_on_fault(config, args)
-    table = read_comp_json(args.comp)
+    options = FormatOptions(counts_per_unit=args.counts_per_unit)
+    table = read_comp_table(args.comp, config["axis"]["kind"], args.comp_format, options, args.reference)
     if args.plot:
         check_plot_path(args.plot)
     if table.kind != config["axis"]["kind"]:
         raise InputError(f"{args.comp}: a {table.kind} table does not fit the {config['axis']['kind']} axis")
     plan = build_plan(config)
     check_plan(plan, config)
-    console = make_console()
+    console = make_console(stderr=args.json)
     for warning in table_fits(table, read_comp_provenance(args.comp), config, plan, args.comp):
         console.print(f"[yellow]warning:[/] {warning}")
     baseline = Path(args.before) if args.before else None

@@ -1,4 +1,4 @@
-"""Read back the table `axiscal compensate --format json` wrote, for `verify`."""
+"""Read back a table `axiscal compensate` wrote, in any of its formats, for `verify`."""
 
 from __future__ import annotations
 
@@ -8,16 +8,22 @@ from pathlib import Path
 
 import numpy as np
 
-from campaign.compensation.grid import ControllerTable
-from campaign.errors import InputError
+from campaign.compensation.grid import AXIS_UNIT_PER_DEVIATION_UNIT, ControllerTable
+from campaign.errors import InputError, read_input_bytes
+from protocols.tables import FORMATS, FormatOptions, sniff
+from protocols.tables import parse as parse_table
+from protocols.tables.fanuc import parse as fanuc_parse
 
 KINDS = {"mm": "linear", "deg": "rotary"}
 
 
 def read_comp_provenance(path: str | Path) -> dict[str, str]:
     """The `provenance` of a compensate JSON file (machine, axis, points file, software); empty
-    for a file written before axiscal recorded it."""
-    doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    for a file written before axiscal recorded it, and for the other formats."""
+    try:
+        doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return {}
     value = doc.get("provenance") if isinstance(doc, dict) else None
     return {str(k): str(v) for k, v in value.items()} if isinstance(value, dict) else {}
 
@@ -60,3 +66,29 @@ def read_comp_json(path: str | Path) -> ControllerTable:
                            None if backlash is None else number("backlash"),
                            number("overrun") if doc.get("overrun") is not None else 0.0,
                            None if reference is None else number("reference"))
+
+
+def read_comp_table(path: str | Path, kind: str, fmt: str | None = None,
+                    options: FormatOptions | None = None, reference: float = 0.0) -> ControllerTable:
+    """Any table `axiscal compensate` writes, as a ControllerTable for an axis of `kind`. `fmt`:
+    one of protocols.tables.FORMATS, else recognised from the text. pmac and fanuc need
+    `options.counts_per_unit`; fanuc's positions count from `reference` (axis unit).
+    InputError or FormatError naming the file and line."""
+    name = str(path)
+    options = options or FormatOptions()
+    raw = read_input_bytes(path, "a compensation table")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise InputError(f"{name}: not a text file (a compensation table is text)") from None
+    fmt = fmt or sniff(text)
+    if fmt is None:
+        raise InputError(f"{name}: not a table axiscal writes (give --comp-format: {', '.join(FORMATS)})")
+    if fmt == "json":
+        return read_comp_json(path)
+    read = (fanuc_parse(text, name, options, reference) if fmt == "fanuc" else parse_table(fmt, text, name, options))
+    if read.kind is not None and read.kind != kind:
+        raise InputError(f"{name}: a {read.kind} table does not fit the {kind} axis")
+    per = AXIS_UNIT_PER_DEVIATION_UNIT[kind]
+    forward, reverse = np.array(read.forward) / per, np.array(read.reverse) / per
+    return ControllerTable(kind, read.start, read.spacing, forward, reverse, (forward + reverse) / 2, read.mode, None)

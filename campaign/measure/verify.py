@@ -62,7 +62,8 @@ def table_fits(table: ControllerTable, provenance: dict[str, str], config: Confi
         if then and then != now:
             warnings.append(f"the table was made for {key} '{then}', the config measures {key} '{now}'")
     if not provenance:
-        warnings.append("the table does not say which machine and axis it was made for (written by an older axiscal)")
+        warnings.append("the table does not say which machine and axis it was made for (only the JSON format "
+                        "of a recent axiscal does): check that it is this axis' table")
     return warnings
 
 

@@ -1,6 +1,7 @@
-"""Compensation table formats: one module per controller, pure functions returning text.
+"""Compensation table formats: one module per controller, pure functions of text.
 
-Every module has `render(table, options) -> Rendered`. `table` is a
+Every module has `render(table, options) -> Rendered` and `parse(text, path, options) -> TableRead`
+(what `verify` loads back; json is read by campaign.compensation.table_file). `table` is a
 campaign.compensation.grid.ControllerTable (positions in the axis unit, corrections in the
 deviation unit, correction = what the control adds to the command, ≈ -error); each module
 converts to its controller's units and sign. docs/compensation-formats.md documents them all.
@@ -36,6 +37,78 @@ class Rendered:
 
     text: str
     notes: list[str] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class TableRead:
+    """A correction table read back from a controller file. start, spacing: position of point 0
+    and the distance between points, axis unit (mm or degree). forward, reverse: the correction
+    the control adds to the command when moving +/-, axis unit, one per point. mode: bi, or uni
+    when the file holds one table (forward == reverse; a backlash parameter is not in the file).
+    kind: linear or rotary when the file says, else None."""
+
+    start: float
+    spacing: float
+    forward: tuple[float, ...]
+    reverse: tuple[float, ...]
+    mode: str
+    kind: str | None = None
+
+
+SIGNATURES = (("%_N_AX_EEC_INI", "siemens"), ("kw.ssfk.", "twincat_cnc"), ("DEFINE COMP", "pmac"),
+              ("pitch[", "fanuc"), ("BEGIN ", "heidenhain"), ("position_", "csv"))
+"""Text that only one format's files hold near their start, in the order tried."""
+
+
+def sniff(text: str) -> str | None:
+    """The format of a table file's text, or None when nothing matches. LinuxCNC files have no
+    marker: three numbers on the first line."""
+    head = text.lstrip("\ufeff")[:2000]
+    if head.lstrip().startswith("{"):
+        return "json"
+    for marker, name in SIGNATURES:
+        if marker in head:
+            return name
+    first = head.strip().splitlines()[0].split() if head.strip() else []
+    try:
+        return "linuxcnc" if len(first) == 3 and all(float(x) == float(x) for x in first) else None
+    except ValueError:
+        return None
+
+
+def number(text: str, path: str, line: int, what: str = "value") -> float:
+    """A finite number from a table file; FormatError naming the line otherwise."""
+    import math
+
+    from protocols.errors import FormatError
+
+    try:
+        value = float(text)
+    except ValueError:
+        raise FormatError(f"{path}: line {line}: {what} '{text}' is not a number") from None
+    if not math.isfinite(value):
+        raise FormatError(f"{path}: line {line}: {what} '{text}' is not a finite number")
+    return value
+
+
+def equidistant(positions: list[float], path: str) -> tuple[float, float]:
+    """(start, spacing) of equidistant, increasing positions; FormatError otherwise."""
+    from protocols.errors import FormatError
+
+    if len(positions) < 2:
+        raise FormatError(f"{path}: a table needs at least 2 points, found {len(positions)}")
+    spacing = (positions[-1] - positions[0]) / (len(positions) - 1)
+    if spacing <= 0 or any(abs(p - (positions[0] + i * spacing)) > 1e-6 * max(1.0, abs(spacing))
+                           for i, p in enumerate(positions)):
+        raise FormatError(f"{path}: the table's positions are not equidistant and increasing")
+    return positions[0], spacing
+
+
+def parse(name: str, text: str, path: str, options: FormatOptions = FormatOptions()) -> TableRead:
+    """Read a table file of format `name` (one of FORMATS but json)."""
+    if name not in FORMATS or name == "json":
+        raise ValueError(f"no reader for format '{name}'")
+    return importlib.import_module(f"protocols.tables.{name}").parse(text, path, options)
 
 
 def render(name: str, table, options: FormatOptions = FormatOptions()) -> Rendered:

@@ -14,7 +14,7 @@ correction to add, i.e. -error) are NOT verified. Check with a test move before 
 from __future__ import annotations
 
 from protocols.errors import FormatError
-from protocols.tables import FormatOptions, Rendered
+from protocols.tables import FormatOptions, Rendered, TableRead, equidistant, number
 
 MAX_POINTS = 256
 
@@ -31,3 +31,20 @@ def render(table, options: FormatOptions) -> Rendered:
     lines.append("[END]")
     return Rendered("\n".join(lines) + "\n", [f"assign {axis}.COM to axis {axis} in the .CMA file",
                                                "UNVERIFIED sign of the correction column: test first"])
+
+
+def parse(text: str, path: str, options: FormatOptions) -> TableRead:
+    """NR AXISPOS <correction> BACKLASH rows: forward = correction - BACKLASH/2, reverse =
+    correction + BACKLASH/2 (as written by `render`)."""
+    rows = []
+    for i, line in enumerate(text.splitlines(), start=1):
+        cells = line.split()
+        if not cells or cells[0] in ("BEGIN", "NR") or cells[0].startswith("[END"):
+            continue
+        if len(cells) != 4:
+            raise FormatError(f"{path}: line {i}: expected 'NR AXISPOS correction BACKLASH', found '{line.strip()[:60]}'")
+        rows.append([number(c, path, i) for c in cells[1:]])
+    start, spacing = equidistant([r[0] for r in rows], path)
+    forward = tuple(c - b / 2 for _, c, b in rows)
+    reverse = tuple(c + b / 2 for _, c, b in rows)
+    return TableRead(start, spacing, forward, reverse, "uni" if forward == reverse else "bi")

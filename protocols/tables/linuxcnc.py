@@ -11,7 +11,7 @@ correction. BACKLASH is ignored when a COMP_FILE is set, so both directions are 
 from __future__ import annotations
 
 from protocols.errors import FormatError
-from protocols.tables import FormatOptions, Rendered
+from protocols.tables import FormatOptions, Rendered, TableRead, equidistant, number
 
 MAX_POINTS = 256
 
@@ -25,3 +25,21 @@ def render(table, options: FormatOptions) -> Rendered:
              for p, fw, rv in zip(positions, table.forward, table.reverse)]
     notes = [f"[JOINT_{options.joint}]", "COMP_FILE = <this file>", "COMP_FILE_TYPE = 0"]
     return Rendered("\n".join(lines) + "\n", notes)
+
+
+def parse(text: str, path: str, options: FormatOptions) -> TableRead:
+    """Every line three numbers (LinuxCNC's own loader stops silently at the first other line;
+    this reader names it instead)."""
+    rows = []
+    for i, line in enumerate(text.splitlines(), start=1):
+        if not line.strip():
+            continue
+        cells = line.split()
+        if len(cells) != 3:
+            raise FormatError(f"{path}: line {i}: expected 'nominal actual_forward actual_reverse', "
+                              f"found '{line.strip()[:60]}'")
+        rows.append([number(c, path, i) for c in cells])
+    start, spacing = equidistant([r[0] for r in rows], path)
+    forward = tuple(p - a for p, a, _ in rows)
+    reverse = tuple(p - a for p, _, a in rows)
+    return TableRead(start, spacing, forward, reverse, "uni" if forward == reverse else "bi")

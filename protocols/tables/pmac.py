@@ -8,8 +8,10 @@ motor zero. One table only: uni mode (a backlash B̄ is reported for Ixx86).
 
 from __future__ import annotations
 
+import re
+
 from protocols.errors import FormatError
-from protocols.tables import FormatOptions, Rendered
+from protocols.tables import FormatOptions, Rendered, TableRead
 
 
 def render(table, options: FormatOptions) -> Rendered:
@@ -34,3 +36,32 @@ def render(table, options: FormatOptions) -> Rendered:
     text = (f"#{options.motor}\nDEFINE COMP {len(entries)},{count_length}\n"
             + " ".join(str(e) for e in entries) + "\nI51=1\n")
     return Rendered(text, notes)
+
+
+DEFINE = re.compile(r"DEFINE\s+COMP\s+(\d+)\s*,\s*(\d+)", re.IGNORECASE)
+
+
+def parse(text: str, path: str, options: FormatOptions) -> TableRead:
+    """Needs counts_per_unit. The entries' last is the value at motor zero (rollover)."""
+    cpu = options.counts_per_unit
+    if cpu is None or cpu <= 0:
+        raise FormatError("reading a pmac table needs --counts-per-unit (encoder counts per mm or degree)")
+    match = DEFINE.search(text)
+    if not match:
+        raise FormatError(f"{path}: no 'DEFINE COMP entries,count_length' line")
+    entries, length = int(match.group(1)), int(match.group(2))
+    words = text[match.end():].split()
+    values = []
+    for word in words:
+        if word.upper().startswith("I"):
+            break
+        try:
+            values.append(int(word))
+        except ValueError:
+            raise FormatError(f"{path}: entry '{word[:20]}' is not a whole number (1/16 count)") from None
+    if len(values) != entries or entries < 1:
+        raise FormatError(f"{path}: DEFINE COMP says {entries} entries, {len(values)} follow")
+    table = [values[-1], *values[:-1]]  # the value at motor zero first
+    scale = 1.0 / (16 * cpu)  # axis unit per 1/16 count
+    corrections = tuple(v * scale for v in table)
+    return TableRead(0.0, length / entries / cpu, corrections, corrections, "uni")

@@ -6,8 +6,10 @@ referenced. Direction-dependent tables (CEC with $AN_CEC_DIRECTION) are not writ
 
 from __future__ import annotations
 
+import re
+
 from protocols.errors import FormatError
-from protocols.tables import FormatOptions, Rendered
+from protocols.tables import FormatOptions, Rendered, TableRead, number
 
 
 def render(table, options: FormatOptions) -> Rendered:
@@ -25,3 +27,27 @@ def render(table, options: FormatOptions) -> Rendered:
     if table.backlash is not None:
         notes.append(f"MD32450 BACKLASH = {-table.backlash * f:.6f} (lost motion = -B̄)")
     return Rendered("\n".join(lines) + "\n", notes)
+
+
+ENTRY = re.compile(r"^\$AA_ENC_COMP(_STEP|_MIN|_MAX)?\[0,(?:(\d+),)?\s*([A-Za-z0-9_]+)\]=(\S+)$")
+
+
+def parse(text: str, path: str, options: FormatOptions) -> TableRead:
+    values: dict[int, float] = {}
+    limits: dict[str, float] = {}
+    for i, line in enumerate(text.splitlines(), start=1):
+        match = ENTRY.match(line.strip())
+        if not match:
+            continue
+        value = number(match.group(4), path, i)
+        if match.group(1):
+            limits[match.group(1)] = value
+        elif match.group(2) is not None:
+            values[int(match.group(2))] = -value
+    n = len(values)
+    if n < 2 or sorted(values) != list(range(n)):
+        raise FormatError(f"{path}: $AA_ENC_COMP[0,i,AXIS] must be given for i = 0..N-1, N ≥ 2")
+    if "_STEP" not in limits or "_MIN" not in limits or limits["_STEP"] <= 0:
+        raise FormatError(f"{path}: $AA_ENC_COMP_STEP (> 0) and $AA_ENC_COMP_MIN are needed")
+    table = tuple(values[i] for i in range(n))
+    return TableRead(limits["_MIN"], limits["_STEP"], table, table, "uni")

@@ -6,8 +6,10 @@ Enabled by lr_param.ssfk = 1 in the axis parameters.
 
 from __future__ import annotations
 
+import re
+
 from protocols.errors import FormatError
-from protocols.tables import FormatOptions, Rendered
+from protocols.tables import FormatOptions, Rendered, TableRead, equidistant, number
 
 MAX_POINTS = 1500
 PER_AXIS_UNIT = 10_000  # 0.1 µm per mm
@@ -29,3 +31,23 @@ def render(table, options: FormatOptions) -> Rendered:
         rows.append((f"kw.ssfk.table[{i}].neg", round(-c * tenth)))
     text = f"kopf.log_achs_name {options.axis_name}\n" + "".join(f"{k:<36}{v}\n" for k, v in rows)
     return Rendered(text, ["set lr_param.ssfk = 1 in the axis parameters"])
+
+
+ENTRY = re.compile(r"^kw\.ssfk\.table\[(\d+)\]\.(setpoint|pos|neg)\s+(\S+)$")
+
+
+def parse(text: str, path: str, options: FormatOptions) -> TableRead:
+    columns: dict[str, dict[int, float]] = {"setpoint": {}, "pos": {}, "neg": {}}
+    for i, line in enumerate(text.splitlines(), start=1):
+        match = ENTRY.match(line.strip())
+        if match:
+            columns[match.group(2)][int(match.group(1))] = number(match.group(3), path, i)
+    n = len(columns["setpoint"])
+    for name, values in columns.items():
+        if sorted(values) != list(range(n)):
+            raise FormatError(f"{path}: kw.ssfk.table[i].{name} must be given for i = 0..{n - 1}")
+    positions = [columns["setpoint"][i] / PER_AXIS_UNIT for i in range(n)]
+    start, spacing = equidistant(positions, path)
+    forward = tuple(-columns["pos"][i] / PER_AXIS_UNIT for i in range(n))
+    reverse = tuple(-columns["neg"][i] / PER_AXIS_UNIT for i in range(n))
+    return TableRead(start, spacing, forward, reverse, "uni" if forward == reverse else "bi")

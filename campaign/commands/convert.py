@@ -1,0 +1,48 @@
+"""`axiscal convert IN -o OUT [--from F] [--to F] [--kind linear|rotary] [--json]`: another
+program's measurement file to a point table, or back (Renishaw .rtl, ecmc *_ISO230.dat)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from campaign.commands import SUMMARY
+from campaign.convert import FORMATS, format_of, read_any, render_any, write_whole
+from campaign.errors import InputError
+from campaign.iso230 import evaluate
+from campaign.views import make_console, print_json
+
+
+def register(sub) -> None:
+    p = sub.add_parser("convert", help=SUMMARY["convert"],
+                       description="Read a measurement file (point table, Renishaw .rtl, ecmc ISO 230-2 .dat) "
+                                   "and write it in another of these formats; see docs/convert.md.")
+    p.add_argument("input", help="the file to read (.csv point table, .rtl, .dat)")
+    p.add_argument("-o", "--output", required=True, help="the file to write (.csv, .rtl, .dat)")
+    p.add_argument("--from", dest="source_format", choices=FORMATS, help="the input's format (default: its extension)")
+    p.add_argument("--to", dest="target_format", choices=FORMATS, help="the output's format (default: its extension)")
+    p.add_argument("--kind", choices=("linear", "rotary"),
+                   help="the axis kind when the input does not say (.rtl: default linear)")
+    p.add_argument("--json", action="store_true", help="print what was converted as JSON")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    source, target = format_of(args.input, args.source_format), format_of(args.output, args.target_format)
+    if Path(args.input).resolve() == Path(args.output).resolve():
+        raise InputError(f"{args.output}: the output would overwrite the input")
+    table = read_any(args.input, source, args.kind)
+    text = render_any(table, target)
+    write_whole(args.output, text)
+    values = evaluate(table).summary
+    summary = {"input": str(args.input), "from": source, "output": str(args.output), "to": target,
+               "kind": table.kind, "points": len(table), "runs": int(table.run.max()),
+               "targets": len(set(table.target.tolist())), "meta": table.meta,
+               **{k: values.get(k) for k in ("A", "B", "R", "E", "M")}}
+    if args.json:
+        print_json(summary)
+    else:
+        unit = "µm" if table.kind == "linear" else "arcsec"
+        shown = ", ".join(f"{k} {summary[k]:.3f} {unit}" for k in ("A", "B", "R") if summary[k] is not None)
+        make_console().print(f"{args.output}: {len(table)} points, {summary['runs']} runs, {summary['targets']} "
+                             f"targets ({source} → {target}); ISO 230-2: {shown}")
+    return 0
