@@ -208,3 +208,20 @@ def test_format_by_option_and_unknown_extension(cli, tmp_path):
     assert cli("convert", PAPER / "horizontal_before.csv", "-o", tmp_path / "x.txt", "--to", "rtl").code == 0
     assert (tmp_path / "x.txt").read_text().startswith("HEADER::")
     assert_one_line_error(cli("convert", tmp_path / "nope.rtl", "-o", tmp_path / "y.csv"), "no such file")
+
+
+@pytest.mark.machine
+def test_demo_points_to_rtl_and_back_keep_every_iso_value(cli, tmp_path):
+    from tests.test_demo_e2e import axiscal
+
+    assert axiscal("demo", "--out", tmp_path / "demo").returncode == 0
+    points = tmp_path / "demo" / "points.csv"
+    assert cli("convert", points, "-o", tmp_path / "d.rtl").code == 0
+    text = (tmp_path / "d.rtl").read_text()
+    sections = [line for line in text.splitlines() if line.endswith("::")]
+    assert sections == ["HEADER::", "TARGET DATA::", "USER-TEXT::", "RUNS::", "DEVIATIONS::", "ENVIRONMENT::", "EOF::"]
+    assert "Run-count: 10" in text and "Machine: sim-press" in text
+    assert cli("convert", tmp_path / "d.rtl", "-o", tmp_path / "back.csv").code == 0
+    before, after = analyze(cli, points), analyze(cli, tmp_path / "back.csv")
+    for key in ("A", "A_up", "A_down", "E", "E_up", "E_down", "M", "B", "B_mean", "R", "R_up", "R_down"):
+        assert after[key] == pytest.approx(before[key], abs=1e-9), key
