@@ -8,12 +8,15 @@ from pathlib import Path
 import numpy as np
 
 from campaign.commands import SUMMARY
-from campaign.discovery.data import read_campaign, read_start_model
+from campaign.discovery.data import keep_rows, read_campaign, read_start_model
 from campaign.discovery.search import Discovery, discover
 from campaign.errors import InputError
 from campaign.model import EFFECT_PARAMS
+from campaign.outliers import Outliers, find_outliers
 from campaign.plot import check_plot_path
+from campaign.pointtable import read_points
 from campaign.views import make_console, print_json
+from protocols.units import UNITS, unit_label
 
 
 def register(sub) -> None:
@@ -41,7 +44,7 @@ def unit_of(effect: str, key: str, time_unit: str) -> str:
     if key == "tau_s" and effect == "thermal_drift" and time_unit != "s":
         return time_unit
     described = ENVIRONMENT_PARAMS if effect == "environment" else EFFECT_PARAMS[effect]
-    unit = described[key].rsplit(", ", 1)[-1]
+    unit = described[key].rsplit(", ", 1)[-1].split(" (")[0]
     return "" if unit == "1" else unit
 
 
@@ -69,6 +72,12 @@ def drift_rate(effect: str, params: dict[str, float]) -> dict[str, float]:
     return {"initial_rate_ppm_per_h": round(params["growth_ppm"] / params["tau_s"] * 3600, 4)}
 
 
+def outliers_json(outliers: Outliers) -> dict:
+    return {"outliers": [o.as_dict() for o in outliers.found],
+            "scatter_um": {"with_outliers": None if outliers.s_with is None else round(outliers.s_with, 4),
+                           "without_outliers": None if outliers.s_without is None else round(outliers.s_without, 4)}}
+
+
 def as_json(result: Discovery) -> dict:
     """The JSON object: added, gap_before_um, gap_after_um, steps, and the details."""
     return {
@@ -90,8 +99,22 @@ def as_json(result: Discovery) -> dict:
         "disagreement_before": result.disagreement_before,
         "disagreement_after": result.disagreement_after,
         "choices": result.choices,
+        "unresolved": result.unresolved,
         "notes": result.notes,
     }
+
+
+def outlier_notes(outliers: Outliers, kind: str) -> list[str]:
+    """What the shared outlier test (campaign.outliers) found and what discovery did with it."""
+    if not outliers.found:
+        return []
+    pos, dev = UNITS[kind][0], unit_label(UNITS[kind][1])
+    listed = "; ".join(f"run {o.run} {'+' if o.direction > 0 else '-'} at {o.target:g} {pos}: {o.deviation:+.3f} {dev} "
+                       f"(|t| {o.score:.1f} > {o.critical:.1f})" for o in outliers.found)
+    return [(f"{len(outliers.found)} reading(s) far from the others at their target, by the outlier test at "
+            f"{outliers.alpha:g} for the campaign ({listed}): left out of the fit so that a glitch is not taken for "
+            f"physics; the run-to-run scatter is {outliers.s_without:.3f} {dev} without, {outliers.s_with:.3f} {dev} with "
+            "them. Measure those points again if the cause is not known.")]
 
 
 def print_text(result: Discovery, time_unit: str) -> None:
@@ -114,6 +137,8 @@ def print_text(result: Discovery, time_unit: str) -> None:
         for c in step.ranking:
             console.print(f"    {c.name:28s} explains {c.explained_pct:5.1f} %  ΔBIC {c.delta_bic:8.1f}  "
                           f"p {c.p_value:.2g}  CV {c.cv_before_um:.3f} -> {c.cv_after_um:.3f} µm  {c.verdict}")
+    for entry in result.unresolved:
+        console.print(f"[yellow]unresolved:[/] {entry['why']}. To tell: {entry['how_to_tell']}.")
     verdict = "noise" if result.gap_after_um <= 1.3 * result.noise_um else "more than noise"
     console.print(f"final gap {result.gap_after_um:.3f} µm RMS against a noise estimate of {result.noise_um:.3f} µm "
                   f"(run-to-run scatter): what is left is {verdict}")
@@ -189,13 +214,18 @@ def run(args) -> int:
     model, given = read_start_model(args.model)
     if len(data) < 4:
         raise InputError(f"{args.file}: {len(data)} points are too few to fit a model")
+    table = read_points(args.file)
+    outliers = find_outliers(table)
+    if outliers.found:
+        data = keep_rows(data, ~outliers.mask(table))
     result = discover(data, model, given)
+    result.notes[:0] = outlier_notes(outliers, table.kind)
     if plot_path:
         plot_steps(result, data.x, data.d, data.y, plot_path)
     if args.save:
         Path(args.save).write_text(saved_model(result, model, args.file, data.time_source), encoding="utf-8")
     if args.json:
-        print_json(as_json(result))
+        print_json({**as_json(result), **outliers_json(outliers)})
     else:
         print_text(result, data.time_unit)
         for path, what in ((plot_path, "plot"), (args.save, "model")):

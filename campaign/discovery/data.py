@@ -57,6 +57,14 @@ class CampaignData:
         return "s" if self.time_source == "time_s" else "points"
 
 
+def keep_rows(data: CampaignData, keep: np.ndarray) -> CampaignData:
+    """The campaign with only the points where `keep` (bool per point) is True."""
+    return CampaignData(x=data.x[keep], d=data.d[keep], run=data.run[keep], y=data.y[keep], t=data.t[keep],
+                        w=None if data.w is None else data.w[keep], time_source=data.time_source,
+                        env={k: v[keep] for k, v in data.env.items()},
+                        air_index_change=None if data.air_index_change is None else data.air_index_change[keep])
+
+
 def campaign_data(table: PointTable, capture: dict[str, np.ndarray] | None = None,
                   sample_period_s: float | None = None) -> CampaignData:
     """CampaignData from a point table. `capture`: capture_wait_s (s) and samples per point, if

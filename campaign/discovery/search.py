@@ -22,7 +22,8 @@ screw growth about its fixed bearing).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import math
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -49,6 +50,14 @@ ALPHA = 0.001
 BIC_MARGIN = 2.0
 """How much lower the BIC must be to name an effect ("positive evidence")."""
 MAX_STEPS = len(FORMS)
+RIVAL_MARGIN = 6.0
+"""Two candidates closer than this in ΔBIC ("strong evidence" on the BIC scale) are not clearly
+apart; a period beaten by less than this by another local optimum is not identifiable."""
+PERIOD_STARTS = 12
+"""Periodogram peaks refined as local optima of the period search."""
+PERIOD_LIST = 10.0
+"""Competing periods within this ΔBIC of the best are listed and enter the period's error."""
+
 DWELL_SPREAD = 0.05
 """Relative spread of the wait since arrival below which settling is not looked for."""
 
@@ -65,6 +74,9 @@ class Candidate:
     cv_before_um: float = 0.0
     cv_after_um: float = 0.0
     verdict: str = ""
+    periods: list[tuple[float, float]] = field(default_factory=list)
+    """periodic_lead: the local optima of the period search, (period mm, ΔBIC to the best), best
+    first, for the optima within PERIOD_LIST of the best."""
 
     @property
     def accepted(self) -> bool:
@@ -104,6 +116,9 @@ class Discovery:
     disagreement_after: dict = field(default_factory=dict)
     choices: list[dict] = field(default_factory=list)
     """Where two confounded candidates were both plausible: step, chosen, other, why."""
+    unresolved: list[dict] = field(default_factory=list)
+    """Effects the data cannot tell apart or pin down, none of them named: effects, why,
+    how_to_tell (and periods_mm for a period that is not identifiable)."""
 
     @property
     def added(self) -> list[str]:
@@ -207,7 +222,11 @@ def candidate_names(data: CampaignData, terms: list[Term], notes: list[str]) -> 
     return names
 
 
-def _note(notes: list[str], text: str) -> None:
+def _note(notes: list[str], text: str, topic: str | None = None) -> None:
+    """Add a note once. `topic`: the start of a note whose numbers change from step to step; an
+    earlier note on it is replaced, so the reader sees it once, with the final numbers."""
+    if topic is not None:
+        notes[:] = [n for n in notes if not n.startswith(topic)]
     if text not in notes:
         notes.append(text)
 
@@ -218,7 +237,7 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
     held = fixed_shape(name, data, {})
     starts = [{}]
     if name == "periodic_lead":
-        starts = [{"period_mm": p} for p in periodogram_periods(data, current)]
+        starts = [{"period_mm": p} for p in periodogram_periods(data, current, top=PERIOD_STARTS)]
     elif FORMS[name].shape_grid is not None:
         starts = FORMS[name].shape_grid(data, {})
     best: Fit | None = None
@@ -237,19 +256,63 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
         others = confounders(data, current.terms, Term(name, {}, False, {**held, **(starts[0] if starts else {})}))
         _note(notes, f"{name} is confounded with {' + '.join(others) or 'the model'} on this data: not named")
         return Candidate(name, None, verdict="confounded")
-    if FORMS[name].shape:
+    periods: list[tuple[float, float]] = []
+    if name == "periodic_lead" and "period_mm" not in held and len(fits) > 1:
+        best, periods = period_optima(data, fits)
+    elif FORMS[name].shape:
         best = refine(data, best.terms)
-    cand = Candidate(name, best, explained_pct=100 * (1 - best.rss / current.rss) if current.rss > 0 else 0.0)
+    cand = Candidate(name, best, explained_pct=100 * (1 - best.rss / current.rss) if current.rss > 0 else 0.0,
+                     periods=periods)
     cand.delta_bic = bic(best, n) - bic(current, n)
-    look_elsewhere = independent_periods(data) if name == "periodic_lead" else 1.0
+    look_elsewhere = independent_periods(data) if name == "periodic_lead" and "period_mm" not in held else 1.0
     cand.p_value = min(1.0, f_test_p(current, best, n) * look_elsewhere)
+    cand.delta_bic += 2 * math.log(look_elsewhere)  # a searched period costs its search, as in the p-value
     groups = data.run if FORMS[name].group == "run" else data.target_index
     cand.cv_before_um = cv_rms_um(data, current.terms, groups)
     cand.cv_after_um = cv_rms_um(data, best.terms, groups)
     failed = [why for ok, why in ((cand.delta_bic < -BIC_MARGIN, "BIC"), (cand.p_value < ALPHA, "F-test"),
                                   (cand.cv_after_um < cand.cv_before_um, "cross-validation")) if not ok]
     cand.verdict = "accepted" if not failed else "not significant (" + ", ".join(failed) + ")"
+    if not failed and len(periods) > 1 and periods[1][1] < RIVAL_MARGIN:
+        cand.verdict = "period not identifiable"
     return cand
+
+
+def period_optima(data: CampaignData, fits: list[Fit]) -> tuple[Fit, list[tuple[float, float]]]:
+    """Refine every periodogram start to its local optimum; the best, and the distinct optima
+    (period mm, ΔBIC to the best; same parameter count, so ΔBIC = n·ln(RSS/RSS_best)) within
+    PERIOD_LIST of it, best first. Aliases of a screw lead sampled at few targets show up here as
+    optima that fit about as well."""
+    n = len(data)
+    optima: list[Fit] = []
+    for fit in fits:
+        local = refine(data, fit.terms)
+        period = _period(local)
+        if all(abs(period - _period(o)) > 0.005 * period for o in optima):
+            optima.append(local)
+        else:
+            same = next(o for o in optima if abs(period - _period(o)) <= 0.005 * period)
+            if local.rss < same.rss:
+                optima[optima.index(same)] = local
+    optima.sort(key=lambda f: f.rss)
+    best = optima[0]
+    listed = [(_period(f), n * math.log(max(f.rss, 1e-300) / max(best.rss, 1e-300))) for f in optima]
+    return best, [(p, d) for p, d in listed if d < PERIOD_LIST]
+
+
+def _period(fit: Fit) -> float:
+    return next(t.shape["period_mm"] for t in fit.terms if t.name == "periodic_lead")
+
+
+def period_spread_mm(periods: list[tuple[float, float]]) -> float:
+    """The spread of the period over the competing optima, weighted by exp(-ΔBIC/2) (their
+    approximate posterior odds), mm: the part of the period's error that one optimum's curvature
+    does not see."""
+    if len(periods) < 2:
+        return 0.0
+    values = np.array([p for p, _ in periods])
+    weights = np.exp(-np.array([d for _, d in periods]) / 2)
+    return float(np.sqrt(np.sum(weights * (values - values[0]) ** 2) / np.sum(weights)))
 
 
 PLAUSIBLE = {"air_factor": (-0.5, 1.5), "alpha_ppm_per_k": (-5.0, 30.0)}
@@ -278,8 +341,9 @@ def environment_variant(fits: list[Fit], n: int, notes: list[str]) -> Fit:
         said = ", ".join(f"{k} = {v:.3g}" for k, v in coefs(rival).items())
         reason = (f"the {' and '.join(logs[k] for k in coefs(rival))} log alone would need {said}, which is not "
                   "physical" if not plausible(rival) else "both are plausible: the attribution is uncertain")
-        _note(notes, f"the air and material logs move together in this campaign, so their slopes are confounded; "
-                     f"environment is fitted with the {' and '.join(logs[k] for k in coefs(chosen))} log: {reason}")
+        topic = "the air and material logs move together in this campaign"
+        _note(notes, f"{topic}, so their slopes are confounded; "
+                     f"environment is fitted with the {' and '.join(logs[k] for k in coefs(chosen))} log: {reason}", topic)
     return chosen
 
 
@@ -309,34 +373,149 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
         notes.append("the table has no time column: time effects use the point order (time constants "
                      "are in points, not seconds)")
     start = refine(data, start_terms(model, given, data, notes))
-    current, steps, choices = start, [], []
+    current, steps, choices, unresolved = start, [], [], []
     for _ in range(MAX_STEPS):
         ranking = [try_candidate(data, current, name, notes)
                    for name in candidate_names(data, current.terms, notes)]
         ranking.sort(key=lambda c: (c.fit is None, c.delta_bic))
-        accepted = [c for c in ranking if c.accepted]
-        chosen = prefer_simpler(accepted[0], accepted, len(data.y), notes) if accepted else None
-        for cand in accepted:
-            if cand is not chosen:
+        chosen, unresolved = choose(data, current, ranking, notes)
+        held = [c for c in ranking if c.verdict.startswith(UNRESOLVED_VERDICTS)]
+        if chosen is None and held:
+            # something is there that cannot be named (rivals, or a period not known): test the
+            # others beside the best of it as a stand-in, so that its residual does not hide them
+            stand_in = min(held, key=lambda c: c.delta_bic)
+            others = [try_candidate(data, stand_in.fit, name, notes)
+                      for name in candidate_names(data, stand_in.fit.terms, notes)
+                      if name not in {c.name for c in held}]
+            others.sort(key=lambda c: (c.fit is None, c.delta_bic))
+            chosen, more = choose(data, stand_in.fit, others, notes)
+            if chosen is not None:
+                unresolved += more
+                ranking = [*held, *others]
+                _note(notes, f"{chosen.name} was tested beside the unresolved {stand_in.name} (as a stand-in, "
+                             "not named), whose residual would otherwise hide it")
+                chosen.fit = refine(data, [t for t in chosen.fit.terms if t.name != stand_in.name])
+        for cand in ranking:
+            if cand.accepted and cand is not chosen:
                 cand.verdict = "significant, but not named at this step: tried again at the next"
         if chosen is None:
             if ranking:
-                steps_ranking_note(notes, ranking)
+                steps_ranking_note(notes, ranking, unresolved)
             break
         choice = air_or_screw(data, ranking, chosen, len(steps) + 1)
         if choice:
             choices.append(choice)
             _note(notes, choice["why"])
         after = refine(data, chosen.fit.terms)
+        errors = standard_errors(data, after).get(chosen.name, {})
+        if chosen.periods and "period_mm" in errors:
+            errors["period_mm"] = math.hypot(errors["period_mm"], period_spread_mm(chosen.periods))
         steps.append(Step(chosen.name, after.params()[chosen.name], current.rms_um(data.y), after.rms_um(data.y),
-                          ranking, data.y - current.prediction, data.y - after.prediction,
-                          standard_errors(data, after).get(chosen.name, {})))
+                          ranking, data.y - current.prediction, data.y - after.prediction, errors))
         current = after
     add_confounding_notes(data, current, notes)
     residual = data.y - current.prediction
     return Discovery(steps, start, current, start.rms_um(data.y), current.rms_um(data.y),
                      pooled_scatter_um(data, residual), data.time_source, notes,
-                     disagreement(data, data.y - start.prediction), disagreement(data, residual), choices)
+                     disagreement(data, data.y - start.prediction), disagreement(data, residual), choices,
+                     unresolved)
+
+
+HOW_TO_TELL = {
+    frozenset({"settling", "backlash"}): (
+        "a campaign whose wait before each capture varies over a decade (fixed dwells from 0.5 s to 5 s, "
+        "e.g. two campaigns with --capture dwell at dwell_s = 0.5 and 5): settling fades with the wait, "
+        "backlash does not"),
+    frozenset({"settling", "position_dependent_backlash"}): (
+        "a campaign whose wait before each capture varies over a decade (fixed dwells from 0.5 s to 5 s): "
+        "settling fades with the wait, backlash does not"),
+    frozenset({"periodic_lead", "nonlinear_lead"}): (
+        "more targets (at least 4 per screw lead over part of the travel, offsets = \"golden\"), or the known "
+        "screw lead in the model (periodic_lead.period_mm) so that only its amplitude is fitted"),
+    frozenset({"thermal_drift", "linear_scale"}): "more runs over a longer time: a drift changes from run to run",
+}
+"""What campaign separates two effects that explain the same residual."""
+HOW_TO_TELL_DEFAULT = ("a campaign that varies what separates them: more runs over a longer time for time "
+                       "effects, more targets for effects along the travel, varied dwells for settling")
+PERIOD_HOW_TO_TELL = ("more targets (at least 4 per screw lead over part of the travel), a denser offset pattern "
+                      "(offsets = \"golden\" with a larger offset_fraction), or the known screw lead in the model "
+                      "(periodic_lead.period_mm): with the period given, only the amplitude is fitted")
+UNRESOLVED_VERDICTS = ("not told apart", "held with", "period not identifiable")
+"""Verdicts of candidates that are neither named nor rejected: the data cannot resolve them."""
+CONFOUNDED_PAIRS = {frozenset({"environment", "thermal_drift"})}
+"""Pairs with their own way of choosing (air_or_screw), not treated as rivals."""
+
+
+def choose(data: CampaignData, current: Fit, ranking: list[Candidate],
+           notes: list[str]) -> tuple[Candidate | None, list[dict]]:
+    """The candidate to name at this step, and what cannot be resolved: a periodic error whose
+    period is not identifiable, and groups of candidates that explain the same residual about
+    equally well (rivals). Neither a rival nor an unidentifiable period is named; the other
+    candidates go on."""
+    n = len(data.y)
+    unresolved = [period_entry(c, data) for c in ranking if c.verdict == "period not identifiable"]
+    held: list[Candidate] = []
+    while pool := [c for c in ranking if c.accepted and c not in held]:
+        best = prefer_simpler(pool[0], pool, n, notes)
+        rivals = [c for c in ranking if c is not best and c.fit is not None and c not in held
+                  and are_rivals(data, best, c, n)]
+        if not rivals:
+            return best, unresolved
+        group = [best, *rivals]
+        unresolved.append(rival_entry(best, rivals))
+        for cand in group:
+            cand.verdict = "not told apart from " + ", ".join(c.name for c in group if c is not cand)
+        names = {c.name for c in group}
+        for cand in ranking:  # the larger form of an unresolved effect is held with it
+            if NESTED_IN.get(cand.name) in names and cand not in group:
+                cand.verdict = f"held with {NESTED_IN[cand.name]}, which is unresolved"
+                group.append(cand)
+        held += group
+    return None, unresolved
+
+
+def are_rivals(data: CampaignData, best: Candidate, other: Candidate, n: int) -> bool:
+    """Do `best` and `other` explain the same residual about equally well? Within RIVAL_MARGIN in
+    ΔBIC (which weighs what each explains against its parameters, a searched period included),
+    and together clearly no better than `best` alone. Nested effects and the air/screw pair have their own rules."""
+    pair = frozenset({best.name, other.name})
+    if (NESTED_IN.get(best.name) == other.name or NESTED_IN.get(other.name) == best.name
+            or pair in CONFOUNDED_PAIRS or other.verdict == "period not identifiable" or other.delta_bic >= 0):
+        return False
+    if other.delta_bic - best.delta_bic >= RIVAL_MARGIN:
+        return False
+    term = next(t for t in other.fit.terms if t.name == other.name)
+    term = drop_collinear(data, best.fit.terms, replace(term, keep=None))
+    if not any(term.keep):
+        return True
+    joint = linear_fit(data, [*best.fit.terms, term])
+    return bic(joint, n) > bic(best.fit, n) - RIVAL_MARGIN
+
+
+def rival_entry(best: Candidate, rivals: list[Candidate]) -> dict:
+    """The `unresolved` record of candidates that explain the same residual."""
+    group = [best, *rivals]
+    said = "; ".join(f"{c.name} explains {c.explained_pct:.1f} % (ΔBIC {c.delta_bic:.1f})" for c in group)
+    names = [c.name for c in group]
+    how = HOW_TO_TELL.get(frozenset(names[:2]), HOW_TO_TELL_DEFAULT) if len(names) == 2 else HOW_TO_TELL_DEFAULT
+    return {"effects": names,
+            "why": f"{' and '.join(names)} explain the same part of the residual about equally well ({said}), "
+                   "and together no better than one alone: this campaign cannot tell which it is, so neither is named",
+            "how_to_tell": how,
+            "delta_bic": {c.name: round(c.delta_bic, 2) for c in group}}
+
+
+def period_entry(cand: Candidate, data: CampaignData) -> dict:
+    """The `unresolved` record of a periodic error whose period is not identifiable."""
+    shown = ", ".join(f"{p:.4g} mm (ΔBIC {d:+.1f})" for p, d in cand.periods[:6])
+    targets = len(np.unique(np.round(data.x, 6)))
+    return {"effects": ["periodic_lead"],
+            "why": f"a periodic error explains {cand.explained_pct:.1f} % of the residual, but its period is not "
+                   f"identifiable: {len(cand.periods)} periods fit about as well ({shown}); with {targets} targets "
+                   "a screw lead aliases to other periods",
+            "how_to_tell": PERIOD_HOW_TO_TELL,
+            "periods_mm": [round(p, 4) for p, _ in cand.periods],
+            "delta_bic": [round(d, 2) for _, d in cand.periods]}
 
 
 PLAUSIBLE_SHARE = 0.5
@@ -389,9 +568,9 @@ def air_or_screw(data: CampaignData, ranking: list[Candidate], chosen: Candidate
             "why": why}
 
 
-def steps_ranking_note(notes: list[str], ranking: list[Candidate]) -> None:
-    best = ranking[0]
-    if best.fit is not None:
+def steps_ranking_note(notes: list[str], ranking: list[Candidate], unresolved: list[dict]) -> None:
+    best = next((c for c in ranking if not c.verdict.startswith(UNRESOLVED_VERDICTS)), None)
+    if best is not None and best.fit is not None:
         _note(notes, f"nothing more is named: the best remaining candidate, {best.name}, explains "
                      f"{best.explained_pct:.1f} % of the residual but fails {best.verdict.split('(')[-1].rstrip(')')}")
 
