@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# System packages the test suite needs: headless Chromium for the HTML report check.
+# System packages the test suite needs: headless Chromium for the HTML report check, and
+# LinuxCNC (linuxcnc-uspace: its rs274 interpreter checks the part programs).
 # Installed here, by the tests' set-up, so a fresh machine needs nothing by hand.
 set -u
 if ! command -v chromium >/dev/null 2>&1; then
@@ -9,6 +10,15 @@ if ! command -v chromium >/dev/null 2>&1; then
       || echo "tests/setup_system.sh: could not install chromium; the browser test will fail"
   else
     echo "tests/setup_system.sh: chromium missing and not root; the browser test will fail"
+  fi
+fi
+if ! command -v rs274 >/dev/null 2>&1; then
+  if [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then
+    echo "tests/setup_system.sh: installing linuxcnc-uspace (Debian package; rs274 for the part-program test)"
+    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends linuxcnc-uspace) \
+      >/dev/null 2>&1 || echo "tests/setup_system.sh: could not install linuxcnc-uspace; its tests skip"
+  else
+    echo "tests/setup_system.sh: rs274 missing and not root; the LinuxCNC tests skip"
   fi
 fi
 exit 0

@@ -23,6 +23,7 @@ SUMMARY = {
     "resume": "continue an interrupted campaign: the points it left out",
     "replay": "re-run a recorded campaign offline through the capture code",
     "import-stream": "turn a continuous position log into a point table",
+    "program": "the plan as a part program (LinuxCNC, FANUC, SINUMERIK, HEIDENHAIN) for another controller",
     "convert": "measurement files of other programs (.rtl, ecmc .dat) to point tables and back",
     "report": "write the HTML report of a campaign for quality",
 }
