@@ -70,8 +70,9 @@ def test_pmac_paper_turntable():
 def test_twincat_cnc_hand_worked():
     # 0.1 µm units: setpoints 0, 100000, 200000; value = actual - programmed = -correction:
     # pos = [50, -30, 0], neg = [70, -10, -20]
-    text = render("twincat_cnc", BI).text
+    text = render("twincat_cnc", BI, FormatOptions(axis_number=3)).text
     fields = dict(line.split(None, 1) for line in text.splitlines())
+    assert text.splitlines()[0] == "kopf.achs_nr 3"  # the logical axis number heads the list
     assert fields["kw.ssfk.interval"] == "100000"
     assert fields["kw.ssfk.kw_startpos"] == "0"
     assert fields["kw.ssfk.kw_nr_max"] == "3"
@@ -124,7 +125,7 @@ def test_fanuc_magnification():
 def test_heidenhain_hand_worked():
     # common in mm: -0.006, 0.002, 0.001; BACKLASH = reverse - forward: -0.002, -0.002, 0.002
     text = render("heidenhain", BI, FormatOptions(axis_name="X")).text
-    assert text.splitlines() == ["BEGIN X.COM", "NR AXISPOS DX BACKLASH",
+    assert text.splitlines() == ["BEGIN X.COM", "NR AXISPOS X BACKLASH",
                                  "0 0.0000 -0.00600 -0.00200", "1 10.0000 +0.00200 -0.00200",
                                  "2 20.0000 +0.00100 +0.00200", "[END]"]
 
@@ -150,3 +151,32 @@ def test_pmac_command_reproduces_the_paper_by_default(tmp_path):
     assert "DEFINE COMP 10,100000" in lines
     assert "84 55 66 41 100 59 66 40 135 0" in lines
     assert lines[-1] == "I51=1"
+
+
+def test_twincat_cnc_needs_a_logical_axis_number_and_not_0():
+    with pytest.raises(BAD_INPUT, match="--axis-number"):
+        render("twincat_cnc", BI)
+    with pytest.raises(BAD_INPUT, match="1..65534"):
+        render("twincat_cnc", BI, FormatOptions(axis_number=0))
+    assert "kopf.achs_nr 65534" in render("twincat_cnc", BI, FormatOptions(axis_number=65534)).text
+
+
+def test_linuxcnc_inch_table_for_an_inch_machine():
+    # 10 mm = 0.3937008 in; actual 9.997 mm = 0.3935827 in
+    text = render("linuxcnc", BI, FormatOptions(units="inch")).text
+    assert text.splitlines()[1] == "0.3937008 0.3935827 0.3936614"
+
+
+def test_siemens_point_limit_by_control_and_provenance_comments():
+    big = ControllerTable("linear", 0.0, 1.0, np.zeros(201), np.zeros(201), np.zeros(201), "uni", None)
+    with pytest.raises(BAD_INPUT, match="808D takes at most 200"):
+        render("siemens", big, FormatOptions(control="808d"))
+    text = render("siemens", big, FormatOptions(provenance=(("machine", "mill-3"), ("axis", "X")))).text
+    assert text.splitlines()[:3] == ["%_N_AX_EEC_INI", "; machine: mill-3", "; axis: X"]
+
+
+def test_heidenhain_old_tnc_needs_a_power_of_two_spacing():
+    with pytest.raises(BAD_INPUT, match="power-of-two spacing"):
+        render("heidenhain", UNI, FormatOptions(control="tnc426"))  # 10 mm
+    eight = ControllerTable("linear", 0.0, 8.0, UNI.forward, UNI.reverse, UNI.common, "uni", 2.0)
+    assert render("heidenhain", eight, FormatOptions(control="tnc426")).text.startswith("BEGIN X.COM")

@@ -23,7 +23,7 @@ CASES = {
     "linuxcnc": (BI, 1e-3, FormatOptions()),
     "csv": (BI, 1e-4, FormatOptions()),
     "json": (BI, 1e-9, FormatOptions()),
-    "twincat_cnc": (BI, 0.05, FormatOptions()),
+    "twincat_cnc": (BI, 0.05, FormatOptions(axis_number=1)),
     "siemens": (UNI, 1e-3, FormatOptions()),
     "heidenhain": (UNI, 1e-2, FormatOptions()),
     "pmac": (UNI, 0.0625 / 2, FormatOptions(counts_per_unit=CPU)),

@@ -51,6 +51,13 @@ def register(sub) -> None:
                    help="counts (pmac) or detection units (fanuc) per mm or deg")
     p.add_argument("--axis-name", default=None, help="controller axis name (default X; siemens AX1)")
     p.add_argument("--joint", type=non_negative_integer, default=0, help="LinuxCNC joint number")
+    p.add_argument("--units", choices=("mm", "inch"), default="mm",
+                   help="linuxcnc: the machine's units (an inch machine needs an inch table; default mm)")
+    p.add_argument("--axis-number", type=positive_integer,
+                   help="twincat_cnc: the axis' logical number, kopf.achs_nr (1..65534; required)")
+    p.add_argument("--control", choices=("840d", "828d", "808d", "tnc640", "tnc426"),
+                   help="siemens: 840d (default), 828d or 808d (sets the point limit: 808D 200); "
+                        "heidenhain: tnc640 (default) or tnc426 (power-of-two spacing)")
     p.add_argument("--write-plc", metavar="CONFIG",
                    help="TwinCAT: also write the tables into the PLC of CONFIG over ADS "
                         "(GVL_Axiscal.astComp[n]), read them back, compare, then enable them")
@@ -59,6 +66,15 @@ def register(sub) -> None:
     p.add_argument("--max-accel", type=positive_number, metavar="UM_PER_S2",
                    help="with --write-plc: correction acceleration limit, µm/s² (arcsec/s²)")
     p.set_defaults(func=run)
+
+
+def control_point_limit(fmt: str, control: str | None) -> int:
+    """The default point limit of a format, for the control where it depends on it (siemens)."""
+    if fmt == "siemens":
+        from protocols.tables.siemens import DEFAULT_CONTROL, MAX_POINTS
+
+        return min(POINT_LIMITS[fmt], MAX_POINTS.get(control or DEFAULT_CONTROL, POINT_LIMITS[fmt]))
+    return POINT_LIMITS[fmt]
 
 
 def run(args) -> int:
@@ -72,12 +88,14 @@ def run(args) -> int:
                       "measured (resume the campaign first for a complete one)")
     method = args.method or DEFAULT_METHOD.get(args.format, "inverse")
     corr = corrections(table, args.mode, method, args.smooth)
-    max_points = args.max_points or POINT_LIMITS[args.format]
+    max_points = args.max_points or control_point_limit(args.format, args.control)
     ctable = resample(corr, max_points, args.spacing, args.reference, args.overrun)
     axis = args.axis_name or ("AX1" if args.format == "siemens" else "X")
     provenance = (("points", str(Path(args.file).resolve())), ("machine", table.meta.get("machine", "")),
                   ("axis", table.meta.get("axis", "")), ("software", f"axiscal {__version__}"))
-    rendered = render(args.format, ctable, FormatOptions(axis, args.joint, 1, args.counts_per_unit, provenance))
+    options = FormatOptions(axis, args.joint, 1, args.counts_per_unit, provenance, args.units, args.axis_number,
+                            args.control)
+    rendered = render(args.format, ctable, options)
     out = Path(args.output)
     try:
         out.write_text(rendered.text, encoding="utf-8")

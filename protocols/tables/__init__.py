@@ -26,6 +26,13 @@ class FormatOptions:
     motor: int = 1
     counts_per_unit: float | None = None
     provenance: tuple[tuple[str, str], ...] = ()
+    units: str = "mm"
+    """LinuxCNC: the machine's units, mm or inch (an inch machine needs an inch table)."""
+    axis_number: int | None = None
+    """TwinCAT CNC: kopf.achs_nr, the logical axis number (1..65534; 0 is not allowed)."""
+    control: str | None = None
+    """The control's generation where it matters: siemens 840d|828d|808d (point limit),
+    heidenhain tnc640|tnc426 (the older TNCs need a power-of-two spacing)."""
     """Where the table comes from (machine, axis, points file, software), for formats that can
     carry it."""
 
@@ -89,6 +96,11 @@ def number(text: str, path: str, line: int, what: str = "value") -> float:
     if not math.isfinite(value):
         raise FormatError(f"{path}: line {line}: {what} '{text}' is not a finite number")
     return value
+
+
+def provenance_lines(options: FormatOptions, prefix: str) -> list[str]:
+    """The provenance as comment lines starting with `prefix` (where the format has comments)."""
+    return [f"{prefix}{key}: {value}" for key, value in options.provenance if value]
 
 
 def equidistant(positions: list[float], path: str) -> tuple[float, float]:

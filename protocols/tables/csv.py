@@ -4,19 +4,21 @@ control adds to the command, ≈ -error) in the deviation unit, for both directi
 from __future__ import annotations
 
 from protocols.errors import FormatError
-from protocols.tables import FormatOptions, Rendered, TableRead, equidistant, number
+from protocols.tables import FormatOptions, Rendered, TableRead, equidistant, number, provenance_lines
 from protocols.units import UNITS
 
 
 def render(table, options: FormatOptions) -> Rendered:
     pos_unit, dev_unit = UNITS[table.kind]
-    lines = [f"position_{pos_unit},correction_forward_{dev_unit},correction_reverse_{dev_unit}"]
+    lines = provenance_lines(options, "# ")
+    lines.append(f"position_{pos_unit},correction_forward_{dev_unit},correction_reverse_{dev_unit}")
     lines += [f"{p:.6f},{fw:.4f},{rv:.4f}" for p, fw, rv in zip(table.positions, table.forward, table.reverse)]
     return Rendered("\n".join(lines) + "\n")
 
 
 def parse(text: str, path: str, options: FormatOptions) -> TableRead:
-    lines = [(i, line.strip()) for i, line in enumerate(text.lstrip("\ufeff").splitlines(), start=1) if line.strip()]
+    lines = [(i, line.strip()) for i, line in enumerate(text.lstrip("\ufeff").splitlines(), start=1)
+             if line.strip() and not line.startswith("#")]
     if not lines:
         raise FormatError(f"{path}: empty table")
     header = lines[0][1].split(",")

@@ -11,7 +11,7 @@ from __future__ import annotations
 import re
 
 from protocols.errors import FormatError
-from protocols.tables import FormatOptions, Rendered, TableRead
+from protocols.tables import FormatOptions, Rendered, TableRead, provenance_lines
 
 
 def render(table, options: FormatOptions) -> Rendered:
@@ -33,7 +33,8 @@ def render(table, options: FormatOptions) -> Rendered:
     if table.backlash is not None:
         notes.append(f"backlash: I{options.motor}86 = {round(-table.backlash * table.unit_factor * cpu * 16)} "
                      "(1/16 count, lost motion = -B̄)")
-    text = (f"#{options.motor}\nDEFINE COMP {len(entries)},{count_length}\n"
+    comments = "".join(f"{line}\n" for line in provenance_lines(options, "; "))
+    text = (comments + f"#{options.motor}\nDEFINE COMP {len(entries)},{count_length}\n"
             + " ".join(str(e) for e in entries) + "\nI51=1\n")
     return Rendered(text, notes)
 

@@ -2,6 +2,9 @@
 (degree), a positive value moves the axis in the negative direction: value = -correction.
 Needs MD38000 >= the number of points and MD32700 ENC_COMP_ENABLE = 1; active once the axis is
 referenced. Direction-dependent tables (CEC with $AN_CEC_DIRECTION) are not written: uni mode.
+The number of points depends on the control (MAX_POINTS; 808D: 200); the manual recommends the
+value 0 at the reference point (give `reference`, compensate --reference). `;` comment lines
+carry the provenance.
 """
 
 from __future__ import annotations
@@ -9,21 +12,33 @@ from __future__ import annotations
 import re
 
 from protocols.errors import FormatError
-from protocols.tables import FormatOptions, Rendered, TableRead, number
+from protocols.tables import FormatOptions, Rendered, TableRead, number, provenance_lines
+
+MAX_POINTS = {"840d": 5000, "828d": 5000, "808d": 200}
+"""Points per EEC table by control: MD38000's upper limit (840D sl, 828D: 5000; 808D: 200)."""
+DEFAULT_CONTROL = "840d"
 
 
 def render(table, options: FormatOptions) -> Rendered:
+    control = options.control or DEFAULT_CONTROL
+    if control not in MAX_POINTS:
+        raise FormatError(f"siemens --control must be one of {', '.join(MAX_POINTS)}, found '{control}'")
+    if len(table.common) > MAX_POINTS[control]:
+        raise FormatError(f"the SINUMERIK {control.upper()} takes at most {MAX_POINTS[control]} points per table, "
+                          f"the table has {len(table.common)} (use --max-points)")
     if table.mode != "uni":
         raise FormatError("siemens EEC holds one table per axis; use --mode uni")
     axis = options.axis_name
     f = table.unit_factor
-    lines = ["%_N_AX_EEC_INI", "CHANDATA(1)"]
+    lines = ["%_N_AX_EEC_INI", *provenance_lines(options, "; "), "CHANDATA(1)"]
     lines += [f"$AA_ENC_COMP[0,{i},{axis}]={-c * f:.6f}" for i, c in enumerate(table.common)]
     lines += [f"$AA_ENC_COMP_STEP[0,{axis}]={table.spacing:.6f}",
               f"$AA_ENC_COMP_MIN[0,{axis}]={table.positions[0]:.6f}",
               f"$AA_ENC_COMP_MAX[0,{axis}]={table.positions[-1]:.6f}",
               f"$AA_ENC_COMP_IS_MODULO[0,{axis}]=0", "M17"]
     notes = [f"MD38000 MM_ENC_COMP_MAX_POINTS >= {len(table.common)}", "MD32700 ENC_COMP_ENABLE = 1"]
+    if table.reference is None:
+        notes.append("the manual recommends 0 at the reference point: give --reference (the reference position)")
     if table.backlash is not None:
         notes.append(f"MD32450 BACKLASH = {-table.backlash * f:.6f} (lost motion = -B̄)")
     return Rendered("\n".join(lines) + "\n", notes)

@@ -1,7 +1,10 @@
 """TwinCAT CNC (TF5200) leadscrew error compensation list `kw.ssfk.*`: equidistant, bilateral,
 unit 1 = 0.1 µm (0.0001 degree on a rotary axis: not verified). Positions and values are in that
 unit; a value is actual - programmed = -correction (Beckhoff's example: -102 = -10.2 µm).
-Enabled by lr_param.ssfk = 1 in the axis parameters.
+Enabled by lr_param.ssfk = 1 in the axis parameters. The header names the axis by its logical
+number, kopf.achs_nr (P-COMP-00001, UNS16, 0 < achs_nr < 65535 in both TX1270 and TF5200; a
+number that is not the axis' aborts the list): it must be given. No comment is written: the
+list's comment syntax is not verified here.
 """
 
 from __future__ import annotations
@@ -15,7 +18,16 @@ MAX_POINTS = 1500
 PER_AXIS_UNIT = 10_000  # 0.1 µm per mm
 
 
+AXIS_NUMBERS = range(1, 65535)
+"""kopf.achs_nr: UNS16, 0 not allowed (Beckhoff TF5200 axis compensation, P-COMP-00001)."""
+
+
 def render(table, options: FormatOptions) -> Rendered:
+    if options.axis_number is None:
+        raise FormatError("twincat_cnc needs --axis-number: the axis' logical number (kopf.achs_nr, "
+                          "P-AXIS-00016 in its axis parameters)")
+    if options.axis_number not in AXIS_NUMBERS:
+        raise FormatError(f"--axis-number {options.axis_number}: kopf.achs_nr must be 1..65534 (0 is not allowed)")
     n = len(table.forward)
     if n > MAX_POINTS:
         raise FormatError(f"twincat_cnc takes at most {MAX_POINTS} points (kw.ssfk.max_points), got {n}")
@@ -29,7 +41,8 @@ def render(table, options: FormatOptions) -> Rendered:
         rows.append((f"kw.ssfk.table[{i}].pos", round(-c * tenth)))
     for i, c in enumerate(table.reverse):
         rows.append((f"kw.ssfk.table[{i}].neg", round(-c * tenth)))
-    text = f"kopf.log_achs_name {options.axis_name}\n" + "".join(f"{k:<36}{v}\n" for k, v in rows)
+    text = (f"kopf.achs_nr {options.axis_number}\nkopf.log_achs_name {options.axis_name}\n"
+            + "".join(f"{k:<36}{v}\n" for k, v in rows))
     return Rendered(text, ["set lr_param.ssfk = 1 in the axis parameters"])
 
 
