@@ -91,8 +91,11 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "seed": Key(int, 1, "seed of the random offsets (recorded)", min=0),
     },
     "axis_driver": {
-        "type": Key(str, "sim", "sim (simulated machine over loopback ADS) or ads (a real PLC)",
-                    choices=("sim", "ads"), resume=True),
+        "type": Key(str, "sim", "sim (simulated machine over loopback ADS), ads (a real PLC) or linuxcnc (a "
+                    "headless LinuxCNC with a simulated laser, docs/linuxcnc.md)",
+                    choices=("sim", "ads", "linuxcnc"), resume=True),
+        "comp_file": Key(str, "", "linuxcnc: the COMP_FILE (type 0) LinuxCNC loads at start; empty: none",
+                         resume=True),
         "ams_net_id": Key(str, "127.0.0.1.1.1", "the PLC's AMS net id", resume=True),
         "ams_port": Key(int, 851, "the PLC runtime's ADS port", min=1, max=65535, resume=True),
         "ip": Key(str, "127.0.0.1", "the PLC's IP address", resume=True),

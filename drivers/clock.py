@@ -12,3 +12,29 @@ class RealClock:
     def sleep(self, seconds: float) -> None:
         if seconds > 0:
             time.sleep(seconds)
+
+
+class ListenedClock:
+    """Wall time from 0 at creation, s; after every sleep the attached listeners get the new time
+    (the simulated laser beside a real-time controller emits its readings from there)."""
+
+    def __init__(self):
+        self._start = time.monotonic()
+        self._listeners = []
+
+    def attach(self, listener) -> None:
+        self._listeners.append(listener)
+
+    def detach(self, listener) -> None:
+        if listener in self._listeners:
+            self._listeners.remove(listener)
+
+    def now(self) -> float:
+        return time.monotonic() - self._start
+
+    def sleep(self, seconds: float) -> None:
+        if seconds > 0:
+            time.sleep(seconds)
+        t = self.now()
+        for listener in list(self._listeners):
+            listener(t)

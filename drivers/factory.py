@@ -58,7 +58,47 @@ def open_hardware(config: Config, speed: float | None = None, model: ErrorModel 
             raise InputError(f"{config.source}: instrument.port: cannot open {inst['port']}: {exc}") from None
         hw.closers.append(hw.interferometer.close)
         return hw, None
+    if drv["type"] == "linuxcnc":
+        return _open_linuxcnc(config, fmt, model)
     return _open_sim(config, fmt, speed, model, start_position, start_time)
+
+
+def _open_linuxcnc(config, fmt, model):
+    """A headless LinuxCNC (with `axis_driver.comp_file` loaded by its own COMP_FILE loader), its
+    axis over linuxcncrsh, and the simulated laser reading the joint's motor position from HAL
+    through the error model, on the wall clock (LinuxCNC runs in real time)."""
+    from pathlib import Path
+
+    from drivers.clock import ListenedClock
+    from drivers.linuxcnc.axis import LinuxCncAxis, LinuxCncShell
+    from drivers.linuxcnc.motor import LinuxCncMotor
+    from drivers.linuxcnc.process import LinuxCnc
+    from drivers.sim.interferometer import SimInterferometer
+    from drivers.sim.machine import SimAxisPhysics
+
+    axis_cfg, drv, inst = config["axis"], config["axis_driver"], config["instrument"]
+    if axis_cfg["unit"] != "mm":
+        raise InputError(f"{config.source}: axis_driver.type = linuxcnc drives one linear joint (mm)")
+    comp = Path(drv["comp_file"]) if drv["comp_file"] else None
+    if comp is not None and not comp.is_file():
+        raise InputError(f"{config.source}: axis_driver.comp_file: {comp}: no such file")
+    linuxcnc = LinuxCnc(axis_cfg["soft_limit_min"], axis_cfg["soft_limit_max"], axis_cfg["max_velocity"],
+                        axis_cfg["max_acceleration"], comp)
+    clock = ListenedClock()
+    hw = Hardware(None, None, clock, [linuxcnc.stop])
+    try:
+        hw.axis = LinuxCncAxis(LinuxCncShell())
+        hw.closers.append(hw.axis.close)
+        physics = SimAxisPhysics(LinuxCncMotor(linuxcnc), model or sim_model(config), "mm", config["sim"]["seed"])
+        instrument = SimInterferometer(clock, physics.measure, fmt, inst["rate_hz"], inst["mode"])
+        hw.closers.append(instrument.close)
+        hw.interferometer = SerialInterferometer(instrument.port_name, inst["baudrate"], fmt, inst["mode"],
+                                                 inst["timeout_s"])
+        hw.closers.append(hw.interferometer.close)
+    except BaseException:
+        hw.close()
+        raise
+    return hw, None
 
 
 def serve_on_free_loopback(plc):

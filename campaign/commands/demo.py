@@ -1,4 +1,5 @@
-"""`axiscal demo [--out DIR] [--speed N] [--capture dwell|stable] [--json] [--plot OUT]`.
+"""`axiscal demo [--out DIR] [--speed N] [--capture dwell|stable] [--json] [--plot OUT]
+[--controller sim|linuxcnc [--verify]] [--cycles N]`.
 
 The main job: a complete campaign on the simulated machine (the horizontal axis of Li et al. 2022) through
 the real ADS client against the loopback test server and the real serial stack over a pty,
@@ -9,9 +10,10 @@ from __future__ import annotations
 
 from importlib import resources
 
-from campaign.commands import SUMMARY, hardware_opener
+from campaign.commands import SUMMARY, hardware_opener, positive_integer
 from campaign.commands.run import add_run_options, apply_on_fault, finish, run_config
 from campaign.config import parse_config
+from campaign.errors import InputError
 from campaign.faults import parse_inject
 from campaign.measure.progress import RichProgress
 from campaign.measure.session import resume_campaign, start_campaign
@@ -27,6 +29,13 @@ def register(sub) -> None:
                        description="Run the horizontal-axis campaign of Li et al. 2022 on the simulated machine.")
     add_run_options(p)
     p.add_argument("--capture", choices=("dwell", "stable"), help="capture method (default dwell)")
+    p.add_argument("--controller", choices=("sim", "linuxcnc"), default="sim",
+                   help="sim (default): the simulated PLC over ADS; linuxcnc: a headless LinuxCNC (real time) "
+                        "with a simulated laser on its joint (docs/linuxcnc.md)")
+    p.add_argument("--verify", action="store_true",
+                   help="with --controller linuxcnc: compensate (--format linuxcnc), restart LinuxCNC with the "
+                        "COMP_FILE and measure again")
+    p.add_argument("--cycles", type=positive_integer, help="runs of the campaign (default 5)")
     p.add_argument("--inject", metavar="NAME[@S],...",
                    help="rehearse faults at simulated times, e.g. beam_break@300,ads_lost@500 "
                         "(names: see docs/faults.md); the campaign resumes by itself where needed")
@@ -38,6 +47,15 @@ MAX_RESUMES = 3
 
 def run(args) -> int:
     text = demo_config_text()
+    if args.cycles:
+        text = text.replace("cycles = 5", f"cycles = {args.cycles}")
+    if args.controller == "linuxcnc":
+        from campaign.commands.linuxcnc_demo import linuxcnc_demo
+
+        return linuxcnc_demo(text, args)
+    if args.verify:
+        raise InputError("--verify: the simulated PLC's closed loop is `axiscal verify`; --verify goes with "
+                         "--controller linuxcnc")
     if args.capture:
         text = text.replace('method = "dwell"', f'method = "{args.capture}"')
     if not args.inject:
