@@ -257,3 +257,31 @@ def test_comp_table_write_and_read_back(machine):
     full = _table(points=plc_contract.MAX_COMP_POINTS, enabled=False)
     m.axis.write_comp_table(full)
     assert m.axis.read_comp_table() == full
+
+
+@pytest.mark.machine
+def test_write_of_the_wrong_size_is_refused_like_twincat_and_the_plc_keeps_scanning(machine):
+    """A client that writes 8 bytes into the 2-byte eCommand gets 0x705 (invalid size), as from
+    TwinCAT; the variable keeps its value and the PLC goes on answering and moving."""
+    import pyads
+
+    m = machine
+    name = CONTROL["eCommand"].name
+    raw = pyads.Connection(NET_ID, 851, IP)
+    raw.open()
+    try:
+        raw.set_timeout(500)
+        handle = raw.get_handle(name)
+        with pytest.raises(pyads.ADSError) as refused:
+            raw.write_by_name("", 7, pyads.PLCTYPE_LREAL, handle=handle)
+        assert refused.value.err_code == 0x705
+        raw.release_handle(handle)
+        assert m.plc.value(name) == 0
+        with pytest.raises(pyads.ADSError) as unknown:
+            raw.read_by_name("MAIN.bNoSuchSymbol", pyads.PLCTYPE_BOOL)
+        assert unknown.value.err_code == 0x710
+    finally:
+        raw.close()
+    m.clock.sleep(POLL_S)
+    m.axis.start_move(5.0, 10.0)
+    assert wait_until_idle(m).actual_position == 5.0

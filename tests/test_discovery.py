@@ -155,6 +155,7 @@ def test_two_hidden_effects_are_both_named(pair):
     assert result.gap_after_um <= 1.3 * NOISE_UM
 
 
+@pytest.mark.machine  # 100 simulated campaigns and discoveries: about 17 s, too long for the fast tier
 def test_null_case_names_nothing_in_at_least_95_of_100_seeds():
     true_effects = {**BASE, "nonlinear_lead": HIDDEN["nonlinear_lead"][0]}
     start = [name for name in true_effects if name != "noise"]

@@ -44,13 +44,20 @@ _ADS_SYMBOL_NOT_FOUND = 0x710
 
 _ADS_COMMAND_WRITE = 3
 """The ADS Write command id (a write by handle, as pyads' write_by_name sends it)."""
+_ADS_COMMAND_READ, _ADS_COMMAND_READ_WRITE = 2, 9
+_ADS_INVALID_SIZE = 0x705
+"""ADSERR_DEVICE_INVALIDSIZE: what TwinCAT answers to a write whose length is not the variable's."""
+_ADSIGRP_SYM_VALBYHND, _ADSIGRP_SYM_RELEASEHND = 0xF005, 0xF006
 
 
 class _LockedHandler(AdvancedHandler):
     """An AdvancedHandler that answers each request while holding the PLC's lock.
 
     An unknown symbol gets the ADS error a real PLC gives; the plain handler raises KeyError
-    instead, which kills the server's connection thread and leaves the client waiting.
+    instead, which kills the server's connection thread and leaves the client waiting. A write
+    whose length is not the variable's size is refused with 0x705, as TwinCAT does: the plain
+    handler would store it, and the next PLC scan could not decode the variable. The error goes in
+    the reply's result field (the AMS header's error stays 0), as TwinCAT answers ADS requests.
     """
 
     def __init__(self, lock: threading.Lock):
@@ -61,15 +68,33 @@ class _LockedHandler(AdvancedHandler):
 
     def handle_request(self, request: AmsPacket) -> AmsResponseData:
         with self._lock:
-            if struct.unpack("<H", request.ams_header.command_id)[0] == _ADS_COMMAND_WRITE:
-                self.writes += 1
+            command = struct.unpack("<H", request.ams_header.command_id)[0]
             try:
+                if command == _ADS_COMMAND_WRITE:
+                    self.writes += 1
+                    if not self._size_fits(request.ams_header.data):
+                        return self._error(request, command, _ADS_INVALID_SIZE)
                 return super().handle_request(request)
             except KeyError:
-                state = struct.unpack("<H", request.ams_header.state_flags)[0] | 0x0001
-                return AmsResponseData(
-                    struct.pack("<H", state), struct.pack("<I", _ADS_SYMBOL_NOT_FOUND), b""
-                )
+                return self._error(request, command, _ADS_SYMBOL_NOT_FOUND)
+
+    def _size_fits(self, data: bytes) -> bool:
+        """Does a Write request's length match its variable's size? (KeyError: no such variable)"""
+        group, offset, length = struct.unpack("<III", data[:12])
+        if group == _ADSIGRP_SYM_RELEASEHND:
+            return True
+        var = (self.get_variable_by_handle(offset) if group == _ADSIGRP_SYM_VALBYHND
+               else self.get_variable_by_indices(group, offset))
+        return length == var.size
+
+    @staticmethod
+    def _error(request: AmsPacket, command: int, code: int) -> AmsResponseData:
+        """A reply carrying `code` in its result field; read replies also carry a length of 0."""
+        state = struct.unpack("<H", request.ams_header.state_flags)[0] | 0x0001
+        body = struct.pack("<I", code)
+        if command in (_ADS_COMMAND_READ, _ADS_COMMAND_READ_WRITE):
+            body += struct.pack("<I", 0)
+        return AmsResponseData(struct.pack("<H", state), struct.pack("<I", 0), body)
 
 
 @dataclass(frozen=True)
