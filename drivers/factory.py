@@ -142,7 +142,7 @@ def _open_sim(config, fmt, speed, model, start_position, start_time):
     try:
         instrument = SimInterferometer(clock, physics.measure, fmt, inst["rate_hz"], inst["mode"])
         hw.closers.append(instrument.close)
-        hw.axis = AdsAxis(f"{server.ip}.1.1", server.ip, drv["axis_index"], 851, timeout_s=drv["timeout_s"],
+        hw.axis = AdsAxis(server.net_id, server.ip, drv["axis_index"], drv["ams_port"], timeout_s=drv["timeout_s"],
                           read_only=drv["read_only"])
         hw.closers.append(hw.axis.close)
         hw.interferometer = SerialInterferometer(instrument.port_name, inst["baudrate"], fmt, inst["mode"],

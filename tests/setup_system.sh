@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# System packages the test suite needs: headless Chromium for the HTML report check, and
-# LinuxCNC (linuxcnc-uspace: its rs274 interpreter checks the part programs).
+# System packages the test suite needs: headless Chromium for the HTML report check,
+# LinuxCNC (linuxcnc-uspace: its rs274 interpreter checks the part programs), and ads-client from
+# npm (tests/ads_client: an ADS client we did not write checks the simulated PLC).
 # Installed here, by the tests' set-up, so a fresh machine needs nothing by hand.
 set -u
 if ! command -v chromium >/dev/null 2>&1; then
@@ -19,6 +20,15 @@ if ! command -v rs274 >/dev/null 2>&1; then
       >/dev/null 2>&1 || echo "tests/setup_system.sh: could not install linuxcnc-uspace; its tests skip"
   else
     echo "tests/setup_system.sh: rs274 missing and not root; the LinuxCNC tests skip"
+  fi
+fi
+if [ ! -d tests/ads_client/node_modules/ads-client ]; then
+  if command -v npm >/dev/null 2>&1; then
+    echo "tests/setup_system.sh: installing ads-client (npm) into tests/ads_client"
+    (cd tests/ads_client && npm ci --no-audit --no-fund) >/dev/null 2>&1 \
+      || echo "tests/setup_system.sh: could not install ads-client; the ADS fidelity tests skip"
+  else
+    echo "tests/setup_system.sh: npm missing; the ADS fidelity tests skip"
   fi
 fi
 exit 0

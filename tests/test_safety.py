@@ -100,3 +100,13 @@ def test_a_dry_run_without_the_plc_says_where_it_looked_and_exits_2(cli, tmp_pat
     path.write_text(text)
     assert_one_line_error(cli("run", path, "--dry-run"), "dry run: ", "PLC at IP 127.0.0.1",
                           "AMS Net ID 127.0.0.1.1.1", "port 851", "ADS route", "not in RUN", "cable")
+
+
+@pytest.mark.machine
+def test_a_wrong_ams_port_fails_on_the_simulated_machine_as_on_a_real_one(cli, tmp_path):
+    """The simulated PLC answers only on port 851, as a TwinCAT 3 PLC runtime: the router's 0x6
+    (target port not found), and the hint names the port."""
+    path = tmp_path / "port852.toml"
+    path.write_text(DEMO.replace('[axis_driver]\ntype = "sim"', '[axis_driver]\ntype = "sim"\nams_port = 852'))
+    assert_one_line_error(cli("run", path, "--dry-run"), "dry run: ", "Target port not found", "port 852",
+                          "ams_port is wrong")

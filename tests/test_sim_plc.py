@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from drivers.sim.clock import SimClock
 from drivers.sim.plc import SimPLC
-from protocols import plc_contract
+from protocols import plc_contract, plc_layout
 from protocols.plc_contract import Command
 
 CONTROL = plc_contract.control_symbols(1)
@@ -19,7 +19,8 @@ STATUS = plc_contract.status_symbols(1)
 def _write(plc: SimPLC, member: str, value) -> None:
     """What the ADS server does for a client's write."""
     symbol = CONTROL[member]
-    plc._vars[symbol.name].write(plc._encode(symbol, value))
+    place = plc_layout.resolve(symbol.name)
+    plc.memory[place.offset:place.offset + place.size] = plc._encode(symbol, value)
 
 
 def _move(plc: SimPLC, target: float, velocity: float) -> None:

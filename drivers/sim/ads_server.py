@@ -35,6 +35,11 @@ class SimAdsServer:
         self._server: AdsTestServer | None = None
 
     @property
+    def net_id(self) -> str:
+        """The PLC's AMS Net ID: its IP address and .1.1, as TwinCAT sets it by default."""
+        return f"{self.ip}.1.1"
+
+    @property
     def running(self) -> bool:
         return self._server is not None
 
@@ -42,6 +47,7 @@ class SimAdsServer:
         """Accept ADS clients from now on (no-op when already running)."""
         if self._server is not None:
             return
+        self.plc.handler.net_id = self.net_id
         server = AdsTestServer(handler=self.plc.handler, ip_address=self.ip, port=self.port, logging=False)
         try:
             server.server.listen(5)

@@ -1,8 +1,10 @@
 """A simulated TwinCAT PLC that runs FB_AxiscalAxis for one axis.
 
-Its variables are the symbols of `protocols.plc_contract` for that axis, held as
-`pyads.testserver.PLCVariable`s on an `AdvancedHandler` (`SimPLC.handler`), so a real pyads client
-can talk to it through `drivers.sim.ads_server.SimAdsServer`.
+Its variables are GVL_Axiscal (`protocols.plc_contract`), held in `SimPLC.memory` with TwinCAT's
+layout (`protocols.plc_layout`); `SimPLC.handler` answers ADS requests on that memory as a TwinCAT
+PLC runtime does (`drivers.sim.ads_device`), so a real ADS client can talk to it through
+`drivers.sim.ads_server.SimAdsServer`. It runs the FB for its own axis; the other axes' entries
+exist and stay as written.
 
 There is no PLC thread: `scan(t)` is one PLC cycle at simulated time t (s); attach it to the
 simulated clock with `clock.attach(plc.scan)`. The ADS server answers requests on its own threads,
@@ -22,79 +24,12 @@ import struct
 import threading
 from dataclasses import dataclass
 
-from pyads import constants
-from pyads.testserver import AdvancedHandler, PLCVariable
-from pyads.testserver.handler import AmsPacket, AmsResponseData
-
-from protocols import plc_contract
+from drivers.sim.ads_device import AdsDevice
+from protocols import plc_contract, plc_layout
 from protocols.plc_contract import Command, PlcErrorId, Symbol
 
-_ADS_TYPES = {
-    "BOOL": (constants.ADST_BIT, "?"),
-    "INT": (constants.ADST_INT16, "h"),
-    "UINT": (constants.ADST_UINT16, "H"),
-    "UDINT": (constants.ADST_UINT32, "I"),
-    "LREAL": (constants.ADST_REAL64, "d"),
-}
-"""IEC type -> (ADS data type id, struct format character)."""
-
-_ADS_SYMBOL_NOT_FOUND = 0x710
-"""ADS error code a real PLC returns for an unknown symbol name."""
-
-
-_ADS_COMMAND_WRITE = 3
-"""The ADS Write command id (a write by handle, as pyads' write_by_name sends it)."""
-_ADS_COMMAND_READ, _ADS_COMMAND_READ_WRITE = 2, 9
-_ADS_INVALID_SIZE = 0x705
-"""ADSERR_DEVICE_INVALIDSIZE: what TwinCAT answers to a write whose length is not the variable's."""
-_ADSIGRP_SYM_VALBYHND, _ADSIGRP_SYM_RELEASEHND = 0xF005, 0xF006
-
-
-class _LockedHandler(AdvancedHandler):
-    """An AdvancedHandler that answers each request while holding the PLC's lock.
-
-    An unknown symbol gets the ADS error a real PLC gives; the plain handler raises KeyError
-    instead, which kills the server's connection thread and leaves the client waiting. A write
-    whose length is not the variable's size is refused with 0x705, as TwinCAT does: the plain
-    handler would store it, and the next PLC scan could not decode the variable. The error goes in
-    the reply's result field (the AMS header's error stays 0), as TwinCAT answers ADS requests.
-    """
-
-    def __init__(self, lock: threading.Lock):
-        super().__init__()
-        self._lock = lock
-        self.writes = 0
-        """ADS write requests answered so far (a cheap 'a variable may have changed' marker)."""
-
-    def handle_request(self, request: AmsPacket) -> AmsResponseData:
-        with self._lock:
-            command = struct.unpack("<H", request.ams_header.command_id)[0]
-            try:
-                if command == _ADS_COMMAND_WRITE:
-                    self.writes += 1
-                    if not self._size_fits(request.ams_header.data):
-                        return self._error(request, command, _ADS_INVALID_SIZE)
-                return super().handle_request(request)
-            except KeyError:
-                return self._error(request, command, _ADS_SYMBOL_NOT_FOUND)
-
-    def _size_fits(self, data: bytes) -> bool:
-        """Does a Write request's length match its variable's size? (KeyError: no such variable)"""
-        group, offset, length = struct.unpack("<III", data[:12])
-        if group == _ADSIGRP_SYM_RELEASEHND:
-            return True
-        var = (self.get_variable_by_handle(offset) if group == _ADSIGRP_SYM_VALBYHND
-               else self.get_variable_by_indices(group, offset))
-        return length == var.size
-
-    @staticmethod
-    def _error(request: AmsPacket, command: int, code: int) -> AmsResponseData:
-        """A reply carrying `code` in its result field; read replies also carry a length of 0."""
-        state = struct.unpack("<H", request.ams_header.state_flags)[0] | 0x0001
-        body = struct.pack("<I", code)
-        if command in (_ADS_COMMAND_READ, _ADS_COMMAND_READ_WRITE):
-            body += struct.pack("<I", 0)
-        return AmsResponseData(struct.pack("<H", state), struct.pack("<I", 0), body)
+_FORMATS = {"BOOL": "?", "INT": "h", "UINT": "H", "UDINT": "I", "LREAL": "d"}
+"""IEC elementary type -> struct format character."""
 
 
 @dataclass(frozen=True)
@@ -187,7 +122,9 @@ class SimPLC:
         self._enabled = enabled
         self._homed = homed
         self._lock = threading.Lock()
-        self.handler = _LockedHandler(self._lock)
+        self.memory = bytearray(plc_layout.GVL_TYPE.size)
+        """GVL_Axiscal's bytes, laid out as TwinCAT does (`protocols.plc_layout`)."""
+        self.handler = AdsDevice(self.memory, self._lock)
         self._control = plc_contract.control_symbols(axis)
         self._status = plc_contract.status_symbols(axis)
         self._symbols = {
@@ -195,7 +132,7 @@ class SimPLC:
             for group in (self._control, self._status, plc_contract.comp_symbols(axis))
             for s in group.values()
         }
-        self._vars = {name: self._register(s) for name, s in self._symbols.items()}
+        self._places = {name: plc_layout.resolve(name) for name in self._symbols}
         self._t = float(start_time)  # time of the last scan, s
         self._rest_position = float(position)  # where the axis is when no motion is running
         self._motion: _Motion | None = None
@@ -364,29 +301,21 @@ class SimPLC:
 
     # --- PLC variables -----------------------------------------------------------------------
 
-    def _register(self, symbol: Symbol) -> PLCVariable:
-        ads_type, _ = _ADS_TYPES[symbol.iec_type]
-        type_name = symbol.iec_type
-        if symbol.array_length is not None:
-            type_name = f"ARRAY [0..{symbol.array_length - 1}] OF {symbol.iec_type}"
-        var = PLCVariable(symbol.name, self._encode(symbol, 0), ads_type, type_name)
-        self.handler.add_variable(var)
-        return var
-
     @staticmethod
     def _encode(symbol: Symbol, value) -> bytes:
-        fmt = _ADS_TYPES[symbol.iec_type][1]
+        fmt = _FORMATS[symbol.iec_type]
         if symbol.array_length is None:
             return struct.pack("<" + fmt, value)
         values = [value] * symbol.array_length if not isinstance(value, list) else value
         return struct.pack(f"<{symbol.array_length}{fmt}", *values)
 
     def _decode(self, name: str):
-        symbol = self._symbols[name]
-        fmt = _ADS_TYPES[symbol.iec_type][1]
+        symbol, place = self._symbols[name], self._places[name]
+        raw = self.memory[place.offset:place.offset + place.size]
+        fmt = _FORMATS[symbol.iec_type]
         if symbol.array_length is None:
-            return struct.unpack("<" + fmt, self._vars[name].value)[0]
-        return list(struct.unpack(f"<{symbol.array_length}{fmt}", self._vars[name].value))
+            return struct.unpack("<" + fmt, raw)[0]
+        return list(struct.unpack(f"<{symbol.array_length}{fmt}", raw))
 
     def _get(self, member: str):
         """Value of a control or status member of this axis, e.g. "bExecute"."""
@@ -395,4 +324,5 @@ class SimPLC:
 
     def _set(self, member: str, value) -> None:
         symbol = self._control.get(member) or self._status[member]
-        self._vars[symbol.name].write(self._encode(symbol, value))
+        place = self._places[symbol.name]
+        self.memory[place.offset:place.offset + place.size] = self._encode(symbol, value)
