@@ -97,8 +97,9 @@ GVL_TYPE = structure(GVL, [("astAxes", array(AXIS, 1, MAX_AXES)), ("astComp", ar
 DATA_TYPES = {t.name.lower(): t for t in (CONTROL, STATUS, COMP, AXIS, enumeration("E_AxiscalCommand"),
                                           *(kind for _, kind, _ in GVL_TYPE.members),
                                           *(kind for s in (CONTROL, STATUS, COMP) for _, kind, _ in s.members))}
-"""Every type the GVL uses that the PLC project declares or instantiates, by lower-case name
-(elementary types are not listed: TwinCAT 3 knows them without the project)."""
+"""Every type the GVL uses, by lower-case name: the project's structures and enumeration, the
+array types it instantiates and the elementary types of their members (TwinCAT 3 answers for all
+of them when a client asks for a type by name)."""
 
 MAX_COMP_BYTES = MAX_COMP_POINTS * ELEMENTARY_SIZE["LREAL"]
 
