@@ -65,6 +65,9 @@ def test_choose_mode_rule():
     assert choose_mode("auto", None, s)[0] == "uni"
     with pytest.raises(InputError):
         choose_mode("bi", None, s)
+    # every number in the reason carries its unit
+    assert "by 1.900 µm along the axis" in choose_mode("auto", np.array([0.0, 1.9]), s)[1]
+    assert "4·s = 2.000 arcsec" in choose_mode("auto", np.array([0.0, 2.1]), s, unit="arcsec")[1]
 
 
 def test_one_direction_table_gives_a_unidirectional_table():

@@ -16,6 +16,7 @@ import pytest
 
 from campaign.compensation.corrections import corrections
 from campaign.compensation.grid import ControllerTable, resample
+from campaign.compensation.table_file import read_comp_table
 from campaign.errors import BAD_INPUT
 from campaign.pointtable import read_points
 from protocols.tables import FormatOptions, render
@@ -73,6 +74,7 @@ def test_twincat_cnc_hand_worked():
     text = render("twincat_cnc", BI, FormatOptions(axis_number=3)).text
     fields = dict(line.split(None, 1) for line in text.splitlines())
     assert text.splitlines()[0] == "kopf.achs_nr 3"  # the logical axis number heads the list
+    assert not any(line.startswith("#") for line in text.splitlines())  # no provenance given, no comment
     assert fields["kw.ssfk.interval"] == "100000"
     assert fields["kw.ssfk.kw_startpos"] == "0"
     assert fields["kw.ssfk.kw_nr_max"] == "3"
@@ -180,3 +182,13 @@ def test_heidenhain_old_tnc_needs_a_power_of_two_spacing():
         render("heidenhain", UNI, FormatOptions(control="tnc426"))  # 10 mm
     eight = ControllerTable("linear", 0.0, 8.0, UNI.forward, UNI.reverse, UNI.common, "uni", 2.0)
     assert render("heidenhain", eight, FormatOptions(control="tnc426")).text.startswith("BEGIN X.COM")
+
+
+def test_twincat_cnc_provenance_on_whole_line_comments_that_read_back(tmp_path):
+    # Beckhoff's list syntax: a whole-line comment is "# " at the start of the line
+    options = FormatOptions(axis_number=3, provenance=(("machine", "mill-3"), ("axis", "X"), ("operator", "")))
+    path = tmp_path / "ssfk.lis"
+    path.write_text(render("twincat_cnc", BI, options).text)
+    assert path.read_text().splitlines()[:3] == ["# machine: mill-3", "# axis: X", "kopf.achs_nr 3"]
+    back = read_comp_table(path, "linear", None, options)
+    assert back.forward == pytest.approx(BI.forward) and back.reverse == pytest.approx(BI.reverse)

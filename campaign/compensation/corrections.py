@@ -26,7 +26,7 @@ from campaign.compensation.smooth import SMOOTHING, Smoothing, pool, scatter_wit
 from campaign.errors import InputError
 from campaign.iso230 import evaluate
 from campaign.pointtable import PointTable
-from protocols.units import DEVIATION_SCALE, UNITS
+from protocols.units import DEVIATION_SCALE, UNITS, unit_label
 
 MODES = ("uni", "bi", "auto")
 
@@ -97,8 +97,8 @@ def inverse_corrections(targets: np.ndarray, errors: np.ndarray, unit_factor: fl
 
 
 def choose_mode(requested: str, reversals: np.ndarray | None, scatter: np.ndarray | None,
-                k: float = 2.0) -> tuple[str, str]:
-    """The mode to use and why.
+                k: float = 2.0, unit: str = "µm") -> tuple[str, str]:
+    """The mode to use and why (the reason names `unit`, the deviation unit: µm or arcsec).
 
     reversals: B_i = x̄↑_i - x̄↓_i per target (deviation unit), None with one direction only.
     scatter: every s↑_i and s↓_i (deviation unit), None when there is one run only.
@@ -117,16 +117,16 @@ def choose_mode(requested: str, reversals: np.ndarray | None, scatter: np.ndarra
         return "uni", "measured in one direction only: one table, no backlash value"
     variation = float(np.max(reversals) - np.min(reversals))
     if requested != "auto":
-        return requested, f"requested (reversal varies by {variation:.3f} along the axis)"
+        return requested, f"requested (reversal varies by {variation:.3f} {unit} along the axis)"
     if scatter is None:
         return "bi", "one run only: no scatter to judge the reversal's variation; bidirectional"
     pooled = float(np.sqrt(np.mean(np.square(scatter))))
     limit = 2 * k * pooled
     if variation > limit:
-        return "bi", (f"the reversal varies by {variation:.3f} along the axis, more than the "
-                      f"repeatability {2 * k:g}·s = {limit:.3f}: bidirectional")
-    return "uni", (f"the reversal varies by {variation:.3f} along the axis, within the repeatability "
-                   f"{2 * k:g}·s = {limit:.3f}: one table plus backlash B̄")
+        return "bi", (f"the reversal varies by {variation:.3f} {unit} along the axis, more than the "
+                      f"repeatability {2 * k:g}·s = {limit:.3f} {unit}: bidirectional")
+    return "uni", (f"the reversal varies by {variation:.3f} {unit} along the axis, within the repeatability "
+                   f"{2 * k:g}·s = {limit:.3f} {unit}: one table plus backlash B̄")
 
 
 def corrections(table: PointTable, mode: str = "auto", method: str = "inverse",
@@ -151,7 +151,7 @@ def corrections(table: PointTable, mode: str = "auto", method: str = "inverse",
     reversals = np.array([r.B for r in rows]) if both else None
     sds = [s for r in rows for s in (r.s_up, r.s_down) if s is not None]
     scatter = np.array(sds) if ev.runs > 1 and sds else None
-    chosen, reason = choose_mode(mode, reversals, scatter)
+    chosen, reason = choose_mode(mode, reversals, scatter, unit=unit_label(table.deviation_unit))
     factor = AXIS_UNIT_PER_DEVIATION_UNIT[table.kind]
     within = {d: scatter_within_runs(table.run[table.direction == d], table.target[table.direction == d],
                                      table.deviation[table.direction == d]) for d in table.directions}

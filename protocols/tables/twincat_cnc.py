@@ -3,8 +3,9 @@ unit 1 = 0.1 µm (0.0001 degree on a rotary axis: not verified). Positions and v
 unit; a value is actual - programmed = -correction (Beckhoff's example: -102 = -10.2 µm).
 Enabled by lr_param.ssfk = 1 in the axis parameters. The header names the axis by its logical
 number, kopf.achs_nr (P-COMP-00001, UNS16, 0 < achs_nr < 65535 in both TX1270 and TF5200; a
-number that is not the axis' aborts the list): it must be given. No comment is written: the
-list's comment syntax is not verified here.
+number that is not the axis' aborts the list): it must be given. The provenance goes on
+whole-line comments, `# ` at the start of a line, as in Beckhoff's own compensation list examples
+("Comments in the ASCII file", TX1270 axis compensation and TF5200).
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from __future__ import annotations
 import re
 
 from protocols.errors import FormatError
-from protocols.tables import FormatOptions, Rendered, TableRead, equidistant, number
+from protocols.tables import FormatOptions, Rendered, TableRead, equidistant, number, provenance_lines
 
 MAX_POINTS = 1500
 PER_AXIS_UNIT = 10_000  # 0.1 µm per mm
@@ -41,7 +42,8 @@ def render(table, options: FormatOptions) -> Rendered:
         rows.append((f"kw.ssfk.table[{i}].pos", round(-c * tenth)))
     for i, c in enumerate(table.reverse):
         rows.append((f"kw.ssfk.table[{i}].neg", round(-c * tenth)))
-    text = (f"kopf.achs_nr {options.axis_number}\nkopf.log_achs_name {options.axis_name}\n"
+    comments = "".join(f"{line}\n" for line in provenance_lines(options, "# "))
+    text = (comments + f"kopf.achs_nr {options.axis_number}\nkopf.log_achs_name {options.axis_name}\n"
             + "".join(f"{k:<36}{v}\n" for k, v in rows))
     return Rendered(text, ["set lr_param.ssfk = 1 in the axis parameters"])
 
