@@ -89,10 +89,11 @@ def campaign_dir_of(path: str | Path) -> Path | None:
 
 def incomplete(path: str | Path) -> list[str]:
     """Why the campaign whose directory or points.csv `path` is was not measured completely (its
-    plan's points and runs); nothing for a bare point table."""
+    plan's points and runs); for a bare point table, the points its own grid lacks (targets ×
+    directions × runs)."""
     directory = campaign_dir_of(path)
     if directory is None:
-        return []
+        return completeness(read_points(path, partial=True), None)
     a = assess_path(directory)
     return completeness(a.table, a.planned)
 

@@ -125,6 +125,14 @@ def test_compensate_warns_about_an_incomplete_campaign(cli, tmp_path):
     clean = cli("compensate", tmp_path / "c" / "points.csv", "--format", "json", "-o", tmp_path / "t.json")
     assert json.loads((tmp_path / "t.json").read_text())["provenance"]["machine"] == "fake"
     assert clean.code == 0
+    # the same points outside their directory: no plan, but the grid shows what is missing
+    (tmp_path / "bare.csv").write_text((tmp_path / "c" / "points.csv").read_text())
+    bare = cli("compensate", tmp_path / "bare.csv", "--format", "csv", "-o", tmp_path / "b.csv")
+    assert bare.code == 0 and "warning: incomplete campaign: 6 of 18 points missing" not in bare.out  # whole runs
+    lines = (tmp_path / "c" / "points.csv").read_text().splitlines(keepends=True)
+    (tmp_path / "cut.csv").write_text("".join(lines[:-2]))  # run 2 lacks its last two points
+    cut = cli("compensate", tmp_path / "cut.csv", "--format", "csv", "-o", tmp_path / "b.csv")
+    assert cut.code == 0 and "warning: incomplete campaign: 2 of 12 points missing" in cut.out, cut.out
 
 
 def test_verify_refuses_a_table_that_does_not_cover_the_plan(cli, tmp_path):
