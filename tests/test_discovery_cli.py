@@ -100,6 +100,14 @@ def test_seed_000_horizontal_axis(cli, tmp_path):
     assert (tmp_path / "h.png").read_bytes()[:4] == b"\x89PNG"
 
 
+def test_an_incomplete_campaign_is_said_first(cli, tmp_path):
+    lines = (PAPER / "horizontal_before.csv").read_text().splitlines(keepends=True)
+    (tmp_path / "cut.csv").write_text("".join(lines[:-3]))  # the last run lacks 3 points
+    notes = discover_json(cli, tmp_path / "cut.csv")["notes"]
+    assert notes[0].startswith("incomplete campaign: 3 of 66 points missing (11 targets × 2 direction(s) × 3 runs)")
+    assert not any("incomplete" in note for note in discover_json(cli, PAPER / "horizontal_before.csv")["notes"])
+
+
 def test_text_output_names_steps_units_and_noise(cli, tmp_path):
     config = parse_config(REAL_PLAN + SPATIAL_AND_TIME)
     table = simulate_campaign(config, model_from_dict({"effects": config["sim"]["effects"]}, "t"), seed=2)

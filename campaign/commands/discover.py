@@ -117,6 +117,18 @@ def outlier_notes(outliers: Outliers, kind: str) -> list[str]:
             "them. Measure those points again if the cause is not known.")]
 
 
+def incomplete_notes(path: str) -> list[str]:
+    """What the campaign lacks (its plan's points and runs, or its own grid's), said first: what is
+    named rests on the points measured."""
+    from campaign.assess import incomplete
+
+    problems = incomplete(path)
+    if not problems:
+        return []
+    return [(f"incomplete campaign: {'; '.join(problems)}. What follows rests on the points measured: a run cut "
+             "short weighs the targets it reached more than the others; resume the campaign for the whole picture.")]
+
+
 def print_text(result: Discovery, time_unit: str) -> None:
     console = make_console()
     before = result.disagreement_before
@@ -219,7 +231,7 @@ def run(args) -> int:
     if outliers.found:
         data = keep_rows(data, ~outliers.mask(table))
     result = discover(data, model, given)
-    result.notes[:0] = outlier_notes(outliers, table.kind)
+    result.notes[:0] = incomplete_notes(args.file) + outlier_notes(outliers, table.kind)
     if plot_path:
         plot_steps(result, data.x, data.d, data.y, plot_path)
     if args.save:
