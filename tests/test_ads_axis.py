@@ -18,9 +18,13 @@ from drivers.sim.plc import SimPLC
 from protocols import plc_contract
 from protocols.hardware import AxisError, AxisStatus
 from protocols.plc_contract import CompTable, PlcErrorId
+from tests.conftest import PLC_AT_127_0_0_1
 
 NET_ID = "127.0.0.1.1.1"
 IP = "127.0.0.1"
+
+pytestmark = PLC_AT_127_0_0_1
+
 CONTROL = plc_contract.control_symbols(1)
 COMP = plc_contract.comp_symbols(1)
 POLL_S = 0.05

@@ -24,6 +24,7 @@ from drivers.sim.ads_server import SimAdsServer
 from drivers.sim.clock import SimClock
 from drivers.sim.plc import SimPLC
 from protocols.plc_contract import CompTable
+from tests.conftest import PLC_AT_127_0_0_1
 
 PROBE = Path(__file__).parent / "ads_client" / "probe.js"
 CLIENT = Path(__file__).parent / "ads_client" / "node_modules" / "ads-client"
@@ -31,6 +32,7 @@ ST = Path(__file__).parents[1] / "protocols" / "st"
 
 pytestmark = [
     pytest.mark.machine,
+    PLC_AT_127_0_0_1,
     pytest.mark.skipif(shutil.which("node") is None or not CLIENT.exists(),
                        reason="needs node and ads-client (tests/setup_system.sh installs it with npm)"),
 ]
