@@ -18,7 +18,7 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	bash tests/setup_system.sh
-	$(PY) -m pytest -q -n 2 --dist loadgroup
+	$(PY) -m pytest -q -n 2
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .

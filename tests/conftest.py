@@ -16,11 +16,6 @@ ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "data"
 PAPER = DATA / "paper-2022-beckhoff-press"
 
-PLC_AT_127_0_0_1 = pytest.mark.xdist_group("plc-at-127.0.0.1")
-"""For tests that serve a PLC at 127.0.0.1:48898, or count on none being there. `make test` runs
-the suite on two workers (pytest-xdist, `--dist loadgroup`): a group runs on one worker, one test
-at a time. The simulated machine of a campaign picks a random 127.0.x.y and needs no group."""
-
 
 @pytest.fixture(autouse=True)
 def _no_terminal_size(monkeypatch):

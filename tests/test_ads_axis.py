@@ -12,18 +12,13 @@ from dataclasses import dataclass
 import pytest
 
 from drivers.ads_axis import AdsAxis
+from drivers.factory import serve_on_free_loopback
 from drivers.sim.ads_server import SimAdsServer
 from drivers.sim.clock import SimClock
 from drivers.sim.plc import SimPLC
 from protocols import plc_contract
 from protocols.hardware import AxisError, AxisStatus
 from protocols.plc_contract import CompTable, PlcErrorId
-from tests.conftest import PLC_AT_127_0_0_1
-
-NET_ID = "127.0.0.1.1.1"
-IP = "127.0.0.1"
-
-pytestmark = PLC_AT_127_0_0_1
 
 CONTROL = plc_contract.control_symbols(1)
 COMP = plc_contract.comp_symbols(1)
@@ -44,11 +39,10 @@ def machine():
     clock = SimClock()
     plc = SimPLC(axis=1, max_velocity=50.0, acceleration=200.0)
     clock.attach(plc.scan)
-    server = SimAdsServer(plc, IP)
-    server.start()
+    server = serve_on_free_loopback(plc)  # a loopback address of its own: tests run side by side
     axis = None
     try:
-        axis = AdsAxis(NET_ID, IP, axis=1, timeout_s=0.5, retry_wait_s=0.05)
+        axis = AdsAxis(server.net_id, server.ip, axis=1, timeout_s=0.5, retry_wait_s=0.05)
         yield Machine(clock, plc, server, axis)
     finally:
         if axis is not None:
@@ -191,7 +185,7 @@ def test_write_to_a_symbol_outside_the_contract_is_refused(machine, name):
 @pytest.mark.machine
 def test_read_only_mode_reads_status_and_refuses_every_write(machine):
     m = machine
-    dry = AdsAxis(NET_ID, IP, axis=1, read_only=True, timeout_s=0.5)
+    dry = AdsAxis(m.server.net_id, m.server.ip, axis=1, read_only=True, timeout_s=0.5)
     try:
         assert dry.status().enabled
         for write in (
@@ -271,7 +265,7 @@ def test_write_of_the_wrong_size_is_refused_like_twincat_and_the_plc_keeps_scann
 
     m = machine
     name = CONTROL["eCommand"].name
-    raw = pyads.Connection(NET_ID, 851, IP)
+    raw = pyads.Connection(m.server.net_id, 851, m.server.ip)
     raw.open()
     try:
         raw.set_timeout(500)

@@ -20,11 +20,10 @@ from pathlib import Path
 import pytest
 
 from drivers.ads_axis import AdsAxis
-from drivers.sim.ads_server import SimAdsServer
+from drivers.factory import serve_on_free_loopback
 from drivers.sim.clock import SimClock
 from drivers.sim.plc import SimPLC
 from protocols.plc_contract import CompTable
-from tests.conftest import PLC_AT_127_0_0_1
 
 PROBE = Path(__file__).parent / "ads_client" / "probe.js"
 CLIENT = Path(__file__).parent / "ads_client" / "node_modules" / "ads-client"
@@ -32,7 +31,6 @@ ST = Path(__file__).parents[1] / "protocols" / "st"
 
 pytestmark = [
     pytest.mark.machine,
-    PLC_AT_127_0_0_1,
     pytest.mark.skipif(shutil.which("node") is None or not CLIENT.exists(),
                        reason="needs node and ads-client (tests/setup_system.sh installs it with npm)"),
 ]
@@ -81,7 +79,7 @@ def probed():
     clock = SimClock()
     plc = SimPLC(axis=1, max_velocity=50.0, acceleration=200.0)
     clock.attach(plc.scan)
-    with SimAdsServer(plc, "127.0.0.1") as server:
+    with serve_on_free_loopback(plc) as server:
         axis = AdsAxis(server.net_id, server.ip, axis=1, timeout_s=1.0)
         try:
             axis.write_comp_table(TABLE)

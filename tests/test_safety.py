@@ -13,7 +13,7 @@ from campaign.plan import Move, build_plan, plan_records
 from campaign.record.recorder import Recorder
 from drivers.factory import open_hardware
 from protocols import plc_contract
-from tests.conftest import PLC_AT_127_0_0_1, ROOT, assert_one_line_error
+from tests.conftest import ROOT, assert_one_line_error
 from tests.test_crash_safety import start_slow_demo, wait_for_points
 from tests.test_demo_e2e import axiscal
 
@@ -90,9 +90,8 @@ def test_hardware_type_is_a_closed_set():
     assert not plc_contract.writable_symbols(1) & {s.name for s in plc_contract.status_symbols(1).values()}
 
 
-@PLC_AT_127_0_0_1
 def test_a_dry_run_without_the_plc_says_where_it_looked_and_exits_2(cli, tmp_path):
-    """No PLC listens on 127.0.0.1 here: the dry run changes nothing, so it is a set-up error (exit 2)
+    """No PLC listens on 127.0.0.1 here (the suite's simulated PLCs take 127.0.x.y, y ≥ 2): the dry run changes nothing, so it is a set-up error (exit 2)
     naming the IP, the AMS Net ID, the port and the usual causes."""
     text = DEMO.replace('[axis_driver]\ntype = "sim"', '[axis_driver]\ntype = "ads"\nip = "127.0.0.1"\n'
                         'ams_net_id = "127.0.0.1.1.1"\ntimeout_s = 0.2')
