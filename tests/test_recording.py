@@ -7,7 +7,8 @@ import os
 import pytest
 
 from campaign.commands.demo import demo_config_text
-from campaign.config import parse_config
+from campaign.config import parse_config, recorded_sections
+from campaign.errors import InputError
 from campaign.plan import build_plan, plan_records
 from campaign.pointtable import read_points
 from campaign.record.events import Event
@@ -97,3 +98,27 @@ def test_full_disk_is_a_recording_error(tmp_path, where):
     assert reopened.points_written == 1
     reopened.close()
     assert len(read_points(tmp_path / "c" / "points.csv")) == 1
+
+
+def test_one_process_at_a_time(tmp_path, cli):
+    """While one recorder holds a campaign, neither a resume nor a new campaign in the same
+    directory may write to it: a second writer would append a second copy of the points."""
+    text = demo_config_text()
+    config = parse_config(text, "demo.toml")
+    plan = build_plan(config)
+    rec = Recorder.create(tmp_path / "c", text, recorded_sections(config), plan_records(plan), dict(META), "linear")
+    rec.start(0.0, 0, 110)
+    write_points(rec, 2)
+    directory = tmp_path / "c"
+    with pytest.raises(InputError, match=rf"another axiscal process is recording here \(pid {os.getpid()}"):
+        Recorder.reopen(directory)
+    r = cli("resume", directory, "--yes")
+    assert r.code == 2 and r.err.startswith("error: ") and "another axiscal process" in r.err
+    assert len(r.err.strip().splitlines()) == 1
+    with pytest.raises(InputError, match="another axiscal process"):
+        new_recorder(tmp_path)
+    assert len(read_points(directory / "points.csv")) == 2  # untouched by the refused writers
+    rec.close()
+    again = Recorder.reopen(directory)  # the lock goes with the holder
+    assert again.points_written == 2
+    again.close()

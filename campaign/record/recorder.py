@@ -13,18 +13,25 @@ Every point row is written with one write() and fsynced, after the raw samples b
 fsynced, so a crash or power cut loses at most the point in progress. Every event and run record
 is fsynced. A torn last line (power cut in the middle of a write) is cut off when the directory is
 opened again. Nothing is ever rewritten.
+
+One process at a time: the recorder holds an exclusive lock (flock) on runs.jsonl from the moment
+it opens the directory until close(), so a second `axiscal resume` (or a new campaign with the same
+--out) is refused while the first still records, instead of writing a second copy of its points.
+The kernel drops the lock when the process dies, kill -9 included.
 """
 
 from __future__ import annotations
 
 import datetime as dt
 import errno
+import fcntl
 import json
 import os
 import platform
 from pathlib import Path
 
 from campaign import __version__
+from campaign.errors import InputError
 from campaign.pointtable import AXIS_KINDS, format_row
 from campaign.record.directory import (
     CONFIG_FILE,
@@ -33,6 +40,7 @@ from campaign.record.directory import (
     PLAN_FILE,
     RUNS_FILE,
     open_campaign,
+    read_json_lines,
 )
 from campaign.record.events import Event
 from protocols.hardware import ENV_FIELDS, Reading
@@ -105,6 +113,21 @@ def _cell(value) -> str:
     return str(value)
 
 
+def lock_directory(path: Path) -> int:
+    """Open runs.jsonl for appending and take its exclusive lock; returns the descriptor. InputError
+    naming the holder (its pid from its start record) when another process records in `path`."""
+    fd = os.open(path / RUNS_FILE, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        os.close(fd)
+        starts = [r for r in read_json_lines(path / RUNS_FILE) if r.get("record") == "start"]
+        holder = f"pid {starts[-1].get('pid')}, started {starts[-1].get('utc')}" if starts else "starting"
+        raise InputError(f"{path}: another axiscal process is recording here ({holder}); "
+                         "let it finish, or stop it (Ctrl-C), first") from None
+    return fd
+
+
 class RecordingError(Exception):
     """Writing to the campaign directory failed (disk full, I/O error)."""
 
@@ -114,17 +137,18 @@ class Recorder:
     RecordingError when the disk refuses, which stops the campaign). Use `Recorder.create` for a
     new campaign and `Recorder.reopen` to append to an interrupted one."""
 
-    def __init__(self, directory: Path, meta: dict, kind: str):
+    def __init__(self, directory: Path, meta: dict, kind: str, runs_fd: int):
+        """`runs_fd`: runs.jsonl, open for appending and locked by lock_directory (closed by close())."""
         self.dir = directory
         self.meta = meta
         self.kind = kind
         # long-lived append handles, closed by close()
         self._raw = self._events = self._log = None
-        self._points_fd = self._runs_fd = -1
+        self._points_fd = -1
+        self._runs_fd = runs_fd
         try:
             self._raw = open(directory / "raw.csv", "a", encoding="utf-8", newline="")  # noqa: SIM115
             self._points_fd = os.open(directory / "points.csv", os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
-            self._runs_fd = os.open(directory / RUNS_FILE, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
             self._events = open(directory / "events.jsonl", "a", encoding="utf-8")  # noqa: SIM115
             self._log = open(directory / "events.log", "a", encoding="utf-8")  # noqa: SIM115
         except OSError:
@@ -141,17 +165,23 @@ class Recorder:
         version, software, host, creation time and the config's `sections`) and plan.jsonl."""
         path = Path(directory)
         path.mkdir(parents=True, exist_ok=True)
-        if (path / "points.csv").exists() and (path / "points.csv").stat().st_size:
-            from campaign.errors import InputError
-            raise InputError(f"{path}: already holds a campaign (use `axiscal resume {path}` or another --out)")
-        for name in APPENDED:
-            (path / name).unlink(missing_ok=True)
+        runs_fd = lock_directory(path)
+        try:
+            if (path / "points.csv").exists() and (path / "points.csv").stat().st_size:
+                raise InputError(f"{path}: already holds a campaign (use `axiscal resume {path}` or another --out)")
+            os.ftruncate(runs_fd, 0)
+            for name in APPENDED:
+                if name != RUNS_FILE:
+                    (path / name).unlink(missing_ok=True)
+        except BaseException:
+            os.close(runs_fd)
+            raise
         write_once(path / CONFIG_FILE, config_text)
         full = {"format_version": FORMAT_VERSION, "software": f"axiscal {__version__}", "host": platform.node(),
                 "created": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"), **meta, "config": sections}
         write_once(path / PLAN_FILE, json_lines(plan_records))
         write_once(path / META_FILE, json.dumps(full, indent=1, allow_nan=False) + "\n")
-        rec = cls(path, full, kind)
+        rec = cls(path, full, kind, runs_fd)
         rec._raw.write(",".join(RAW_COLUMNS) + "\n")
         rec._raw.flush()
         return rec
@@ -161,9 +191,14 @@ class Recorder:
         """Open an interrupted campaign to append to it (torn tails are cut first)."""
         path = Path(directory)
         meta = open_campaign(path).meta
-        for name in APPENDED:
-            cut_torn_tail(path / name)
-        rec = cls(path, meta, meta.get("kind", "linear"))
+        runs_fd = lock_directory(path)  # before the tails are cut: they may be another writer's
+        try:
+            for name in APPENDED:
+                cut_torn_tail(path / name)
+        except BaseException:
+            os.close(runs_fd)
+            raise
+        rec = cls(path, meta, meta.get("kind", "linear"), runs_fd)
         lines = [ln for ln in (path / "points.csv").read_text(encoding="utf-8").splitlines()
                  if ln and not ln.startswith("#")]
         if lines:
