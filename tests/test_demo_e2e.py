@@ -36,6 +36,8 @@ def test_demo_runs_the_paper_campaign(demo):
     assert 1100 < data["duration_s"] < 1400  # about 20 simulated minutes
     for key in ("A", "E", "M", "B", "R", "A_up", "A_down"):
         assert isinstance(data[key], float), key
+    # the same verdict and budget as `analyze` (campaign/assess.py), in the script's own result
+    assert data["verdict"] == "pass" and data["uncertainty"]["U_A_um"] > 0
     # Li et al. 2022's horizontal model: about -12.4 um/m over 600 mm, scatter 0.34 um
     assert 5.0 < data["E"] < 10.0 and data["R"] < 3.0
     table = read_points(out / "points.csv")

@@ -96,12 +96,15 @@ def test_a_point_skipped_after_a_fault_is_measured_on_resume(tmp_path, uninterru
     out = tmp_path / "s"
     first = axiscal("demo", "--inject", "axis_error@300", "--on-fault", "skip", "--json", "--out", out)
     assert first.returncode == 0, first.stderr
-    assert json.loads(first.stdout)["points"] == 109
+    data = json.loads(first.stdout)
+    assert data["points"] == 109 and data["verdict"] == "not judged"  # completed, but one point short
+    assert "1 of 110 planned points are missing" in data["reasons"][0]
     skipped = events(out, "skip")
     assert len(skipped) == 1
     result = axiscal("resume", out, "--yes", "--json")
     assert result.returncode == 0, result.stderr
     assert json.loads(result.stdout)["points"] == 110
+    assert json.loads(result.stdout)["verdict"] == "pass"  # the demo's tolerance, 10 µm
     table = read_points(out / "points.csv")
     keys = [(str(r), "+" if d > 0 else "-", f"{t:.6f}") for r, d, t in zip(table.run, table.direction, table.target)]
     assert keys == uninterrupted  # the plan's order, nothing duplicated

@@ -32,6 +32,7 @@ def test_compensation_removes_the_systematic_error(vertical):
     before, after = data["before"], data
     assert before["A"] > 700 and before["B"] > 350  # the paper's vertical axis: ~800 µm, ~490 µm reversal
     assert after["points"] == 110 and after["status"] == "completed"
+    assert after["verdict"] == "pass"  # the shared verdict: A + U within the config's 40 µm (700 µm before)
     floor = max(after["R_up"], after["R_down"])  # 4 s_max: what is left once every mean is removed
     assert after["A"] < 1.5 * floor
     # what is left of the reversal and the systematic deviation is the means' own scatter: B is a

@@ -6,7 +6,7 @@ from campaign.commands import SUMMARY, hardware_opener, positive_number
 from campaign.config import load_config
 from campaign.errors import InputError
 from campaign.measure.progress import RichProgress
-from campaign.measure.session import analyse_dir, dry_run, start_campaign
+from campaign.measure.session import dry_run, start_campaign
 from campaign.plot import check_plot_path, plot_evaluation
 from campaign.views import make_console, print_evaluation, print_json
 from protocols.hardware import AxisError, InstrumentError
@@ -45,34 +45,43 @@ def apply_on_fault(config, args) -> None:
 
 
 def finish(outcome, args, extra: dict | None = None) -> int:
-    """Print the outcome and the evaluation; exit 0 when completed, 3 when interrupted."""
+    """Print the outcome: the ISO 230-2 summary so far, the outliers and the verdict (campaign/assess.py,
+    the same as `analyze`, `report` and the guide), and the resume hint when points are missing.
+    Exit 0 when completed (points skipped after faults included), 3 when interrupted."""
+    from campaign.assess import assess_path
+    from campaign.views import outlier_lines, verdict_line
+
     result = {"dir": str(outcome.dir), "status": outcome.status, "points": outcome.points,
               "planned": outcome.planned, "duration_s": round(outcome.duration_s, 3), **(extra or {})}
-    ev = None
-    if outcome.points:
-        try:
-            table, ev = analyse_dir(outcome.dir)
-        except InputError as exc:  # an interrupted campaign: not every target has both directions yet
-            result["analysis"] = f"not evaluated: {exc}"
-    if ev is not None:
-        result.update({k: v for k, v in ev.summary.items()})
-        result["unit"] = ev.unit
+    a = assess_path(outcome.dir) if outcome.points else None
+    if a is not None:
+        ev = a.evaluation
+        result.update(ev.summary)
+        result.update(unit=ev.unit, verdict=a.verdict.verdict, reasons=a.verdict.reasons,
+                      uncertainty=a.uncertainty.as_json(), outliers=[o.as_dict() for o in a.outliers.found])
         if args.plot:
-            plot_evaluation(table, ev, args.plot, title=f"{outcome.dir}")
+            plot_evaluation(a.table, ev, args.plot, title=f"{outcome.dir}")
+    else:
+        result.update(verdict="not judged", reasons=["no point was recorded"])
+    missing = outcome.planned - outcome.points
     if args.json:
         print_json(result)
-    else:
-        console = make_console()
-        if ev is not None:
-            print_evaluation(ev, console, per_target=False)
-        elif "analysis" in result:
-            console.print(f"ISO 230-2 summary {result['analysis']}")
-        console.print(f"campaign {outcome.status}: {outcome.points}/{outcome.planned} points in "
-                      f"{outcome.duration_s / 60:.1f} min (campaign time), recorded in {outcome.dir}")
-        if outcome.status != "completed":
-            console.print(f"[red]stopped:[/] {outcome.message}. Continue with: axiscal resume {outcome.dir}")
-        if args.plot and ev is not None:
-            console.print(f"plot written to {args.plot}")
+        return 0 if outcome.status == "completed" else 3
+    console = make_console()
+    if a is not None:
+        print_evaluation(a.evaluation, console, per_target=False)
+        for line in outlier_lines(a.outliers, a.evaluation.unit):
+            console.print(line, markup=False)
+        console.print(verdict_line(a.verdict))
+    console.print(f"campaign {outcome.status}: {outcome.points}/{outcome.planned} points in "
+                  f"{outcome.duration_s / 60:.1f} min (campaign time), recorded in {outcome.dir}")
+    if outcome.status != "completed":
+        console.print(f"[red]stopped:[/] {outcome.message}. Continue with: axiscal resume {outcome.dir}")
+    elif missing:
+        console.print(f"[yellow]{missing} point(s) skipped after faults[/]: measure them with: "
+                      f"axiscal resume {outcome.dir}")
+    if args.plot and a is not None:
+        console.print(f"plot written to {args.plot}")
     return 0 if outcome.status == "completed" else 3
 
 
