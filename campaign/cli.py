@@ -16,7 +16,7 @@ import threading
 
 from campaign import __version__
 from campaign.commands import SUMMARY
-from campaign.errors import BAD_INPUT, InputError, one_line
+from campaign.errors import BAD_INPUT, CampaignInterrupted, InputError, one_line
 from protocols.hardware import AxisError, InstrumentError
 
 
@@ -61,6 +61,10 @@ def main(argv: list[str] | None = None) -> int:
     except (AxisError, InstrumentError) as exc:
         print(f"error: {one_line(exc)}", file=sys.stderr)
         return 3
+    except CampaignInterrupted as exc:
+        print(f"interrupted (Ctrl-C): the axis was asked to halt and the recording is flushed in {exc.directory}; "
+              f"continue with: axiscal resume {exc.directory}", file=sys.stderr)
+        return 130
     except KeyboardInterrupt:
         print("error: interrupted", file=sys.stderr)
         return 130

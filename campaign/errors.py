@@ -19,6 +19,15 @@ BAD_INPUT = (InputError, FormatError)
 """Every error that means bad input (exit status 2): ours and the pure format code's."""
 
 
+class CampaignInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a campaign, after the axis was asked to halt and the recording was flushed.
+    `directory`: the campaign directory, for the resume hint."""
+
+    def __init__(self, directory):
+        super().__init__(str(directory))
+        self.directory = directory
+
+
 class SafetyError(InputError):
     """A motion would leave the soft limits or exceed the velocity limit. Nothing was commanded."""
 

@@ -53,6 +53,7 @@ def test_ctrl_c_halts_flushes_and_marks_interrupted(tmp_path):
     _, err = proc.communicate(timeout=30)
     assert proc.returncode == 130, err
     assert "Traceback" not in err
+    assert f"continue with: axiscal resume {out}" in err  # the script says how to go on, as the guide does
     assert status(out) == "interrupted"
     assert events(out, "interrupt", by="Ctrl-C")
     assert events(out, "halt", ok=True, why="interrupted")

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from campaign.config import Config, load_config, recorded_sections
-from campaign.errors import InputError
+from campaign.errors import CampaignInterrupted, InputError
 from campaign.iso230 import Evaluation, evaluate
 from campaign.measure.executor import CampaignStopped, Control, Executor, Observer
 from campaign.model import ErrorModel, read_model, sim_model
@@ -90,9 +90,11 @@ def execute(config: Config, plan: Plan, recorder: Recorder, todo: int | list[int
         status, message = "interrupted", str(exc)
     except RecordingError as exc:  # the start record could not be written: nothing moved
         status, message = "interrupted", f"recording failed: {exc}"
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         status, message = "interrupted", "Ctrl-C"
-        raise
+        if isinstance(exc, CampaignInterrupted):
+            raise
+        raise CampaignInterrupted(recorder.dir) from None
     except InputError as exc:  # e.g. a SafetyError: a motion refused before it was sent
         status, message = "interrupted", str(exc)
         raise
