@@ -163,12 +163,25 @@ def test_null_case_names_nothing_in_at_least_95_of_100_seeds():
     assert sum(1 for added in named if not added) >= 95, [a for a in named if a]
 
 
-def test_settling_at_a_constant_dwell_is_refused_as_confounded_with_backlash():
-    true_effects = {**BASE, "settling": HIDDEN["settling"][0]}
+@pytest.mark.parametrize("hidden", ["settling", "backlash"])
+def test_at_a_constant_dwell_settling_and_backlash_are_unresolved_not_named(hidden):
+    """At a constant wait a settling tail is a constant offset per direction: the reversal is real,
+    but whether it is backlash or settling the campaign cannot tell, so neither is named."""
+    true_effects = {**{k: v for k, v in BASE.items() if k != "backlash"}, hidden: HIDDEN[hidden][0]}
+    result = run_discovery(true_effects, ["linear_scale"], dwell_jitter=0.0)
+    assert "settling" not in result.added and "backlash" not in result.added, result.added
+    entry = next(e for e in result.unresolved if set(e["effects"]) == {"backlash", "settling"})
+    assert "cannot tell backlash from settling" in entry["why"] and "decade" in entry["how_to_tell"]
+    assert any("settling is confounded with backlash" in note for note in result.notes)
+
+
+def test_a_reversal_that_grows_along_the_travel_is_named_at_a_constant_dwell():
+    """Settling gives the same offset at every target: a growth of the reversal along the travel is
+    no settling, so position_dependent_backlash is named even at a constant wait."""
+    true_effects = {**BASE, "position_dependent_backlash": {"b0_um": 3.0, "k_ppm": 10.0}}
     del true_effects["backlash"]
     result = run_discovery(true_effects, ["linear_scale"], dwell_jitter=0.0)
-    assert "settling" not in result.added and "backlash" in result.added
-    assert any("settling is confounded with backlash" in note for note in result.notes)
+    assert result.added == ["position_dependent_backlash"], (result.added, result.unresolved)
 
 
 def test_an_effect_the_model_already_spans_is_reported_as_confounded():

@@ -18,8 +18,8 @@ BOW = {"linear_scale": {"ppm": -12.4}, "nonlinear_lead": {"p2_um": 2.0, "p3_um":
        "noise": {"sigma_um": 0.5, "reading_sigma_um": 0.05}}
 
 
-def bow_table(tmp_path, glitch_um=0.0, extra=None, seed=5):
-    table = simulate_campaign(CONFIG, ErrorModel({**BOW, **(extra or {})}), seed=seed)
+def bow_table(tmp_path, glitch_um=0.0, extra=None, seed=5, dwell_jitter=0.0):
+    table = simulate_campaign(CONFIG, ErrorModel({**BOW, **(extra or {})}), seed=seed, dwell_jitter=dwell_jitter)
     if glitch_um:
         table.deviation[37] += glitch_um
     path = tmp_path / "p.csv"
@@ -53,7 +53,7 @@ def test_without_a_glitch_nothing_is_flagged(cli, tmp_path):
 def test_each_parameter_once_with_its_unit(cli, tmp_path):
     assert unit_of("backlash", "b_um", "s") == "µm"
     assert unit_of("settling", "e0_um", "s") == "µm"
-    path, _ = bow_table(tmp_path, extra={"backlash": {"b_um": 6.0}})
+    path, _ = bow_table(tmp_path, extra={"backlash": {"b_um": 6.0}}, dwell_jitter=0.8)  # waits that tell settling
     out = cli("discover", path).out
     line = next(ln for ln in out.splitlines() if "add backlash" in ln)
     said = line.split("(", 1)[1].split(");")[0]

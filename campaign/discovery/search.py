@@ -201,12 +201,10 @@ def candidate_names(data: CampaignData, terms: list[Term], notes: list[str]) -> 
             names.remove("settling")
             _note(notes, "settling is not looked for: the table has no capture_wait_s column, and at a "
                          "constant wait settling looks exactly like backlash")
-        else:
-            waits = np.nanmean(data.w, axis=1)
-            if np.ptp(waits) < DWELL_SPREAD * max(float(np.mean(waits)), 1e-9):
-                names.remove("settling")
-                _note(notes, "settling is confounded with backlash: the dwell does not vary, so settling "
-                             "is not looked for (vary the dwell to separate them)")
+        elif not waits_vary(data):
+            names.remove("settling")
+            _note(notes, "settling is confounded with backlash: the dwell does not vary, so settling "
+                         "is not looked for (vary the dwell to separate them)")
     targets = np.unique(np.round(data.x, 6))
     if "periodic_lead" in names and len(targets) > 2 and np.ptp(np.diff(targets)) < 1e-3 * np.ptp(targets):
         names.remove("periodic_lead")
@@ -220,6 +218,15 @@ def candidate_names(data: CampaignData, terms: list[Term], notes: list[str]) -> 
         names.remove("thermal_drift")
         _note(notes, "thermal_drift is not looked for: one run cannot show a run-to-run change")
     return names
+
+
+def waits_vary(data: CampaignData) -> bool:
+    """Does the wait since arrival before each capture vary enough (DWELL_SPREAD) to tell settling
+    from a constant reversal? False when it is not recorded."""
+    if data.w is None:
+        return False
+    waits = np.nanmean(data.w, axis=1)
+    return bool(np.ptp(waits) >= DWELL_SPREAD * max(float(np.mean(waits)), 1e-9))
 
 
 def _note(notes: list[str], text: str, topic: str | None = None) -> None:
@@ -455,8 +462,12 @@ def choose(data: CampaignData, current: Fit, ranking: list[Candidate],
     n = len(data.y)
     unresolved = [period_entry(c, data) for c in ranking if c.verdict == "period not identifiable"]
     held: list[Candidate] = []
+    in_model = {t.name for t in current.terms}
     while pool := [c for c in ranking if c.accepted and c not in held]:
         best = prefer_simpler(pool[0], pool, n, notes)
+        if best.name == "backlash" and "settling" not in in_model and not waits_vary(data):
+            held += hold_reversal(best, ranking, data, n, unresolved)
+            continue
         rivals = [c for c in ranking if c is not best and c.fit is not None and c not in held
                   and are_rivals(data, best, c, n)]
         if not rivals:
@@ -472,6 +483,32 @@ def choose(data: CampaignData, current: Fit, ranking: list[Candidate],
                 group.append(cand)
         held += group
     return None, unresolved
+
+
+def hold_reversal(backlash: Candidate, ranking: list[Candidate], data: CampaignData, n: int,
+                  unresolved: list[dict]) -> list[Candidate]:
+    """At a constant (or unrecorded) wait before each capture, settling leaves a constant offset per
+    direction: exactly a backlash. The reversal is listed as unresolved, not named; so is a
+    position-dependent backlash whose growth is not significant (it is the same reversal). A
+    significant growth along the travel is no settling and stays a candidate."""
+    b = backlash.fit.params()["backlash"].get("b_um")
+    size = f"a reversal of {b:+.3g} µm" if b is not None else "a reversal"
+    wait = ("no wait before capture is recorded" if data.w is None else
+            f"the wait before every capture is about {float(np.nanmean(data.w)):.2g} s")
+    unresolved.append({
+        "effects": ["backlash", "settling"],
+        "why": f"{size} between the directions (backlash explains {backlash.explained_pct:.1f} %, ΔBIC "
+               f"{backlash.delta_bic:.1f}), but {wait}: settling that has not died out leaves the same constant "
+               "offset per direction, so this campaign cannot tell backlash from settling and names neither",
+        "how_to_tell": HOW_TO_TELL[frozenset({"settling", "backlash"})],
+        "delta_bic": {"backlash": round(backlash.delta_bic, 2)}})
+    backlash.verdict = "not told apart from settling (the wait before capture does not vary)"
+    held = [backlash]
+    for cand in ranking:
+        if NESTED_IN.get(cand.name) == "backlash" and cand.accepted and f_test_p(backlash.fit, cand.fit, n) >= ALPHA:
+            cand.verdict = "held with backlash, which is unresolved"
+            held.append(cand)
+    return held
 
 
 def are_rivals(data: CampaignData, best: Candidate, other: Candidate, n: int) -> bool:
