@@ -4,7 +4,10 @@ not judged, with the reasons.
 Decision rule (ISO 14253-1, the default of ISO 230-2 acceptance): a parameter passes when its value
 plus the expanded measurement uncertainty U is within the tolerance T (A + U ≤ T), fails when its
 value minus U is beyond it (A − U > T); in between the measurement cannot decide. Every configured
-tolerance is judged this way: on A always, on E, B and R when the config sets them.
+tolerance is judged this way: on A always, on E, B and R when the config sets them. The axis fails
+when one parameter fails (a proven nonconformity), passes when every one passes, and is not judged
+otherwise. A table measured in one direction only is judged on its unidirectional values, named
+as such (A↑, not A).
 
 Not judged, with the reason, when:
 - the campaign is incomplete: points missing against its plan, fewer runs than planned, or (for a
@@ -106,33 +109,44 @@ def judge(table: PointTable, ev: Evaluation, tolerances: dict[str, float], uncer
     reasons += [f"uncertainty budget incomplete: {m}" for m in uncertainty.missing]
     checks = []
     for key, tol in set_tolerances.items():
-        value = _value(ev, key, both)
+        value, name = _value(ev, key, both)
         u = uncertainty.expanded.get(key)
         if value is None:
-            reasons.append(f"{NAMES[key]} is unavailable")
+            reasons.append(f"{name} is unavailable")
             continue
         result = PASS if value + u <= tol else FAIL if value - u > tol else NOT_JUDGED
-        checks.append({"parameter": key, "value": round(value, 4), "U": round(u, 4), "tolerance": tol,
+        checks.append({"parameter": key, "name": name, "value": round(value, 4), "U": round(u, 4), "tolerance": tol,
                        "unit": ev.unit, "result": result})
-        if result == NOT_JUDGED:
-            reasons.append(f"{NAMES[key]} = {value:.2f} {unit} is within its uncertainty U = {u:.2f} {unit} of the "
-                           f"tolerance {tol:g} {unit}: the measurement cannot decide")
-    if reasons:
+    if reasons:  # the campaign itself does not allow a verdict: no parameter is judged on it either
+        reasons += _undecided(checks, unit)
+        checks = [{**c, "result": NOT_JUDGED} for c in checks]
         return Verdict(NOT_JUDGED, tuple(reasons), tuple(checks), notes=tuple(notes))
     failed = [c for c in checks if c["result"] == FAIL]
-    if failed:
-        why = tuple(f"{NAMES[c['parameter']]} = {c['value']:.2f} {unit}: minus U = {c['U']:.2f} {unit} it is still "
+    if failed:  # one parameter proven out of tolerance fails the axis, whatever the others
+        why = tuple(f"{c['name']} = {c['value']:.2f} {unit}: minus U = {c['U']:.2f} {unit} it is still "
                     f"above the tolerance {c['tolerance']:g} {unit}" for c in failed)
-        return Verdict(FAIL, why, tuple(checks), notes=tuple(notes))
-    why = tuple(f"{NAMES[c['parameter']]} = {c['value']:.2f} {unit}: plus U = {c['U']:.2f} {unit} it is within the "
+        return Verdict(FAIL, why, tuple(checks), notes=tuple(notes + _undecided(checks, unit)))
+    if undecided := _undecided(checks, unit):
+        return Verdict(NOT_JUDGED, tuple(undecided), tuple(checks), notes=tuple(notes))
+    why = tuple(f"{c['name']} = {c['value']:.2f} {unit}: plus U = {c['U']:.2f} {unit} it is within the "
                 f"tolerance {c['tolerance']:g} {unit}" for c in checks)
     return Verdict(PASS, why, tuple(checks), notes=tuple(notes))
 
 
-def _value(ev: Evaluation, key: str, both: bool) -> float | None:
-    """The parameter; for a table measured in one direction only, the unidirectional one."""
-    if both or key == "B":
-        return ev.summary.get(key)
-    return next((ev.summary.get(f"{key}_{s}") for s in ("up", "down") if ev.summary.get(f"{key}_{s}") is not None),
-                None)
+def _undecided(checks: list[dict], unit: str) -> list[str]:
+    """One sentence per parameter the decision rule cannot decide."""
+    return [f"{c['name']} = {c['value']:.2f} {unit} is within its uncertainty U = {c['U']:.2f} {unit} of the "
+            f"tolerance {c['tolerance']:g} {unit}: the measurement cannot decide"
+            for c in checks if c["result"] == NOT_JUDGED]
 
+
+def _value(ev: Evaluation, key: str, both: bool) -> tuple[float | None, str]:
+    """The parameter and its name; for a table measured in one direction only, the unidirectional
+    one, named as such (A↑ is not the bidirectional A)."""
+    if both or key == "B":
+        return ev.summary.get(key), NAMES[key]
+    for suffix, arrow, sign in (("up", "↑", "+"), ("down", "↓", "−")):
+        if ev.summary.get(f"{key}_{suffix}") is not None:
+            return (ev.summary[f"{key}_{suffix}"],
+                    f"unidirectional {NAMES[key]}{arrow} (only the {sign} direction was measured)")
+    return None, NAMES[key]

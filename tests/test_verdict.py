@@ -142,3 +142,46 @@ def test_verify_refuses_a_table_that_does_not_cover_the_plan(cli, tmp_path):
     result = cli("verify", ROOT / "campaign" / "demo.toml", "--comp", tmp_path / "v.json", "--out", tmp_path / "x")
     assert_one_line_error(result, "v.json: the table covers 0 to 300 mm, the plan's targets 0 to 600 mm", "refused")
     assert not (tmp_path / "x").exists()
+
+
+def test_one_parameter_proven_out_of_tolerance_fails_the_axis_even_when_another_is_undecided():
+    t = table()
+    ev = evaluate(t)
+    b = budget(t, ev)
+    r, u_r = ev.summary["R"], b.expanded["R"]
+    v = judge(t, ev, {"A": 100.0, "B": 0.01, "R": r + u_r / 2}, b)  # B fails, R cannot be decided
+    assert v.verdict == "fail" and len(v.reasons) == 1 and "reversal value B" in v.reasons[0]
+    assert [c["result"] for c in v.checks] == ["pass", "fail", "not judged"]
+    assert any("repeatability R" in n and "cannot decide" in n for n in v.notes)
+    undecided = judge(t, ev, {"A": 100.0, "R": r + u_r / 2}, b)
+    assert undecided.verdict == "not judged" and "repeatability R" in undecided.reasons[0]
+
+
+def test_an_incomplete_campaign_judges_no_parameter():
+    t = table()
+    ev = evaluate(t)
+    v = judge(t, ev, {"A": 100.0}, budget(t, ev), plan=Planned(points=120, runs=6))
+    assert v.verdict == "not judged" and [c["result"] for c in v.checks] == ["not judged"]
+
+
+def test_a_table_in_one_direction_is_judged_on_its_unidirectional_values_named_as_such():
+    t = table()
+    keep = t.direction > 0
+    up = PointTable("linear", t.run[keep], t.direction[keep], t.target[keep], t.deviation[keep],
+                    {k: v[keep] for k, v in t.optional.items()})
+    ev = evaluate(up)
+    v = judge(up, ev, {"A": 100.0}, budget(up, ev))
+    assert v.verdict == "pass" and ev.summary.get("A") is None
+    assert v.checks[0]["value"] == pytest.approx(ev.summary["A_up"], abs=1e-4)
+    assert v.reasons[0].startswith("unidirectional accuracy A↑ (only the + direction was measured) = ")
+
+
+def test_the_report_lists_every_tolerance_with_its_result(cli, tmp_path):
+    from campaign.pointtable import write_points
+
+    write_points(tmp_path / "p.csv", table())
+    assert cli("report", tmp_path / "p.csv", "-o", tmp_path / "r.html").code == 0
+    html = (tmp_path / "r.html").read_text()
+    for name in ("accuracy A", "systematic deviation E", "reversal value B", "repeatability R"):
+        assert f"<td>{name}</td>" in html
+    assert html.count("not judged on") == 4  # a bare table has no tolerance, not even on A

@@ -158,7 +158,7 @@ def render_report(a: Assessment, before: Assessment | None = None) -> str:
     machine = meta.get("machine", a.table.meta.get("machine", "?"))
     axis = meta.get("axis", a.table.meta.get("axis", "?"))
     title = f"Positioning accuracy: machine {machine}, axis {axis}" + (" (SIMULATED)" if a.simulated else "")
-    parts = [verdict_box(a.verdict), key_figures(ev, a.uncertainty),
+    parts = [verdict_box(a.verdict, a.tolerances, ev.unit), key_figures(ev, a.uncertainty),
              "<div class='columns'>" + section("Campaign", facts_table(_campaign_facts(a)))
              + section("Plan", facts_table(_plan_facts(a))) + "</div>",
              "<div class='columns'>" + section("Instrument and corrections", facts_table(_instrument_facts(a)))

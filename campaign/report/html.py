@@ -11,7 +11,7 @@ from campaign.iso230 import Evaluation
 from campaign.outliers import Outliers
 from campaign.pointtable import UNITS, PointTable
 from campaign.uncertainty import Budget
-from campaign.verdict import Verdict
+from campaign.verdict import NAMES, Verdict
 from campaign.views import SUMMARY_ROWS, fmt
 from protocols.units import unit_label
 
@@ -160,13 +160,34 @@ def key_figures(ev: Evaluation, budget: Budget) -> str:
     return f"<div class='figures'>{''.join(cells)}</div>"
 
 
-def verdict_box(verdict: Verdict) -> str:
-    """PASS, FAIL or NOT JUDGED with its reasons and the decision rule."""
+def verdict_box(verdict: Verdict, tolerances: dict[str, float], unit: str) -> str:
+    """PASS, FAIL or NOT JUDGED with its reasons, the tolerances on A, E, B and R and the decision rule."""
     css = {"pass": "pass", "fail": "fail"}.get(verdict.verdict, "none")
     reasons = "".join(f"<li>{escape(r)}</li>" for r in verdict.reasons)
     notes = "".join(f"<li>{escape(n)}</li>" for n in verdict.notes)
     return (f"<div class='verdict {css}'><span class='word'>{verdict.word}</span><div><ul>{reasons}{notes}</ul>"
+            f"{tolerance_table(verdict, tolerances, unit)}"
             f"<p class='rule'>Decision rule: {escape(verdict.rule)}.</p></div></div>")
+
+
+def tolerance_table(verdict: Verdict, tolerances: dict[str, float], unit: str) -> str:
+    """Each parameter's tolerance as configured, and for those set: value, U, the decision rule's
+    interval and the result. A parameter without a tolerance is said to be not judged on."""
+    u = unit_label(unit)
+    checks = {c["parameter"]: c for c in verdict.checks}
+    rows = []
+    for key, name in NAMES.items():
+        tol = tolerances.get(key) or 0.0
+        c = checks.get(key)
+        if c is not None:
+            rows.append([c.get("name", name), f"{tol:g}", f"{c['value']:.3f}", f"{c['U']:.3f}",
+                         f"{c['value'] - c['U']:.3f} … {c['value'] + c['U']:.3f}", c["result"].upper()])
+        elif tol:
+            rows.append([name, f"{tol:g}", "—", "—", "—", "unavailable"])
+        else:
+            rows.append([name, "not set", "—", "—", "—", "not judged on"])
+    return _table(["Parameter", f"Tolerance ({u})", f"Value ({u})", f"U ({u}), k = 2", f"Value ± U ({u})", "Result"],
+                  rows, numeric=(1, 2, 3, 4))
 
 
 def budget_table(budget: Budget) -> str:
