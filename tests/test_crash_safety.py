@@ -10,6 +10,7 @@ import time
 import pytest
 
 from campaign.pointtable import read_points
+from campaign.record.directory import open_campaign
 from tests.conftest import ROOT, events, status
 
 
@@ -34,8 +35,11 @@ def test_kill_9_leaves_only_whole_rows(tmp_path):
     out = tmp_path / "k"
     proc = start_slow_demo(out)
     wait_for_points(out / "points.csv", 8, proc)
+    assert open_campaign(out).recording_now  # the demo holds the directory's lock
     proc.send_signal(signal.SIGKILL)
     proc.wait(timeout=10)
+    recorded = open_campaign(out)
+    assert not recorded.recording_now and "killed or crashed" in recorded.message  # the kernel dropped it
     data = (out / "points.csv").read_bytes()
     assert data.endswith(b"\n")
     table = read_points(out / "points.csv")

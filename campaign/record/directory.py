@@ -16,7 +16,9 @@ rebuilt from config.toml and must give the targets meta.json recorded.
 
 from __future__ import annotations
 
+import fcntl
 import json
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -86,12 +88,28 @@ class CampaignDir:
         return "created"
 
     @property
+    def recording_now(self) -> bool:
+        """Is a process recording here now? (It holds the lock on runs.jsonl, campaign/record/recorder.py.)"""
+        try:
+            fd = os.open(self.path / RUNS_FILE, os.O_RDONLY)
+        except OSError:
+            return False
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+            return False
+        except BlockingIOError:
+            return True
+        finally:
+            os.close(fd)
+
+    @property
     def message(self) -> str:
         stop = self.last_stop
         if stop:
             return str(stop.get("message", ""))
         if self.status == "running":
-            return "the process ended without a stop record (killed, or still running)"
+            return ("still recording" if self.recording_now else
+                    "the process ended without a stop record (killed or crashed); axiscal resume continues it")
         return str(self.meta.get("message", ""))
 
     @property

@@ -83,8 +83,12 @@ def _campaign_facts(a: Assessment) -> list[tuple[str, str]]:
     if a.directory is not None:
         recorded = open_campaign(a.directory)
         planned = f" of {a.planned.points} planned" if a.planned else ""
-        rows += [("Status", f"{recorded.status}, {len(a.table)}{planned} points"),
-                 ("Duration", f"{recorded.duration_s / 60:.1f} min"),
+        status, duration = recorded.status, f"{recorded.duration_s / 60:.1f} min"
+        if status == "running":  # no stop record: killed, crashed, or still recording
+            status = "recording now" if recorded.recording_now else f"stopped: {recorded.message}"
+            times = a.table.optional.get("time_s")
+            duration = f"{float(times.max()) / 60:.1f} min to the last point" if times is not None else "not recorded"
+        rows += [("Status", f"{status}, {len(a.table)}{planned} points"), ("Duration", duration),
                  ("Software", m.get("software", "axiscal")), ("Campaign directory", str(a.directory))]
     else:
         rows += [("Points", str(len(a.table))), ("Point table", a.source)]
