@@ -72,9 +72,19 @@ def assess(table: PointTable, config: Config | None = None, planned: Planned | N
     outliers = find_outliers(table)
     unc = budget(table, ev, config)
     verdict = judge(table, ev, tolerances, unc, outliers, planned)
-    simulated = bool(meta and meta.get("driver") == "sim")
+    simulated = is_simulated(table, config, meta)
     return Assessment(source or table.source, table, ev, outliers, unc, verdict, tolerances, config, planned,
                       directory, meta, simulated)
+
+
+def is_simulated(table: PointTable, config: Config | None, meta: dict | None) -> bool:
+    """Measured on the simulated machine or with the simulated laser (a LinuxCNC demo: a real
+    controller, a simulated reading): said by meta.json, the config, or the table's own comment."""
+    if meta and (meta.get("simulated") or meta.get("driver") == "sim"):
+        return True
+    if config is not None and "sim" in (config["axis_driver"]["type"], config["instrument"]["type"]):
+        return True
+    return str(table.meta.get("simulated", "")).startswith("yes")
 
 
 def campaign_dir_of(path: str | Path) -> Path | None:

@@ -185,3 +185,15 @@ def test_the_report_lists_every_tolerance_with_its_result(cli, tmp_path):
     for name in ("accuracy A", "systematic deviation E", "reversal value B", "repeatability R"):
         assert f"<td>{name}</td>" in html
     assert html.count("not judged on") == 4  # a bare table has no tolerance, not even on A
+
+
+def test_a_simulated_campaign_stays_marked_when_its_table_is_copied_out(cli, tmp_path):
+    import shutil
+
+    cfg = parse_config(SMALL, "small.toml")
+    assert "sim" in (cfg["axis_driver"]["type"], cfg["instrument"]["type"])
+    start_campaign(cfg, tmp_path / "c", opener=FakeMachine())
+    shutil.copy(tmp_path / "c" / "points.csv", tmp_path / "copy.csv")
+    assert json.loads(cli("analyze", tmp_path / "copy.csv", "--json").out)["simulated"] is True
+    assert cli("report", tmp_path / "copy.csv", "-o", tmp_path / "r.html").code == 0
+    assert "SIMULATED" in (tmp_path / "r.html").read_text()

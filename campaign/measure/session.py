@@ -61,7 +61,8 @@ def campaign_meta(config: Config, plan: Plan) -> dict:
     return {"machine": c["machine"], "axis": a["name"], "operator": c["operator"], "kind": a["kind"],
             "unit": a["unit"], "plan_seed": plan.seed, "points_planned": len(plan.points),
             "targets": list(plan.targets), "offsets": list(plan.offsets),
-            "capture": config["capture"]["method"], "driver": config["axis_driver"]["type"]}
+            "capture": config["capture"]["method"], "driver": config["axis_driver"]["type"],
+            "simulated": "sim" in (config["axis_driver"]["type"], config["instrument"]["type"])}
 
 
 def execute(config: Config, plan: Plan, recorder: Recorder, todo: int | list[int], *, opener: Opener | None = None,

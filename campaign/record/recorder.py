@@ -235,6 +235,8 @@ class Recorder:
                       *EXTRA_POINT_COLUMNS]
             comments = "".join(f"# {k}: {self.meta[k]}\n" for k in ("machine", "axis", "operator", "plan_seed")
                                if k in self.meta)
+            if self.meta.get("simulated"):  # the mark travels with the table when it is copied out
+                comments += "# simulated: yes (not a measurement of a real axis)\n"
             _write_all(self._points_fd, (comments + ",".join(header) + "\n").encode())
         values = (time_s, *(env.get(c) if env.get(c) is not None else float("nan") for c in self.env_columns),
                   *(extra[c] for c in EXTRA_POINT_COLUMNS))
