@@ -197,3 +197,15 @@ def test_a_simulated_campaign_stays_marked_when_its_table_is_copied_out(cli, tmp
     assert json.loads(cli("analyze", tmp_path / "copy.csv", "--json").out)["simulated"] is True
     assert cli("report", tmp_path / "copy.csv", "-o", tmp_path / "r.html").code == 0
     assert "SIMULATED" in (tmp_path / "r.html").read_text()
+
+
+def test_compensate_on_a_campaign_stopped_in_its_first_run_says_so_and_how_to_go_on(cli, tmp_path):
+    from tests.conftest import assert_one_line_error
+
+    cfg = parse_config(SMALL, "small.toml")
+    cfg.sections["campaign"]["on_fault"] = "abort"
+    # move 7 is the second target on the way back in run 1: three targets +, one −
+    start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(7))))
+    result = cli("compensate", tmp_path / "c" / "points.csv", "--format", "csv", "-o", tmp_path / "t.csv")
+    assert_one_line_error(result, "incomplete campaign (8 of 12 planned points are missing")
+    assert f"axiscal resume {tmp_path / 'c'}" in result.err and not (tmp_path / "t.csv").exists()

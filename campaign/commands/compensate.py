@@ -81,7 +81,16 @@ def run(args) -> int:
     from campaign import __version__
     from campaign.assess import incomplete
 
-    table = read_points(args.file)
+    try:
+        table = read_points(args.file)
+    except InputError as exc:  # a campaign stopped in its first run: say that first, and what to do
+        if not (missing := incomplete(args.file)):
+            raise
+        from campaign.assess import campaign_dir_of
+
+        directory = campaign_dir_of(args.file)
+        then = f"resume it first: axiscal resume {directory}" if directory else "measure the rest first"
+        raise InputError(f"incomplete campaign ({'; '.join(missing)}): {exc}; {then}") from None
     console = make_console()
     for problem in incomplete(args.file):
         console.print(f"[yellow]warning:[/] incomplete campaign: {problem}; the table is built from the points "
