@@ -209,3 +209,25 @@ def test_compensate_on_a_campaign_stopped_in_its_first_run_says_so_and_how_to_go
     result = cli("compensate", tmp_path / "c" / "points.csv", "--format", "csv", "-o", tmp_path / "t.csv")
     assert_one_line_error(result, "incomplete campaign (8 of 12 planned points are missing")
     assert f"axiscal resume {tmp_path / 'c'}" in result.err and not (tmp_path / "t.csv").exists()
+
+
+def test_the_report_says_when_before_and_after_are_not_like_for_like(cli, tmp_path):
+    cfg = parse_config(SMALL, "small.toml")
+    start_campaign(cfg, tmp_path / "after", opener=FakeMachine())
+    cfg.sections["campaign"]["on_fault"] = "abort"
+    start_campaign(cfg, tmp_path / "before", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(10))))
+    assert cli("report", tmp_path / "after", "--before", tmp_path / "before", "-o", tmp_path / "r.html").code == 0
+    html = (tmp_path / "r.html").read_text()
+    assert "The before campaign is incomplete (" in html and "not like for like" in html
+    assert "The after campaign is incomplete" not in html
+
+
+def test_a_rotary_report_names_the_angle_uncertainty_it_used(cli, tmp_path):
+    text = SMALL.replace("[axis]", "[axis]\nkind = \"rotary\"\nunit = \"deg\"").replace("soft_limit_max = 105.0",
+                                                                                     "soft_limit_max = 360.0")
+    cfg = parse_config(text, "rotary.toml")
+    start_campaign(cfg, tmp_path / "r", opener=FakeMachine())
+    assert cli("report", tmp_path / "r", "-o", tmp_path / "r.html").code == 0
+    html = (tmp_path / "r.html").read_text()
+    assert "<th>Angle uncertainty</th><td>not given: the budget uses 1 arcsec" in html
+    assert "Length uncertainty" not in html and "µm/m" not in html.split("Angle uncertainty")[1][:200]

@@ -35,6 +35,8 @@ from campaign.report.html import (
     target_table,
     verdict_box,
 )
+from campaign.uncertainty import TYPICAL
+from campaign.verdict import completeness
 from protocols.units import unit_label
 
 
@@ -112,10 +114,17 @@ def _instrument_facts(a: Assessment) -> list[tuple[str, str]]:
     material = (f"normalised to 20 °C with the material temperature, α = {env['expansion_ppm_per_k']:g} µm/m·K"
                 if env["normalise_to_20c"] else "not normalised to 20 °C (the uncertainty budget counts the "
                                                 "uncorrected expansion)")
+    if a.table.kind == "rotary":
+        arcsec = inst["angle_uncertainty_arcsec"]
+        accuracy = ("Angle uncertainty", f"{arcsec:g} arcsec (k = 2), from the certificate" if arcsec is not None
+                    else f"not given: the budget uses {TYPICAL['angle_uncertainty_arcsec']:g} arcsec, a typical "
+                         "specification")
+    else:
+        accuracy = ("Length uncertainty", f"{ppm:g} µm/m (k = 2), from the certificate" if ppm is not None else
+                    f"not given: the budget uses {TYPICAL['wavelength_uncertainty_ppm']:g} µm/m, a typical "
+                    "specification")
     return [("Laser", model), ("Serial number", inst["serial"] or "not recorded"),
-            ("Calibration certificate", certificate),
-            ("Length uncertainty", f"{ppm:g} µm/m (k = 2), from the certificate" if ppm is not None else
-             "not given: the budget uses 0.5 µm/m, a typical specification"),
+            ("Calibration certificate", certificate), accuracy,
             ("Air correction", air), ("Material temperature", material)]
 
 
@@ -150,6 +159,10 @@ def _comparison(before: Assessment, after: Assessment) -> str:
         lead = "A cannot be compared: it is unavailable in one of the campaigns."
     sources = (f"Before: {before.source} ({_date(before)}). After: {after.source} ({_date(after)}). "
                "Changes compare magnitudes (|after| / |before|); smaller is better.")
+    for label, c in (("before", before), ("after", after)):
+        if missing := completeness(c.table, c.planned):
+            sources += (f" The {label} campaign is incomplete ({'; '.join(missing)}): its figures are from the "
+                        "points measured, and the comparison is not like for like.")
     return section("Before and after", f"<p class='lead'>{escape(lead)}</p><p>{escape(sources)}</p>"
                    + comparison_table(before.evaluation, after.evaluation)
                    + f"<img class='plot' alt='Deviation before and after' src='{plots}'>")
