@@ -75,3 +75,24 @@ def test_pmac_needs_counts_per_unit(tmp_path):
     path.write_text(render("pmac", UNI, FormatOptions(counts_per_unit=CPU)).text)
     with pytest.raises(BAD_INPUT, match="--counts-per-unit"):
         read_comp_table(path, "linear")
+
+
+@pytest.mark.parametrize("fmt", ["csv", "twincat_cnc", "siemens", "pmac"])
+def test_verify_reads_the_provenance_of_every_format_that_has_comments(fmt, tmp_path):
+    from dataclasses import replace
+
+    from campaign.compensation.table_file import read_comp_provenance
+
+    table, _, options = CASES[fmt]
+    said = (("points", "/runs/a/points.csv"), ("machine", "press 7"), ("axis", "Z"), ("software", "axiscal 0.1.0"))
+    path = tmp_path / f"t.{fmt}"
+    path.write_text(render(fmt, table, replace(options, provenance=said)).text)
+    assert read_comp_provenance(path) == dict(said)
+
+
+def test_formats_without_comments_carry_no_provenance(tmp_path):
+    from campaign.compensation.table_file import read_comp_provenance
+
+    path = tmp_path / "t.comp"
+    path.write_text(render("linuxcnc", BI, FormatOptions(provenance=(("machine", "press 7"),))).text)
+    assert read_comp_provenance(path) == {}

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -17,13 +18,23 @@ from protocols.tables.fanuc import parse as fanuc_parse
 KINDS = {"mm": "linear", "deg": "rotary"}
 
 
+PROVENANCE_COMMENT = re.compile(r"^\s*[#;]\s*(points|machine|axis|software|date|campaign):\s*(.*?)\s*$")
+"""A provenance line as compensate writes it where the format has comments (`# key: value` or
+`; key: value`, protocols/tables provenance_lines)."""
+
+
 def read_comp_provenance(path: str | Path) -> dict[str, str]:
-    """The `provenance` of a compensate JSON file (machine, axis, points file, software); empty
-    for a file written before axiscal recorded it, and for the other formats."""
+    """The provenance of a table compensate wrote (machine, axis, points file, software): the
+    JSON file's `provenance`, or the comment lines of the formats that have comments (csv,
+    twincat_cnc, siemens, pmac); empty for formats without comments and older files."""
     try:
-        doc = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
         return {}
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError:
+        return {m.group(1): m.group(2) for line in text.splitlines() if (m := PROVENANCE_COMMENT.match(line))}
     value = doc.get("provenance") if isinstance(doc, dict) else None
     return {str(k): str(v) for k, v in value.items()} if isinstance(value, dict) else {}
 

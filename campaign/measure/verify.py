@@ -62,8 +62,8 @@ def table_fits(table: ControllerTable, provenance: dict[str, str], config: Confi
         if then and then != now:
             warnings.append(f"the table was made for {key} '{then}', the config measures {key} '{now}'")
     if not provenance:
-        warnings.append("the table does not say which machine and axis it was made for (only the JSON format "
-                        "of a recent axiscal does): check that it is this axis' table")
+        warnings.append("the table does not say which machine and axis it was made for (the linuxcnc, heidenhain "
+                        "and fanuc formats have no comments to say it in): check that it is this axis' table")
     return warnings
 
 
