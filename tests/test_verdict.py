@@ -231,3 +231,14 @@ def test_a_rotary_report_names_the_angle_uncertainty_it_used(cli, tmp_path):
     html = (tmp_path / "r.html").read_text()
     assert "<th>Angle uncertainty</th><td>not given: the budget uses 1 arcsec" in html
     assert "Length uncertainty" not in html and "µm/m" not in html.split("Angle uncertainty")[1][:200]
+
+
+def test_report_of_a_bare_table_takes_a_tolerance_and_its_operator(cli, tmp_path):
+    from campaign.pointtable import write_points
+
+    t = table()
+    t.meta["operator"] = "J. Smith"
+    write_points(tmp_path / "p.csv", t)
+    assert cli("report", tmp_path / "p.csv", "--tolerance", "100").code == 0  # default: beside the table
+    html = (tmp_path / "p.html").read_text()
+    assert "<span class='word'>PASS</span>" in html and "Operator: J. Smith." in html

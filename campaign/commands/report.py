@@ -4,23 +4,28 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from campaign.commands import SUMMARY
-from campaign.report.document import write_report
+from campaign.commands import SUMMARY, positive_number
 
 
 def register(sub) -> None:
     p = sub.add_parser("report", help=SUMMARY["report"],
                        description="Write a self-contained HTML report (plots embedded, works offline) of a "
-                                   "campaign directory; with a baseline, before and after side by side.")
-    p.add_argument("dir", help="campaign directory (config.toml, meta.json, points.csv)")
-    p.add_argument("-o", "--output", help="HTML file to write (default DIR/report.html)")
+                                   "campaign directory or of a point table; with a baseline, before and after side by side.")
+    p.add_argument("dir", help="campaign directory (config.toml, meta.json, points.csv), or a point table CSV")
+    p.add_argument("-o", "--output", help="HTML file to write (default DIR/report.html, or beside the table)")
+    p.add_argument("--tolerance", type=positive_number, metavar="T",
+                   help="tolerance on A, µm (arcsec on a rotary axis); default: the campaign's [campaign] tolerance")
     p.add_argument("--before", metavar="DIR0",
                    help="baseline campaign to compare with (default: meta.json's baseline_dir, if set)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    out = Path(args.output) if args.output else Path(args.dir) / "report.html"
-    path = write_report(args.dir, out, args.before)
+    from campaign.report.document import write_report
+
+    source = Path(args.dir)
+    out = Path(args.output) if args.output else (source / "report.html" if source.is_dir()
+                                                  else source.with_suffix(".html"))
+    path = write_report(args.dir, out, args.before, args.tolerance)
     print(f"report written to {path}")
     return 0

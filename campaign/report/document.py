@@ -192,15 +192,16 @@ def render_report(a: Assessment, before: Assessment | None = None) -> str:
     if ev.warnings:
         items = "".join(f"<li>{escape(w)}</li>" for w in ev.warnings)
         parts.append(section("Warnings", f"<ul class='warnings'>{items}</ul>"))
-    operator = meta.get("operator") or "not recorded"
+    operator = meta.get("operator") or a.table.meta.get("operator") or "not recorded"
     subtitle = f"{ev.standard.title}. Measured {_date(a)}. Operator: {operator}."
     return page(title, "".join(parts), subtitle)
 
 
-def write_report(source: str | Path, out: str | Path, before: str | Path | None = None) -> Path:
+def write_report(source: str | Path, out: str | Path, before: str | Path | None = None,
+                 tolerance: float | None = None) -> Path:
     """Assess the campaign directory or point table `source` (and the baseline: `before`, else
-    meta.json's baseline_dir), write the HTML."""
-    a = assess_path(source)
+    meta.json's baseline_dir), write the HTML. `tolerance`: on A, instead of the config's."""
+    a = assess_path(source, tolerance)
     baseline = Path(before) if before else baseline_of(a)
     previous = assess_path(baseline) if baseline else None
     if previous is not None and previous.table.kind != a.table.kind:
