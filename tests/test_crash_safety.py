@@ -20,10 +20,16 @@ def start_slow_demo(out):
                             cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
 
 
+def data_rows(path):
+    """Whole data rows in a point table (comment lines and the header left out)."""
+    lines = [line for line in path.read_text().split("\n")[:-1] if line and not line.startswith("#")]
+    return max(len(lines) - 1, 0)
+
+
 def wait_for_points(path, n, proc, limit_s=60.0):
     end = time.monotonic() + limit_s
     while time.monotonic() < end:
-        if path.exists() and path.read_text().count("\n") >= n + 5:
+        if path.exists() and data_rows(path) >= n:
             return
         assert proc.poll() is None, proc.stderr.read()
         time.sleep(0.05)
