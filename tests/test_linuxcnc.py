@@ -26,6 +26,19 @@ def test_demo_on_linuxcnc_with_its_own_compensation(tmp_path):
     assert data["A_after"] <= 0.5 * data["A_before"], data
     lines = (tmp_path / "lc" / "comp.txt").read_text().splitlines()
     assert len(lines) == 11 and all(len(line.split()) == 3 for line in lines)
+    # one LinuxCNC per machine: while one is held, a second demo is refused before it starts one
+    # (it used to connect to the first one's linuxcncrsh and drive its axis)
+    from drivers.linuxcnc.process import _one_instance
+    from tests.test_crash_safety import data_rows
+
+    held = _one_instance()
+    try:
+        second = axiscal("demo", "--controller", "linuxcnc", "--out", tmp_path / "second", timeout=60)
+    finally:
+        held.close()
+    assert second.returncode == 3 and second.stderr.startswith("error: another axiscal is running LinuxCNC")
+    table = tmp_path / "second" / "points.csv"
+    assert not table.exists() or data_rows(table) == 0  # no point was measured on the first one's axis
 
 
 @pytest.mark.skipif(INSTALLED, reason="checks the message when LinuxCNC is missing")

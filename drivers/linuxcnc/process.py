@@ -6,6 +6,7 @@ own loader and motion module apply it."""
 
 from __future__ import annotations
 
+import fcntl
 import os
 import pwd
 import shutil
@@ -90,6 +91,7 @@ class LinuxCnc:
                  comp_file: Path | None = None):
         if not installed():
             raise AxisError(INSTALL_HINT)
+        self._lock = _one_instance()
         self.dir = Path(tempfile.mkdtemp(prefix="axiscal-linuxcnc-"))
         os.chmod(self.dir, 0o755)
         self.env = dict(os.environ)
@@ -141,12 +143,39 @@ class LinuxCnc:
                 self.proc.wait(timeout=10)
         self.log.close()
         shutil.rmtree(self.dir, ignore_errors=True)
+        if self._lock is not None:
+            self._lock.close()  # the next instance may start
+            self._lock = None
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
         self.stop()
+
+
+LOCK_FILE = Path(tempfile.gettempdir()) / "axiscal-linuxcnc.lock"
+"""Held while axiscal runs a LinuxCNC: one machine runs one (its HAL, its shared memory and
+linuxcncrsh's port 5007 are machine-wide), and a second would take over the first one's axis."""
+
+
+def _one_instance():
+    """The lock of the one LinuxCNC this machine may run, as an open file; AxisError when another
+    axiscal, or any LinuxCNC with linuxcncrsh, already runs here."""
+    lock = open(LOCK_FILE, "a")  # noqa: SIM115 (held until stop())
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        lock.close()
+        raise AxisError("another axiscal is running LinuxCNC on this machine (one LinuxCNC per machine: "
+                        "its HAL and port 5007 are shared); wait for it to end") from None
+    try:
+        socket.create_connection(("127.0.0.1", PORT), timeout=0.5).close()
+    except OSError:
+        return lock
+    lock.close()
+    raise AxisError(f"a LinuxCNC is already running here (linuxcncrsh answers on port {PORT}); stop it first "
+                    "(axiscal would otherwise drive its axis)")
 
 
 def _unprivileged_uid() -> int:
