@@ -49,12 +49,35 @@ def unit_of(effect: str, key: str, time_unit: str) -> str:
 
 
 def with_error(value: float, error: float | None, unit: str) -> str:
-    """'250 s ± 9.1 s (3.6 %)' or '250 s'."""
+    """'250 s ± 9.1 s (3.6 %)', '10 mm ± 0.0011 mm (0.011 %)' or '250 s'."""
     text = f"{value:.4g} {unit}".rstrip()
     if error is None:
         return text
-    share = f" ({100 * error / abs(value):.1f} %)" if value else ""
+    pct = 100 * error / abs(value) if value else None
+    share = "" if pct is None else f" ({pct:.1f} %)" if pct >= 1 else f" ({pct:.2g} %)"
     return f"{text} ± {error:.2g}{(' ' + unit) if unit else ''}{share}"
+
+
+SPAN_KEYS = ("start_mm", "end_mm")
+
+
+def param_text(effect: str, key: str, value: float, errors: dict[str, float], given: set[str] | list[str],
+               time_unit: str) -> str:
+    """One parameter, once, with its unit and its error; a parameter that is not fitted says why
+    it has none: given in the model, or the bow's span (the targets' range)."""
+    unit = unit_of(effect, key, time_unit)
+    if key in errors:
+        return f"{key} = {with_error(value, errors[key], unit)}"
+    why = "given" if key in given else "the targets' span, not fitted" if key in SPAN_KEYS else "no error: too few points"
+    return f"{key} = {with_error(value, None, unit)} ({why})"
+
+
+def params_text(effect: str, params: dict[str, float], errors: dict[str, float], given, time_unit: str) -> str:
+    text = ", ".join(param_text(effect, k, v, errors, given, time_unit) for k, v in params.items())
+    if effect == "thermal_drift" and time_unit == "s" and "tau_s" in params:
+        rate = drift_rate(effect, params)["initial_rate_ppm_per_h"]
+        text += f"; initially {with_error(rate, errors.get('initial_rate_ppm_per_h'), 'µm/m per hour')}"
+    return text
 
 
 SAVED_TAU_POINTS = "thermal_drift time constant in points (no time column)"
@@ -78,6 +101,16 @@ def outliers_json(outliers: Outliers) -> dict:
                            "without_outliers": None if outliers.s_without is None else round(outliers.s_without, 4)}}
 
 
+def ranking_json(ranking) -> list[dict]:
+    return [{"effect": c.name, "explained_pct": round(c.explained_pct, 2), "delta_bic": round(c.delta_bic, 2),
+             "p_value": float(f"{c.p_value:.3g}"), "cv_before_um": round(c.cv_before_um, 4),
+             "cv_after_um": round(c.cv_after_um, 4), "verdict": c.verdict} for c in ranking]
+
+
+def errors_json(errors: dict[str, float]) -> dict[str, float]:
+    return {k: float(f"{v:.3g}") for k, v in errors.items()}
+
+
 def as_json(result: Discovery) -> dict:
     """The JSON object: added, gap_before_um, gap_after_um, steps, and the details."""
     return {
@@ -86,15 +119,19 @@ def as_json(result: Discovery) -> dict:
         "gap_after_um": round(result.gap_after_um, 4),
         "noise_um": round(result.noise_um, 4),
         "time_source": result.time_source,
-        "steps": [{"effect": s.effect, "params": rounded(s.params),
-                   "standard_errors": {k: float(f"{v:.3g}") for k, v in s.errors.items()},
+        "steps": [{"effect": s.effect, "params": rounded(s.params), "standard_errors": errors_json(s.errors),
                    **drift_rate(s.effect, s.params), "gap_before_um": round(s.gap_before_um, 4),
                    "gap_after_um": round(s.gap_after_um, 4),
-                   "ranking": [{"effect": c.name, "explained_pct": round(c.explained_pct, 2),
-                                "delta_bic": round(c.delta_bic, 2), "p_value": float(f"{c.p_value:.3g}"),
-                                "cv_before_um": round(c.cv_before_um, 4), "cv_after_um": round(c.cv_after_um, 4),
-                                "verdict": c.verdict} for c in s.ranking]} for s in result.steps],
+                   "ranking": ranking_json(s.ranking)} for s in result.steps],
+        "remaining": ranking_json(result.remaining),
+        "remaining_beside": result.remaining_beside,
         "model": {name: rounded(p) for name, p in result.final.params().items()},
+        "model_standard_errors": {name: errors_json(e) for name, e in result.errors.items()},
+        "starting_model": {name: {**{k: v for k, v in e.items() if k not in ("params", "errors", "p_value")},
+                                  "params": rounded(e["params"]),
+                                  **({"standard_errors": errors_json(e["errors"]),
+                                      "p_value": float(f"{e['p_value']:.3g}")} if "p_value" in e else {})}
+                           for name, e in result.starting.items()},
         "offset_um": round(result.final.offset_um, 4),
         "disagreement_before": result.disagreement_before,
         "disagreement_after": result.disagreement_after,
@@ -129,6 +166,46 @@ def incomplete_notes(path: str) -> list[str]:
              "short weighs the targets it reached more than the others; resume the campaign for the whole picture.")]
 
 
+def ranking_lines(ranking) -> list[str]:
+    return [f"    {c.name:28s} explains {c.explained_pct:5.1f} %  ΔBIC {c.delta_bic:8.1f}  p {c.p_value:.2g}  "
+            f"CV {c.cv_before_um:.3f} -> {c.cv_after_um:.3f} µm  {c.verdict}" for c in ranking]
+
+
+def noise_verdict(gap: float, noise: float) -> str:
+    return "noise" if gap <= 1.3 * noise else "more than noise"
+
+
+def nothing_named(result: Discovery) -> str:
+    """Why no effect is named: nothing significant, or something significant that this campaign
+    cannot tell apart (the unresolved list)."""
+    if not result.unresolved:
+        return "no effect is named: none of the vocabulary explains the residual significantly"
+    size = "; ".join(f"{' or '.join(e['effects'])} explains {best.explained_pct:.1f} % of it, ΔBIC {best.delta_bic:.1f}"
+                     for e in result.unresolved
+                     for best in [min((c for c in result.remaining if c.name in e["effects"]),
+                                      key=lambda c: c.delta_bic, default=None)] if best is not None)
+    return ("no effect is named, but the residual is not noise: something significant is there that this campaign "
+            f"cannot tell apart or pin down ({size or 'see below'}); see unresolved below for what it could be "
+            "and how to tell")
+
+
+def starting_lines(result: Discovery, time_unit: str) -> list[str]:
+    """The starting model's effects as fitted at the end, each parameter with its unit and error,
+    and which fitted effect is not significantly different from zero."""
+    lines = []
+    for name, entry in result.starting.items():
+        if entry["fixed"]:
+            lines.append(f"    {name}: held as given ("
+                         + ", ".join(f"{k} = {with_error(v, None, unit_of(name, k, time_unit))}"
+                                     for k, v in entry["params"].items()) + ")")
+            continue
+        lines.append(f"    {name}: {params_text(name, entry['params'], entry['errors'], entry['given'], time_unit)}")
+        if not entry["significant"]:
+            lines.append(f"    [yellow]{name} is not significantly different from zero[/]: leaving it out fits as well "
+                         f"(F-test p = {entry['p_value']:.2g}, not below 0.05); this campaign does not show it")
+    return lines
+
+
 def print_text(result: Discovery, time_unit: str) -> None:
     console = make_console()
     before = result.disagreement_before
@@ -138,22 +215,29 @@ def print_text(result: Discovery, time_unit: str) -> None:
                   + ", ".join(f"{r}: {v['mean_um']:+.3f} µm, {v['slope_ppm']:+.2f} µm/m"
                               for r, v in before["by_run"].items()))
     if not result.steps:
-        console.print("no effect is named: none of the vocabulary explains the residual significantly")
+        console.print(nothing_named(result))
     for i, step in enumerate(result.steps, 1):
-        params = ", ".join(f"{k} = {with_error(v, step.errors.get(k), unit_of(step.effect, k, time_unit))}"
-                           for k, v in step.params.items())
-        if step.effect == "thermal_drift" and time_unit == "s":
-            params += f"; initially {drift_rate(step.effect, step.params)['initial_rate_ppm_per_h']:.3g} µm/m per hour"
-        console.print(f"step {i}: add [bold]{step.effect}[/] ({params}); gap {step.gap_before_um:.3f} -> "
-                      f"{step.gap_after_um:.3f} µm")
-        for c in step.ranking:
-            console.print(f"    {c.name:28s} explains {c.explained_pct:5.1f} %  ΔBIC {c.delta_bic:8.1f}  "
-                          f"p {c.p_value:.2g}  CV {c.cv_before_um:.3f} -> {c.cv_after_um:.3f} µm  {c.verdict}")
+        params = params_text(step.effect, step.params, step.errors, (), time_unit)
+        gap = f"gap {step.gap_before_um:.3f} -> {step.gap_after_um:.3f} µm"
+        console.print(f"step {i}: add [bold]{step.effect}[/] ({params}); {gap}")
+        for line in ranking_lines(step.ranking):
+            console.print(line)
+    if result.remaining:
+        where = (f" (the unresolved ones against the model, the others beside the unresolved {result.remaining_beside} "
+                 "as a stand-in)" if result.remaining_beside else "")
+        console.print(("then" if result.steps else "candidates") + f"{where}: none is named")
+        for line in ranking_lines(result.remaining):
+            console.print(line)
+    if result.starting:
+        console.print("starting model, as fitted at the end:")
+        for line in starting_lines(result, time_unit):
+            console.print(line)
     for entry in result.unresolved:
         console.print(f"[yellow]unresolved:[/] {entry['why']}. To tell: {entry['how_to_tell']}.")
-    verdict = "noise" if result.gap_after_um <= 1.3 * result.noise_um else "more than noise"
-    console.print(f"final gap {result.gap_after_um:.3f} µm RMS against a noise estimate of {result.noise_um:.3f} µm "
-                  f"(run-to-run scatter): what is left is {verdict}")
+    verdict = noise_verdict(result.gap_after_um, result.noise_um)
+    line = (f"final gap {result.gap_after_um:.3f} µm RMS against a noise estimate of {result.noise_um:.3f} µm "
+            f"(run-to-run scatter): what is left is {verdict}")
+    console.print(line)
     for note in result.notes:
         console.print(f"note: {note}")
 

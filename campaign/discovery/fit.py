@@ -202,16 +202,30 @@ def independent_periods(data: CampaignData) -> float:
     return max(1.0, float(np.ptp(data.x)) * (1 / low - 1 / high))
 
 
+CV_RCOND = COLLINEAR
+"""In a cross-validation fold, directions of the (column-normalised) design whose singular value is
+below this fraction of the largest are left out: a fold can lose what tells two columns apart
+(leaving out the one run in which a short thermal time constant acts makes its columns those of
+linear_scale and the offset), and the prediction must then be what the fold can say, not a
+difference of two huge coefficients."""
+
+
+def _fold_solve(a: np.ndarray, y: np.ndarray) -> np.ndarray:
+    norms = np.linalg.norm(a, axis=0)
+    norms[norms == 0] = 1.0
+    return np.linalg.lstsq(a / norms, y, rcond=CV_RCOND)[0] / norms
+
+
 def cv_rms_um(data: CampaignData, terms: list[Term], groups: np.ndarray) -> float:
     """Cross-validated RMS, µm: each group (a target or a run) predicted from the others, shapes
-    held at their fitted values."""
+    held at their fitted values (a direction the fold cannot determine is left out: CV_RCOND)."""
     base = fixed_deviation(data, terms)
     a, _ = design(data, terms)
     y = data.y - base
     errors = np.zeros(len(y))
     for g in np.unique(groups):
         out = groups == g
-        beta = _solve(a[~out], y[~out])
+        beta = _fold_solve(a[~out], y[~out])
         errors[out] = y[out] - a[out] @ beta
     return float(np.sqrt(np.mean(errors**2)))
 
@@ -233,48 +247,87 @@ def f_test_p(before: Fit, after: Fit, n: int) -> float:
     return float(stats.f.sf(f_value, q, dof)) if f_value > 0 else 1.0
 
 
-def coefficient_names(term: Term) -> list[str]:
-    """The names of `term`'s columns, in the form's full column order."""
-    if term.name == "environment":
-        return [k for k, flag in (("air_factor", "air"), ("alpha_ppm_per_k", "material")) if term.shape.get(flag)]
-    return list(FORMS[term.name].coefficients)
+DERIVED = {"thermal_drift": lambda p: {"initial_rate_ppm_per_h": p["growth_ppm"] / p["tau_s"] * 3600}}
+"""Quantities reported beside an effect's parameters, computed from them (and given an error the
+same way): thermal drift's initial rate of slope change, µm/m per hour (per 3600 points without a
+time column)."""
+ANGLES = ("phase_rad",)
+"""Parameters that are angles: their differences are wrapped to (-π, π]."""
 
 
-def standard_errors(data: CampaignData, fit: Fit, step: float = 1e-4) -> dict[str, dict[str, float]]:
-    """1-σ standard errors of the fitted parameters that are one coefficient or one shape parameter
-    (e.g. growth_ppm and tau_s, not a periodic amplitude), in their units: from the Jacobian of the
-    prediction with respect to every coefficient and the log of every searched shape, cov =
-    s²·(JᵀJ)⁻¹ with s² = RSS/(n - p). Asymptotic (linearised) values: the spread over repeated
-    campaigns, not a guarantee."""
+def jacobian(data: CampaignData, fit: Fit, step: float = 1e-4) -> tuple[np.ndarray, list]:
+    """The Jacobian of the prediction with respect to the offset, every fitted coefficient (label
+    (term index, "coef", column in the form's full order)) and the log of every searched shape
+    (label (term index, "log", key)); the offset's label is None."""
     a, slices = design(data, fit.terms)
-    blocks, labels = [a], [("", "")] + [("", "")] * (a.shape[1] - 1)
-    for term, sl in zip(fit.terms, slices):
+    blocks, labels = [a], [None] * a.shape[1]
+    for i, (term, sl) in enumerate(zip(fit.terms, slices)):
         if term.fixed:
             continue
-        keep = term.keep if term.keep is not None else (True,) * len(coefficient_names(term))
-        names = [n for n, k in zip(coefficient_names(term), keep) if k]
-        for j, name in zip(range(sl.start, sl.stop), names):
-            labels[j] = (term.name, name)
-    for term, coefs in zip(fit.terms, fit.coefs):
+        count = len(fit.coefs[i])
+        kept = np.flatnonzero(term.keep if term.keep is not None else (True,) * count)
+        for j, col in zip(range(sl.start, sl.stop), kept):
+            labels[j] = (i, "coef", int(col))
+    for i, (term, coefs) in enumerate(zip(fit.terms, fit.coefs)):
         for key in term.searched:
             base = FORMS[term.name].columns(data, term.shape, term.held) @ coefs
             moved = {**term.shape, key: term.shape[key] * math.exp(step)}
             blocks.append(((FORMS[term.name].columns(data, moved, term.held) @ coefs - base) / step)[:, None])
-            labels.append((term.name, "log:" + key))
-    jac = np.hstack(blocks)
+            labels.append((i, "log", key))
+    return np.hstack(blocks), labels
+
+
+def term_params(term: Term, coefs: np.ndarray) -> dict[str, float]:
+    """A free term's model parameters and its derived quantities (DERIVED)."""
+    params = FORMS[term.name].params(coefs, term.shape, term.held)
+    extra = DERIVED.get(term.name)
+    return {**params, **(extra(params) if extra else {})}
+
+
+def standard_errors(data: CampaignData, fit: Fit, step: float = 1e-4) -> dict[str, dict[str, float]]:
+    """1-σ standard errors of every fitted parameter (and derived quantity, DERIVED), in their
+    units: cov = s²·(JᵀJ)⁻¹ over the offset, every coefficient and the log of every searched shape
+    (s² = RSS/(n - p)), carried to each parameter by its gradient (the delta method: a periodic
+    amplitude and phase from the sine and cosine coefficients, thermal drift's pivot from its two
+    coefficients). Parameters the user gave, and fixed shapes (the bow's span), get none.
+    Asymptotic (linearised) values: the spread over repeated campaigns, not a guarantee; a phase's
+    error is meaningless when the amplitude is not different from zero."""
+    jac, labels = jacobian(data, fit, step)
     n, p = jac.shape
     if n <= p:
         return {}
     cov = np.linalg.pinv(jac.T @ jac) * fit.rss / (n - p)
     out: dict[str, dict[str, float]] = {}
-    params = fit.params()
-    for j, (name, key) in enumerate(labels):
-        if not name:
+    for i, term in enumerate(fit.terms):
+        index = [j for j, label in enumerate(labels) if label is not None and label[0] == i]
+        if term.fixed or not index:
             continue
-        sd = float(math.sqrt(max(cov[j, j], 0.0)))
-        if key.startswith("log:"):
-            key = key[4:]
-            sd *= abs(params[name][key])
-        if key in params[name]:
-            out.setdefault(name, {})[key] = sd
+
+        def values(delta: np.ndarray, i=i, term=term, index=index) -> dict[str, float]:
+            coefs, shape = fit.coefs[i].astype(float).copy(), dict(term.shape)
+            for j, d in zip(index, delta):
+                _, kind, what = labels[j]
+                if kind == "coef":
+                    coefs[what] += d
+                else:
+                    shape[what] *= math.exp(d)
+            return term_params(replace(term, shape=shape), coefs)
+
+        base = values(np.zeros(len(index)))
+        sds = np.sqrt(np.maximum(np.diag(cov)[index], 0.0))
+        grads = {k: np.zeros(len(index)) for k in base}
+        for m in range(len(index)):
+            h = np.zeros(len(index))
+            h[m] = max(1e-3 * sds[m], 1e-12)
+            up, down = values(h), values(-h)
+            for k in base:
+                diff = up[k] - down[k]
+                if k in ANGLES:
+                    diff = (diff + math.pi) % (2 * math.pi) - math.pi
+                grads[k][m] = diff / (2 * h[m])
+        sub = cov[np.ix_(index, index)]
+        for k, g in grads.items():
+            if k in term.held or not np.any(g):
+                continue
+            out.setdefault(term.name, {})[k] = float(math.sqrt(max(float(g @ sub @ g), 0.0)))
     return out

@@ -96,7 +96,8 @@ class Step:
     residual_before: np.ndarray
     residual_after: np.ndarray
     errors: dict[str, float] = field(default_factory=dict)
-    """1-σ standard errors of the parameters that have one (see discovery_fit.standard_errors)."""
+    """1-σ standard errors of the fitted parameters (see discovery_fit.standard_errors); a
+    period's includes the spread over its competing optima."""
 
 
 @dataclass
@@ -119,6 +120,15 @@ class Discovery:
     unresolved: list[dict] = field(default_factory=list)
     """Effects the data cannot tell apart or pin down, none of them named: effects, why,
     how_to_tell (and periods_mm for a period that is not identifiable)."""
+    errors: dict[str, dict[str, float]] = field(default_factory=dict)
+    """1-σ standard errors of the final model's fitted parameters, per effect."""
+    remaining: list[Candidate] = field(default_factory=list)
+    """The candidates tried after the last step, none of them named."""
+    remaining_beside: str | None = None
+    """The unresolved effect the remaining candidates were tried beside (a stand-in), if any."""
+    starting: dict[str, dict] = field(default_factory=dict)
+    """The starting model's effects, as fitted at the end: params, errors, given (the keys the
+    model gave), fixed, p_value (F-test of the effect against none of it) and significant."""
 
     @property
     def added(self) -> list[str]:
@@ -257,8 +267,9 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
         fits.append(fit)
         if best is None or fit.rss < best.rss:
             best = fit
+    env_note = None
     if name == "environment" and fits:
-        best = environment_variant(fits, n, notes)
+        best, env_note = environment_variant(fits, n)
     if best is None:
         others = confounders(data, current.terms, Term(name, {}, False, {**held, **(starts[0] if starts else {})}))
         _note(notes, f"{name} is confounded with {' + '.join(others) or 'the model'} on this data: not named")
@@ -282,6 +293,8 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
     cand.verdict = "accepted" if not failed else "not significant (" + ", ".join(failed) + ")"
     if not failed and len(periods) > 1 and periods[1][1] < RIVAL_MARGIN:
         cand.verdict = "period not identifiable"
+    if env_note and not failed:  # which log it follows matters only when it explains something
+        _note(notes, *env_note)
     return cand
 
 
@@ -328,11 +341,11 @@ carries (0 to 1, with room for noise), and an expansion coefficient, µm/m per K
 aluminium and beyond)."""
 
 
-def environment_variant(fits: list[Fit], n: int, notes: list[str]) -> Fit:
+def environment_variant(fits: list[Fit], n: int) -> tuple[Fit, tuple[str, str] | None]:
     """Of the environment fits with each log alone and both together, the one with the lowest BIC
     among those with plausible coefficients (all of them if none is). When the air and material
-    logs move together the variants fit alike: the note says so, and which one the coefficients
-    rule out."""
+    logs move together the variants fit alike: the note (text, topic) says so, and which one the
+    coefficients rule out; it is said only when environment passes the tests (try_candidate)."""
     def coefs(fit):
         return fit.params()["environment"]
 
@@ -343,15 +356,17 @@ def environment_variant(fits: list[Fit], n: int, notes: list[str]) -> Fit:
     chosen = next((f for f in ranked if plausible(f)), ranked[0])
     rivals = [f for f in ranked if f is not chosen and set(coefs(f)) != set(coefs(chosen))
               and bic(f, n) - bic(chosen, n) < BIC_MARGIN]
+    note = None
     for rival in rivals:
         logs = {k: ("air" if k == "air_factor" else "material") for k in (*coefs(chosen), *coefs(rival))}
         said = ", ".join(f"{k} = {v:.3g}" for k, v in coefs(rival).items())
         reason = (f"the {' and '.join(logs[k] for k in coefs(rival))} log alone would need {said}, which is not "
                   "physical" if not plausible(rival) else "both are plausible: the attribution is uncertain")
         topic = "the air and material logs move together in this campaign"
-        _note(notes, f"{topic}, so their slopes are confounded; "
-                     f"environment is fitted with the {' and '.join(logs[k] for k in coefs(chosen))} log: {reason}", topic)
-    return chosen
+        text = (f"{topic}, so their slopes are confounded; "
+                f"environment is fitted with the {' and '.join(logs[k] for k in coefs(chosen))} log: {reason}")
+        note = (text, topic)
+    return chosen, note
 
 
 NESTED_IN = {"position_dependent_backlash": "backlash"}
@@ -381,12 +396,17 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
                      "are in points, not seconds)")
     start = refine(data, start_terms(model, given, data, notes))
     current, steps, choices, unresolved = start, [], [], []
+    ranking: list[Candidate] = []
+    remaining: list[Candidate] = []
+    remaining_beside = None
+    spreads: dict[str, float] = {}
     for _ in range(MAX_STEPS):
         ranking = [try_candidate(data, current, name, notes)
                    for name in candidate_names(data, current.terms, notes)]
         ranking.sort(key=lambda c: (c.fit is None, c.delta_bic))
         chosen, unresolved = choose(data, current, ranking, notes)
         held = [c for c in ranking if c.verdict.startswith(UNRESOLVED_VERDICTS)]
+        remaining_beside = None
         if chosen is None and held:
             # something is there that cannot be named (rivals, or a period not known): test the
             # others beside the best of it as a stand-in, so that its residual does not hide them
@@ -396,46 +416,87 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
                       if name not in {c.name for c in held}]
             others.sort(key=lambda c: (c.fit is None, c.delta_bic))
             chosen, more = choose(data, stand_in.fit, others, notes)
+            unresolved += more
+            ranking = [*held, *others]
             if chosen is not None:
-                unresolved += more
-                ranking = [*held, *others]
                 _note(notes, f"{chosen.name} was tested beside the unresolved {stand_in.name} (as a stand-in, "
                              "not named), whose residual would otherwise hide it")
+                # the search goes on from the named model
                 chosen.fit = refine(data, [t for t in chosen.fit.terms if t.name != stand_in.name])
+            else:
+                remaining_beside = stand_in.name
         for cand in ranking:
             if cand.accepted and cand is not chosen:
                 cand.verdict = "significant, but not named at this step: tried again at the next"
         if chosen is None:
+            remaining = ranking
             if ranking:
-                steps_ranking_note(notes, ranking, unresolved)
+                steps_ranking_note(notes, ranking, remaining_beside)
             break
         choice = air_or_screw(data, ranking, chosen, len(steps) + 1)
         if choice:
             choices.append(choice)
             _note(notes, choice["why"])
         after = refine(data, chosen.fit.terms)
+        if chosen.periods:
+            spreads[chosen.name] = period_spread_mm(chosen.periods)
         errors = standard_errors(data, after).get(chosen.name, {})
-        if chosen.periods and "period_mm" in errors:
-            errors["period_mm"] = math.hypot(errors["period_mm"], period_spread_mm(chosen.periods))
+        add_period_spread(errors, chosen.name, spreads)
         steps.append(Step(chosen.name, after.params()[chosen.name], current.rms_um(data.y), after.rms_um(data.y),
                           ranking, data.y - current.prediction, data.y - after.prediction, errors))
         current = after
+    errors = standard_errors(data, current)
+    for name in errors:
+        add_period_spread(errors[name], name, spreads)
     add_confounding_notes(data, current, notes)
     residual = data.y - current.prediction
     return Discovery(steps, start, current, start.rms_um(data.y), current.rms_um(data.y),
                      pooled_scatter_um(data, residual), data.time_source, notes,
                      disagreement(data, data.y - start.prediction), disagreement(data, residual), choices,
-                     unresolved)
+                     unresolved, errors=errors, remaining=remaining, remaining_beside=remaining_beside,
+                     starting=starting_report(data, start, current, errors, given))
 
 
+def add_period_spread(errors: dict[str, float], name: str, spreads: dict[str, float]) -> None:
+    """A named period's error includes the spread over its competing optima (period_spread_mm)."""
+    if name in spreads and "period_mm" in errors:
+        errors["period_mm"] = math.hypot(errors["period_mm"], spreads[name])
+
+
+SIGNIFICANT = 0.05
+"""An effect of the starting model whose F-test against leaving it out gives p at or above this is
+said not to differ significantly from zero (a test of a given effect, not a search: no
+look-elsewhere factor, the usual 5 %)."""
+
+
+def starting_report(data: CampaignData, start: Fit, final: Fit, errors: dict[str, dict[str, float]],
+                    given: dict[str, set[str]]) -> dict[str, dict]:
+    """The starting model's effects as fitted at the end (beside the named effects): their
+    parameters and errors, the parameters the model gave, and whether each fitted effect differs
+    from zero (nested F-test of the final fit against it left out)."""
+    n, out = len(data), {}
+    params = final.params()
+    for term in start.terms:
+        entry: dict = {"given": sorted(given.get(term.name, set()) & set(EFFECT_PARAMS.get(term.name, {}))),
+                       "fixed": term.fixed, "params": params.get(term.name, dict(term.held))}
+        if not term.fixed:
+            reduced = linear_fit(data, [t for t in final.terms if t.name != term.name])
+            p_value = f_test_p(reduced, final, n)
+            entry.update(errors=errors.get(term.name, {}), p_value=p_value, significant=p_value < SIGNIFICANT)
+        out[term.name] = entry
+    return out
+
+
+DWELLS_HOW_TO_TELL = (
+    "a campaign whose wait before each capture varies over a decade (fixed dwells from 0.5 s to 5 s, "
+    "e.g. two campaigns with --capture dwell at dwell_s = 0.5 and 5): settling fades with the wait, "
+    "backlash does not")
 HOW_TO_TELL = {
-    frozenset({"settling", "backlash"}): (
-        "a campaign whose wait before each capture varies over a decade (fixed dwells from 0.5 s to 5 s, "
-        "e.g. two campaigns with --capture dwell at dwell_s = 0.5 and 5): settling fades with the wait, "
-        "backlash does not"),
-    frozenset({"settling", "position_dependent_backlash"}): (
-        "a campaign whose wait before each capture varies over a decade (fixed dwells from 0.5 s to 5 s): "
-        "settling fades with the wait, backlash does not"),
+    frozenset({"settling", "backlash"}): DWELLS_HOW_TO_TELL,
+    frozenset({"settling", "position_dependent_backlash"}): DWELLS_HOW_TO_TELL,
+    frozenset({"backlash", "position_dependent_backlash"}): (
+        "both directions at targets over the whole travel: a reversal that grows along the travel is "
+        "position_dependent_backlash, a constant one backlash"),
     frozenset({"periodic_lead", "nonlinear_lead"}): (
         "more targets (at least 4 per screw lead over part of the travel, offsets = \"golden\"), or the known "
         "screw lead in the model (periodic_lead.period_mm) so that only its amplitude is fitted"),
@@ -500,7 +561,7 @@ def hold_reversal(backlash: Candidate, ranking: list[Candidate], data: CampaignD
         "why": f"{size} between the directions (backlash explains {backlash.explained_pct:.1f} %, ΔBIC "
                f"{backlash.delta_bic:.1f}), but {wait}: settling that has not died out leaves the same constant "
                "offset per direction, so this campaign cannot tell backlash from settling and names neither",
-        "how_to_tell": HOW_TO_TELL[frozenset({"settling", "backlash"})],
+        "how_to_tell": DWELLS_HOW_TO_TELL,
         "delta_bic": {"backlash": round(backlash.delta_bic, 2)}})
     backlash.verdict = "not told apart from settling (the wait before capture does not vary)"
     held = [backlash]
@@ -529,16 +590,36 @@ def are_rivals(data: CampaignData, best: Candidate, other: Candidate, n: int) ->
     return bic(joint, n) > bic(best.fit, n) - RIVAL_MARGIN
 
 
+def how_to_tell(names: list[str]) -> str:
+    """What campaign separates a group of effects: the texts of its pairs (each once), and the
+    general advice when a pair has none."""
+    texts, unknown = [], False
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            text = HOW_TO_TELL.get(frozenset({a, b}))
+            unknown |= text is None
+            if text is not None and text not in texts:
+                texts.append(text)
+    if unknown or not texts:
+        texts.append(HOW_TO_TELL_DEFAULT)
+    return "; ".join(texts)
+
+
+def said_list(names: list[str]) -> str:
+    """'a and b', 'a, b and c'."""
+    return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+
+
 def rival_entry(best: Candidate, rivals: list[Candidate]) -> dict:
     """The `unresolved` record of candidates that explain the same residual."""
     group = [best, *rivals]
     said = "; ".join(f"{c.name} explains {c.explained_pct:.1f} % (ΔBIC {c.delta_bic:.1f})" for c in group)
     names = [c.name for c in group]
-    how = HOW_TO_TELL.get(frozenset(names[:2]), HOW_TO_TELL_DEFAULT) if len(names) == 2 else HOW_TO_TELL_DEFAULT
+    none = "neither is named" if len(names) == 2 else "none of them is named"
     return {"effects": names,
-            "why": f"{' and '.join(names)} explain the same part of the residual about equally well ({said}), "
-                   "and together no better than one alone: this campaign cannot tell which it is, so neither is named",
-            "how_to_tell": how,
+            "why": f"{said_list(names)} explain the same part of the residual about equally well ({said}), "
+                   f"and together no better than one alone: this campaign cannot tell which it is, so {none}",
+            "how_to_tell": how_to_tell(names),
             "delta_bic": {c.name: round(c.delta_bic, 2) for c in group}}
 
 
@@ -605,11 +686,21 @@ def air_or_screw(data: CampaignData, ranking: list[Candidate], chosen: Candidate
             "why": why}
 
 
-def steps_ranking_note(notes: list[str], ranking: list[Candidate], unresolved: list[dict]) -> None:
-    best = next((c for c in ranking if not c.verdict.startswith(UNRESOLVED_VERDICTS)), None)
-    if best is not None and best.fit is not None:
-        _note(notes, f"nothing more is named: the best remaining candidate, {best.name}, explains "
-                     f"{best.explained_pct:.1f} % of the residual but fails {best.verdict.split('(')[-1].rstrip(')')}")
+def steps_ranking_note(notes: list[str], ranking: list[Candidate], beside: str | None) -> None:
+    """Why nothing more is named: no remaining candidate passes the three tests; the share of the one
+    that explains most, as in the printed ranking of the remaining candidates."""
+    rest = [c for c in ranking if c.fit is not None and not c.verdict.startswith(UNRESOLVED_VERDICTS)]
+    if not rest:
+        return
+    most = max(rest, key=lambda c: c.explained_pct)
+    where = f" (tried beside the unresolved {beside} as a stand-in)" if beside else ""
+    fails = most.verdict.split("(")[-1].rstrip(")")
+    if most.explained_pct < 1.0:
+        _note(notes, f"nothing more is named: no other candidate{where} explains more than "
+                     f"{most.explained_pct:.1f} % of the residual")
+    else:
+        _note(notes, f"nothing more is named: no other candidate{where} passes the three tests; the one that "
+                     f"explains most, {most.name} ({most.explained_pct:.1f} % of the residual), fails {fails}")
 
 
 def add_confounding_notes(data: CampaignData, fit: Fit, notes: list[str]) -> None:
