@@ -5,13 +5,12 @@ deg); its environment columns are averaged like the reading. Readings are taken 
 air or material correction is applied.
 
 1. Dwells: a sample is still when the reading is within `still_tolerance` of the reading a quarter
-   of the planned dwell earlier; a dwell is a run of still samples (extended back by that quarter)
-   that lasts at least half the planned dwell and does not begin at the start of the stream. The
-   end of such a run lies after the next move has begun (its first samples are still within the
-   tolerance of the readings a quarter dwell earlier), so the end is trimmed the same quarter, then
-   extended again only while the reading stays at the dwell's level (groups of 5 samples within 4
-   standard errors of it): the still part is found by the reading itself, and a slow start of the
-   next move does not enter the capture.
+   of the planned dwell earlier; a dwell is a run of still samples (extended back by that quarter,
+   joined across a noise spike of SPIKE_SAMPLES) that lasts at least half the planned dwell and
+   does not begin at the start of the stream. The run ends only after the next move has begun, so
+   its end is found by the reading itself (`still_ends`): the level from the dwell's second
+   quarter, the first clear departure from it after that, and the onset of that departure
+   (`onset`): a slow start of the next move does not enter the capture.
 2. Matching: the dwells are matched in order to the plan's move endpoints. Every measured point
    needs a dwell at its target; overrun stops may be missing (they are motion only); stops after the
    last point are ignored.
@@ -75,6 +74,13 @@ def find_dwells(time: np.ndarray, reading: np.ndarray, tolerance: float, dwell_s
     edges = np.diff(still)
     first = np.flatnonzero(edges == 1)
     last = np.flatnonzero(edges == -1) - 1
+    # a noise spike beyond the tolerance breaks a dwell for a sample (at the spike and a lag later);
+    # a move, even out to an overrun and straight back, breaks it for longer
+    if len(first):
+        gap = first[1:] - last[:-1] - 1  # samples
+        joined = np.concatenate([[True], (gap > SPIKE_SAMPLES) | (time[first[1:]] - time[last[:-1]] > dwell_s / 20)])
+        group = np.flatnonzero(joined)  # the first run of each group of runs joined across short gaps
+        first, last = first[group], last[np.concatenate([group[1:] - 1, [len(last) - 1]])]
     long = time[last] - time[first] >= dwell_s / 4 - dt  # drops noise flickers at a dwell's edges
     first, last = first[long], last[long]
     start = first - lag
@@ -83,30 +89,76 @@ def find_dwells(time: np.ndarray, reading: np.ndarray, tolerance: float, dwell_s
     return Dwells(start[keep], last[keep])
 
 
-def still_ends(time: np.ndarray, reading: np.ndarray, dwells: Dwells, dwell_s: float) -> Dwells:
-    """The dwells with their ends where the reading leaves the dwell's level (see the module text):
-    trimmed back a quarter of `dwell_s` (s), then extended up to the first group of SMOOTH samples
-    whose mean departs from the level (the median of the last quarter) by more than 4 standard
-    errors. The noise is the instrument's, one value for the whole stream: the median over the
-    dwells of 1.4826 · the median absolute deviation of each dwell after its first quarter."""
+SPIKE_SAMPLES = 2
+"""A dwell broken for at most this many samples (and a twentieth of the dwell) is one dwell: a
+noise spike beyond the still tolerance, not a move."""
+
+
+def stream_noise(reading: np.ndarray, dwells: Dwells, lag: int) -> float:
+    """The instrument's noise (axis unit), one value for the whole stream: the median over the
+    dwells of 1.4826 · the median absolute deviation of each dwell's middle half."""
+    spreads = []
+    for start, end in zip(dwells.start, dwells.end):
+        settled = reading[min(int(start) + lag, int(end)):max(int(end) - lag, int(start) + lag, int(start)) + 1]
+        if len(settled):
+            spreads.append(1.4826 * float(np.median(np.abs(settled - np.median(settled)))))
+    return float(np.median(spreads)) if spreads else 0.0
+
+
+def onset(time: np.ndarray, y: np.ndarray) -> int:
+    """Where a reading that is flat and then leaves it (a slow start, then the move) begins to
+    leave: the index c that minimises the residual of y = L + k·(t - t_c)² after t_c (L before),
+    by least squares over every c at once (sums of powers of t from the end)."""
+    t = time - time[0]
+    y = y - np.median(y)
+
+    def from_end(v: np.ndarray) -> np.ndarray:
+        return np.cumsum(v[::-1])[::-1]
+
+    tk = [from_end(t**k) for k in range(5)]
+    yk = [from_end(y * t**k) for k in range(3)]
+    c = np.arange(1, len(y) - 1)
+    tc = t[c]
+    s1 = tk[2][c] - 2 * tc * tk[1][c] + tc**2 * tk[0][c]
+    s2 = tk[4][c] - 4 * tc * tk[3][c] + 6 * tc**2 * tk[2][c] - 4 * tc**3 * tk[1][c] + tc**4 * tk[0][c]
+    y1 = yk[2][c] - 2 * tc * yk[1][c] + tc**2 * yk[0][c]
+    n, y0 = len(y), float(y.sum())
+    with np.errstate(all="ignore"):
+        explained = (s2 * y0**2 - 2 * s1 * y0 * y1 + n * y1**2) / (n * s2 - s1**2)
+    explained[~np.isfinite(explained)] = -np.inf
+    return int(c[np.argmax(explained)])
+
+
+def still_ends(time: np.ndarray, reading: np.ndarray, dwells: Dwells, dwell_s: float,
+               tolerance: float) -> Dwells:
+    """The dwells with their ends where the axis begins to leave (see the module text). From a
+    quarter of `dwell_s` (s) into the dwell, the level is the median of the next quarter; the
+    reading is followed past the dwell's end until a group of SMOOTH samples departs from the level
+    by more than DEPART_SE standard errors of the stream's noise (and a tenth of `tolerance`, axis
+    unit); the end is the onset of that departure (`onset`). A dwell whose reading never departs
+    (the end of the stream) keeps its end."""
     dt = sample_interval(time) or 1e-9
     lag = int(max(1.0, np.ceil(dwell_s / 4 / dt)))
-    trimmed = np.maximum(dwells.start + 1, dwells.end - lag)
-    spreads = []
-    for start, end in zip(dwells.start, trimmed):
-        settled = reading[min(int(start) + lag, int(end)):int(end) + 1]
-        spreads.append(1.4826 * float(np.median(np.abs(settled - np.median(settled)))))
-    noise = float(np.median(spreads)) if spreads else 0.0
-    limit = max(4 * noise / np.sqrt(SMOOTH), 1e-12)
-    ends = trimmed.copy()
-    for i, (start, cut, end) in enumerate(zip(dwells.start, trimmed, dwells.end)):
-        level = float(np.median(reading[max(int(start), int(cut) - lag):int(cut) + 1]))
-        ahead = reading[int(cut) + 1:int(end) + 1]
-        if len(ahead) >= SMOOTH:
-            means = np.convolve(ahead, np.ones(SMOOTH) / SMOOTH, mode="valid")  # means[j]: ahead[j:j+SMOOTH]
-            away = np.abs(means - level) > limit
-            ends[i] = cut + (int(np.argmax(away)) if away.any() else len(ahead))
-    return Dwells(dwells.start, ends)
+    limit = max(DEPART_SE * stream_noise(reading, dwells, lag) / np.sqrt(SMOOTH), tolerance / 10, 1e-12)
+    ends = dwells.end.copy()
+    for i, (start, end) in enumerate(zip(dwells.start, dwells.end)):
+        a = min(int(start) + lag, int(end))
+        b = min(int(end) + lag, len(reading) - 1)
+        if b - a < 2 * SMOOTH:
+            continue
+        level = float(np.median(reading[a:min(a + lag, int(end)) + 1]))
+        means = np.convolve(reading[a:b + 1], np.ones(SMOOTH) / SMOOTH, mode="valid")  # means[j]: from a + j
+        away = np.abs(means - level) > limit
+        if not away.any():
+            continue
+        leave = a + int(np.argmax(away)) + SMOOTH - 1  # the last sample of the first group that left
+        ends[i] = onset(time[a:leave + 1], reading[a:leave + 1]) + a if leave - a >= 3 * SMOOTH else max(a, leave - SMOOTH)
+    return Dwells(dwells.start, np.minimum(ends, dwells.end + lag))
+
+
+DEPART_SE = 8.0
+"""Standard errors of a SMOOTH-sample mean by which the reading must leave a dwell's level before
+`still_ends` looks for where it began to leave."""
 
 
 SMOOTH = 5
@@ -192,7 +244,7 @@ def extract_points(stream: Stream, plan: Plan, config: Config, still_tolerance: 
     unit, kind = config["axis"]["unit"], config["axis"]["kind"]
     tolerance = still_tolerance / SCALE[unit]  # axis unit
     dwells = find_dwells(stream.time, stream.reading, tolerance, config["plan"]["dwell_s"])
-    dwells = still_ends(stream.time, stream.reading, dwells, config["plan"]["dwell_s"])
+    dwells = still_ends(stream.time, stream.reading, dwells, config["plan"]["dwell_s"], tolerance)
     lo, hi = capture_windows(stream, dwells, config["capture"]["average_s"])
     positions = _window_means(stream.reading, lo, hi) if len(lo) else np.zeros(0)
     assigned, overruns, ignored = assign_dwells(stream, dwells, positions, plan, unit)
