@@ -96,3 +96,47 @@ def test_formats_without_comments_carry_no_provenance(tmp_path):
     path = tmp_path / "t.comp"
     path.write_text(render("linuxcnc", BI, FormatOptions(provenance=(("machine", "press 7"),))).text)
     assert read_comp_provenance(path) == {}
+
+
+def test_compensate_names_the_campaign_and_the_dates_in_the_provenance(cli, tmp_path):
+    """The provenance says which campaign (its directory), when it was measured (meta.json's
+    `created`) and when the table was written, beside machine, axis and software."""
+    import json
+    from datetime import UTC, datetime
+
+    from campaign.compensation.table_file import read_comp_provenance
+    from campaign.discovery.simulate import simulate_campaign
+    from campaign.model import ErrorModel
+    from campaign.pointtable import write_points
+    from tests.test_discovery import CONFIG, PLAN
+
+    directory = tmp_path / "spindle-2026"
+    directory.mkdir()
+    table = simulate_campaign(CONFIG, ErrorModel({"linear_scale": {"ppm": -12.0}}), seed=1)
+    table.meta.update(machine="mill-3", axis="Y")
+    write_points(directory / "points.csv", table)
+    (directory / "config.toml").write_text(PLAN)
+    (directory / "meta.json").write_text(json.dumps({"format_version": 2, "created": "2026-03-02T08:15:00+00:00"}))
+    before = datetime.now(UTC).replace(microsecond=0)
+    result = cli("compensate", directory / "points.csv", "--format", "csv", "-o", tmp_path / "t.csv")
+    assert result.code == 0, result.err
+    said = read_comp_provenance(tmp_path / "t.csv")
+    assert said["campaign"] == "spindle-2026" and said["measured"] == "2026-03-02T08:15:00+00:00"
+    assert said["machine"] == "mill-3" and said["axis"] == "Y" and said["software"].startswith("axiscal ")
+    assert before <= datetime.fromisoformat(said["written"]) <= datetime.now(UTC)
+
+
+def test_the_control_is_named_as_the_manual_writes_it(cli, tmp_path):
+    """`--control 808D` as on the control's front panel: the same 200-point limit as 808d."""
+    from campaign.discovery.simulate import simulate_campaign
+    from campaign.model import ErrorModel
+    from campaign.pointtable import write_points
+    from tests.test_discovery import CONFIG
+
+    write_points(tmp_path / "p.csv", simulate_campaign(CONFIG, ErrorModel({"linear_scale": {"ppm": -12.0}}), seed=1))
+    for control in ("808D", "808d"):
+        result = cli("compensate", tmp_path / "p.csv", "--format", "siemens", "--control", control,
+                     "--spacing", "1", "-o", tmp_path / f"{control}.spf")
+        assert result.code == 2 and "at most 200" in result.err, result.err
+    assert cli("compensate", tmp_path / "p.csv", "--format", "siemens", "--control", "808D",
+               "--spacing", "5", "-o", tmp_path / "ok.spf").code == 0

@@ -4,6 +4,7 @@ predicted accuracy next to the floor the repeatability allows."""
 
 from __future__ import annotations
 
+from datetime import UTC, datetime
 from pathlib import Path
 
 from campaign.commands import (
@@ -55,7 +56,7 @@ def register(sub) -> None:
                    help="linuxcnc: the machine's units (an inch machine needs an inch table; default mm)")
     p.add_argument("--axis-number", type=positive_integer,
                    help="twincat_cnc: the axis' logical number, kopf.achs_nr (1..65534; required)")
-    p.add_argument("--control", choices=("840d", "828d", "808d", "tnc640", "tnc426"),
+    p.add_argument("--control", choices=("840d", "828d", "808d", "tnc640", "tnc426"), type=str.lower,
                    help="siemens: 840d (default), 828d or 808d (sets the point limit: 808D 200); "
                         "heidenhain: tnc640 (default) or tnc426 (power-of-two spacing)")
     p.add_argument("--write-plc", metavar="CONFIG",
@@ -75,6 +76,28 @@ def control_point_limit(fmt: str, control: str | None) -> int:
 
         return min(POINT_LIMITS[fmt], MAX_POINTS.get(control or DEFAULT_CONTROL, POINT_LIMITS[fmt]))
     return POINT_LIMITS[fmt]
+
+
+def campaign_name(path: str) -> str:
+    """The campaign a point table comes from: its directory's name, or the table's file name."""
+    from campaign.assess import campaign_dir_of
+
+    directory = campaign_dir_of(path)
+    return directory.resolve().name if directory else Path(path).name
+
+
+def measured_on(path: str) -> str:
+    """When the campaign was started (meta.json `created`, ISO 8601), or "" for a bare table."""
+    from campaign.assess import campaign_dir_of
+    from campaign.record.directory import open_campaign
+
+    directory = campaign_dir_of(path)
+    if directory is None:
+        return ""
+    try:
+        return str(open_campaign(directory).meta.get("created", ""))
+    except (InputError, OSError, ValueError):
+        return ""
 
 
 def run(args) -> int:
@@ -100,7 +123,9 @@ def run(args) -> int:
     max_points = args.max_points or control_point_limit(args.format, args.control)
     ctable = resample(corr, max_points, args.spacing, args.reference, args.overrun)
     axis = args.axis_name or ("AX1" if args.format == "siemens" else "X")
-    provenance = (("points", str(Path(args.file).resolve())), ("machine", table.meta.get("machine", "")),
+    provenance = (("campaign", campaign_name(args.file)), ("measured", measured_on(args.file)),
+                  ("written", datetime.now(UTC).isoformat(timespec="seconds")),
+                  ("points", str(Path(args.file).resolve())), ("machine", table.meta.get("machine", "")),
                   ("axis", table.meta.get("axis", "")), ("software", f"axiscal {__version__}"))
     options = FormatOptions(axis, args.joint, 1, args.counts_per_unit, provenance, args.units, args.axis_number,
                             args.control)

@@ -18,15 +18,16 @@ from protocols.tables.fanuc import parse as fanuc_parse
 KINDS = {"mm": "linear", "deg": "rotary"}
 
 
-PROVENANCE_COMMENT = re.compile(r"^\s*[#;]\s*(points|machine|axis|software|date|campaign):\s*(.*?)\s*$")
+PROVENANCE_COMMENT = re.compile(r"^\s*[#;]\s*(campaign|measured|written|points|machine|axis|software):\s*(.*?)\s*$")
 """A provenance line as compensate writes it where the format has comments (`# key: value` or
 `; key: value`, protocols/tables provenance_lines)."""
 
 
 def read_comp_provenance(path: str | Path) -> dict[str, str]:
-    """The provenance of a table compensate wrote (machine, axis, points file, software): the
-    JSON file's `provenance`, or the comment lines of the formats that have comments (csv,
-    twincat_cnc, siemens, pmac); empty for formats without comments and older files."""
+    """The provenance of a table compensate wrote (campaign, measured, written, points file,
+    machine, axis, software): the JSON file's `provenance`, or the comment lines of the formats that
+    have comments (csv, twincat_cnc, siemens, pmac); empty for formats without comments and older
+    files."""
     try:
         text = Path(path).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError):
