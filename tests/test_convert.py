@@ -155,6 +155,22 @@ def test_ecmc_reads_with_the_values_of_an_independent_evaluation(cli, tmp_path):
     assert "# ecmc.REF_PV: IOC_TEST:m0s005-Enc01-PosAct" in text and "# ecmc.DEC: 5" in text
 
 
+def test_an_ecmc_file_with_a_reading_missing_says_so(cli, tmp_path):
+    """A REF_DATA_BWD line missing (a cycle cut short) is converted as far as it goes, and said:
+    in the text and in JSON `missing`."""
+    targets = np.array([15.0, 25.0, 35.0])
+    fwd = targets[:, None] + np.zeros((3, 3))
+    bwd = targets[:, None] + np.full((3, 3), -2e-3)
+    lines = [ln for ln in hand_ecmc(targets, fwd, bwd).splitlines() if not ln.startswith("REF_DATA_BWD[2,3]")]
+    source = tmp_path / "cut_ISO230.dat"
+    source.write_text("\n".join(lines) + "\n")
+    found = json.loads(cli("convert", source, "-o", tmp_path / "p.csv", "--json").out)
+    assert found["points"] == 17 and found["missing"] == ["1 of 18 points missing (3 targets × 2 direction(s) × 3 runs)"]
+    text = cli("convert", source, "-o", tmp_path / "q.csv")
+    said = " ".join(text.out.split())  # the console wraps at its width
+    assert text.code == 0 and "warning:" in said and "1 of 18 points missing" in said
+
+
 def test_points_to_ecmc_and_back(cli, tmp_path):
     dat = tmp_path / "x_ISO230.dat"
     assert cli("convert", PAPER / "horizontal_before.csv", "-o", dat).code == 0

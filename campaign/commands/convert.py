@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from campaign.assess import completeness
 from campaign.commands import SUMMARY
 from campaign.convert import FORMATS, format_of, read_any, render_any, write_whole
 from campaign.errors import InputError
@@ -34,10 +35,11 @@ def run(args) -> int:
     text = render_any(table, target)
     write_whole(args.output, text)
     values = evaluate(table).summary
+    missing = completeness(table, None)
     summary = {"input": str(args.input), "from": source, "output": str(args.output), "to": target,
                "kind": table.kind, "points": len(table), "runs": int(table.run.max()),
                "targets": len(set(table.target.tolist())), "meta": table.meta,
-               **{k: values.get(k) for k in ("A", "B", "R", "E", "M")}}
+               "missing": missing, **{k: values.get(k) for k in ("A", "B", "R", "E", "M")}}
     if args.json:
         print_json(summary)
     else:
@@ -45,4 +47,7 @@ def run(args) -> int:
         shown = ", ".join(f"{k} {summary[k]:.3f} {unit}" for k in ("A", "B", "R") if summary[k] is not None)
         make_console().print(f"{args.output}: {len(table)} points, {summary['runs']} runs, {summary['targets']} "
                              f"targets ({source} → {target}); ISO 230-2: {shown}")
+        for problem in missing:
+            make_console().print(f"[yellow]warning:[/] {args.input}: incomplete: {problem}; the values above are "
+                                 "from the points there are, and a verdict on them is not judged")
     return 0
