@@ -102,7 +102,8 @@ def test_a_unidirectional_rtl(cli, tmp_path):
     rtl = ("HEADER::\nTARGET DATA::\nTarget-count: 3\nTargets :\n0 50 100\nFlags: 0 1 2 0\nRUNS::\nRun-count: 2\n"
            "DEVIATIONS::\nRun Target Data:\n1 1 0.0\n1 2 2.0\n1 3 4.0\n2 1 1.0\n2 2 3.0\n2 3 5.0\nEOF::")
     (tmp_path / "u.rtl").write_text(rtl)
-    assert cli("convert", tmp_path / "u.rtl", "-o", tmp_path / "u.csv").code == 0
+    said = cli("convert", tmp_path / "u.rtl", "-o", tmp_path / "u.csv")
+    assert said.code == 0 and "A↑ 6.828 µm" in said.out  # one direction: its own values, not an empty list
     rows = [line for line in (tmp_path / "u.csv").read_text().splitlines() if line[:1].isdigit()]
     assert rows[0] == "1,+,0.000000,0.0000" and rows[-1] == "2,+,100.000000,5.0000" and len(rows) == 6
     assert cli("convert", tmp_path / "u.csv", "-o", tmp_path / "u2.rtl").code == 0

@@ -39,12 +39,15 @@ def run(args) -> int:
     summary = {"input": str(args.input), "from": source, "output": str(args.output), "to": target,
                "kind": table.kind, "points": len(table), "runs": int(table.run.max()),
                "targets": len(set(table.target.tolist())), "meta": table.meta,
-               "missing": missing, **{k: values.get(k) for k in ("A", "B", "R", "E", "M")}}
+               "missing": missing, **{k: values.get(k) for k in ("A", "B", "R", "E", "M")},
+               **{k: v for k, v in values.items() if k.endswith(("_up", "_down")) and v is not None}}
     if args.json:
         print_json(summary)
     else:
         unit = "µm" if table.kind == "linear" else "arcsec"
-        shown = ", ".join(f"{k} {summary[k]:.3f} {unit}" for k in ("A", "B", "R") if summary[k] is not None)
+        keys = ("A", "B", "R") if values.get("A") is not None else ("A_up", "R_up", "A_down", "R_down")
+        shown = ", ".join(f"{k.replace('_up', '↑').replace('_down', '↓')} {values[k]:.3f} {unit}"
+                          for k in keys if values.get(k) is not None) or "no value (too few runs)"
         make_console().print(f"{args.output}: {len(table)} points, {summary['runs']} runs, {summary['targets']} "
                              f"targets ({source} → {target}); ISO 230-2: {shown}")
         for problem in missing:
