@@ -9,6 +9,7 @@ import numpy as np
 
 from campaign.commands import SUMMARY
 from campaign.discovery.data import keep_rows, read_campaign, read_start_model
+from campaign.discovery.fit import derived
 from campaign.discovery.search import Discovery, discover
 from campaign.errors import InputError
 from campaign.model import EFFECT_PARAMS
@@ -89,10 +90,8 @@ def rounded(params: dict[str, float]) -> dict[str, float]:
 
 def drift_rate(effect: str, params: dict[str, float]) -> dict[str, float]:
     """For thermal drift, the initial rate of the slope change, µm/m per hour (per point without a
-    time column: then it is per 3600 points)."""
-    if effect != "thermal_drift":
-        return {}
-    return {"initial_rate_ppm_per_h": round(params["growth_ppm"] / params["tau_s"] * 3600, 4)}
+    time column: then it is per 3600 points); see discovery.fit.DERIVED."""
+    return {k: round(v, 4) for k, v in derived(effect, params).items()}
 
 
 def outliers_json(outliers: Outliers) -> dict:
@@ -111,6 +110,16 @@ def errors_json(errors: dict[str, float]) -> dict[str, float]:
     return {k: float(f"{v:.3g}") for k, v in errors.items()}
 
 
+def starting_json(entry: dict) -> dict:
+    """One effect of the starting model (Discovery.starting) as JSON: given, fixed, params, and for
+    a fitted effect significant, standard_errors and p_value."""
+    out = {"given": entry["given"], "fixed": entry["fixed"], "params": rounded(entry["params"])}
+    if "p_value" in entry:
+        out.update(significant=entry["significant"], standard_errors=errors_json(entry["errors"]),
+                   p_value=float(f"{entry['p_value']:.3g}"))
+    return out
+
+
 def as_json(result: Discovery) -> dict:
     """The JSON object: added, gap_before_um, gap_after_um, steps, and the details."""
     return {
@@ -127,11 +136,7 @@ def as_json(result: Discovery) -> dict:
         "remaining_beside": result.remaining_beside,
         "model": {name: rounded(p) for name, p in result.final.params().items()},
         "model_standard_errors": {name: errors_json(e) for name, e in result.errors.items()},
-        "starting_model": {name: {**{k: v for k, v in e.items() if k not in ("params", "errors", "p_value")},
-                                  "params": rounded(e["params"]),
-                                  **({"standard_errors": errors_json(e["errors"]),
-                                      "p_value": float(f"{e['p_value']:.3g}")} if "p_value" in e else {})}
-                           for name, e in result.starting.items()},
+        "starting_model": {name: starting_json(entry) for name, entry in result.starting.items()},
         "offset_um": round(result.final.offset_um, 4),
         "disagreement_before": result.disagreement_before,
         "disagreement_after": result.disagreement_after,
@@ -180,10 +185,14 @@ def nothing_named(result: Discovery) -> str:
     cannot tell apart (the unresolved list)."""
     if not result.unresolved:
         return "no effect is named: none of the vocabulary explains the residual significantly"
-    size = "; ".join(f"{' or '.join(e['effects'])} explains {best.explained_pct:.1f} % of it, ΔBIC {best.delta_bic:.1f}"
-                     for e in result.unresolved
-                     for best in [min((c for c in result.remaining if c.name in e["effects"]),
-                                      key=lambda c: c.delta_bic, default=None)] if best is not None)
+    sizes = []
+    for entry in result.unresolved:
+        tried = [c for c in result.remaining if c.name in entry["effects"]]
+        if tried:
+            best = min(tried, key=lambda c: c.delta_bic)
+            sizes.append(f"{' or '.join(entry['effects'])} explains {best.explained_pct:.1f} % of it, "
+                         f"ΔBIC {best.delta_bic:.1f}")
+    size = "; ".join(sizes)
     return ("no effect is named, but the residual is not noise: something significant is there that this campaign "
             f"cannot tell apart or pin down ({size or 'see below'}); see unresolved below for what it could be "
             "and how to tell")

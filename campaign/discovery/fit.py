@@ -277,11 +277,16 @@ def jacobian(data: CampaignData, fit: Fit, step: float = 1e-4) -> tuple[np.ndarr
     return np.hstack(blocks), labels
 
 
+def derived(effect: str, params: dict[str, float]) -> dict[str, float]:
+    """The quantities computed from an effect's parameters (DERIVED); none for most effects."""
+    extra = DERIVED.get(effect)
+    return extra(params) if extra else {}
+
+
 def term_params(term: Term, coefs: np.ndarray) -> dict[str, float]:
     """A free term's model parameters and its derived quantities (DERIVED)."""
     params = FORMS[term.name].params(coefs, term.shape, term.held)
-    extra = DERIVED.get(term.name)
-    return {**params, **(extra(params) if extra else {})}
+    return {**params, **derived(term.name, params)}
 
 
 def standard_errors(data: CampaignData, fit: Fit, step: float = 1e-4) -> dict[str, dict[str, float]]:
