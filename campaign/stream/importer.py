@@ -99,9 +99,9 @@ def stream_noise(reading: np.ndarray, dwells: Dwells, lag: int) -> float:
     dwells of 1.4826 · the median absolute deviation of each dwell's middle half."""
     spreads = []
     for start, end in zip(dwells.start, dwells.end):
-        settled = reading[min(int(start) + lag, int(end)):max(int(end) - lag, int(start) + lag, int(start)) + 1]
-        if len(settled):
-            spreads.append(1.4826 * float(np.median(np.abs(settled - np.median(settled)))))
+        lo = min(int(start) + lag, int(end))
+        settled = reading[lo:max(int(end) - lag, lo) + 1]
+        spreads.append(1.4826 * float(np.median(np.abs(settled - np.median(settled)))))
     return float(np.median(spreads)) if spreads else 0.0
 
 
@@ -152,8 +152,11 @@ def still_ends(time: np.ndarray, reading: np.ndarray, dwells: Dwells, dwell_s: f
         if not away.any():
             continue
         leave = a + int(np.argmax(away)) + SMOOTH - 1  # the last sample of the first group that left
-        ends[i] = onset(time[a:leave + 1], reading[a:leave + 1]) + a if leave - a >= 3 * SMOOTH else max(a, leave - SMOOTH)
-    return Dwells(dwells.start, np.minimum(ends, dwells.end + lag))
+        if leave - a >= 3 * SMOOTH:
+            ends[i] = a + onset(time[a:leave + 1], reading[a:leave + 1])
+        else:  # it leaves at once: too few samples to fit, end before the group that left
+            ends[i] = max(a, leave - SMOOTH)
+    return Dwells(dwells.start, ends)
 
 
 DEPART_SE = 8.0
