@@ -78,26 +78,20 @@ def control_point_limit(fmt: str, control: str | None) -> int:
     return POINT_LIMITS[fmt]
 
 
-def campaign_name(path: str) -> str:
-    """The campaign a point table comes from: its directory's name, or the table's file name."""
-    from campaign.assess import campaign_dir_of
-
-    directory = campaign_dir_of(path)
-    return directory.resolve().name if directory else Path(path).name
-
-
-def measured_on(path: str) -> str:
-    """When the campaign was started (meta.json `created`, ISO 8601), or "" for a bare table."""
+def campaign_of(path: str) -> tuple[str, str]:
+    """The campaign a point table comes from: its directory's name and when it was started
+    (meta.json `created`, ISO 8601); for a bare table, the file's name and ""."""
     from campaign.assess import campaign_dir_of
     from campaign.record.directory import open_campaign
 
     directory = campaign_dir_of(path)
     if directory is None:
-        return ""
+        return Path(path).name, ""
     try:
-        return str(open_campaign(directory).meta.get("created", ""))
+        created = str(open_campaign(directory).meta.get("created", ""))
     except (InputError, OSError, ValueError):
-        return ""
+        created = ""
+    return directory.resolve().name, created
 
 
 def run(args) -> int:
@@ -123,7 +117,8 @@ def run(args) -> int:
     max_points = args.max_points or control_point_limit(args.format, args.control)
     ctable = resample(corr, max_points, args.spacing, args.reference, args.overrun)
     axis = args.axis_name or ("AX1" if args.format == "siemens" else "X")
-    provenance = (("campaign", campaign_name(args.file)), ("measured", measured_on(args.file)),
+    name, created = campaign_of(args.file)
+    provenance = (("campaign", name), ("measured", created),
                   ("written", datetime.now(UTC).isoformat(timespec="seconds")),
                   ("points", str(Path(args.file).resolve())), ("machine", table.meta.get("machine", "")),
                   ("axis", table.meta.get("axis", "")), ("software", f"axiscal {__version__}"))
