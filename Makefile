@@ -18,6 +18,7 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	bash tests/setup_system.sh
+	$(VENV)/bin/mypy campaign drivers protocols
 	$(PY) -m pytest -q -n 2
 
 lint: $(STAMP)
