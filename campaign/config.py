@@ -207,7 +207,8 @@ def _check_value(name: str, key: Key, value: Any, where: str) -> Any:
                 isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value):
             raise InputError(f"{where}: key '{name}': must be a non-empty list of numbers")
         return [float(v) for v in value]
-    if not isinstance(value, key.type) or (key.type is int and isinstance(value, bool)):
+    expected: Any = key.type  # a TOML value of a key's type: compared below with its bounds
+    if not isinstance(value, expected) or (key.type is int and isinstance(value, bool)):
         raise InputError(f"{where}: key '{name}': must be {key.type.__name__}, found {value!r}"[:200])
     if key.type is float and not math.isfinite(value):
         raise InputError(f"{where}: key '{name}': must be a finite number")

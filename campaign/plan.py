@@ -99,6 +99,29 @@ class Stop:
 
 
 @dataclass(frozen=True)
+class Visit:
+    """A measured stop (see `Stop`): the move to the target, the point, the settle before its capture
+    (s), the Capture and the index of the Move, Capture and Checkpoint steps."""
+
+    step: int
+    move: Move
+    point: Point
+    settle_s: float
+    capture: Capture
+    capture_step: int
+    checkpoint_step: int | None
+
+    @property
+    def position(self) -> float:
+        return self.move.position
+
+    @property
+    def dwell_s(self) -> float:
+        """Time planned at the target, s (see `Stop.dwell_s`)."""
+        return self.settle_s + self.capture.window_s
+
+
+@dataclass(frozen=True)
 class Plan:
     """The steps, the targets (axis unit) and the offsets applied to the nominal grid."""
 
@@ -128,13 +151,19 @@ class Plan:
         consumer of a plan uses (executor resume, replay, simulation, import, duration, ends)."""
         return self._stops
 
-    def visits(self) -> tuple[Stop, ...]:
+    @cached_property
+    def _visits(self) -> tuple[Visit, ...]:
+        return tuple(Visit(s.step, s.move, s.point, s.settle_s, s.capture, s.capture_step, s.checkpoint_step)
+                     for s in self._stops
+                     if s.point is not None and s.capture is not None and s.capture_step is not None)
+
+    def visits(self) -> tuple[Visit, ...]:
         """The measured stops only, in point order (`visits()[i].point.index == i`)."""
-        return tuple(s for s in self._stops if s.point is not None)
+        return self._visits
 
     @property
     def points(self) -> list[Point]:
-        return [s.point for s in self.visits()]
+        return [v.point for v in self._visits]
 
     def ends(self) -> tuple[float, float]:
         """The lowest and highest position the plan moves to (overruns included), axis unit."""
@@ -169,7 +198,7 @@ def target_offsets(nominal: list[float], kind: str, fraction: float, seed: int) 
     if kind == "random":
         phases = np.random.default_rng(seed).uniform(0, 1, n)
     else:
-        phases = (np.arange(n) * GOLDEN + (seed % 1000) * GOLDEN / 1000) % 1.0
+        phases = (np.arange(n, dtype=float) * GOLDEN + (seed % 1000) * GOLDEN / 1000) % 1.0
     offsets = (2 * phases - 1) * fraction * spacing
     offsets[0] = 0.0
     return [float(round(o, 6)) for o in offsets]
@@ -291,7 +320,9 @@ def plan_from_records(records: list[dict], where: str) -> Plan:
     """The plan `plan_records` wrote; InputError naming `where` and the record when it is not one."""
     if not records or not isinstance(records[0], dict) or records[0].get("format") != PLAN_FORMAT:
         raise InputError(f"{where}: not a recorded axiscal plan (no '{PLAN_FORMAT}' header)")
-    header, steps, points, number = records[0], [], {}, 1
+    header, number = records[0], 1
+    steps: list[Step] = []
+    points: dict[int, Point] = {}
     try:
         for number, r in enumerate(records[1:], start=2):
             kind = r.get("step")
@@ -300,7 +331,9 @@ def plan_from_records(records: list[dict], where: str) -> Plan:
             elif kind == "settle":
                 steps.append(Settle(float(r["seconds"])))
             elif kind == "capture":
-                point = Point(**{k: (float if k == "target" else int)(v) for k, v in r["point"].items()})
+                p = r["point"]
+                point = Point(int(p["index"]), int(p["run"]), int(p["direction"]), int(p["target_index"]),
+                              float(p["target"]))
                 points[point.index] = point
                 steps.append(Capture(point, float(r["window_s"]), float(r["timeout_s"])))
             elif kind == "checkpoint":

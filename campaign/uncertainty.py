@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -81,13 +82,13 @@ class Budget:
     notes: tuple[str, ...] = field(default=())
 
     def as_json(self) -> dict:
-        out = {f"U_{key}_{self.unit}": round(value, 4) for key, value in self.expanded.items()}
+        out: dict[str, object] = {f"U_{key}_{self.unit}": round(value, 4) for key, value in self.expanded.items()}
         out.update(k=self.k, unit=self.unit, terms=[t.as_dict() for t in self.terms], missing=list(self.missing),
                    notes=list(self.notes))
         return out
 
 
-def _setting(config: Config | None, section: str, key: str):
+def _setting(config: Config | None, section: str, key: str) -> Any:
     """The config's value, or the schema's default when there is no config."""
     return config[section][key] if config is not None else SCHEMA[section][key].default
 

@@ -5,10 +5,13 @@ This is the one place where the campaign's protocols meet pyads and pyserial.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import random
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from campaign.config import Config
 from campaign.errors import InputError
@@ -18,6 +21,10 @@ from drivers.clock import RealClock
 from drivers.serial_interferometer import SerialInterferometer
 from protocols.hardware import Hardware, InstrumentError
 from protocols.serial_line import LineFormat
+
+if TYPE_CHECKING:
+    from drivers.sim.ads_server import SimAdsServer
+    from drivers.sim.plc import SimPLC
 
 
 @dataclass
@@ -46,24 +53,21 @@ def open_hardware(config: Config, speed: float | None = None, model: ErrorModel 
     fmt = line_format(config)
     inst, drv = config["instrument"], config["axis_driver"]
     if drv["type"] == "ads":
-        clock = RealClock()
         axis = AdsAxis(drv["ams_net_id"], drv["ip"], drv["axis_index"], drv["ams_port"],
                        read_only=drv["read_only"], timeout_s=drv["timeout_s"])
-        hw = Hardware(axis, None, clock, [axis.close])
         try:
-            hw.interferometer = SerialInterferometer(inst["port"], inst["baudrate"], fmt, inst["mode"],
-                                                     inst["timeout_s"])
+            interferometer = SerialInterferometer(inst["port"], inst["baudrate"], fmt, inst["mode"],
+                                                  inst["timeout_s"])
         except InstrumentError as exc:
-            hw.close()
+            axis.close()
             raise InputError(f"{config.source}: instrument.port: cannot open {inst['port']}: {exc}") from None
-        hw.closers.append(hw.interferometer.close)
-        return hw, None
+        return Hardware(axis, interferometer, RealClock(), [axis.close, interferometer.close]), None
     if drv["type"] == "linuxcnc":
         return _open_linuxcnc(config, fmt, model)
     return _open_sim(config, fmt, speed, model, start_position, start_time)
 
 
-def _open_linuxcnc(config, fmt, model):
+def _open_linuxcnc(config: Config, fmt: LineFormat, model: ErrorModel | None) -> tuple[Hardware, None]:
     """A headless LinuxCNC (with `axis_driver.comp_file` loaded by its own COMP_FILE loader), its
     axis over linuxcncrsh, and the simulated laser reading the joint's motor position from HAL
     through the error model, on the wall clock (LinuxCNC runs in real time)."""
@@ -85,23 +89,30 @@ def _open_linuxcnc(config, fmt, model):
     linuxcnc = LinuxCnc(axis_cfg["soft_limit_min"], axis_cfg["soft_limit_max"], axis_cfg["max_velocity"],
                         axis_cfg["max_acceleration"], comp)
     clock = ListenedClock()
-    hw = Hardware(None, None, clock, [linuxcnc.stop])
+    closers: list[Callable[[], None]] = [linuxcnc.stop]
     try:
-        hw.axis = LinuxCncAxis(LinuxCncShell())
-        hw.closers.append(hw.axis.close)
+        axis = LinuxCncAxis(LinuxCncShell())
+        closers.append(axis.close)
         physics = SimAxisPhysics(LinuxCncMotor(linuxcnc), model or sim_model(config), "mm", config["sim"]["seed"])
         instrument = SimInterferometer(clock, physics.measure, fmt, inst["rate_hz"], inst["mode"])
-        hw.closers.append(instrument.close)
-        hw.interferometer = SerialInterferometer(instrument.port_name, inst["baudrate"], fmt, inst["mode"],
-                                                 inst["timeout_s"])
-        hw.closers.append(hw.interferometer.close)
+        closers.append(instrument.close)
+        interferometer = SerialInterferometer(instrument.port_name, inst["baudrate"], fmt, inst["mode"],
+                                              inst["timeout_s"])
+        closers.append(interferometer.close)
     except BaseException:
-        hw.close()
+        _close(closers)
         raise
-    return hw, None
+    return Hardware(axis, interferometer, clock, closers), None
 
 
-def serve_on_free_loopback(plc):
+def _close(closers: list[Callable[[], None]]) -> None:
+    """Close what was opened before a failure, in reverse order (their own failures are secondary)."""
+    for close in reversed(closers):
+        with contextlib.suppress(Exception):  # every part gets its chance to close
+            close()
+
+
+def serve_on_free_loopback(plc: SimPLC) -> SimAdsServer:
     """Serve `plc` over ADS on a free loopback address 127.0.x.y (every ADS client connects to TCP
     port 48898, so simulated machines running side by side, e.g. CI and a demo, each get their own
     address)."""
@@ -119,7 +130,8 @@ def serve_on_free_loopback(plc):
     raise OSError("no free loopback address for the simulated PLC's ADS server")
 
 
-def _open_sim(config, fmt, speed, model, start_position, start_time):
+def _open_sim(config: Config, fmt: LineFormat, speed: float | None, model: ErrorModel | None,
+              start_position: float | None, start_time: float) -> tuple[Hardware, SimParts]:
     from campaign.faults import parse_faults
     from drivers.sim.compensation import SimCompensation
     from drivers.sim.faults import FaultScheduler
@@ -136,21 +148,21 @@ def _open_sim(config, fmt, speed, model, start_position, start_time):
     clock.attach(SimCompensation(plc, clock.now()).tick)  # FB_AxiscalCompensation: idle until a table is enabled
     physics = SimAxisPhysics(plc, model or sim_model(config), axis_cfg["unit"], config["sim"]["seed"],
                              vacuum_readings=config["environment"]["air_correction"] == "edlen")
-    hw = Hardware(None, None, clock, [])
     server = serve_on_free_loopback(plc)
-    hw.closers.append(server.stop)
+    closers: list[Callable[[], None]] = [server.stop]
     try:
         instrument = SimInterferometer(clock, physics.measure, fmt, inst["rate_hz"], inst["mode"])
-        hw.closers.append(instrument.close)
-        hw.axis = AdsAxis(server.net_id, server.ip, drv["axis_index"], drv["ams_port"], timeout_s=drv["timeout_s"],
-                          read_only=drv["read_only"])
-        hw.closers.append(hw.axis.close)
-        hw.interferometer = SerialInterferometer(instrument.port_name, inst["baudrate"], fmt, inst["mode"],
-                                                 inst["timeout_s"])
-        hw.closers.append(hw.interferometer.close)
+        closers.append(instrument.close)
+        axis = AdsAxis(server.net_id, server.ip, drv["axis_index"], drv["ams_port"], timeout_s=drv["timeout_s"],
+                       read_only=drv["read_only"])
+        closers.append(axis.close)
+        interferometer = SerialInterferometer(instrument.port_name, inst["baudrate"], fmt, inst["mode"],
+                                              inst["timeout_s"])
+        closers.append(interferometer.close)
     except BaseException:
-        hw.close()
+        _close(closers)
         raise
+    hw = Hardware(axis, interferometer, clock, closers)
     scheduler = FaultScheduler(parse_faults(config["sim"].get("faults", {}), config.source), plc, server,
                                instrument, physics)
     clock.attach(scheduler.tick)

@@ -8,6 +8,10 @@ libraries (numpy, pandas, scipy, matplotlib, pyads) are imported when the comman
 
 import argparse
 import math
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # the session module is heavy: not imported for `axiscal --help`
+    from campaign.measure.session import Opener
 
 SUMMARY = {
     "analyze": "evaluate a point table to ISO 230-2 (or VDI 3441)",
@@ -83,7 +87,7 @@ def non_negative_integer(text: str) -> int:
     return value
 
 
-def hardware_opener():
+def hardware_opener() -> "Opener":
     """The drivers' hardware factory (campaign.measure.session.Opener), imported when a command
     needs hardware: the commands are the one place where the domain meets the drivers."""
     from drivers.factory import open_hardware

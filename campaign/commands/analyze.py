@@ -3,12 +3,13 @@ campaign or a point table to ISO 230-2, with its outliers, measurement uncertain
 
 from __future__ import annotations
 
+import argparse
 import sys
 
 from campaign.commands import SUMMARY, positive_number
 
 
-def register(sub) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("analyze", help=SUMMARY["analyze"],
                        description="Evaluate a campaign directory or a point table (CSV) to ISO 230-2:2014, "
                                    "ISO 230-2:1988 or VDI/DGQ 3441: the parameters, the outliers, the "
@@ -25,7 +26,7 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from campaign.assess import assess_path
     from campaign.iso230 import find_standard
     from campaign.plot import check_plot_path, plot_evaluation

@@ -4,8 +4,11 @@ predicted accuracy next to the floor the repeatability allows."""
 
 from __future__ import annotations
 
+import argparse
 from datetime import UTC, datetime
 from pathlib import Path
+
+from rich.console import Console
 
 from campaign.commands import (
     SUMMARY,
@@ -16,7 +19,7 @@ from campaign.commands import (
     positive_number,
 )
 from campaign.compensation.corrections import MODES, corrections
-from campaign.compensation.grid import POINT_LIMITS, resample
+from campaign.compensation.grid import POINT_LIMITS, ControllerTable, resample
 from campaign.compensation.predict import predict
 from campaign.compensation.smooth import SMOOTHING
 from campaign.errors import InputError
@@ -30,7 +33,7 @@ DEFAULT_METHOD = {"pmac": "simple"}
 (the inverse method moves its 80° entry across a rounding boundary, 40 -> 41)."""
 
 
-def register(sub) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("compensate", help=SUMMARY["compensate"],
                        description="Turn a point table into a controller's compensation table "
                                    "(docs/compensation-formats.md).")
@@ -94,7 +97,7 @@ def campaign_of(path: str) -> tuple[str, str]:
     return directory.resolve().name, created
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from campaign import __version__
     from campaign.assess import incomplete
 
@@ -154,7 +157,7 @@ def run(args) -> int:
     return 0
 
 
-def write_plc(args, ctable, console) -> None:
+def write_plc(args: argparse.Namespace, ctable: ControllerTable, console: Console) -> None:
     """TwinCAT (a): the tables into the PLC's compensation variables over ADS, read back, compared."""
     from campaign.commands import hardware_opener
     from campaign.config import load_config
@@ -170,6 +173,8 @@ def write_plc(args, ctable, console) -> None:
         back = hardware.axis.read_comp_table()
     finally:
         hardware.close()
+    if back is None:
+        raise InputError("--write-plc: the PLC holds no compensation table after the write")
     scale, dev = DEVIATION_SCALE[config["axis"]["unit"]], unit_label(UNITS[ctable.kind][1])
     console.print(f"PLC tables written over ADS ({back.points} points), read back equal, enabled; "
                   f"correction limits {rate * scale:g} {dev}/s, {accel * scale:g} {dev}/s²")

@@ -3,6 +3,7 @@ program's measurement file to a point table, or back (Renishaw .rtl, ecmc *_ISO2
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 from campaign.assess import completeness
@@ -13,7 +14,7 @@ from campaign.iso230 import evaluate
 from campaign.views import make_console, print_json
 
 
-def register(sub) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("convert", help=SUMMARY["convert"],
                        description="Read a measurement file (point table, Renishaw .rtl, ecmc ISO 230-2 .dat) "
                                    "and write it in another of these formats; see docs/convert.md.")
@@ -27,7 +28,7 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     source, target = format_of(args.input, args.source_format), format_of(args.output, args.target_format)
     if Path(args.input).resolve() == Path(args.output).resolve():
         raise InputError(f"{args.output}: the output would overwrite the input")

@@ -4,7 +4,9 @@ change per cycle and the largest acceleration of each."""
 
 from __future__ import annotations
 
+import argparse
 import math
+from pathlib import Path
 
 import numpy as np
 
@@ -15,7 +17,7 @@ from campaign.plot import check_plot_path
 from campaign.views import make_console, print_json
 
 
-def register(sub) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("correction", help=SUMMARY["correction"],
                        description="Plan a step of the correction with bounded rate and acceleration.")
     p.add_argument("--step", type=finite_number, required=True, help="size of the step, µm")
@@ -34,7 +36,7 @@ def _profile(values: np.ndarray, dt: float) -> tuple[float, float]:
     return float(np.max(np.abs(steps))), float(np.max(np.abs(accel)))
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     if not math.isfinite(args.step):
         raise InputError("--step must be a finite number")
     dt = args.cycle_ms / 1000.0
@@ -71,7 +73,7 @@ def run(args) -> int:
     return 0
 
 
-def _plot(desired: np.ndarray, planned: np.ndarray, dt: float, path) -> None:
+def _plot(desired: np.ndarray, planned: np.ndarray, dt: float, path: str | Path) -> None:
     import matplotlib.pyplot as plt  # campaign.plot has set the Agg backend
 
     t = np.arange(1, len(desired) + 1) * dt * 1000.0
@@ -83,6 +85,6 @@ def _plot(desired: np.ndarray, planned: np.ndarray, dt: float, path) -> None:
     ax.grid(True, alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)

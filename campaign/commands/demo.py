@@ -8,23 +8,27 @@ followed by the ISO 230-2 analysis.
 
 from __future__ import annotations
 
+import argparse
 from importlib import resources
+from typing import Any
 
 from campaign.commands import SUMMARY, hardware_opener, positive_integer
 from campaign.commands.run import add_run_options, apply_on_fault, finish, run_config
-from campaign.config import parse_config
+from campaign.config import Config, parse_config
 from campaign.errors import InputError
 from campaign.faults import parse_inject
+from campaign.measure.executor import Executor
 from campaign.measure.progress import RichProgress
 from campaign.measure.session import resume_campaign, start_campaign
 from campaign.record.directory import read_events
+from protocols.hardware import Hardware
 
 
 def demo_config_text() -> str:
     return resources.files("campaign").joinpath("demo.toml").read_text(encoding="utf-8")
 
 
-def register(sub) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("demo", help=SUMMARY["demo"],
                        description="Run the horizontal-axis campaign of Li et al. 2022 on the simulated machine.")
     add_run_options(p)
@@ -45,7 +49,7 @@ def register(sub) -> None:
 MAX_RESUMES = 3
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     text = demo_config_text()
     if args.cycles:
         text = text.replace("cycles = 5", f"cycles = {args.cycles}")
@@ -65,15 +69,15 @@ def run(args) -> int:
     return rehearse(parse_config(text, "demo.toml"), faults, args)
 
 
-def rehearse(config, faults: dict, args) -> int:
+def rehearse(config: Config, faults: dict, args: argparse.Namespace) -> int:
     """Run with faults injected; resume (without faults) as often as needed, then report."""
     apply_on_fault(config, args)
     fired: list = []
 
-    def keep_log(hardware, sim, executor):
+    def keep_log(hardware: Hardware, sim: Any, executor: Executor) -> None:
         fired.append(sim.faults.log)
 
-    def progress():
+    def progress() -> RichProgress:
         unit = config["axis"]["unit"]
         return RichProgress(unit)
 

@@ -9,15 +9,18 @@ ends with exit status 2 and one `error:` line. See docs/guide.md.
 
 from __future__ import annotations
 
+import argparse
 import sys
+from collections.abc import Callable
 from contextlib import ExitStack
 from pathlib import Path
+from typing import Any, NoReturn
 
 from rich.console import Console
 
 from campaign.commands import SUMMARY, hardware_opener, positive_number
 from campaign.commands.demo import demo_config_text
-from campaign.config import load_config, parse_config
+from campaign.config import Config, load_config, parse_config
 from campaign.errors import BAD_INPUT, InputError
 from campaign.guide.checklist import (
     CheckItem,
@@ -33,22 +36,23 @@ from campaign.guide.dashboard import Dashboard
 from campaign.guide.keys import CtrlC, Keys
 from campaign.measure.executor import Control
 from campaign.measure.session import (
+    Opened,
     Outcome,
     default_out_dir,
     start_campaign,
 )
 from campaign.model import sim_model
-from campaign.plan import build_plan
+from campaign.plan import Plan, build_plan
 from campaign.record.directory import open_campaign, recorded_point_indices
 from campaign.views import make_console, print_json, summary_table
-from protocols.hardware import AxisError, InstrumentError
+from protocols.hardware import AxisError, Hardware, InstrumentError
 from protocols.tables import FORMATS
 
 COMPENSATE_FORMATS = ", ".join(FORMATS)
 """What `axiscal compensate --format` takes, for the next-step hint."""
 
 
-def register(sub) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("guide", help=SUMMARY["guide"],
                        description="Check the set-up, ask before moving, run the campaign on a live "
                                    "dashboard (keys: p pause, r resume, a abort) and judge the result.")
@@ -65,7 +69,7 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def run(args, on_hardware=None) -> int:
+def run(args: argparse.Namespace, on_hardware: Callable[[Hardware, Any], None] | None = None) -> int:
     """The whole session. `on_hardware(hw, sim)`: called right after the hardware is opened (tests
     use it to inject faults into the simulated machine)."""
     config = load_config(args.config) if args.config else parse_config(demo_config_text(), "demo.toml")
@@ -104,21 +108,24 @@ def run(args, on_hardware=None) -> int:
     return conclude(outcome, config, args, console)
 
 
-def ask_operator(console) -> str:
+def ask_operator(console: Console) -> str:
     """The operator's name, asked once when the config has none (recorded with the campaign)."""
     return console.input("Operator's name (recorded with the campaign; Enter to leave it empty): ").strip()
 
 
-def stop_on(item: CheckItem):
+def stop_on(item: CheckItem) -> NoReturn:
     raise InputError(f"setup check failed: {item.name}: {item.value}")
 
 
-def open_and_check(open_hardware, config, offline, console, interactive, on_hardware=None, more_items=None):
+def open_and_check(open_hardware: Callable[[], Opened], config: Config, offline: list[CheckItem], console: Console,
+                   interactive: bool, on_hardware: Callable[[Hardware, Any], None] | None = None,
+                   more_items: Callable[[Hardware], list[CheckItem]] | None = None) -> Opened:
     """Open the hardware (`open_hardware()` -> (Hardware, parts)) and run the checklist until it
     passes; on a failure ask to retry (interactive) or stop with InputError (scripts). Nothing
     moves here. `more_items(hw)`: further checks. The hardware is closed again when this ends
     without a pass."""
-    hw = sim = None
+    hw: Hardware | None = None
+    sim: Any = None
     try:
         while True:
             if hw is None:
@@ -133,7 +140,7 @@ def open_and_check(open_hardware, config, offline, console, interactive, on_hard
                 items = hardware_items(hw, config) + (more_items(hw) if more_items else [])
             items += offline
             console.print(checklist_table(items))
-            if not failures(items):
+            if hw is not None and not failures(items):
                 return hw, sim
             answer = "q"
             if interactive:
@@ -146,7 +153,7 @@ def open_and_check(open_hardware, config, offline, console, interactive, on_hard
         raise
 
 
-def confirm(args, console, interactive, motion: str) -> None:
+def confirm(args: argparse.Namespace, console: Console, interactive: bool, motion: str) -> None:
     """Say how the axis will move and ask before it does (--yes answers for scripts)."""
     console.print(f"[bold]The axis will move[/]: {motion}. Keep clear of the machine.")
     if args.yes:
@@ -158,7 +165,9 @@ def confirm(args, console, interactive, motion: str) -> None:
         raise InputError("not confirmed: nothing moved")
 
 
-def on_dashboard(config, plan, args, opened, console, interactive, out: Path, campaign, before=None) -> Outcome:
+def on_dashboard(config: Config, plan: Plan, args: argparse.Namespace, opened: Opened, console: Console,
+                 interactive: bool, out: Path, campaign: Callable[[Dashboard, Control], Outcome],
+                 before: Callable[[Control, Keys | None], None] | None = None) -> Outcome:
     """The motion phase on the dashboard: `before(control, keys)` (the alignment check), then
     `campaign(dashboard, control)`. Keys and Ctrl-C are live throughout; an abort at any point ends
     with the outcome so far; the terminal and SIGINT are restored at the end."""
@@ -182,7 +191,8 @@ def on_dashboard(config, plan, args, opened, console, interactive, out: Path, ca
             return recorded_outcome(out, len(plan.points), dashboard.abort_reason)
 
 
-def check_alignment(hw, plan, config, control, console, keys: Keys | None) -> None:
+def check_alignment(hw: Hardware, plan: Plan, config: Config, control: Control, console: Console,
+                    keys: Keys | None) -> None:
     while True:
         console.print(f"Alignment check: the axis moves to both ends at {config['plan']['velocity']:g} "
                       f"{config['axis']['unit']}/s ...")
@@ -204,7 +214,7 @@ def recorded_outcome(directory: Path, planned: int, reason: str | None) -> Outco
                    campaign.duration_s, reason or campaign.message or "aborted")
 
 
-def conclude(outcome: Outcome, config, args, console) -> int:
+def conclude(outcome: Outcome, config: Config, args: argparse.Namespace, console: Console) -> int:
     """The ISO 230-2 summary so far, the outliers, the verdict (campaign/assess.py: the same as
     `analyze` and `report`), where the record is and what comes next. Exit 0 when the campaign
     completed, 3 when it stopped (resumable)."""

@@ -5,6 +5,7 @@ with COMP_FILE, measure again (docs/linuxcnc.md)."""
 
 from __future__ import annotations
 
+import argparse
 import shutil
 import time
 from pathlib import Path
@@ -13,12 +14,12 @@ from campaign.commands import hardware_opener
 from campaign.commands.run import apply_on_fault, finish
 from campaign.compensation.corrections import corrections
 from campaign.compensation.grid import POINT_LIMITS, resample
-from campaign.config import parse_config
+from campaign.config import Config, parse_config
 from campaign.convert import write_whole
 from campaign.errors import InputError
 from campaign.iso230 import evaluate
 from campaign.measure.progress import RichProgress
-from campaign.measure.session import start_campaign
+from campaign.measure.session import Outcome, start_campaign
 from campaign.pointtable import read_points
 from campaign.views import make_console, print_json
 from protocols.tables import FormatOptions, render
@@ -32,7 +33,7 @@ QUICK = (("max_velocity = 50.0", "max_velocity = 300.0"), ("max_acceleration = 2
 """The demo config made for LinuxCNC: it runs in real time, so fast moves and short dwells."""
 
 
-def linuxcnc_config(text: str, comp_file: Path | None = None):
+def linuxcnc_config(text: str, comp_file: Path | None = None) -> Config:
     for old, new in QUICK:
         if old not in text:
             raise InputError(f"demo.toml: '{old}' not found for the LinuxCNC demo")
@@ -42,7 +43,7 @@ def linuxcnc_config(text: str, comp_file: Path | None = None):
     return parse_config(text, "demo.toml (LinuxCNC)")
 
 
-def measure(config, out: Path, args):
+def measure(config: Config, out: Path, args: argparse.Namespace) -> Outcome:
     apply_on_fault(config, args)
     with RichProgress(config["axis"]["unit"]) as observer:
         return start_campaign(config, out, opener=hardware_opener(), observer=observer)
@@ -56,7 +57,7 @@ def comp_file_from(points: Path, out: Path) -> Path:
     return out
 
 
-def linuxcnc_demo(text: str, args) -> int:
+def linuxcnc_demo(text: str, args: argparse.Namespace) -> int:
     if not (shutil.which("linuxcnc") and shutil.which("linuxcncrsh") and shutil.which("halcmd")):
         raise InputError(INSTALL_HINT)
     base = Path(args.out) if args.out else Path("runs") / f"linuxcnc-demo-{time.strftime('%Y%m%d-%H%M%S')}"

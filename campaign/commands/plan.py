@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import argparse
+from typing import Literal
+
 from rich.table import Table
 
 from campaign.commands import SUMMARY
-from campaign.config import load_config
+from campaign.config import Config, load_config
 from campaign.plan import (
     Capture,
     Move,
@@ -19,7 +22,7 @@ from campaign.plan import (
 from campaign.views import make_console, print_json
 
 
-def register(sub) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("plan", help=SUMMARY["plan"],
                        description="Print the plan of a campaign config and check it against the limits.")
     p.add_argument("config", help="campaign TOML (see docs/config.md)")
@@ -28,7 +31,7 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def summary(config, plan) -> dict:
+def summary(config: Config, plan: Plan) -> dict:
     a = config["axis"]
     return {"points": len(plan.points), "runs": config["plan"]["cycles"], "targets": list(plan.targets),
             "offsets": list(plan.offsets), "seed": plan.seed, "unit": a["unit"],
@@ -37,7 +40,7 @@ def summary(config, plan) -> dict:
             "soft_limits": [a["soft_limit_min"], a["soft_limit_max"]], "max_velocity": a["max_velocity"]}
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     config = load_config(args.config)
     plan = build_plan(config)
     check_plan(plan, config)
@@ -63,14 +66,15 @@ def run(args) -> int:
     return 0
 
 
-def steps_table(plan: Plan, config) -> Table:
+def steps_table(plan: Plan, config: Config) -> Table:
     """Every step of the plan as a table: what it does, where, how fast, for which point (counted
     from 1, as on the dashboard; plan index = point - 1) and how long."""
     unit, dwell = config["axis"]["unit"], config["capture"]["method"] == "dwell"
     table = Table(title="Steps", header_style="bold")
-    for head, justify in (("step", "right"), ("action", "left"), (f"position {unit}", "right"),
-                          (f"speed {unit}/s", "right"), ("point", "right"), ("run", "right"), ("dir", "center"),
-                          ("time s", "right")):
+    columns: tuple[tuple[str, Literal["left", "center", "right"]], ...] = (
+        ("step", "right"), ("action", "left"), (f"position {unit}", "right"), (f"speed {unit}/s", "right"),
+        ("point", "right"), ("run", "right"), ("dir", "center"), ("time s", "right"))
+    for head, justify in columns:
         table.add_column(head, justify=justify)
     for i, step in enumerate(plan.steps):
         if isinstance(step, Move):

@@ -3,15 +3,16 @@ plan as a part program for a controller axiscal does not drive (docs/part-progra
 
 from __future__ import annotations
 
+import argparse
 import hashlib
 import json
 from datetime import date
 
 from campaign import __version__
 from campaign.commands import SUMMARY
-from campaign.config import load_config
+from campaign.config import Config, load_config
 from campaign.convert import write_whole
-from campaign.plan import build_plan, check_plan, plan_records
+from campaign.plan import Plan, build_plan, check_plan, plan_records
 from campaign.views import make_console
 from protocols.nc import DIALECTS, NcMove, NcProgram, render
 
@@ -19,7 +20,7 @@ SUFFIX = {"linuxcnc": ".ngc", "fanuc": ".nc", "siemens": ".mpf", "heidenhain": "
 """The usual file name ending per dialect (said in the help, not enforced)."""
 
 
-def register(sub) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("program", help=SUMMARY["program"],
                        description="Write the config's plan (the overrun, every target in order, a dwell at "
                                    "each, the plan's feed) as a part program, for a controller axiscal does "
@@ -31,13 +32,13 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def campaign_id(config, plan) -> str:
+def campaign_id(config: Config, plan: Plan) -> str:
     """MACHINE-AXIS-<8 hex of the plan>: the same plan gives the same id."""
     digest = hashlib.sha256(json.dumps(plan_records(plan), sort_keys=True).encode()).hexdigest()[:8]
     return f"{config['campaign']['machine'] or 'machine'}-{config['axis']['name']}-{digest}"
 
 
-def nc_program(config, plan) -> NcProgram:
+def nc_program(config: Config, plan: Plan) -> NcProgram:
     """The plan as moves: each stop of the plan in order, the feed from its velocity (per
     minute), at a target the dwell: the planned dwell with the dwell capture, the config's
     dwell_s with the stable one (the laser software decides when to capture)."""
@@ -61,7 +62,7 @@ def nc_program(config, plan) -> NcProgram:
     return NcProgram(config["axis"]["name"], config["axis"]["unit"], "AXISCAL", header, tuple(moves))
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     config = load_config(args.config)
     plan = build_plan(config)
     check_plan(plan, config)

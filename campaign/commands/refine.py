@@ -3,6 +3,7 @@ propose extra targets where linear interpolation cannot follow the mean deviatio
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 from rich.table import Table
@@ -16,7 +17,7 @@ from campaign.views import make_console, print_json
 from protocols.units import unit_label
 
 
-def register(sub) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("refine", help=SUMMARY["refine"],
                        description="Find the intervals where the mean deviation changes too fast for linear "
                                    "interpolation and propose extra targets there.")
@@ -30,7 +31,7 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     if args.threshold is not None and not args.threshold > 0:
         raise InputError("--threshold: must be > 0")
     if not 1 <= args.max_per_interval <= 20:

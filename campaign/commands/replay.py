@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from rich.table import Table
@@ -19,7 +21,7 @@ DIGITS = 4
 """The point table records deviations to 1e-4 µm (arcsec): 'identical' means equal at that."""
 
 
-def register(sub) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("replay", help=SUMMARY["replay"],
                        description="Replay DIR's raw stream through the capture and analysis code. With the "
                                    "recorded settings it reproduces the point table; with others it shows "
@@ -36,7 +38,7 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def _overrides(args) -> dict:
+def _overrides(args: argparse.Namespace) -> dict:
     out = {"method": args.capture} if args.capture else {}
     for key in ("average_s", "stable_tolerance", "stable_drift", "stable_window_s", "stable_timeout_s"):
         if getattr(args, key) is not None:
@@ -44,7 +46,7 @@ def _overrides(args) -> dict:
     return out
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     overrides = _overrides(args)
     directory = Path(args.dir)
     if not (directory / "meta.json").is_file():
@@ -54,7 +56,7 @@ def run(args) -> int:
     if "point" not in recorded.extra:
         raise InputError(f"{directory / 'points.csv'}: no 'point' column: not recorded by axiscal")
     rec_dev = {int(i): float(d) for i, d in zip(recorded.extra["point"], recorded.deviation)}
-    diffs = []
+    diffs: list[dict[str, Any]] = []
     for p in points:
         before = rec_dev.get(p.index)
         same = before is not None and p.deviation is not None and \
@@ -67,7 +69,7 @@ def run(args) -> int:
     got = [p for p in points if p.deviation is not None]
     new = PointTable(recorded.kind, np.array([p.run for p in got]), np.array([p.direction for p in got]),
                      np.array([p.target for p in got]),
-                     np.array([round(p.deviation, DIGITS) for p in got]))
+                     np.array([round(d, DIGITS) for d in (p.deviation for p in got) if d is not None]))
     new_summary = evaluate(new).summary if got else {}
     old_summary = evaluate(recorded).summary
     result = {"dir": str(directory), "capture": config["capture"]["method"], "points": len(got),

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 from campaign.commands import SUMMARY, positive_number
 
 
-def register(sub) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("report", help=SUMMARY["report"],
                        description="Write a self-contained HTML report (plots embedded, works offline) of a "
                                    "campaign directory or of a point table; with a baseline, before and after side by side.")
@@ -20,7 +21,7 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from campaign.report.document import write_report
 
     source = Path(args.dir)

@@ -9,13 +9,15 @@ a terminal, it runs as a script with progress bars.
 
 from __future__ import annotations
 
+import argparse
 import sys
 
 from campaign.commands import SUMMARY, hardware_opener, positive_number
 from campaign.commands.run import add_on_fault_option, apply_on_fault, finish
+from campaign.measure.session import Resumption
 
 
-def register(sub) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("resume", help=SUMMARY["resume"],
                        description="Continue the campaign in DIR: measure the points it left out (skipped "
                                    "after a fault, or not reached), each re-approached from the overrun in "
@@ -30,7 +32,7 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from campaign.measure.session import continue_campaign, prepare_resume
     from campaign.plot import check_plot_path
 
@@ -54,7 +56,7 @@ def run(args) -> int:
     return finish(outcome, args)
 
 
-def guided(r, args) -> int:
+def guided(r: Resumption, args: argparse.Namespace) -> int:
     """The guided resume: checklist, confirmation, dashboard, verdict (campaign/commands/guide.py)."""
     from rich.console import Console
 

@@ -2,17 +2,19 @@
 
 from __future__ import annotations
 
+import argparse
+
 from campaign.commands import SUMMARY, hardware_opener, positive_number
-from campaign.config import load_config
+from campaign.config import Config, load_config
 from campaign.errors import InputError
 from campaign.measure.progress import RichProgress
-from campaign.measure.session import dry_run, start_campaign
+from campaign.measure.session import Outcome, dry_run, start_campaign
 from campaign.plot import check_plot_path, plot_evaluation
 from campaign.views import make_console, print_evaluation, print_json
 from protocols.hardware import AxisError, InstrumentError
 
 
-def register(sub) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("run", help=SUMMARY["run"],
                        description="Run the campaign of CONFIG, record it, then print the ISO 230-2 summary.")
     p.add_argument("config", help="campaign TOML (see docs/config.md)")
@@ -23,7 +25,7 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def add_run_options(p) -> None:
+def add_run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", metavar="DIR", help="campaign directory (default runs/MACHINE-AXIS-TIME)")
     p.add_argument("--speed", type=positive_number, metavar="N",
                    help="simulated machine: N times real time (default: as fast as possible)")
@@ -32,19 +34,19 @@ def add_run_options(p) -> None:
     add_on_fault_option(p)
 
 
-def add_on_fault_option(p) -> None:
+def add_on_fault_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--on-fault", choices=("retry", "skip", "abort"),
                    help="after a fault: retry the point (up to [campaign] fault_retries times), skip it "
                         "(`axiscal resume` measures it later) or stop (default: the config's [campaign] on_fault)")
 
 
-def apply_on_fault(config, args) -> None:
+def apply_on_fault(config: Config, args: argparse.Namespace) -> None:
     """--on-fault overrides the config's [campaign] on_fault."""
     if getattr(args, "on_fault", None):
         config.sections["campaign"]["on_fault"] = args.on_fault
 
 
-def finish(outcome, args, extra: dict | None = None) -> int:
+def finish(outcome: Outcome, args: argparse.Namespace, extra: dict | None = None) -> int:
     """Print the outcome: the ISO 230-2 summary so far, the outliers and the verdict (campaign/assess.py,
     the same as `analyze`, `report` and the guide), and the resume hint when points are missing.
     Exit 0 when completed (points skipped after faults included), 3 when interrupted."""
@@ -85,7 +87,7 @@ def finish(outcome, args, extra: dict | None = None) -> int:
     return 0 if outcome.status == "completed" else 3
 
 
-def run_config(config, args, extra=None) -> int:
+def run_config(config: Config, args: argparse.Namespace, extra: dict | None = None) -> int:
     apply_on_fault(config, args)
     if args.plot:
         check_plot_path(args.plot)
@@ -96,7 +98,7 @@ def run_config(config, args, extra=None) -> int:
     return finish(outcome, args, extra)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     config = load_config(args.config)
     if args.dry_run or config["axis_driver"]["read_only"]:
         try:

@@ -3,6 +3,7 @@ with the compensation active and show the before and after."""
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 from rich.table import Table
@@ -21,7 +22,7 @@ from campaign.views import fmt, make_console
 from protocols.tables import FORMATS, FormatOptions
 
 
-def register(sub) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("verify", help=SUMMARY["verify"],
                        description="Write the compensation table (any format `axiscal compensate` writes) "
                                    "into the PLC, run the campaign again and compare with the baseline.")
@@ -41,7 +42,7 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     config = load_config(args.config)
     apply_on_fault(config, args)
     options = FormatOptions(counts_per_unit=args.counts_per_unit)

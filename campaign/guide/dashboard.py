@@ -12,19 +12,20 @@ from __future__ import annotations
 from collections import deque
 from typing import Self
 
-from rich.console import Console, Group
+from rich.console import Console, Group, RenderableType
 from rich.live import Live
 from rich.panel import Panel
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 from rich.table import Table
 
+from campaign.config import Config
 from campaign.guide.keys import Keys
 from campaign.measure.capture import BeamLost, NotStable
 from campaign.measure.executor import Control, Observer
 from campaign.measure.live import live_text
-from campaign.plan import Plan
+from campaign.plan import Plan, Point
 from campaign.record.events import Event
-from protocols.hardware import AxisError, InstrumentError
+from protocols.hardware import AxisError, Hardware, InstrumentError, Reading
 from protocols.units import deviation_label
 
 BLOCKS = "▁▂▃▄▅▆▇█"
@@ -85,11 +86,12 @@ class Dashboard(Observer):
     the plan index (from 0). The ETAs are machine time: the time per point measured so far (pauses
     left out) times the points left."""
 
-    def __init__(self, console: Console, config, plan: Plan, control: Control, on_fault: str | None,
-                 hw=None, keys: Keys | None = None):
+    def __init__(self, console: Console, config: Config, plan: Plan, control: Control, on_fault: str | None,
+                 hw: Hardware | None = None, keys: Keys | None = None) -> None:
         self.console, self.plan, self.control, self.on_fault, self.keys = console, plan, control, on_fault, keys
         self.hw, self.tick_s = hw, 1.0 / config["instrument"]["rate_hz"]
-        self.max_retries, self.retries = config["campaign"]["fault_retries"], {}
+        self.max_retries = config["campaign"]["fault_retries"]
+        self.retries: dict[int, int] = {}
         self.unit = config["axis"]["unit"]
         self.dev_unit = deviation_label(self.unit)
         self.runs = config["plan"]["cycles"]
@@ -101,7 +103,9 @@ class Dashboard(Observer):
         self.done: set[int] = set()
         self.todo: list[int] = list(range(len(plan.points)))
         self.skipped: set[int] = set()
-        self.t_s, self.started_s, self.paused_s, self.pause_began = 0.0, None, 0.0, None
+        self.t_s, self.paused_s = 0.0, 0.0
+        self.started_s: float | None = None
+        self.pause_began: float | None = None
         self.measured_now = 0
         self.run = 1
         self.live_text = "no reading yet"
@@ -117,14 +121,14 @@ class Dashboard(Observer):
             self.live.start()
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         if self.live is not None:
             self.live.stop()
 
     # -- what the operator sees ------------------------------------------------------------------
 
     def __rich__(self) -> Group:
-        parts = [self.progress, self._status(), self._chart()]
+        parts: list[RenderableType] = [self.progress, self._status(), self._chart()]
         if self.warnings:
             parts.append("\n".join(f"[yellow]warning:[/] {w}" for w in self.warnings))
         if self.prompt:
@@ -211,11 +215,11 @@ class Dashboard(Observer):
         self.state = "RUNNING" if not self.control.abort_requested() else self.state
         self._update_bars()
 
-    def reading(self, t_s, reading, target) -> None:
+    def reading(self, t_s: float, reading: Reading, target: float | None) -> None:
         self.t_s = t_s
         self.live_text = live_text(reading, target, self.unit)
 
-    def point_done(self, point, deviation, t_s: float) -> None:
+    def point_done(self, point: Point, deviation: float, t_s: float) -> None:
         self.deviations[point.direction][point.target_index].append(deviation)
         self.done.add(point.index)
         self.skipped.discard(point.index)
@@ -255,7 +259,7 @@ class Dashboard(Observer):
         kind = event.kind
         if kind == "start":
             self.started_s = event.t_s
-        elif kind == "point":
+        elif kind == "point" and event.point is not None:
             self.point_done(self.plan.points[event.point], event.data["deviation"], event.t_s)
         elif kind == "pause":
             self.state, self.pause_began = "PAUSED", event.t_s

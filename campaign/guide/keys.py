@@ -16,9 +16,14 @@ import termios
 import threading
 import tty
 from collections.abc import Callable
-from typing import Self
+from types import FrameType
+from typing import TYPE_CHECKING, Self
 
 from campaign.measure.executor import Control
+from protocols.hardware import Hardware
+
+if TYPE_CHECKING:
+    from campaign.guide.dashboard import Dashboard
 
 
 class Keys:
@@ -37,7 +42,7 @@ class Keys:
         self._thread.start()
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         os.write(self._wake_w, b"x")
         self._thread.join(timeout=1.0)
         termios.tcsetattr(self.fd, termios.TCSADRAIN, self._saved)
@@ -77,17 +82,17 @@ class CtrlC:
     """SIGINT while the axis may move: the first aborts like `a` (halt at the next tick, flush,
     mark interrupted); the second halts the axis at once and stops."""
 
-    def __init__(self, dashboard, hw):
+    def __init__(self, dashboard: Dashboard, hw: Hardware) -> None:
         self.dashboard, self.hw, self.count = dashboard, hw, 0
 
     def __enter__(self) -> Self:
         self.previous = signal.signal(signal.SIGINT, self._handle)
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         signal.signal(signal.SIGINT, self.previous)
 
-    def _handle(self, signum, frame) -> None:
+    def _handle(self, signum: int, frame: FrameType | None) -> None:
         self.count += 1
         if self.count == 1:
             self.dashboard.abort("Ctrl-C")

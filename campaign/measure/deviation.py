@@ -20,7 +20,7 @@ def corrections_um(config: Config, position: float, env: dict) -> tuple[float, f
     if envc["air_correction"] == "edlen":
         t, p, h = (env.get(k) if env.get(k) is not None else envc[k]
                    for k in ("air_temp_c", "air_pressure_hpa", "humidity_pct"))
-        if None in (t, p, h):
+        if t is None or p is None or h is None:
             raise InstrumentError("air correction needs air temperature, pressure and humidity")
         factor = air_correction_factor(t, p * 100.0, h, 1.0, envc["wavelength_nm"], envc["co2_ppm"])
         air = air_correction_um(position, factor)

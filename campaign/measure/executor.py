@@ -13,7 +13,9 @@ display sinks (Observers), whose failures never stop it.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
+from typing import Any
 
 from campaign.config import Config
 from campaign.measure.capture import BeamLost, Captured, NotStable, capture_dwell, capture_stable
@@ -26,8 +28,8 @@ from protocols.hardware import Axis, AxisError, AxisStatus, Clock, Hardware, Ins
 from protocols.units import DEVIATION_SCALE, deviation_label
 
 
-def move_and_wait(axis: Axis, clock: Clock, tick, position: float, velocity: float, config: Config,
-                  on_status=None) -> AxisStatus:
+def move_and_wait(axis: Axis, clock: Clock, tick: Callable[[], None], position: float, velocity: float,
+                  config: Config, on_status: Callable[[AxisStatus], None] | None = None) -> AxisStatus:
     """The one way axiscal moves an axis: check the soft limits and the velocity limit, command the
     move, then call `tick()` (let a sample period pass) and poll the status until the axis is done
     and in position. AxisError on an axis error or after `axis_driver.move_timeout_s`.
@@ -78,7 +80,7 @@ class Observer:
 class Control:
     """Operator requests, set from another thread (keys, signals): pause between points, abort."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         import threading
 
         self._pause = threading.Event()
@@ -118,7 +120,8 @@ def stretch_steps(plan: Plan, first: int, last: int, overrun: float) -> list[tup
     point they include the plan's closing moves."""
     visits = plan.visits()
     steps = list(enumerate(plan.steps))
-    end = len(steps) if last == len(visits) - 1 else visits[last].checkpoint_step + 1
+    closing = visits[last].checkpoint_step
+    end = len(steps) if last == len(visits) - 1 or closing is None else closing + 1
     if first == 0:
         return steps[:end]
     visit = visits[first]
@@ -169,13 +172,13 @@ class Executor:
         """Seconds since campaign start."""
         return self.hw.clock.now() - self.t0
 
-    def emit(self, kind: str, message: str, point: int | None = None, **data) -> None:
+    def emit(self, kind: str, message: str, point: int | None = None, **data: Any) -> None:
         """Emit one fact: recorded first (RecordingError propagates), then shown."""
         event = Event(self.now(), kind, message, point, data)
         self.rec.emit(event)
         self._show(lambda obs: obs.emit(event))
 
-    def _show(self, call) -> None:
+    def _show(self, call: Callable[[Observer], None]) -> None:
         """Call every observer; a failing display is recorded once and otherwise ignored."""
         for obs in self.observers:
             try:
@@ -194,8 +197,9 @@ class Executor:
         fault the observers decide: retry the point, skip it, or abort (CampaignStopped, after
         halting). Ctrl-C or an abort request halts, flushes and re-raises KeyboardInterrupt."""
         total = len(self.plan.points)
-        todo = list(range(todo, total)) if isinstance(todo, int) else sorted(set(todo))
-        self._show(lambda obs: obs.started(self.plan, todo))
+        points = list(range(todo, total)) if isinstance(todo, int) else sorted(set(todo))
+        self._show(lambda obs: obs.started(self.plan, points))
+        todo = points
         if todo:
             self.emit("start", f"measuring {len(todo)} of {total} points, from point {todo[0] + 1}", todo[0],
                       first_point=todo[0], points=len(todo), planned=total)
@@ -316,7 +320,7 @@ class Executor:
         if self.control.abort_requested():
             raise KeyboardInterrupt
 
-    def _emit_safely(self, kind: str, message: str, point: int | None = None, **data) -> None:
+    def _emit_safely(self, kind: str, message: str, point: int | None = None, **data: Any) -> None:
         """Emit while stopping: a disk error must not keep the axis from being halted (the event
         is still shown, marked as not recorded)."""
         try:
@@ -352,12 +356,15 @@ class Executor:
         for reading in self.hw.interferometer.poll():
             self.rec.sample(t, self.step_index, self.point_index, self.axis_position, reading)
             self.readings.append(reading)
-            self._show(lambda obs, r=reading: obs.reading(t, r, self.target))
+            self._show_reading(t, reading)
             if reading.signal_ok != self.beam_ok:
                 self.beam_ok = reading.signal_ok
                 signal = "" if reading.signal_pct is None else f" (signal {reading.signal_pct:g} %)"
                 self.emit("beam", ("beam back" if reading.signal_ok else "beam lost") + signal, self.point_index,
                           ok=reading.signal_ok, signal_pct=reading.signal_pct)
+
+    def _show_reading(self, t: float, reading: Reading) -> None:
+        self._show(lambda obs: obs.reading(t, reading, self.target))
 
     def _wait(self, seconds: float) -> None:
         end = self.now() + seconds - 1e-9
@@ -415,6 +422,8 @@ class Executor:
 
     def _checkpoint(self, step: Checkpoint) -> None:
         point, t = step.point, self.now()
+        if self.captured is None:
+            raise ValueError(f"plan step {self.step_index}: a checkpoint without a capture before it")
         env, messages = self.env_guard.check(self.captured.env, t)
         got = replace(self.captured, env=env)
         for field, problem, message in messages:

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+from typing import Self
+
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TaskID, TextColumn, TimeRemainingColumn
 
 from campaign.measure.executor import Observer
 from campaign.measure.live import live_text
 from campaign.plan import Plan
 from campaign.record.events import Event
+from protocols.hardware import Reading
 
 
 class RichProgress(Observer):
@@ -21,14 +24,15 @@ class RichProgress(Observer):
                                  TimeRemainingColumn(), TextColumn("{task.fields[live]}"),
                                  console=self.console, transient=False)
         self.unit = unit
-        self.overall = self.run_task = None
+        self.overall: TaskID | None = None
+        self.run_task: TaskID | None = None
         self.per_run = 0
         self._last_reading_t = -1.0
 
-    def __enter__(self):
+    def __enter__(self) -> Self:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         if self.overall is not None:
             self.progress.stop()
 
@@ -46,8 +50,8 @@ class RichProgress(Observer):
     def _done_in(self, run: int) -> int:
         return sum(1 for i in self.done if self.points[i].run == run)
 
-    def reading(self, t_s, reading, target) -> None:
-        if t_s - self._last_reading_t < 0.5 or self.overall is None:
+    def reading(self, t_s: float, reading: Reading, target: float | None) -> None:
+        if t_s - self._last_reading_t < 0.5 or self.overall is None or self.run_task is None:
             return
         self._last_reading_t = t_s
         text = live_text(reading, target, self.unit)
@@ -55,7 +59,8 @@ class RichProgress(Observer):
         self.progress.update(self.run_task, live=text)
 
     def emit(self, event: Event) -> None:
-        if event.kind == "point":
+        if event.kind == "point" and event.point is not None and self.overall is not None \
+                and self.run_task is not None:
             run = event.data["run"]
             self.done.add(event.point)
             self.progress.update(self.overall, completed=len(self.done))

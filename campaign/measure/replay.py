@@ -13,7 +13,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from campaign.config import Config, load_config
 from campaign.measure.capture import BeamLost, Captured, capture_dwell, capture_stable
@@ -49,10 +49,13 @@ class ReplayedPoint:
 def _readings(rows: pd.DataFrame) -> list[Reading]:
     import pandas as pd
 
-    def value(v):
+    def value(v: Any) -> float | None:  # a cell of raw.csv: a number or NA
         return None if pd.isna(v) else float(v)
 
-    return [Reading(r.instrument_time_s, r.reading, bool(r.signal_ok), value(r.signal_pct), value(r.air_temp_c),
+    def number(v: Any) -> float:
+        return float(v)
+
+    return [Reading(number(r.instrument_time_s), number(r.reading), bool(r.signal_ok), value(r.signal_pct), value(r.air_temp_c),
                     value(r.air_pressure_hpa), value(r.humidity_pct), value(r.material_temp_c))
             for r in rows.itertuples(index=False)]
 
@@ -74,11 +77,12 @@ def _capture(config: Config, rows: pd.DataFrame, capture_step: int, arrival: flo
     tolerance = c["stable_tolerance"] / DEVIATION_SCALE[config["axis"]["unit"]]
     drift = c["stable_drift"] / DEVIATION_SCALE[config["axis"]["unit"]]
     readings: list[Reading] = []
-    for t, tick in rows.groupby("t_s", sort=True):
+    for t_s, tick in rows.groupby("t_s", sort=True):
+        t = float(t_s)  # type: ignore[arg-type]  # the group key of the float column t_s
         if t - arrival > c["stable_timeout_s"] + TICK_EPSILON_S:
             break
         readings.extend(_readings(tick))
-        got = capture_stable(readings, c["stable_window_s"], tolerance, drift, float(t) - arrival)
+        got = capture_stable(readings, c["stable_window_s"], tolerance, drift, t - arrival)
         if got is not None:
             return got
     raise BeamLost("never stable within the recorded samples and the timeout")
@@ -96,7 +100,8 @@ def replay(directory: str | Path, capture_overrides: dict | None = None, speed: 
     config.sections["capture"] = {**config["capture"], **(capture_overrides or {})}
     raw = load_raw(path)
     guard = EnvironmentGuard()
-    results, last_t = [], 0.0
+    results: list[ReplayedPoint] = []
+    last_t = 0.0
     for visit in plan.visits():
         point, move_step, capture_step = visit.point, visit.step, visit.capture_step
         rows = raw[raw.point == point.index]

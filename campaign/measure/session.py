@@ -23,10 +23,13 @@ from campaign.pointtable import read_points
 from campaign.record.directory import last_raw_state, open_campaign, recorded_point_indices
 from campaign.record.events import Event
 from campaign.record.recorder import Recorder, RecordingError
-from protocols.hardware import Hardware
+from protocols.hardware import Hardware, Reading
 from protocols.plc_contract import CompTable
 
-Opener = Callable[..., tuple[Hardware, Any]]
+Opened = tuple[Hardware, Any]
+"""Open hardware and the simulated machine's parts (None on a real machine)."""
+
+Opener = Callable[..., Opened]
 """opener(config, speed=None, model=None, start_position=None, start_time=0.0) -> (Hardware, the
 simulated machine's parts or None). `speed`: N times real time (simulated machine); `model`: its
 error model; `start_position` (axis unit) and `start_time` (s): where and when it starts."""
@@ -66,13 +69,17 @@ def campaign_meta(config: Config, plan: Plan) -> dict:
 
 
 def execute(config: Config, plan: Plan, recorder: Recorder, todo: int | list[int], *, opener: Opener | None = None,
-            speed=None, model=None, observer: Observer | None = None, t_offset: float = 0.0,
-            start: float | None = None, on_open=None, control: Control | None = None, opened=None) -> Outcome:
+            speed: float | None = None, model: ErrorModel | None = None, observer: Observer | None = None,
+            t_offset: float = 0.0, start: float | None = None,
+            on_open: Callable[[Hardware, Any, Executor], None] | None = None, control: Control | None = None,
+            opened: Opened | None = None) -> Outcome:
     """Measure the points `todo` of `plan` (plan indices; an int n: from n to the end) into
     `recorder`, between a start and a stop record. Re-raises
     KeyboardInterrupt after the axis is halted and the recording flushed. `opened`: a (Hardware,
     parts) pair already open, used instead of `opener` (it is closed at the end either way)."""
     if opened is None:
+        if opener is None:
+            raise ValueError("execute: give an opener or opened hardware")
         opened = opener(config, speed=speed, model=model, start_position=start, start_time=t_offset)
     hardware, sim = opened
     executor = Executor(plan, config, hardware, recorder, [observer] if observer else [],
@@ -117,7 +124,7 @@ def execute(config: Config, plan: Plan, recorder: Recorder, todo: int | list[int
 
 
 def start_campaign(config: Config, out: str | Path | None = None, meta_extra: dict | None = None,
-                   on_created=None, **kwargs) -> Outcome:
+                   on_created: Callable[[Path], None] | None = None, **kwargs: Any) -> Outcome:
     """A new campaign from `config` into `out` (a new directory); `meta_extra` goes into meta.json.
     The other keywords go to `execute` (`opener` or `opened` is required)."""
     plan = build_plan(config)
@@ -140,8 +147,8 @@ def start_campaign(config: Config, out: str | Path | None = None, meta_extra: di
     return execute(config, plan, recorder, 0, **kwargs)
 
 
-def open_with_comp(opener: Opener, config: Config, comp: CompTable, speed=None, model=None, start=None,
-                   start_time: float = 0.0):
+def open_with_comp(opener: Opener, config: Config, comp: CompTable, speed: float | None = None,
+                   model: ErrorModel | None = None, start: float | None = None, start_time: float = 0.0) -> Opened:
     """Open the hardware and write `comp` into the controller (read back, compared, enabled).
     On the simulated machine the noise is drawn from sim.seed + COMP_SEED_OFFSET."""
     if config["axis_driver"]["type"] == "sim":
@@ -173,7 +180,7 @@ class Resumption:
     model: ErrorModel | None = None
     comp: CompTable | None = None
 
-    def open(self, opener: Opener, speed=None):
+    def open(self, opener: Opener, speed: float | None = None) -> Opened:
         """The hardware to continue on: a simulated machine starts where and when the campaign
         stopped, with its recorded model; a campaign measured with compensation gets its table
         written again first."""
@@ -215,7 +222,7 @@ def prepare_resume(directory: str | Path, faults: dict | None = None) -> Resumpt
         raise
 
 
-def continue_campaign(r: Resumption, **kwargs) -> Outcome:
+def continue_campaign(r: Resumption, **kwargs: Any) -> Outcome:
     """Measure the points `r` left out, each re-approached from the overrun in its own direction,
     in plan order, appending to the same files. The keywords go to `execute` (`opener` or
     `opened`)."""
@@ -238,8 +245,8 @@ def continue_campaign(r: Resumption, **kwargs) -> Outcome:
     return execute(r.config, r.plan, r.recorder, r.todo, t_offset=r.t_last, start=r.position, **kwargs)
 
 
-def resume_campaign(directory: str | Path, faults: dict | None = None, *, opener: Opener, speed=None,
-                    **kwargs) -> Outcome:
+def resume_campaign(directory: str | Path, faults: dict | None = None, *, opener: Opener,
+                    speed: float | None = None, **kwargs: Any) -> Outcome:
     """`prepare_resume`, open the hardware, `continue_campaign`: the script way of resuming."""
     r = prepare_resume(directory, faults)
     if not r.todo:
@@ -264,7 +271,7 @@ def analyse_dir(directory: str | Path) -> tuple[object, Evaluation]:
     return table, evaluate(table)
 
 
-def dry_run(config: Config, opener: Opener | None = None, ticks: int = 10, opened=None) -> dict:
+def dry_run(config: Config, opener: Opener | None = None, ticks: int = 10, opened: Opened | None = None) -> dict:
     """Talk to the controller read-only and walk the plan: nothing is commanded.
 
     Reads the axis status, checks every move of the plan against the limits, and reads `ticks`
@@ -273,10 +280,14 @@ def dry_run(config: Config, opener: Opener | None = None, ticks: int = 10, opene
     plan = build_plan(config)
     check_plan(plan, config)
     config.sections["axis_driver"] = {**config["axis_driver"], "read_only": True}
-    hardware, _ = opened if opened is not None else opener(config)
+    if opened is None:
+        if opener is None:
+            raise ValueError("dry_run: give an opener or opened hardware")
+        opened = opener(config)
+    hardware, _ = opened
     try:
         status = hardware.axis.status()
-        readings = []
+        readings: list[Reading] = []
         for _ in range(ticks):
             hardware.clock.sleep(1.0 / config["instrument"]["rate_hz"])
             readings.extend(hardware.interferometer.poll())

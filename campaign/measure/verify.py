@@ -17,6 +17,7 @@ from campaign.compensation.grid import ControllerTable
 from campaign.config import Config
 from campaign.errors import InputError
 from campaign.iso230 import Evaluation, evaluate
+from campaign.measure.executor import Observer
 from campaign.measure.session import Opener, Outcome, open_with_comp, start_campaign
 from campaign.plan import Plan
 from campaign.plot import draw_evaluation, pyplot
@@ -69,12 +70,12 @@ def table_fits(table: ControllerTable, provenance: dict[str, str], config: Confi
 
 def run_verification(config: Config, table: ControllerTable, out: Path, *, opener: Opener,
                      baseline: Path | None = None, max_rate: float | None = None, max_accel: float | None = None,
-                     speed=None, observer=None) -> Outcome:
+                     speed: float | None = None, observer: Observer | None = None) -> Outcome:
     """Write `table` to the controller, then run the campaign of `config` into `out`."""
     rate, accel = correction_limits(config, max_rate, max_accel)
     comp = table.to_plc(rate, accel, enabled=True)
     opened = open_with_comp(opener, config, comp, speed)
-    extra = {"compensation": {"file": COMP_FILE, "mode": table.mode, "points": len(table.forward),
+    extra: dict[str, object] = {"compensation": {"file": COMP_FILE, "mode": table.mode, "points": len(table.forward),
                               "start": table.start, "spacing": table.spacing, "overrun": table.overrun,
                               "max_rate": rate, "max_accel": accel}}
     if baseline is not None:
@@ -116,7 +117,7 @@ def write_report(directory: Path, after: PointTable, before: PointTable | None) 
     unit = unit_label(ev_after.unit)
     md = [f"# Verification: {directory}", ""]
     for label, table, ev in (("Before compensation", before, ev_before), ("After compensation", after, ev_after)):
-        if table is None:
+        if table is None or ev is None:
             continue
         for direction, name in ((1, "forward (+)"), (-1, "reverse (-)")):
             md += [f"## {label}: {name} deviations, {unit}", ""] + direction_table(table, ev, direction) + [""]
@@ -127,8 +128,8 @@ def write_report(directory: Path, after: PointTable, before: PointTable | None) 
         a = ev_after.summary.get(key)
         md.append(f"| {name} | {'–' if b is None else f'{b:.3f}'} | {'–' if a is None else f'{a:.3f}'} |")
     (directory / "verification.md").write_text("\n".join(md) + "\n", encoding="utf-8")
-    panels = [(before, ev_before, "before: "), (after, ev_after, "after: ")] if before is not None \
-        else [(after, ev_after, "after: ")]
+    panels = [(before, ev_before, "before: "), (after, ev_after, "after: ")] \
+        if before is not None and ev_before is not None else [(after, ev_after, "after: ")]
     plt = pyplot()
     fig, axes = plt.subplots(1, len(panels), figsize=(7 * len(panels), 5), squeeze=False)
     for ax, (table, ev, label) in zip(axes[0], panels):

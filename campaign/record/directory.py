@@ -21,11 +21,14 @@ import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from campaign.config import Config, resume_conflicts
 from campaign.errors import InputError
 from campaign.plan import Plan, build_plan, plan_from_records
+
+if TYPE_CHECKING:
+    import pandas as pd
 from protocols.plc_contract import CompTable
 
 FORMAT_VERSION = 2
@@ -206,7 +209,7 @@ def recorded_point_indices(directory: Path) -> list[int]:
     return [int(i) for i in read_points(path, partial=True).extra["point"]]
 
 
-def load_raw(directory: Path):
+def load_raw(directory: Path) -> pd.DataFrame:
     """raw.csv as a pandas DataFrame (step and point as nullable integers)."""
     import pandas as pd
 

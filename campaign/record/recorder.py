@@ -29,6 +29,7 @@ import json
 import os
 import platform
 from pathlib import Path
+from typing import TextIO
 
 from campaign import __version__
 from campaign.errors import InputError
@@ -103,7 +104,7 @@ def _write_all(fd: int, data: bytes) -> None:
         view = view[written:]
 
 
-def _cell(value) -> str:
+def _cell(value: object) -> str:
     if value is None:
         return ""
     if isinstance(value, bool):
@@ -143,20 +144,25 @@ class Recorder:
         self.meta = meta
         self.kind = kind
         # long-lived append handles, closed by close()
-        self._raw = self._events = self._log = None
+        self._files: list[TextIO] = []
         self._points_fd = -1
         self._runs_fd = runs_fd
         try:
-            self._raw = open(directory / "raw.csv", "a", encoding="utf-8", newline="")  # noqa: SIM115
+            self._raw = self._open(directory / "raw.csv", newline="")
             self._points_fd = os.open(directory / "points.csv", os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
-            self._events = open(directory / "events.jsonl", "a", encoding="utf-8")  # noqa: SIM115
-            self._log = open(directory / "events.log", "a", encoding="utf-8")  # noqa: SIM115
+            self._events = self._open(directory / "events.jsonl")
+            self._log = self._open(directory / "events.log")
         except OSError:
             self.close()
             raise
         self.env_columns: tuple[str, ...] | None = None
         self.points_written = 0
         self.fail_next_point_write = False
+
+    def _open(self, path: Path, newline: str | None = None) -> TextIO:
+        f = open(path, "a", encoding="utf-8", newline=newline)  # noqa: SIM115 - closed by close()
+        self._files.append(f)
+        return f
 
     @classmethod
     def create(cls, directory: str | Path, config_text: str, sections: dict, plan_records: list[dict],
@@ -226,7 +232,8 @@ class Recorder:
         except OSError as exc:
             raise RecordingError(f"{self.dir}: {exc.strerror or exc}") from exc
 
-    def _point(self, run, direction, target, deviation, time_s, env, extra) -> None:
+    def _point(self, run: int, direction: int, target: float, deviation: float, time_s: float,
+               env: dict[str, float | None], extra: dict[str, float]) -> None:
         self._raw.flush()
         os.fsync(self._raw.fileno())
         if self.env_columns is None:
@@ -238,7 +245,8 @@ class Recorder:
             if self.meta.get("simulated"):  # the mark travels with the table when it is copied out
                 comments += "# simulated: yes (not a measurement of a real axis)\n"
             _write_all(self._points_fd, (comments + ",".join(header) + "\n").encode())
-        values = (time_s, *(env.get(c) if env.get(c) is not None else float("nan") for c in self.env_columns),
+        env_values = [env.get(c) for c in self.env_columns]
+        values = (time_s, *(float("nan") if v is None else v for v in env_values),
                   *(extra[c] for c in EXTRA_POINT_COLUMNS))
         row = format_row(run, direction, target, deviation, tuple(float(v) for v in values)).encode()
         if self.fail_next_point_write:
@@ -288,8 +296,8 @@ class Recorder:
         """Flush, fsync and close every file; each is closed even when another fails (full
         disk). Raises the first OSError afterwards."""
         failure = None
-        for f in (self._raw, self._events, self._log):
-            if f is None or f.closed:
+        for f in self._files:
+            if f.closed:
                 continue
             try:
                 f.flush()

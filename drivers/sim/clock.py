@@ -10,9 +10,18 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from typing import Protocol
 
 Listener = Callable[[float], None]
 """Called with the new simulated time, s, after each advance."""
+
+
+class ListeningClock(Protocol):
+    """A clock parts can listen to: the simulated clock, or LinuxCNC's wall clock (drivers/clock.py)."""
+
+    def attach(self, listener: Listener) -> None: ...
+    def detach(self, listener: Listener) -> None: ...
+    def now(self) -> float: ...
 
 
 class SimClock:

@@ -22,11 +22,24 @@ def comp_table_in_plc(plc: SimPLC) -> CompTable | None:
     """The table the PLC holds, or None when it holds none (nPoints < 2)."""
     symbols = plc_contract.comp_symbols(plc.axis)
     v = {member: plc.value(s.name) for member, s in symbols.items()}
-    n = int(v["nPoints"])
-    if n < 2 or v["fSpacing"] <= 0 or v["fMaxRate"] <= 0 or v["fMaxAccel"] <= 0:
+
+    def number(member: str) -> float:
+        value = v[member]
+        if isinstance(value, list):
+            raise TypeError(f"{member}: an array where the contract has a scalar")
+        return float(value)
+
+    def array(member: str) -> tuple[float, ...]:
+        value = v[member]
+        if not isinstance(value, list):
+            raise TypeError(f"{member}: a scalar where the contract has an array")
+        return tuple(float(x) for x in value[:n])
+
+    n = int(number("nPoints"))
+    if n < 2 or number("fSpacing") <= 0 or number("fMaxRate") <= 0 or number("fMaxAccel") <= 0:
         return None
-    return CompTable(tuple(v["afForward"][:n]), tuple(v["afReverse"][:n]), v["fStart"], v["fSpacing"],
-                     v["fOverrun"], v["fMaxRate"], v["fMaxAccel"], bool(v["bEnable"]))
+    return CompTable(array("afForward"), array("afReverse"), number("fStart"), number("fSpacing"),
+                     number("fOverrun"), number("fMaxRate"), number("fMaxAccel"), bool(v["bEnable"]))
 
 
 class SimCompensation:
@@ -74,5 +87,7 @@ class SimCompensation:
     def _settled(self, commanded: float) -> bool:
         """At rest with the correction reached: every further cycle changes nothing."""
         c = self.compensator
+        if c is None:
+            return True
         return (self.plc.arrival_time is not None and c.state.step == 0.0
                 and c.applied == c.desired(commanded, self.plc.last_direction))

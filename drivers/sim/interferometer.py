@@ -22,7 +22,7 @@ import tty
 from collections.abc import Callable
 from typing import Any
 
-from drivers.sim.clock import SimClock
+from drivers.sim.clock import ListeningClock
 from protocols.hardware import Reading
 from protocols.serial_line import LineFormat, format_line
 
@@ -37,7 +37,7 @@ class SimInterferometer:
 
     def __init__(
         self,
-        clock: SimClock,
+        clock: ListeningClock,
         measure: Measure,
         fmt: LineFormat | None = None,
         rate_hz: float = 10.0,

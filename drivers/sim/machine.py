@@ -10,13 +10,26 @@ rotary axis).
 
 from __future__ import annotations
 
+from typing import Protocol
+
 import numpy as np
 
 from campaign.edlen import refractive_index
 from campaign.model import ErrorModel
 from drivers.sim.clock import SimClock
-from drivers.sim.plc import SimPLC
 from protocols.units import DEVIATION_SCALE
+
+
+class Motor(Protocol):
+    """What the physics reads of the controller: the motor setpoint at time t (s; axis unit), when
+    the axis came to rest (s, None while moving) and the last motion's direction (+1/-1). The
+    simulated PLC and LinuxCNC's joint both provide it."""
+
+    @property
+    def arrival_time(self) -> float | None: ...
+    @property
+    def last_direction(self) -> int: ...
+    def setpoint_position(self, t: float) -> float: ...
 
 
 class SimAxisPhysics:
@@ -27,7 +40,7 @@ class SimAxisPhysics:
     for a campaign that corrects for air itself.
     """
 
-    def __init__(self, plc: SimPLC, model: ErrorModel, unit: str = "mm", seed: int = 1,
+    def __init__(self, plc: Motor, model: ErrorModel, unit: str = "mm", seed: int = 1,
                  air: tuple[float, float, float] = (20.0, 1013.25, 50.0), material_temp_c: float = 20.0,
                  vacuum_readings: bool = False):
         self.plc, self.model, self.unit = plc, model, unit
