@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from campaign.config import Config, load_config
+from campaign.config import Config
 from campaign.errors import InputError
 from campaign.iso230 import STANDARDS, Evaluation, Standard, evaluate
 from campaign.outliers import Outliers, find_outliers
@@ -65,7 +65,7 @@ def assess(table: PointTable, config: Config | None = None, planned: Planned | N
            directory: Path | None = None, meta: dict | None = None) -> Assessment:
     """Assess `table`. `tolerance`: the tolerance on A (deviation unit), instead of the config's."""
     ev = evaluate(table, standard)
-    tolerances = {k: float(config["campaign"][key]) if config is not None else 0.0
+    tolerances = {k: float(getattr(config.campaign, key)) if config is not None else 0.0
                   for k, key in TOLERANCE_KEYS.items()}
     if tolerance is not None:
         tolerances["A"] = tolerance
@@ -82,7 +82,7 @@ def is_simulated(table: PointTable, config: Config | None, meta: dict | None) ->
     controller, a simulated reading): said by meta.json, the config, or the table's own comment."""
     if meta and (meta.get("simulated") or meta.get("driver") == "sim"):
         return True
-    if config is not None and "sim" in (config["axis_driver"]["type"], config["instrument"]["type"]):
+    if config is not None and config.simulated:
         return True
     return str(table.meta.get("simulated", "")).startswith("yes")
 
@@ -121,7 +121,7 @@ def assess_path(path: str | Path, tolerance: float | None = None,
     if not points.is_file() or not any(ln[:1].isdigit() for ln in points.read_text(encoding="utf-8").splitlines()):
         raise InputError(f"{points}: no point recorded yet")
     table = read_points(points, partial=True)
-    config = load_config(directory / "config.toml")
+    config = campaign.config()  # config.toml, or the config plan.jsonl describes
     planned_points = campaign.meta.get("points_planned")
-    planned = Planned(int(planned_points), int(config["plan"]["cycles"])) if planned_points else None
+    planned = Planned(int(planned_points), int(config.plan.cycles)) if planned_points else None
     return assess(table, config, planned, tolerance, standard, str(directory), directory, campaign.meta)

@@ -7,196 +7,105 @@ out-of-range value raises InputError naming the key.
 
 from __future__ import annotations
 
+import copy
 import itertools
 import json
 import math
 import tomllib
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
 from campaign.errors import InputError, read_input_text
 from campaign.faults import parse_faults
 from campaign.model import model_from_dict
-from protocols import plc_contract
+from campaign.specs import (
+    REQUIRED,
+    AxisSpec,
+    CampaignSpec,
+    CaptureSpec,
+    ControllerSpec,
+    DriverSpec,
+    EnvironmentSpec,
+    FaultPolicy,
+    InstrumentSpec,
+    Key,
+    PlanSpec,
+    SimSpec,
+    frozen,
+    plain,
+)
 from protocols.serial_line import LineFormat
 
-REQUIRED = object()
-
-
-@dataclass(frozen=True)
-class Key:
-    """One config key: its type, default (REQUIRED if none), meaning with unit, bounds, and whether
-    it may change before a resume."""
-
-    type: type
-    default: Any
-    doc: str
-    min: float | None = None
-    max: float | None = None
-    choices: tuple = ()
-    resume: bool = False
-    """True when the key may change between a campaign's start and its resume (a connection, a
-    limit, a name); any other change would mix two measurements in one table."""
-
+SECTIONS: dict[str, tuple[type, ...]] = {
+    "campaign": (CampaignSpec, FaultPolicy),
+    "axis": (AxisSpec,),
+    "plan": (PlanSpec,),
+    "axis_driver": (ControllerSpec,),
+    "instrument": (InstrumentSpec,),
+    "environment": (EnvironmentSpec,),
+    "capture": (CaptureSpec,),
+    "sim": (SimSpec,),
+}
+"""Each section of the TOML file and the specs that own its keys (campaign.specs)."""
 
 SCHEMA: dict[str, dict[str, Key]] = {
-    "campaign": {
-        "machine": Key(str, "machine", "machine id, recorded in the metadata", resume=True),
-        "operator": Key(str, "", "operator name, recorded in the metadata", resume=True),
-        "description": Key(str, "", "free text, recorded in the metadata", resume=True),
-        "tolerance": Key(float, 0.0, "pass/fail tolerance on the accuracy A, deviation unit (µm or arcsec); "
-                         "0 = none", min=0, resume=True),
-        "tolerance_e": Key(float, 0.0, "tolerance on the systematic deviation E, deviation unit; 0 = none", min=0,
-                           resume=True),
-        "tolerance_b": Key(float, 0.0, "tolerance on the reversal value B, deviation unit; 0 = none", min=0,
-                           resume=True),
-        "tolerance_r": Key(float, 0.0, "tolerance on the repeatability R, deviation unit; 0 = none", min=0,
-                           resume=True),
-        "on_fault": Key(str, "retry", "without an operator: retry a point after a fault (up to fault_retries "
-                        "times), skip it (resume measures it later), or abort at once",
-                        choices=("retry", "skip", "abort"), resume=True),
-        "fault_retries": Key(int, 3, "faults retried at one point before the campaign stops", min=0, max=20, resume=True),
-    },
-    "axis": {
-        "name": Key(str, "X", "axis name"),
-        "kind": Key(str, "linear", "linear or rotary", choices=("linear", "rotary")),
-        "unit": Key(str, "mm", "position unit: mm (linear) or deg (rotary)", choices=("mm", "deg")),
-        "soft_limit_min": Key(float, REQUIRED, "lowest position any motion may command, axis unit", resume=True),
-        "soft_limit_max": Key(float, REQUIRED, "highest position any motion may command, axis unit", resume=True),
-        "max_velocity": Key(float, REQUIRED, "highest velocity any motion may command, axis unit/s",
-                            min=1e-6, resume=True),
-        "max_acceleration": Key(float, 500.0, "axis acceleration (simulated machine), axis unit/s²",
-                                min=1e-6),
-        "in_position_window": Key(float, 0.01, "|actual - target| allowed when a move is done, axis unit",
-                                  min=0, resume=True),
-    },
-    "plan": {
-        "targets": Key(list, None, "explicit target list, axis unit (instead of start/length/count)"),
-        "start": Key(float, 0.0, "first target, axis unit"),
-        "length": Key(float, None, "distance from the first to the last target, axis unit", min=1e-9),
-        "count": Key(int, None, "number of targets (>= 2)", min=2, max=10000),
-        "overrun": Key(float, 2.0, "overrun L1 beyond both ends, axis unit", min=0),
-        "cycles": Key(int, 5, "number of runs (cycles); ISO 230-2 asks for 5", min=1, max=1000),
-        "dwell_s": Key(float, 4.0, "dwell at each target, s", min=0.1, max=600),
-        "dwell_jitter": Key(float, 0.0, "vary each point's dwell by up to this fraction (seeded): settling is "
-                            "only told from backlash when the dwell varies", min=0, max=0.9),
-        "velocity": Key(float, REQUIRED, "positioning velocity, axis unit/s", min=1e-9),
-        "cycle": Key(str, "linear", "linear (ISO 230-2) or pilgrim (step cycle, annex)",
-                     choices=("linear", "pilgrim")),
-        "offsets": Key(str, "none", "per-target offsets to sample periodic errors: none, random, golden",
-                       choices=("none", "random", "golden")),
-        "offset_fraction": Key(float, 0.1, "largest offset as a fraction of the target spacing",
-                               min=0, max=0.45),
-        "seed": Key(int, 1, "seed of the random offsets (recorded)", min=0),
-    },
-    "axis_driver": {
-        "type": Key(str, "sim", "sim (simulated machine over loopback ADS), ads (a real PLC) or linuxcnc (a "
-                    "headless LinuxCNC with a simulated laser, docs/linuxcnc.md)",
-                    choices=("sim", "ads", "linuxcnc"), resume=True),
-        "comp_file": Key(str, "", "linuxcnc: the COMP_FILE (type 0) LinuxCNC loads at start; empty: none",
-                         resume=True),
-        "ams_net_id": Key(str, "127.0.0.1.1.1", "the PLC's AMS net id", resume=True),
-        "ams_port": Key(int, 851, "the PLC runtime's ADS port", min=1, max=65535, resume=True),
-        "ip": Key(str, "127.0.0.1", "the PLC's IP address", resume=True),
-        "axis_index": Key(int, 1, "index n of GVL_Axiscal.astAxes[n]", min=1, max=plc_contract.MAX_AXES, resume=True),
-        "timeout_s": Key(float, 2.0, "ADS call timeout, s", min=0.01, max=60, resume=True),
-        "move_timeout_s": Key(float, 300.0, "longest a single move may take, s", min=0.1, resume=True),
-        "reconnect_s": Key(float, 30.0, "how long to wait for a lost ADS connection to come back, s", min=0, resume=True),
-        "read_only": Key(bool, False, "dry run: talk to the PLC read-only, command nothing", resume=True),
-    },
-    "instrument": {
-        "type": Key(str, "sim", "sim (simulated interferometer over a pty) or serial",
-                    choices=("sim", "serial")),
-        "port": Key(str, "", "serial port, e.g. /dev/ttyUSB0", resume=True),
-        "baudrate": Key(int, 115200, "serial baud rate", min=50, max=4000000, resume=True),
-        "mode": Key(str, "stream", "stream (instrument sends continuously) or query",
-                    choices=("stream", "query")),
-        "rate_hz": Key(float, 10.0, "how often axiscal takes the readings (its tick), Hz; set the instrument "
-                       "to stream at least this fast; the simulated instrument streams at this rate",
-                       min=0.1, max=1000),
-        "timeout_s": Key(float, 1.0, "serial read timeout, s", min=0.01, max=60, resume=True),
-        "model": Key(str, "", "the laser's model, for the report's traceability (e.g. Renishaw XL-80)", resume=True),
-        "serial": Key(str, "", "the laser's serial number", resume=True),
-        "certificate": Key(str, "", "the laser's calibration certificate: number, laboratory, date", resume=True),
-        "wavelength_uncertainty_ppm": Key(float, None, "expanded uncertainty (k = 2) of the laser's length "
-                                          "measurement from its calibration certificate, µm/m; absent: 0.5 µm/m, "
-                                          "a typical specification, named as such in the budget", min=0, max=100,
-                                          resume=True),
-        "angle_uncertainty_arcsec": Key(float, None, "rotary axis: expanded uncertainty (k = 2) of the angular "
-                                        "measurement from the certificate, arcsec; absent: 1 arcsec (typical "
-                                        "specification)", min=0, max=100, resume=True),
-        "resolution": Key(float, 0.001, "the reading's resolution, deviation unit (µm or arcsec)", min=0,
-                          resume=True),
-        "misalignment_mm": Key(float, 0.5, "largest lateral walk of the beam over the travel seen when aligning, "
-                               "mm (the cosine error)", min=0, resume=True),
-        "dead_path_mm": Key(float, 0.0, "distance from the interferometer optic to the laser's datum, mm (dead "
-                            "path)", min=0, resume=True),
-    },
-    "environment": {
-        "air_correction": Key(str, "none", "none (instrument corrects for air) or edlen (axiscal "
-                              "corrects vacuum readings with the updated Edlén equation)",
-                              choices=("none", "edlen")),
-        "wavelength_nm": Key(float, 633.0, "laser vacuum wavelength, nm", min=100, max=2000),
-        "co2_ppm": Key(float, 450.0, "CO2 content of the air, ppm", min=0, max=10000),
-        "air_temp_c": Key(float, None, "air temperature when the instrument gives none, °C", min=-20, max=60),
-        "air_pressure_hpa": Key(float, None, "air pressure when the instrument gives none, hPa",
-                                min=500, max=1200),
-        "humidity_pct": Key(float, None, "relative humidity when the instrument gives none, %", min=0, max=100),
-        "normalise_to_20c": Key(bool, False, "normalise readings to 20 °C with the material temperature"),
-        "expansion_ppm_per_k": Key(float, 11.5, "material expansion coefficient, µm/m per K", min=0, max=100),
-        "air_temp_uncertainty_c": Key(float, 0.2, "expanded uncertainty (k = 2) of the air temperature sensor, °C",
-                                      min=0, resume=True),
-        "air_pressure_uncertainty_hpa": Key(float, 1.0, "expanded uncertainty (k = 2) of the air pressure "
-                                            "sensor, hPa", min=0, resume=True),
-        "humidity_uncertainty_pct": Key(float, 6.0, "expanded uncertainty (k = 2) of the humidity sensor, % RH",
-                                        min=0, resume=True),
-        "material_temp_uncertainty_c": Key(float, 0.1, "expanded uncertainty (k = 2) of the material "
-                                           "temperature sensor, °C", min=0, resume=True),
-        "expansion_uncertainty_ppm_per_k": Key(float, 1.0, "half-width of the range the expansion coefficient "
-                                               "may lie in, µm/m per K", min=0, resume=True),
-    },
-    "capture": {
-        "method": Key(str, "dwell", "dwell (average the end of a fixed dwell) or stable (capture when "
-                      "the reading is stable)", choices=("dwell", "stable")),
-        "average_s": Key(float, 1.0, "dwell method: averaging window at the end of the dwell, s", min=0.01),
-        "stable_tolerance": Key(float, 0.5, "stable method: band the reading must stay in, deviation unit",
-                                min=0),
-        "stable_drift": Key(float, 0.08, "stable method: largest difference between the means of the window's "
-                            "two halves, deviation unit (raised to the noise's own uncertainty when that is larger)",
-                            min=0),
-        "stable_window_s": Key(float, 0.7, "stable method: how long the reading must stay in the band, s",
-                               min=0.01),
-        "stable_timeout_s": Key(float, 10.0, "stable method: longest wait after arrival, s", min=0.1),
-        "retries": Key(int, 2, "captures retried at a point after beam loss before the campaign stops",
-                       min=0, max=20),
-    },
-    "sim": {
-        "speed": Key(float, None, "run N times faster than real time; absent = as fast as possible",
-                     min=1e-3, resume=True),
-        "seed": Key(int, 1, "seed of the simulated noise", min=0),
-        "model": Key(str, "", "error-model TOML file (relative to this config); or [sim.effects.NAME]"),
-    },
-}
+    section: {f.name: f.metadata["key"] for spec in specs for f in fields(spec) if "key" in f.metadata}
+    for section, specs in SECTIONS.items()}
+"""Every key of every section, from the specs' fields."""
 
 TABLES = {("instrument", "line"), ("sim", "effects"), ("sim", "faults")}
 """Sub-tables validated elsewhere: the serial line format, the error model, the faults."""
 
 
-@dataclass
-class Config:
-    """A validated config: `sections[name][key]` with every default filled in."""
+def _keys(spec: type, values: Mapping[str, Any]) -> dict[str, Any]:
+    """The values of `spec`'s key fields (lists as tuples: a spec is immutable)."""
+    return {f.name: tuple(values[f.name]) if isinstance(values[f.name], list) else values[f.name]
+            for f in fields(spec) if "key" in f.metadata}
 
-    sections: dict[str, dict[str, Any]]
+
+@dataclass(frozen=True)
+class Config:
+    """A validated config: `sections[name][key]` with every default filled in (as recorded in
+    meta.json), the TOML it came from (`data`, `text`, `source`) and the typed specs the rooms read
+    (`config.axis`, `config.plan`, ...). Made by `config_from_dict`; `config_with` makes a changed
+    copy (validated again). Nothing writes into it."""
+
+    sections: Mapping[str, Mapping[str, Any]]
     source: str
     text: str
+    data: Mapping[str, Any]
+    campaign: CampaignSpec
+    faults: FaultPolicy
+    axis: AxisSpec
+    plan: PlanSpec
+    controller: ControllerSpec
+    instrument: InstrumentSpec
+    environment: EnvironmentSpec
+    capture: CaptureSpec
+    sim: SimSpec
 
     def __getitem__(self, section: str) -> dict[str, Any]:
-        return self.sections[section]
+        """A copy of the raw section, for commands not yet moved to the specs (discover,
+        import-stream); the rooms read the specs."""
+        return dict(plain(self.sections[section]))
 
     @property
     def base_dir(self) -> Path:
         return Path(self.source).resolve().parent
+
+    @property
+    def driver(self) -> DriverSpec:
+        """What drivers.factory opens for this campaign."""
+        return DriverSpec(self.axis, self.controller, self.instrument, self.sim,
+                          vacuum_readings=self.environment.air_correction == "edlen",
+                          start_position=self.plan.start, source=self.source)
+
+    @property
+    def simulated(self) -> bool:
+        """The axis or the laser is simulated."""
+        return "sim" in (self.controller.type, self.instrument.type)
 
 
 def _check_value(name: str, key: Key, value: Any, where: str) -> Any:
@@ -220,7 +129,8 @@ def _check_value(name: str, key: Key, value: Any, where: str) -> Any:
     return value
 
 
-def config_from_dict(data: dict, source: str = "<config>", text: str = "") -> Config:
+def config_from_dict(data: Mapping[str, Any], source: str = "<config>", text: str = "") -> Config:
+    """Validate the TOML `data` and resolve it into specs, once. InputError names the key and `source`."""
     sections: dict[str, dict[str, Any]] = {}
     for section, table in data.items():
         if section not in SCHEMA:
@@ -245,14 +155,70 @@ def config_from_dict(data: dict, source: str = "<config>", text: str = "") -> Co
                     raise InputError(f"{source}: missing key '{section}.{name}' ({key.doc})")
                 values[name] = key.default
         sections[section] = values
-    config = Config(sections, source, text)
-    _check_consistency(config)
-    return config
+    _check_consistency(sections, source)
+    s = sections
+    base_dir = str(Path(source).resolve().parent)
+    line = LineFormat.from_dict(s["instrument"].get("line", {}), f"{source}: [instrument.line]")
+    sim = SimSpec(**_keys(SimSpec, s["sim"]), effects=frozen(s["sim"].get("effects")),
+                  faults=frozen(s["sim"].get("faults", {})), base_dir=base_dir, source=source)
+    return Config(frozen(sections), source, text, frozen(copy.deepcopy(dict(data))),
+                  CampaignSpec(**_keys(CampaignSpec, s["campaign"])), FaultPolicy(**_keys(FaultPolicy, s["campaign"])),
+                  AxisSpec(**_keys(AxisSpec, s["axis"])), PlanSpec(**_keys(PlanSpec, s["plan"])),
+                  ControllerSpec(**_keys(ControllerSpec, s["axis_driver"])),
+                  InstrumentSpec(**_keys(InstrumentSpec, s["instrument"]), line=line),
+                  EnvironmentSpec(**_keys(EnvironmentSpec, s["environment"])),
+                  CaptureSpec(**_keys(CaptureSpec, s["capture"])), sim)
 
 
-def _check_consistency(config: Config) -> None:
-    src = config.source
-    axis, plan = config["axis"], config["plan"]
+def config_from_sections(sections: Mapping[str, Any], source: str) -> Config:
+    """The config a campaign recorded (`recorded_sections`, in meta.json and plan.jsonl), validated
+    again: None stands for a key the file did not give."""
+    if not isinstance(sections, Mapping) or not all(isinstance(t, Mapping) for t in sections.values()):
+        raise InputError(f"{source}: the recorded config is not a table of sections")
+    data = {section: {k: v for k, v in table.items() if v is not None} for section, table in sections.items()}
+    return config_from_dict(data, source)
+
+
+def config_with(config: Config, changes: Mapping[str, Mapping[str, Any]]) -> Config:
+    """A copy of `config` with the keys in `changes` (`{section: {key: value}}`) replaced and
+    validated again, as if the file had said so (a sub-table given as {} is removed). The text
+    and the source stay those of the file."""
+    data = plain(config.data)
+    for section, values in changes.items():
+        table = data.setdefault(section, {})
+        for name, value in values.items():
+            if (section, name) in TABLES and not value:
+                table.pop(name, None)
+            else:
+                table[name] = plain(value)
+    return config_from_dict(data, config.source, config.text)
+
+
+def _section_values(section: str, given: Mapping[str, Any], where: str) -> dict[str, Any]:
+    """One section's keys checked and its defaults filled in (sub-tables are not taken here)."""
+    keys = SCHEMA[section]
+    values: dict[str, Any] = {}
+    for name, value in given.items():
+        if name not in keys:
+            raise InputError(f"{where}: unknown key '{section}.{name}'")
+        values[name] = _check_value(f"{section}.{name}", keys[name], value, where)
+    for name, key in keys.items():
+        if name not in values:
+            if key.default is REQUIRED:
+                raise InputError(f"{where}: missing key '{section}.{name}' ({key.doc})")
+            values[name] = key.default
+    return values
+
+
+def capture_spec(given: Mapping[str, Any], where: str) -> CaptureSpec:
+    """A CaptureSpec from its keys (a capture record of a plan), validated as the [capture] table is."""
+    if not isinstance(given, Mapping):
+        raise InputError(f"{where}: the capture spec must be a table")
+    return CaptureSpec(**_keys(CaptureSpec, _section_values("capture", given, where)))
+
+
+def _check_consistency(s: Mapping[str, Mapping[str, Any]], src: str) -> None:
+    axis, plan = s["axis"], s["plan"]
     if (axis["kind"] == "linear") != (axis["unit"] == "mm"):
         raise InputError(f"{src}: key 'axis.unit': '{axis['unit']}' does not fit kind '{axis['kind']}' "
                          "(linear uses mm, rotary uses deg)")
@@ -266,18 +232,17 @@ def _check_consistency(config: Config) -> None:
         t = plan["targets"]
         if len(t) < 2 or any(b <= a for a, b in itertools.pairwise(t)):
             raise InputError(f"{src}: key 'plan.targets': needs at least 2 strictly increasing targets")
-    env = config["environment"]
+    env, driver, instrument = s["environment"], s["axis_driver"], s["instrument"]
     if axis["kind"] == "rotary" and (env["air_correction"] != "none" or env["normalise_to_20c"]):
         raise InputError(f"{src}: key 'environment.air_correction': air and temperature corrections are "
                          "for linear axes; a rotary axis (angles) takes none")
-    if config["axis_driver"]["type"] == "ads" and config["instrument"]["type"] == "sim":
+    if driver["type"] == "ads" and instrument["type"] == "sim":
         raise InputError(f"{src}: key 'instrument.type': a real axis needs a real instrument (serial)")
-    if config["instrument"]["type"] == "serial" and not config["instrument"]["port"]:
+    if instrument["type"] == "serial" and not instrument["port"]:
         raise InputError(f"{src}: key 'instrument.port': required for a serial instrument")
-    LineFormat.from_dict(config["instrument"].get("line", {}), f"{src}: [instrument.line]")
-    parse_faults(config["sim"].get("faults", {}), src)
-    if "effects" in config["sim"]:
-        model_from_dict({"effects": config["sim"]["effects"]}, f"{src}: [sim.effects]")
+    parse_faults(s["sim"].get("faults", {}), src)
+    if "effects" in s["sim"]:
+        model_from_dict({"effects": s["sim"]["effects"]}, f"{src}: [sim.effects]")
 
 
 def parse_config(text: str, source: str = "<config>") -> Config:
@@ -301,7 +266,7 @@ def _json_value(value: Any) -> Any:
 
 def recorded_sections(config: Config) -> dict[str, Any]:
     """The config's sections as JSON values, kept in a campaign's meta.json."""
-    return _json_value(config.sections)
+    return _json_value(plain(config.sections))
 
 
 def resume_conflicts(recorded: dict[str, Any], config: Config) -> list[str]:
@@ -314,7 +279,7 @@ def resume_conflicts(recorded: dict[str, Any], config: Config) -> list[str]:
         names = [n for n, k in keys.items() if not k.resume]
         names += [n for s, n in TABLES if s == section and n != "faults"]
         for name in names:
-            a, b = _json_value(now.get(name)), then.get(name)
+            a, b = _json_value(plain(now.get(name))), then.get(name)
             if a != b:
                 found.append(f"{section}.{name} is {_show(a)} now, {_show(b)} when recorded")
     return found

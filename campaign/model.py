@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from campaign.errors import InputError, read_toml
+from campaign.specs import SimSpec, plain
 
 EFFECT_PARAMS: dict[str, dict[str, str]] = {
     "linear_scale": {"ppm": "cumulative lead error, µm/m"},
@@ -151,15 +152,13 @@ def read_model(path: str | Path, require_all: bool = True) -> ErrorModel:
     return model_from_dict(read_toml(path, "a model TOML file"), str(path), require_all)
 
 
-def sim_model(config) -> ErrorModel:
-    """The simulated machine's error model from a campaign config (campaign.config.Config): its
-    `sim.model` file and/or inline [sim.effects]."""
-    sim = config["sim"]
+def sim_model(sim: SimSpec) -> ErrorModel:
+    """The simulated machine's error model from a campaign's [sim] spec: its `model` file (relative
+    to the config's directory) and/or inline [sim.effects]."""
     model = ErrorModel()
-    if sim["model"]:
-        path = config.base_dir / sim["model"]
-        model = read_model(path)
-    if "effects" in sim:
-        inline = model_from_dict({"effects": sim["effects"]}, f"{config.source}: [sim.effects]")
+    if sim.model:
+        model = read_model(Path(sim.base_dir) / sim.model)
+    if sim.effects is not None:
+        inline = model_from_dict({"effects": plain(sim.effects)}, f"{sim.source}: [sim.effects]")
         model.effects.update(inline.effects)
     return model

@@ -12,13 +12,15 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 
-from campaign.config import Config
+from campaign.config import Config, capture_spec
 from campaign.errors import InputError, SafetyError
+from campaign.specs import AxisSpec, CaptureSpec, PlanSpec
 
 GOLDEN = (math.sqrt(5) - 1) / 2
 
@@ -52,12 +54,14 @@ class Settle:
 
 @dataclass(frozen=True)
 class Capture:
-    """Capture `point`: the dwell method averages the last `window_s`; the stable method waits at
-    most `timeout_s` for a stable reading."""
+    """Capture `point` as `spec` says: the dwell method averages the last `window_s`; the stable
+    method waits at most `timeout_s` for a stable reading. The executor and replay capture from
+    the step alone (campaign.measure.capture.capture_point)."""
 
     point: Point
     window_s: float
     timeout_s: float
+    spec: CaptureSpec = field(default_factory=CaptureSpec)
 
 
 @dataclass(frozen=True)
@@ -180,11 +184,13 @@ class Plan:
         return total
 
 
-def nominal_targets(config: Config) -> list[float]:
-    plan = config["plan"]
-    if plan["targets"] is not None:
-        return list(plan["targets"])
-    return [float(t) for t in np.linspace(plan["start"], plan["start"] + plan["length"], plan["count"])]
+def nominal_targets(spec: PlanSpec) -> list[float]:
+    """The targets before offsets, axis unit: the explicit list, or `count` from `start` over `length`."""
+    if spec.targets is not None:
+        return list(spec.targets)
+    if spec.length is None or spec.count is None:
+        raise ValueError("a plan spec without targets needs length and count (campaign.config checks it)")
+    return [float(t) for t in np.linspace(spec.start, spec.start + spec.length, spec.count)]
 
 
 def target_offsets(nominal: list[float], kind: str, fraction: float, seed: int) -> list[float]:
@@ -204,69 +210,76 @@ def target_offsets(nominal: list[float], kind: str, fraction: float, seed: int) 
     return [float(round(o, 6)) for o in offsets]
 
 
+def capture_at(point: Point, dwell_s: float, spec: CaptureSpec) -> tuple[float, Capture]:
+    """How `point` is captured in a dwell of `dwell_s` (s) with `spec`: (the settle before the
+    capture, s; the Capture step). The dwell method averages the last `average_s` of the dwell (at
+    most the dwell); the stable method starts at arrival and waits at most `stable_timeout_s`."""
+    if spec.method == "dwell":
+        window = min(spec.average_s, dwell_s)
+        return max(dwell_s - window, 0.0), Capture(point, window, window, spec)
+    return 0.0, Capture(point, spec.stable_window_s, spec.stable_timeout_s, spec)
+
+
 def build_plan(config: Config) -> Plan:
-    """The plan for a config. Does not check limits: see `check_plan`."""
-    p = config["plan"]
-    nominal = nominal_targets(config)
-    offsets = target_offsets(nominal, p["offsets"], p["offset_fraction"], p["seed"])
+    """The plan for a config (its plan and capture specs). Does not check limits: see `check_plan`."""
+    return make_plan(config.plan, config.capture)
+
+
+def make_plan(p: PlanSpec, capture: CaptureSpec) -> Plan:
+    """The plan of the test cycle `p`, every capture step carrying `capture`. Does not check limits."""
+    nominal = nominal_targets(p)
+    offsets = target_offsets(nominal, p.offsets, p.offset_fraction, p.seed)
     targets = [round(t + o, 9) for t, o in zip(nominal, offsets)]
-    v, l1 = p["velocity"], p["overrun"]
-    capture = config["capture"]
-    dwell_rng = np.random.default_rng([p["seed"], 1])  # its own stream: the offsets do not change
+    v, l1 = p.velocity, p.overrun
+    dwell_rng = np.random.default_rng([p.seed, 1])  # its own stream: the offsets do not change
     steps: list[Step] = []
     index = 0
 
     def visit(run: int, direction: int, i: int) -> None:
         nonlocal index
         point = Point(index, run, direction, i, targets[i])
-        dwell = p["dwell_s"] * (1 + dwell_rng.uniform(-1, 1) * p["dwell_jitter"]) if p["dwell_jitter"] else p["dwell_s"]
-        if capture["method"] == "dwell":
-            window = min(capture["average_s"], dwell)
-            before = [Settle(dwell - window)] if dwell > window else []
-            timeout = window
-        else:
-            window, before, timeout = capture["stable_window_s"], [], capture["stable_timeout_s"]
-        steps.extend([Move(targets[i], v), *before, Capture(point, window, timeout), Checkpoint(point)])
+        dwell = p.dwell_s * (1 + dwell_rng.uniform(-1, 1) * p.dwell_jitter) if p.dwell_jitter else p.dwell_s
+        settle_s, step = capture_at(point, dwell, capture)
+        steps.extend([Move(targets[i], v), *([Settle(settle_s)] if settle_s > 0 else []), step, Checkpoint(point)])
         index += 1
 
     low, high = targets[0] - l1, targets[-1] + l1
-    for run in range(1, p["cycles"] + 1):
-        if p["cycle"] == "linear":
+    for run in range(1, p.cycles + 1):
+        if p.cycle == "linear":
             steps.append(Move(low, v, overrun=True))
             for i in range(len(targets)):
                 visit(run, +1, i)
             steps.append(Move(high, v, overrun=True))
             for i in reversed(range(len(targets))):
                 visit(run, -1, i)
-    if p["cycle"] == "linear":
+    if p.cycle == "linear":
         steps.append(Move(low, v, overrun=True))
     else:
         for i, t in enumerate(targets):
-            for run in range(1, p["cycles"] + 1):
+            for run in range(1, p.cycles + 1):
                 steps.append(Move(t - l1, v, overrun=True))
                 visit(run, +1, i)
                 steps.append(Move(t + l1, v, overrun=True))
                 visit(run, -1, i)
-    return Plan(tuple(steps), tuple(targets), tuple(offsets), p["seed"])
+    return Plan(tuple(steps), tuple(targets), tuple(offsets), p.seed)
 
 
-def check_motion(position: float, velocity: float, config: Config) -> None:
+def check_motion(position: float, velocity: float, axis: AxisSpec) -> None:
     """Refuse (SafetyError, exit 2) a motion outside the soft limits or above the velocity limit.
     Called before every motion is sent, and for the whole plan before anything moves."""
-    axis = config["axis"]
-    lo, hi, unit = axis["soft_limit_min"], axis["soft_limit_max"], axis["unit"]
+    lo, hi, unit = axis.soft_limit_min, axis.soft_limit_max, axis.unit
     if not (math.isfinite(position) and lo <= position <= hi):
         raise SafetyError(f"motion to {position:g} {unit} is outside the soft limits [{lo:g}, {hi:g}] {unit}")
-    if not (math.isfinite(velocity) and 0 < velocity <= axis["max_velocity"]):
-        raise SafetyError(f"velocity {velocity:g} {unit}/s is outside (0, {axis['max_velocity']:g}] {unit}/s "
+    if not (math.isfinite(velocity) and 0 < velocity <= axis.max_velocity):
+        raise SafetyError(f"velocity {velocity:g} {unit}/s is outside (0, {axis.max_velocity:g}] {unit}/s "
                           "(axis.max_velocity)")
 
 
-def check_plan(plan: Plan, config: Config) -> None:
-    """Check every move of the plan before anything is commanded."""
+def check_plan(plan: Plan, axis: AxisSpec) -> None:
+    """Check every move of the plan against the axis' limits before anything is commanded."""
     for step in plan.steps:
         if isinstance(step, Move):
-            check_motion(step.position, step.velocity, config)
+            check_motion(step.position, step.velocity, axis)
 
 
 def move_time_s(distance: float, velocity: float, acceleration: float) -> float:
@@ -280,9 +293,10 @@ def move_time_s(distance: float, velocity: float, acceleration: float) -> float:
     return 2 * math.sqrt(distance / acceleration)
 
 
-def estimate_duration_s(plan: Plan, config: Config, start: float | None = None) -> float:
-    """Estimated campaign duration, s: moves, settles and capture windows (stable: its window)."""
-    accel = config["axis"]["max_acceleration"]
+def estimate_duration_s(plan: Plan, axis: AxisSpec, start: float | None = None) -> float:
+    """Estimated campaign duration, s: moves (at the axis' acceleration), settles and capture windows
+    (stable: its window)."""
+    accel = axis.max_acceleration
     total, here = 0.0, start
     for stop in plan.stops():
         if here is not None:
@@ -295,12 +309,22 @@ def estimate_duration_s(plan: Plan, config: Config, start: float | None = None) 
 PLAN_FORMAT = "axiscal plan"
 """The `format` of the header record of a recorded plan (plan.jsonl)."""
 
+PLAN_VERSION = 2
+"""Version 2: the header holds the campaign's whole validated config (`config`, as in meta.json) and
+every capture record its CaptureSpec (`capture`), so the file alone describes the campaign (replay
+and resume run from it). Version 1 (no `version`): neither; the capture spec comes from the config."""
 
-def plan_records(plan: Plan) -> list[dict]:
-    """The plan as JSON-ready records: a header (targets, offsets, seed, counts), then one record
-    per step in order. Floats survive a JSON round trip exactly, so the plan read back is equal."""
-    header = {"format": PLAN_FORMAT, "targets": list(plan.targets), "offsets": list(plan.offsets),
-              "seed": plan.seed, "steps": len(plan.steps), "points": len(plan.points)}
+
+def plan_records(plan: Plan, config: dict[str, Any] | None = None) -> list[dict]:
+    """The plan as JSON-ready records: a header (version, targets, offsets, seed, counts and the
+    campaign's config sections `config`, see campaign.config.recorded_sections), then one record per
+    step in order, a capture with its spec. Floats survive a JSON round trip exactly, so the plan
+    read back is equal."""
+    header: dict[str, Any] = {"format": PLAN_FORMAT, "version": PLAN_VERSION, "targets": list(plan.targets),
+                              "offsets": list(plan.offsets), "seed": plan.seed, "steps": len(plan.steps),
+                              "points": len(plan.points)}
+    if config is not None:
+        header["config"] = config
     records = [header]
     for step in plan.steps:
         if isinstance(step, Move):
@@ -310,17 +334,29 @@ def plan_records(plan: Plan) -> list[dict]:
             records.append({"step": "settle", "seconds": step.seconds})
         elif isinstance(step, Capture):
             records.append({"step": "capture", "point": asdict(step.point), "window_s": step.window_s,
-                            "timeout_s": step.timeout_s})
+                            "timeout_s": step.timeout_s, "capture": asdict(step.spec)})
         else:
             records.append({"step": "checkpoint", "point": step.point.index})
     return records
 
 
-def plan_from_records(records: list[dict], where: str) -> Plan:
-    """The plan `plan_records` wrote; InputError naming `where` and the record when it is not one."""
+def plan_header(records: list[dict], where: str) -> dict[str, Any]:
+    """The header record of a recorded plan; InputError naming `where` when there is none."""
     if not records or not isinstance(records[0], dict) or records[0].get("format") != PLAN_FORMAT:
         raise InputError(f"{where}: not a recorded axiscal plan (no '{PLAN_FORMAT}' header)")
-    header, number = records[0], 1
+    version = records[0].get("version", 1)
+    if version not in (1, PLAN_VERSION):
+        raise InputError(f"{where}: plan format version {version!r}; this axiscal reads 1 and {PLAN_VERSION}")
+    return records[0]
+
+
+def plan_from_records(records: list[dict], where: str, capture: CaptureSpec | None = None) -> Plan:
+    """The plan `plan_records` wrote; InputError naming `where` and the record when it is not one.
+    `capture`: the capture spec of a version 1 plan, whose records do not hold it (required then)."""
+    header, number = plan_header(records, where), 1
+    if header.get("version", 1) == 1 and capture is None:
+        raise InputError(f"{where}: a version 1 plan does not say how its points were captured: "
+                         "the campaign's config.toml is needed")
     steps: list[Step] = []
     points: dict[int, Point] = {}
     try:
@@ -335,7 +371,10 @@ def plan_from_records(records: list[dict], where: str) -> Plan:
                 point = Point(int(p["index"]), int(p["run"]), int(p["direction"]), int(p["target_index"]),
                               float(p["target"]))
                 points[point.index] = point
-                steps.append(Capture(point, float(r["window_s"]), float(r["timeout_s"])))
+                spec = capture_spec(r["capture"], f"{where}: line {number}") if "capture" in r else capture
+                if spec is None:
+                    raise KeyError("capture")
+                steps.append(Capture(point, float(r["window_s"]), float(r["timeout_s"]), spec))
             elif kind == "checkpoint":
                 steps.append(Checkpoint(points[int(r["point"])]))
             else:

@@ -37,10 +37,11 @@ from typing import Any
 
 import numpy as np
 
-from campaign.config import SCHEMA, Config
+from campaign.config import Config
 from campaign.edlen import REFERENCE_TEMPERATURE_C, refractive_index
 from campaign.iso230 import Evaluation
 from campaign.pointtable import PointTable
+from campaign.specs import EnvironmentSpec, InstrumentSpec
 from protocols.units import unit_label
 
 K = 2.0
@@ -89,8 +90,14 @@ class Budget:
 
 
 def _setting(config: Config | None, section: str, key: str) -> Any:
-    """The config's value, or the schema's default when there is no config."""
-    return config[section][key] if config is not None else SCHEMA[section][key].default
+    """The value of `key` in the config's instrument or environment spec, or the spec's default when
+    there is no config."""
+    spec: InstrumentSpec | EnvironmentSpec
+    if section == "instrument":
+        spec = config.instrument if config is not None else InstrumentSpec()
+    else:
+        spec = config.environment if config is not None else EnvironmentSpec()
+    return getattr(spec, key)
 
 
 def _source(config: Config | None, section: str, key: str, what: str) -> str:

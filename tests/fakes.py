@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from campaign.specs import DriverSpec
 from protocols.hardware import AxisError, AxisStatus, Hardware, InstrumentError, Reading
 
 
@@ -173,12 +174,11 @@ class FakeMachine:
         self.setup = setup
         self.openings: list[FakeParts] = []
 
-    def __call__(self, config, speed=None, model=None, start_position=None, start_time=0.0):
+    def __call__(self, spec: DriverSpec, speed=None, model=None, start_position=None, start_time=0.0):
         clock = FakeClock(start_time)
-        start = config["plan"]["targets"][0] if start_position is None and config["plan"]["targets"] \
-            else (start_position if start_position is not None else config["plan"]["start"])
+        start = start_position if start_position is not None else spec.start_position
         axis = FakeAxis(clock, start)
-        laser = FakeLaser(clock, axis, config["instrument"]["rate_hz"], self.error_um)
+        laser = FakeLaser(clock, axis, spec.instrument.rate_hz, self.error_um)
         parts = FakeParts(clock, axis, laser)
         if self.setup is not None:
             self.setup(parts)

@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from campaign.config import parse_config
+from campaign.config import config_with, parse_config
 from campaign.errors import InputError, SafetyError
 from campaign.measure.executor import Observer
 from campaign.measure.session import resume_campaign, start_campaign
@@ -55,7 +55,7 @@ def test_a_campaign_records_every_point_and_one_event_stream(tmp_path):
 def test_every_move_is_checked_before_it_is_sent(tmp_path):
     machine = FakeMachine()
     cfg = config()
-    cfg.sections["axis"]["max_velocity"] = 20.0  # below the plan's 25 mm/s
+    cfg = config_with(cfg, {"axis": {"max_velocity": 20.0}})  # below the plan's 25 mm/s
     with pytest.raises(SafetyError, match="velocity"):
         start_campaign(cfg, tmp_path / "c", opener=machine)
     assert machine.openings == []  # refused before any hardware was opened
@@ -96,7 +96,7 @@ def test_a_skipped_point_is_missing_and_the_rest_measured(tmp_path):
 def test_abort_by_policy_stops_halted_and_resumable(tmp_path):
     machine = FakeMachine(setup=lambda parts: parts.axis.faults.append(AxisFault(move=6)))
     cfg = config()
-    cfg.sections["campaign"]["on_fault"] = "abort"
+    cfg = config_with(cfg, {"campaign": {"on_fault": "abort"}})
     outcome = start_campaign(cfg, tmp_path / "c", opener=machine)  # move 6: to 100 mm from above
     assert outcome.status == "interrupted" and outcome.points == 3
     assert open_campaign(tmp_path / "c").status == "interrupted"
@@ -112,7 +112,7 @@ def test_abort_by_policy_stops_halted_and_resumable(tmp_path):
 
 def test_resume_reapproaches_the_point_in_its_own_direction(tmp_path):
     cfg = config()
-    cfg.sections["campaign"]["on_fault"] = "abort"
+    cfg = config_with(cfg, {"campaign": {"on_fault": "abort"}})
     # the 6th command is the move to the first target approached from above (100 mm, point 3)
     start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(6))))
     first = len(rows(tmp_path / "c"))
@@ -203,7 +203,7 @@ def test_a_failing_display_never_stops_the_campaign(tmp_path):
 
 def test_resume_after_an_edited_config_refuses_and_names_the_key(tmp_path):
     cfg = config()
-    cfg.sections["campaign"]["on_fault"] = "abort"
+    cfg = config_with(cfg, {"campaign": {"on_fault": "abort"}})
     start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(6))))
     path = tmp_path / "c" / "config.toml"
     path.write_text(path.read_text().replace("targets = [0.0, 50.0, 100.0]", "targets = [3.0, 53.0, 103.0]"))
@@ -216,7 +216,7 @@ def test_resume_after_an_edited_config_refuses_and_names_the_key(tmp_path):
 
 def test_resume_accepts_a_changed_connection_or_operator(tmp_path):
     cfg = config()
-    cfg.sections["campaign"]["on_fault"] = "abort"
+    cfg = config_with(cfg, {"campaign": {"on_fault": "abort"}})
     start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(6))))
     path = tmp_path / "c" / "config.toml"
     path.write_text(path.read_text() + '[axis_driver]\nip = "10.0.0.7"\n')
@@ -226,7 +226,7 @@ def test_resume_accepts_a_changed_connection_or_operator(tmp_path):
 
 def test_resume_uses_the_recorded_plan_not_todays_plan_builder(tmp_path, monkeypatch):
     cfg = config()
-    cfg.sections["campaign"]["on_fault"] = "abort"
+    cfg = config_with(cfg, {"campaign": {"on_fault": "abort"}})
     start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(6))))
     import campaign.plan
 
@@ -241,7 +241,7 @@ def test_resume_uses_the_recorded_plan_not_todays_plan_builder(tmp_path, monkeyp
 def old_directory(tmp_path, targets_recorded):
     """A directory as axiscal 0.1 left it: meta.json with a status, no plan.jsonl or runs.jsonl."""
     cfg = config()
-    cfg.sections["campaign"]["on_fault"] = "abort"
+    cfg = config_with(cfg, {"campaign": {"on_fault": "abort"}})
     start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(6))))
     d = tmp_path / "c"
     meta = json.loads((d / "meta.json").read_text())
@@ -290,7 +290,7 @@ def test_resume_measures_a_skipped_point_and_the_table_reads_in_plan_order(tmp_p
 
 def test_skip_policy_without_an_operator(tmp_path):
     cfg = config()
-    cfg.sections["campaign"]["on_fault"] = "skip"
+    cfg = config_with(cfg, {"campaign": {"on_fault": "skip"}})
     machine = FakeMachine(setup=lambda parts: parts.axis.faults.append(AxisFault(move=4)))
     outcome = start_campaign(cfg, tmp_path / "c", opener=machine)
     assert outcome.status == "completed" and outcome.points == 11
@@ -304,7 +304,7 @@ def test_the_resume_checklist_sees_a_re_zeroed_laser(tmp_path, shift_mm, ok):
     from campaign.record.directory import last_reading_offset
 
     cfg = config()
-    cfg.sections["campaign"]["on_fault"] = "abort"
+    cfg = config_with(cfg, {"campaign": {"on_fault": "abort"}})
     start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(6))))
     r = prepare_resume(tmp_path / "c")
     recorded = last_reading_offset(r.path, r.plan)

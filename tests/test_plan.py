@@ -57,7 +57,7 @@ def test_paper_campaign_counts_and_duration():
     assert len(plan.points) == 110
     assert plan.targets == tuple(float(60 * i) for i in range(11))
     from campaign.plan import estimate_duration_s
-    assert 17 * 60 < estimate_duration_s(plan, make(base=text)) < 23 * 60
+    assert 17 * 60 < estimate_duration_s(plan, make(base=text).axis) < 23 * 60
 
 
 def test_stable_capture_has_no_settle():
@@ -97,13 +97,13 @@ def test_rotary_axis_in_degrees():
 def test_plan_outside_soft_limits_refused():
     config = make(base=BASE.replace("soft_limit_max = 130.0", "soft_limit_max = 122.0"))
     with pytest.raises(SafetyError, match="soft limits"):
-        check_plan(build_plan(config), config)
+        check_plan(build_plan(config), config.axis)
 
 
 def test_plan_above_velocity_limit_refused():
     config = make(base=BASE.replace("velocity = 10.0", "velocity = 25.0"))
     with pytest.raises(SafetyError, match="velocity"):
-        check_plan(build_plan(config), config)
+        check_plan(build_plan(config), config.axis)
 
 
 def test_plan_command(cli, tmp_path):

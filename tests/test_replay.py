@@ -27,6 +27,19 @@ def test_recorded_settings_reproduce_the_point_table(cli, recorded, method):
 
 
 @pytest.mark.machine
+def test_a_demo_directory_replays_without_its_config_toml(cli, recorded, tmp_path):
+    """plan.jsonl describes the campaign (plan format 2): config.toml is not needed."""
+    import shutil
+
+    copy = tmp_path / "no-config"
+    shutil.copytree(recorded / "stable", copy)
+    (copy / "config.toml").unlink()
+    data = json.loads(cli("replay", copy, "--json").out)
+    assert data["identical"] and data["points"] == 110 and data["capture"] == "stable"
+    assert cli("analyze", copy, "--json").code == 0
+
+
+@pytest.mark.machine
 def test_other_capture_settings_show_what_changes(cli, recorded):
     data = json.loads(cli("replay", recorded / "dwell", "--capture", "stable", "--json").out)
     assert not data["identical"] and data["capture"] == "stable"

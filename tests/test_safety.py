@@ -28,7 +28,7 @@ def control_values(plc):
 def test_dry_run_commands_nothing():
     config = parse_config(DEMO, "demo.toml")
     hardware, sim = open_hardware(parse_config(DEMO.replace('type = "sim"\n', 'type = "sim"\nread_only = true\n', 1),
-                                               "ro.toml"))
+                                               "ro.toml").driver)
     before = control_values(sim.plc)
     report = dry_run(config, opened=(hardware, sim))
     assert report["read_only"] and report["points"] == 110 and report["readings"] >= 9
@@ -50,7 +50,7 @@ def test_dry_run_command(tmp_path):
 def test_every_motion_is_checked_before_it_is_sent(tmp_path, position, velocity, why):
     config = parse_config(DEMO, "demo.toml")
     plan = build_plan(config)
-    hardware, sim = open_hardware(config)
+    hardware, sim = open_hardware(config.driver)
     recorder = Recorder.create(tmp_path / "c", DEMO, {}, plan_records(plan), {}, "linear")
     executor = Executor(plan, config, hardware, recorder)
     try:

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from campaign.config import parse_config
+from campaign.config import config_with, parse_config
 from campaign.iso230 import evaluate
 from campaign.measure.session import start_campaign
 from campaign.pointtable import PointTable
@@ -85,7 +85,7 @@ def test_other_tolerances_are_judged_too():
 
 def test_an_interrupted_campaign_directory_is_not_judged(cli, tmp_path):
     cfg = parse_config(SMALL + "\n[environment]\nnormalise_to_20c = false\n", "small.toml")
-    cfg.sections["campaign"]["on_fault"] = "abort"
+    cfg = config_with(cfg, {"campaign": {"on_fault": "abort"}})
     start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(6))))
     result = cli("analyze", tmp_path / "c", "--json")
     assert result.code == 0, result.err
@@ -98,7 +98,7 @@ def test_an_interrupted_campaign_directory_is_not_judged(cli, tmp_path):
 
 def test_the_report_of_an_interrupted_campaign_has_no_pass(cli, tmp_path):
     cfg = parse_config(SMALL, "small.toml")
-    cfg.sections["campaign"]["on_fault"] = "abort"
+    cfg = config_with(cfg, {"campaign": {"on_fault": "abort"}})
     start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(8))))
     assert cli("report", tmp_path / "c", "-o", tmp_path / "r.html").code == 0
     html = (tmp_path / "r.html").read_text()
@@ -116,7 +116,7 @@ def test_report_takes_a_point_table_file(cli, tmp_path):
 
 def test_compensate_warns_about_an_incomplete_campaign(cli, tmp_path):
     cfg = parse_config(SMALL.replace("cycles = 2", "cycles = 3"), "small.toml")
-    cfg.sections["campaign"]["on_fault"] = "abort"
+    cfg = config_with(cfg, {"campaign": {"on_fault": "abort"}})
     # move 17 is the overrun before run 3: runs 1 and 2 are complete, run 3 is missing
     start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(17))))
     result = cli("compensate", tmp_path / "c" / "points.csv", "--format", "csv", "-o", tmp_path / "t.csv")
@@ -191,7 +191,7 @@ def test_a_simulated_campaign_stays_marked_when_its_table_is_copied_out(cli, tmp
     import shutil
 
     cfg = parse_config(SMALL, "small.toml")
-    assert "sim" in (cfg["axis_driver"]["type"], cfg["instrument"]["type"])
+    assert "sim" in (cfg.controller.type, cfg.instrument.type)
     start_campaign(cfg, tmp_path / "c", opener=FakeMachine())
     shutil.copy(tmp_path / "c" / "points.csv", tmp_path / "copy.csv")
     assert json.loads(cli("analyze", tmp_path / "copy.csv", "--json").out)["simulated"] is True
@@ -203,7 +203,7 @@ def test_compensate_on_a_campaign_stopped_in_its_first_run_says_so_and_how_to_go
     from tests.conftest import assert_one_line_error
 
     cfg = parse_config(SMALL, "small.toml")
-    cfg.sections["campaign"]["on_fault"] = "abort"
+    cfg = config_with(cfg, {"campaign": {"on_fault": "abort"}})
     # move 7 is the second target on the way back in run 1: three targets +, one −
     start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(7))))
     result = cli("compensate", tmp_path / "c" / "points.csv", "--format", "csv", "-o", tmp_path / "t.csv")
@@ -214,7 +214,7 @@ def test_compensate_on_a_campaign_stopped_in_its_first_run_says_so_and_how_to_go
 def test_the_report_says_when_before_and_after_are_not_like_for_like(cli, tmp_path):
     cfg = parse_config(SMALL, "small.toml")
     start_campaign(cfg, tmp_path / "after", opener=FakeMachine())
-    cfg.sections["campaign"]["on_fault"] = "abort"
+    cfg = config_with(cfg, {"campaign": {"on_fault": "abort"}})
     start_campaign(cfg, tmp_path / "before", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(10))))
     assert cli("report", tmp_path / "after", "--before", tmp_path / "before", "-o", tmp_path / "r.html").code == 0
     html = (tmp_path / "r.html").read_text()

@@ -96,7 +96,7 @@ def test_simulated_plc_takes_a_rewritten_table(tmp_path):
     from protocols.plc_contract import CompTable
 
     config = parse_config((ROOT / "campaign" / "demo.toml").read_text(), "demo.toml")
-    hardware, sim = open_hardware(config)
+    hardware, sim = open_hardware(config.driver)
     try:
         def table(value_mm):
             return CompTable((value_mm,) * 3, (value_mm,) * 3, 0.0, 300.0, 0.0, 0.01, 0.1, True)

@@ -164,10 +164,10 @@ def write_plc(args: argparse.Namespace, ctable: ControllerTable, console: Consol
     from campaign.measure.verify import correction_limits
 
     config = load_config(args.write_plc)
-    if ctable.kind != config["axis"]["kind"]:
-        raise InputError(f"--write-plc: a {ctable.kind} table does not fit the {config['axis']['kind']} axis")
+    if ctable.kind != config.axis.kind:
+        raise InputError(f"--write-plc: a {ctable.kind} table does not fit the {config.axis.kind} axis")
     rate, accel = correction_limits(config, args.max_rate, args.max_accel)
-    hardware, _ = hardware_opener()(config)
+    hardware, _ = hardware_opener()(config.driver)
     try:
         hardware.axis.write_comp_table(ctable.to_plc(rate, accel, enabled=True))
         back = hardware.axis.read_comp_table()
@@ -175,6 +175,6 @@ def write_plc(args: argparse.Namespace, ctable: ControllerTable, console: Consol
         hardware.close()
     if back is None:
         raise InputError("--write-plc: the PLC holds no compensation table after the write")
-    scale, dev = DEVIATION_SCALE[config["axis"]["unit"]], unit_label(UNITS[ctable.kind][1])
+    scale, dev = DEVIATION_SCALE[config.axis.unit], unit_label(UNITS[ctable.kind][1])
     console.print(f"PLC tables written over ADS ({back.points} points), read back equal, enabled; "
                   f"correction limits {rate * scale:g} {dev}/s, {accel * scale:g} {dev}/s²")

@@ -13,7 +13,7 @@ from importlib import resources
 from typing import Any
 
 from campaign.commands import SUMMARY, hardware_opener, positive_integer
-from campaign.commands.run import add_run_options, apply_on_fault, finish, run_config
+from campaign.commands.run import add_run_options, finish, run_config, with_on_fault
 from campaign.config import Config, parse_config
 from campaign.errors import InputError
 from campaign.faults import parse_inject
@@ -71,14 +71,14 @@ def run(args: argparse.Namespace) -> int:
 
 def rehearse(config: Config, faults: dict, args: argparse.Namespace) -> int:
     """Run with faults injected; resume (without faults) as often as needed, then report."""
-    apply_on_fault(config, args)
+    config = with_on_fault(config, args)
     fired: list = []
 
     def keep_log(hardware: Hardware, sim: Any, executor: Executor) -> None:
         fired.append(sim.faults.log)
 
     def progress() -> RichProgress:
-        unit = config["axis"]["unit"]
+        unit = config.axis.unit
         return RichProgress(unit)
 
     with progress() as observer:

@@ -20,7 +20,7 @@ from rich.console import Console
 
 from campaign.commands import SUMMARY, hardware_opener, positive_number
 from campaign.commands.demo import demo_config_text
-from campaign.config import Config, load_config, parse_config
+from campaign.config import Config, config_with, load_config, parse_config
 from campaign.errors import BAD_INPUT, InputError
 from campaign.guide.checklist import (
     CheckItem,
@@ -77,24 +77,24 @@ def run(args: argparse.Namespace, on_hardware: Callable[[Hardware, Any], None] |
     console = Console(stderr=True) if args.json else make_console()
     plan = build_plan(config)
     out = Path(args.out) if args.out else default_out_dir(config)
-    c = config["campaign"]
     if args.operator:
-        c["operator"] = args.operator
-    elif not c["operator"] and interactive:
-        c["operator"] = ask_operator(console)
-    console.print(f"[bold]axiscal guide[/]: machine {c['machine']}, axis {config['axis']['name']}, "
-                  f"operator {c['operator'] or '-'}, config {config.source}")
+        config = config_with(config, {"campaign": {"operator": args.operator}})
+    elif not config.campaign.operator and interactive:
+        config = config_with(config, {"campaign": {"operator": ask_operator(console)}})
+    c = config.campaign
+    console.print(f"[bold]axiscal guide[/]: machine {c.machine}, axis {config.axis.name}, "
+                  f"operator {c.operator or '-'}, config {config.source}")
     console.print(plan_preview(plan, config, args.speed))
     offline = [soft_limit_item(plan, config), record_item(out)]
     if failures(offline):
         console.print(checklist_table(offline))
         stop_on(failures(offline)[0])
-    model = sim_model(config) if config["axis_driver"]["type"] == "sim" else None
-    opened = open_and_check(lambda: hardware_opener()(config, speed=args.speed, model=model), config, offline,
+    model = sim_model(config.sim) if config.controller.type == "sim" else None
+    opened = open_and_check(lambda: hardware_opener()(config.driver, speed=args.speed, model=model), config, offline,
                             console, interactive, on_hardware)
     try:
         lo, hi = plan.ends()
-        unit = config["axis"]["unit"]
+        unit = config.axis.unit
         confirm(args, console, interactive, f"alignment check to {hi:g} {unit} and back to {lo:g} {unit}, then the "
                                             f"campaign ({len(plan.points)} points)")
         outcome = on_dashboard(config, plan, args, opened, console, interactive, out,
@@ -194,8 +194,8 @@ def on_dashboard(config: Config, plan: Plan, args: argparse.Namespace, opened: O
 def check_alignment(hw: Hardware, plan: Plan, config: Config, control: Control, console: Console,
                     keys: Keys | None) -> None:
     while True:
-        console.print(f"Alignment check: the axis moves to both ends at {config['plan']['velocity']:g} "
-                      f"{config['axis']['unit']}/s ...")
+        console.print(f"Alignment check: the axis moves to both ends at {config.plan.velocity:g} "
+                      f"{config.axis.unit}/s ...")
         item = alignment_item(hw, plan, config, control)
         console.print(checklist_table([item]))
         if item.ok:

@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 from campaign.commands import hardware_opener
-from campaign.commands.run import apply_on_fault, finish
+from campaign.commands.run import finish, with_on_fault
 from campaign.compensation.corrections import corrections
 from campaign.compensation.grid import POINT_LIMITS, resample
 from campaign.config import Config, parse_config
@@ -44,8 +44,8 @@ def linuxcnc_config(text: str, comp_file: Path | None = None) -> Config:
 
 
 def measure(config: Config, out: Path, args: argparse.Namespace) -> Outcome:
-    apply_on_fault(config, args)
-    with RichProgress(config["axis"]["unit"]) as observer:
+    config = with_on_fault(config, args)
+    with RichProgress(config.axis.unit) as observer:
         return start_campaign(config, out, opener=hardware_opener(), observer=observer)
 
 

@@ -32,18 +32,18 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def summary(config: Config, plan: Plan) -> dict:
-    a = config["axis"]
-    return {"points": len(plan.points), "runs": config["plan"]["cycles"], "targets": list(plan.targets),
-            "offsets": list(plan.offsets), "seed": plan.seed, "unit": a["unit"],
-            "travel": round(plan.travel(), 6), "estimated_duration_s": round(estimate_duration_s(plan, config), 1),
-            "moves": len(plan.stops()), "cycle": config["plan"]["cycle"],
-            "soft_limits": [a["soft_limit_min"], a["soft_limit_max"]], "max_velocity": a["max_velocity"]}
+    a = config.axis
+    return {"points": len(plan.points), "runs": config.plan.cycles, "targets": list(plan.targets),
+            "offsets": list(plan.offsets), "seed": plan.seed, "unit": a.unit,
+            "travel": round(plan.travel(), 6), "estimated_duration_s": round(estimate_duration_s(plan, config.axis), 1),
+            "moves": len(plan.stops()), "cycle": config.plan.cycle,
+            "soft_limits": [a.soft_limit_min, a.soft_limit_max], "max_velocity": a.max_velocity}
 
 
 def run(args: argparse.Namespace) -> int:
     config = load_config(args.config)
     plan = build_plan(config)
-    check_plan(plan, config)
+    check_plan(plan, config.axis)
     info = summary(config, plan)
     if args.json:
         if args.steps:
@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
 def steps_table(plan: Plan, config: Config) -> Table:
     """Every step of the plan as a table: what it does, where, how fast, for which point (counted
     from 1, as on the dashboard; plan index = point - 1) and how long."""
-    unit, dwell = config["axis"]["unit"], config["capture"]["method"] == "dwell"
+    unit, dwell = config.axis.unit, config.capture.method == "dwell"
     table = Table(title="Steps", header_style="bold")
     columns: tuple[tuple[str, Literal["left", "center", "right"]], ...] = (
         ("step", "right"), ("action", "left"), (f"position {unit}", "right"), (f"speed {unit}/s", "right"),

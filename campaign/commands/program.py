@@ -35,14 +35,14 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 def campaign_id(config: Config, plan: Plan) -> str:
     """MACHINE-AXIS-<8 hex of the plan>: the same plan gives the same id."""
     digest = hashlib.sha256(json.dumps(plan_records(plan), sort_keys=True).encode()).hexdigest()[:8]
-    return f"{config['campaign']['machine'] or 'machine'}-{config['axis']['name']}-{digest}"
+    return f"{config.campaign.machine or 'machine'}-{config.axis.name}-{digest}"
 
 
 def nc_program(config: Config, plan: Plan) -> NcProgram:
     """The plan as moves: each stop of the plan in order, the feed from its velocity (per
     minute), at a target the dwell: the planned dwell with the dwell capture, the config's
     dwell_s with the stable one (the laser software decides when to capture)."""
-    fixed = config["capture"]["method"] == "dwell"
+    fixed = config.capture.method == "dwell"
     moves, last = [], None
     for stop in plan.stops():
         comment = ""
@@ -51,21 +51,21 @@ def nc_program(config: Config, plan: Plan) -> NcProgram:
         elif (stop.point.run, stop.point.direction) != last:
             last = (stop.point.run, stop.point.direction)
             comment = f"run {stop.point.run} {'+' if stop.point.direction > 0 else '-'}"
-        dwell = (stop.dwell_s if fixed else config["plan"]["dwell_s"]) if stop.point is not None else 0.0
+        dwell = (stop.dwell_s if fixed else config.plan.dwell_s) if stop.point is not None else 0.0
         moves.append(NcMove(stop.position, stop.move.velocity * 60.0, dwell, comment))
     ident = campaign_id(config, plan)
-    p = config["plan"]
+    p = config.plan
     header = (f"axiscal ISO 230-2 campaign {ident}",
-              (f"machine {config['campaign']['machine']}, axis {config['axis']['name']}, {len(plan.targets)} targets, "
-              f"{p['cycles']} cycles, dwell {p['dwell_s']:g} s, overrun {p['overrun']:g} {config['axis']['unit']}"),
+              (f"machine {config.campaign.machine}, axis {config.axis.name}, {len(plan.targets)} targets, "
+              f"{p.cycles} cycles, dwell {p.dwell_s:g} s, overrun {p.overrun:g} {config.axis.unit}"),
               f"written by axiscal {__version__} on {date.today().isoformat()}, capture at each dwell")
-    return NcProgram(config["axis"]["name"], config["axis"]["unit"], "AXISCAL", header, tuple(moves))
+    return NcProgram(config.axis.name, config.axis.unit, "AXISCAL", header, tuple(moves))
 
 
 def run(args: argparse.Namespace) -> int:
     config = load_config(args.config)
     plan = build_plan(config)
-    check_plan(plan, config)
+    check_plan(plan, config.axis)
     program = nc_program(config, plan)
     write_whole(args.output, render(args.dialect, program))
     dwells = sum(1 for m in program.moves if m.dwell_s > 0)

@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     if not (directory / "meta.json").is_file():
         raise InputError(f"{directory}: not a campaign directory (no meta.json)")
     recorded = read_points(directory / "points.csv")
-    config, _, points = replay(directory, overrides, args.speed)
+    capture, _, points = replay(directory, overrides, args.speed)
     if "point" not in recorded.extra:
         raise InputError(f"{directory / 'points.csv'}: no 'point' column: not recorded by axiscal")
     rec_dev = {int(i): float(d) for i, d in zip(recorded.extra["point"], recorded.deviation)}
@@ -72,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
                      np.array([round(d, DIGITS) for d in (p.deviation for p in got) if d is not None]))
     new_summary = evaluate(new).summary if got else {}
     old_summary = evaluate(recorded).summary
-    result = {"dir": str(directory), "capture": config["capture"]["method"], "points": len(got),
+    result = {"dir": str(directory), "capture": capture.method, "points": len(got),
               "recorded_points": len(recorded), "identical": not diffs, "differences": diffs,
               "summary_recorded": old_summary, "summary_replayed": new_summary}
     if args.json:
@@ -80,10 +80,10 @@ def run(args: argparse.Namespace) -> int:
         return 0
     console = make_console()
     if not diffs:
-        console.print(f"replay with {config['capture']['method']} capture reproduces the recorded point table: "
+        console.print(f"replay with {capture.method} capture reproduces the recorded point table: "
                       f"{len(got)}/{len(recorded)} points identical to {DIGITS} decimals")
     else:
-        table = Table(title=f"{len(diffs)} point(s) change with {config['capture']['method']} capture")
+        table = Table(title=f"{len(diffs)} point(s) change with {capture.method} capture")
         for head in ("point", "run", "dir", "target", "recorded", "replayed", "difference", "wait s", "note"):
             table.add_column(head, justify="right")
         for d in diffs:

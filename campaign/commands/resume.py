@@ -13,7 +13,7 @@ import argparse
 import sys
 
 from campaign.commands import SUMMARY, hardware_opener, positive_number
-from campaign.commands.run import add_on_fault_option, apply_on_fault, finish
+from campaign.commands.run import add_on_fault_option, finish, with_on_fault
 from campaign.measure.session import Resumption
 
 
@@ -39,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
     if args.plot:
         check_plot_path(args.plot)
     r = prepare_resume(args.dir)
-    apply_on_fault(r.config, args)
+    r.config = with_on_fault(r.config, args)
     if not args.yes and sys.stdin.isatty() and r.todo:
         return guided(r, args)
     from campaign.measure.progress import RichProgress
@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     except BaseException:
         r.close()
         raise
-    with RichProgress(r.config["axis"]["unit"]) as observer:
+    with RichProgress(r.config.axis.unit) as observer:
         outcome = continue_campaign(r, opened=opened, speed=args.speed, observer=observer)
     return finish(outcome, args)
 
@@ -68,8 +68,8 @@ def guided(r: Resumption, args: argparse.Namespace) -> int:
 
     console = Console(stderr=True) if args.json else make_console()
     config, plan = r.config, r.plan
-    c = config["campaign"]
-    console.print(f"[bold]axiscal resume[/]: {r.path}: machine {c['machine']}, axis {config['axis']['name']}; "
+    c = config.campaign
+    console.print(f"[bold]axiscal resume[/]: {r.path}: machine {c.machine}, axis {config.axis.name}; "
                   f"{len(r.todo)} of {len(plan.points)} points to measure")
     offline = [soft_limit_item(plan, config), reapproach_item(plan, config, r.todo, r.again)]
     recorded_offset = last_reading_offset(r.path, plan)
@@ -81,8 +81,8 @@ def guided(r: Resumption, args: argparse.Namespace) -> int:
         raise
     try:
         point = plan.points[r.todo[0]]
-        start = point.target - point.direction * config["plan"]["overrun"]
-        unit = config["axis"]["unit"]
+        start = point.target - point.direction * config.plan.overrun
+        unit = config.axis.unit
         confirm(args, console, True, f"to the overrun at {start:g} {unit}, then {len(r.todo)} points")
         outcome = on_dashboard(config, plan, args, opened, console, True, r.path,
                                lambda dashboard, control: continue_campaign(r, opened=opened, speed=args.speed,

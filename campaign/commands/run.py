@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from campaign.commands import SUMMARY, hardware_opener, positive_number
-from campaign.config import Config, load_config
+from campaign.config import Config, config_with, load_config
 from campaign.errors import InputError
 from campaign.measure.progress import RichProgress
 from campaign.measure.session import Outcome, dry_run, start_campaign
@@ -40,10 +40,11 @@ def add_on_fault_option(p: argparse.ArgumentParser) -> None:
                         "(`axiscal resume` measures it later) or stop (default: the config's [campaign] on_fault)")
 
 
-def apply_on_fault(config: Config, args: argparse.Namespace) -> None:
-    """--on-fault overrides the config's [campaign] on_fault."""
+def with_on_fault(config: Config, args: argparse.Namespace) -> Config:
+    """The config with --on-fault in place of its [campaign] on_fault (validated again)."""
     if getattr(args, "on_fault", None):
-        config.sections["campaign"]["on_fault"] = args.on_fault
+        return config_with(config, {"campaign": {"on_fault": args.on_fault}})
+    return config
 
 
 def finish(outcome: Outcome, args: argparse.Namespace, extra: dict | None = None) -> int:
@@ -88,10 +89,10 @@ def finish(outcome: Outcome, args: argparse.Namespace, extra: dict | None = None
 
 
 def run_config(config: Config, args: argparse.Namespace, extra: dict | None = None) -> int:
-    apply_on_fault(config, args)
+    config = with_on_fault(config, args)
     if args.plot:
         check_plot_path(args.plot)
-    unit = config["axis"]["unit"]
+    unit = config.axis.unit
     observer = RichProgress(unit)
     with observer:
         outcome = start_campaign(config, args.out, opener=hardware_opener(), speed=args.speed, observer=observer)
@@ -100,7 +101,7 @@ def run_config(config: Config, args: argparse.Namespace, extra: dict | None = No
 
 def run(args: argparse.Namespace) -> int:
     config = load_config(args.config)
-    if args.dry_run or config["axis_driver"]["read_only"]:
+    if args.dry_run or config.controller.read_only:
         try:
             report = dry_run(config, hardware_opener())
         except (AxisError, InstrumentError) as exc:  # a dry run changes nothing: a set-up problem, exit 2

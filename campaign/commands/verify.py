@@ -9,7 +9,7 @@ from pathlib import Path
 from rich.table import Table
 
 from campaign.commands import SUMMARY, finite_number, hardware_opener, positive_number
-from campaign.commands.run import add_run_options, apply_on_fault, finish
+from campaign.commands.run import add_run_options, finish, with_on_fault
 from campaign.compensation.table_file import read_comp_provenance, read_comp_table
 from campaign.config import load_config
 from campaign.errors import InputError
@@ -44,22 +44,22 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 def run(args: argparse.Namespace) -> int:
     config = load_config(args.config)
-    apply_on_fault(config, args)
+    config = with_on_fault(config, args)
     options = FormatOptions(counts_per_unit=args.counts_per_unit)
-    table = read_comp_table(args.comp, config["axis"]["kind"], args.comp_format, options, args.reference)
+    table = read_comp_table(args.comp, config.axis.kind, args.comp_format, options, args.reference)
     if args.plot:
         check_plot_path(args.plot)
-    if table.kind != config["axis"]["kind"]:
-        raise InputError(f"{args.comp}: a {table.kind} table does not fit the {config['axis']['kind']} axis")
+    if table.kind != config.axis.kind:
+        raise InputError(f"{args.comp}: a {table.kind} table does not fit the {config.axis.kind} axis")
     plan = build_plan(config)
-    check_plan(plan, config)
+    check_plan(plan, config.axis)
     console = make_console(stderr=args.json)
     for warning in table_fits(table, read_comp_provenance(args.comp), config, plan, args.comp):
         console.print(f"[yellow]warning:[/] {warning}")
     baseline = Path(args.before) if args.before else None
     before = baseline_points(baseline) if baseline else None
     out = Path(args.out) if args.out else default_out_dir(config)
-    unit = config["axis"]["unit"]
+    unit = config.axis.unit
     with RichProgress(unit) as observer:
         outcome = run_verification(config, table, out, opener=hardware_opener(), baseline=baseline if baseline and baseline.is_dir() else None,
                                    max_rate=args.max_rate, max_accel=args.max_accel, speed=args.speed,

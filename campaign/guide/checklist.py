@@ -52,14 +52,14 @@ def failures(items: list[CheckItem]) -> list[CheckItem]:
 
 
 def soft_limit_item(plan: Plan, config: Config) -> CheckItem:
-    axis = config["axis"]
-    unit, (lo, hi) = axis["unit"], plan.ends()
-    limits = f"[{axis['soft_limit_min']:g}, {axis['soft_limit_max']:g}] {unit}"
+    axis = config.axis
+    unit, (lo, hi) = axis.unit, plan.ends()
+    limits = f"[{axis.soft_limit_min:g}, {axis.soft_limit_max:g}] {unit}"
     try:
-        check_plan(plan, config)
+        check_plan(plan, axis)
     except SafetyError as exc:
         return CheckItem("soft limits", False, f"{exc}")
-    return CheckItem("soft limits", True, f"plan {lo:g} to {hi:g} {unit} at {config['plan']['velocity']:g} "
+    return CheckItem("soft limits", True, f"plan {lo:g} to {hi:g} {unit} at {config.plan.velocity:g} "
                                           f"{unit}/s, inside {limits}")
 
 
@@ -73,19 +73,19 @@ def record_item(directory: Path) -> CheckItem:
 
 def plan_preview(plan: Plan, config: Config, speed: float | None) -> Table:
     """Targets, points, travel and estimated duration (machine time; real time at --speed N)."""
-    unit, runs = config["axis"]["unit"], config["plan"]["cycles"]
+    unit, runs = config.axis.unit, config.plan.cycles
     targets = ", ".join(f"{t:g}" for t in plan.targets)
-    duration_s = estimate_duration_s(plan, config, config["plan"]["start"])
+    duration_s = estimate_duration_s(plan, config.axis, config.plan.start)
     duration = f"{duration_s / 60:.1f} min"
-    if config["axis_driver"]["type"] == "sim" and speed:
+    if config.controller.type == "sim" and speed:
         duration += f" of machine time, about {duration_s / speed / 60:.1f} min at --speed {speed:g}"
     table = Table(title="Plan", show_header=False)
     table.add_column(style="bold")
     table.add_column()
     table.add_row("targets", f"{targets} {unit}")
     table.add_row("points", f"{len(plan.points)} ({len(plan.targets)} targets × {runs} runs × 2 directions)")
-    table.add_row("cycle", f"{config['plan']['cycle']}, dwell {config['plan']['dwell_s']:g} s, overrun "
-                           f"{config['plan']['overrun']:g} {unit}")
+    table.add_row("cycle", f"{config.plan.cycle}, dwell {config.plan.dwell_s:g} s, overrun "
+                           f"{config.plan.overrun:g} {unit}")
     table.add_row("travel", f"{plan.travel():.1f} {unit}")
     table.add_row("estimated duration", duration)
     return table
@@ -124,13 +124,13 @@ def signal_item(readings: list[Reading]) -> CheckItem:
 
 def environment_items(readings: list[Reading], config: Config) -> list[CheckItem]:
     """One item per environment field: the sensor's median, else the config's value."""
-    env = config["environment"]
-    needed = {"air_temp_c": env["air_correction"] == "edlen", "air_pressure_hpa": env["air_correction"] == "edlen",
-              "humidity_pct": env["air_correction"] == "edlen", "material_temp_c": env["normalise_to_20c"]}
+    env = config.environment
+    air = env.air_correction == "edlen"
+    needed = {"air_temp_c": air, "air_pressure_hpa": air, "humidity_pct": air, "material_temp_c": env.normalise_to_20c}
     items = []
     for field, (name, unit, lo, hi) in PLAUSIBLE.items():
         values = [getattr(r, field) for r in readings if getattr(r, field) is not None]
-        value, source = (median(values), "sensor") if values else (env.get(field), "config")
+        value, source = (median(values), "sensor") if values else (getattr(env, field, None), "config")
         if value is None:
             why = "needed for the correction" if needed[field] else "not needed"
             items.append(CheckItem(name, False if needed[field] else None, f"not measured ({why})"))
@@ -143,10 +143,10 @@ def environment_items(readings: list[Reading], config: Config) -> list[CheckItem
 def hardware_items(hw: Hardware, config: Config) -> list[CheckItem]:
     """Controller, signal and environment checks; nothing moves."""
     try:
-        readings = sample_readings(hw, SAMPLE_S, config["instrument"]["rate_hz"])
+        readings = sample_readings(hw, SAMPLE_S, config.instrument.rate_hz)
     except InstrumentError as exc:
-        return [controller_item(hw, config["axis"]["unit"]), CheckItem("interferometer signal", False, str(exc))]
-    return [controller_item(hw, config["axis"]["unit"]), signal_item(readings),
+        return [controller_item(hw, config.axis.unit), CheckItem("interferometer signal", False, str(exc))]
+    return [controller_item(hw, config.axis.unit), signal_item(readings),
             *environment_items(readings, config)]
 
 
@@ -155,7 +155,7 @@ def move_and_sample(hw: Hardware, config: Config, position: float, velocity: flo
     """Move to `position` (checked against the limits first), then sample at rest. Returns (axis
     position, readings on the way, readings at rest). Halts the axis and raises KeyboardInterrupt
     when an abort is requested; AxisError on an axis error or a timeout."""
-    rate = config["instrument"]["rate_hz"]
+    rate = config.instrument.rate_hz
     on_the_way: list[Reading] = []
 
     def tick() -> None:
@@ -165,7 +165,8 @@ def move_and_sample(hw: Hardware, config: Config, position: float, velocity: flo
         on_the_way.extend(hw.interferometer.poll())
 
     try:
-        status = move_and_wait(hw.axis, hw.clock, tick, position, velocity, config)
+        status = move_and_wait(hw.axis, hw.clock, tick, position, velocity, config.axis,
+                               config.controller.move_timeout_s)
     except SafetyError:
         raise  # refused before anything was sent: nothing to halt
     except BaseException:
@@ -180,12 +181,12 @@ def move_and_sample(hw: Hardware, config: Config, position: float, velocity: flo
 def alignment_item(hw: Hardware, plan: Plan, config: Config, control: Control) -> CheckItem:
     """Move to the high end of the plan, then to the low end (where the campaign starts), and
     compare the signal and the reading with the axis position at both ends."""
-    unit, limit = config["axis"]["unit"], ALIGNMENT_MISMATCH[config["axis"]["unit"]]
+    unit, limit = config.axis.unit, ALIGNMENT_MISMATCH[config.axis.unit]
     lo, hi = plan.ends()
     ok, parts, travel = True, [], []
     try:
         for end in (hi, lo):
-            actual, on_the_way, at_rest = move_and_sample(hw, config, end, config["plan"]["velocity"], control)
+            actual, on_the_way, at_rest = move_and_sample(hw, config, end, config.plan.velocity, control)
             travel += on_the_way
             if not at_rest or any(not r.signal_ok for r in at_rest):
                 ok = False
@@ -224,12 +225,12 @@ means the laser was re-zeroed or moved, and the old and new points would not sha
 def datum_item(hw: Hardware, config: Config, recorded_offset: float | None) -> CheckItem:
     """At rest: is the laser's reading still where it was relative to the axis when the campaign
     stopped? A laser re-zeroed (or knocked) since then would shift every new point."""
-    unit = config["axis"]["unit"]
+    unit = config.axis.unit
     if recorded_offset is None:
         return CheckItem("laser datum", None, "no reading with the axis position was recorded before the stop")
     try:
         status = hw.axis.status()
-        readings = [r for r in sample_readings(hw, SAMPLE_S, config["instrument"]["rate_hz"]) if r.signal_ok]
+        readings = [r for r in sample_readings(hw, SAMPLE_S, config.instrument.rate_hz) if r.signal_ok]
     except (AxisError, InstrumentError) as exc:
         return CheckItem("laser datum", False, str(exc))
     if not readings:
@@ -246,11 +247,11 @@ def datum_item(hw: Hardware, config: Config, recorded_offset: float | None) -> C
 def reapproach_item(plan: Plan, config: Config, todo: list[int], again: list[int]) -> CheckItem:
     """Where the axis goes first, and what is left: the first missing point, re-approached from the
     overrun in its own direction (checked against the limits)."""
-    unit = config["axis"]["unit"]
+    unit = config.axis.unit
     point = plan.points[todo[0]]
-    start = point.target - point.direction * config["plan"]["overrun"]
+    start = point.target - point.direction * config.plan.overrun
     try:
-        check_motion(start, config["plan"]["velocity"], config)
+        check_motion(start, config.plan.velocity, config.axis)
     except SafetyError as exc:
         return CheckItem("re-approach", False, str(exc))
     skipped = f"; {len(again)} skipped earlier, measured again first" if again else ""

@@ -89,12 +89,12 @@ class Dashboard(Observer):
     def __init__(self, console: Console, config: Config, plan: Plan, control: Control, on_fault: str | None,
                  hw: Hardware | None = None, keys: Keys | None = None) -> None:
         self.console, self.plan, self.control, self.on_fault, self.keys = console, plan, control, on_fault, keys
-        self.hw, self.tick_s = hw, 1.0 / config["instrument"]["rate_hz"]
-        self.max_retries = config["campaign"]["fault_retries"]
+        self.hw, self.tick_s = hw, 1.0 / config.instrument.rate_hz
+        self.max_retries = config.faults.fault_retries
         self.retries: dict[int, int] = {}
-        self.unit = config["axis"]["unit"]
+        self.unit = config.axis.unit
         self.dev_unit = deviation_label(self.unit)
-        self.runs = config["plan"]["cycles"]
+        self.runs = config.plan.cycles
         self.per_run = len(plan.points) // self.runs
         self.state = "starting"
         self.abort_reason: str | None = None

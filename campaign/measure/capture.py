@@ -1,6 +1,7 @@
 """Capture: turn the readings taken at a target into one measured position.
 
-Pure code, used by the executor while a campaign runs and by replay on a recorded raw stream.
+Pure code. `capture_point` is the one capture of a plan's Capture step: the executor feeds it the
+ticks of the running campaign, replay the ticks of a recorded raw stream.
 
 - Fixed dwell (the paper's method): the mean of the readings over the capture window, which is the
   last part of the dwell.
@@ -14,12 +15,17 @@ the stable method they restart the stability window. Times are in s, positions i
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 from statistics import fmean
 
 import numpy as np
 
+from campaign.plan import Capture
 from protocols.hardware import ENV_FIELDS, Reading
+
+TICK_EPSILON_S = 1e-9
+"""Times closer than this are the same instant, s (far below any sample period)."""
 
 
 class BeamLost(Exception):
@@ -101,3 +107,32 @@ def capture_stable(readings: list[Reading], window_s: float, tolerance: float, d
     if abs(float(np.mean(x[half:]) - np.mean(x[:half]))) > max(drift, 2 * noise * np.sqrt(4 / len(x))):
         return None
     return Captured(float(level), len(window), wait_s, _mean_env(window))
+
+
+def capture_point(step: Capture, deviation_scale: float, ticks: Iterable[tuple[float, list[Reading]]],
+                  start_s: float) -> Captured:
+    """Capture `step` as its CaptureSpec says, from `ticks`: (time since arrival in s, the readings
+    that arrived in that tick), the capture starting at `start_s` after arrival. The dwell method
+    averages every reading of the ticks up to `step.window_s` after the start; the stable method
+    captures at the first stable tick, up to `step.timeout_s` after the start. `deviation_scale`:
+    deviation unit per axis unit (the spec's tolerances are in deviation unit). BeamLost or
+    NotStable when it cannot capture."""
+    readings: list[Reading] = []
+    if step.spec.method == "dwell":
+        for wait_s, new in ticks:
+            readings.extend(new)
+            if wait_s >= start_s + step.window_s - TICK_EPSILON_S:
+                return capture_dwell(readings, wait_s)
+        raise BeamLost("the capture window ended before its time (no more readings)")
+    tolerance = step.spec.stable_tolerance / deviation_scale
+    drift = step.spec.stable_drift / deviation_scale
+    for wait_s, new in ticks:
+        readings.extend(new)
+        got = capture_stable(readings, step.window_s, tolerance, drift, wait_s)
+        if got is not None:
+            return got
+        if wait_s >= start_s + step.timeout_s - TICK_EPSILON_S:
+            break
+    if any(not r.signal_ok for r in readings):
+        raise BeamLost("beam not OK long enough for a stable capture")
+    raise NotStable(f"reading not stable within {step.timeout_s:g} s at point {step.point.index}")

@@ -13,32 +13,33 @@ display sinks (Observers), whose failures never stop it.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import replace
 from typing import Any
 
 from campaign.config import Config
-from campaign.measure.capture import BeamLost, Captured, NotStable, capture_dwell, capture_stable
+from campaign.measure.capture import BeamLost, Captured, NotStable, capture_point
 from campaign.measure.deviation import point_deviation
 from campaign.measure.env_guard import EnvironmentGuard
 from campaign.plan import Capture, Checkpoint, Move, Plan, Settle, Step, check_motion
 from campaign.record.events import Event
 from campaign.record.recorder import Recorder, RecordingError
+from campaign.specs import AxisSpec
 from protocols.hardware import Axis, AxisError, AxisStatus, Clock, Hardware, InstrumentError, Reading
 from protocols.units import DEVIATION_SCALE, deviation_label
 
 
 def move_and_wait(axis: Axis, clock: Clock, tick: Callable[[], None], position: float, velocity: float,
-                  config: Config, on_status: Callable[[AxisStatus], None] | None = None) -> AxisStatus:
+                  limits: AxisSpec, move_timeout_s: float,
+                  on_status: Callable[[AxisStatus], None] | None = None) -> AxisStatus:
     """The one way axiscal moves an axis: check the soft limits and the velocity limit, command the
     move, then call `tick()` (let a sample period pass) and poll the status until the axis is done
-    and in position. AxisError on an axis error or after `axis_driver.move_timeout_s`.
+    and in position (`limits.in_position_window`). AxisError on an axis error or after `move_timeout_s`.
     `on_status(status)` sees every status read. Positions in axis unit, velocity axis unit/s."""
-    check_motion(position, velocity, config)
+    check_motion(position, velocity, limits)
     axis.start_move(position, velocity)
     start = clock.now()
-    window = config["axis"]["in_position_window"]
-    timeout = config["axis_driver"]["move_timeout_s"]
+    window, timeout = limits.in_position_window, move_timeout_s
     while True:
         tick()
         status = axis.status()
@@ -147,7 +148,10 @@ class Executor:
     def __init__(self, plan: Plan, config: Config, hardware: Hardware, recorder: Recorder,
                  observers: list[Observer] | tuple[Observer, ...] = (), t0: float | None = None,
                  control: Control | None = None):
-        self.plan, self.config, self.hw, self.rec = plan, config, hardware, recorder
+        self.plan, self.hw, self.rec = plan, hardware, recorder
+        # the specs, resolved once: the executor reads nothing else of the config
+        self.axis, self.policy, self.controller = config.axis, config.faults, config.controller
+        self.environment, self.overrun = config.environment, config.plan.overrun
         self.observers = list(observers)
         self.control = control or Control()
         self.next_point = 0
@@ -155,8 +159,8 @@ class Executor:
         self.env_guard = EnvironmentGuard()
         self.skipped_seen = 0
         self.beam_ok = True
-        self.tick_s = 1.0 / config["instrument"]["rate_hz"]
-        self.scale = DEVIATION_SCALE[config["axis"]["unit"]]
+        self.tick_s = 1.0 / config.instrument.rate_hz
+        self.scale = DEVIATION_SCALE[self.axis.unit]
         self.t0 = hardware.clock.now() if t0 is None else t0
         self.step_index = 0
         self.point_index: int | None = None
@@ -221,7 +225,7 @@ class Executor:
         total = len(self.plan.points)
         for first, last in stretches(todo):
             self.next_point = first
-            for index, step in stretch_steps(self.plan, first, last, self.config["plan"]["overrun"]):
+            for index, step in stretch_steps(self.plan, first, last, self.overrun):
                 self.step_index = index
                 try:
                     self._do(step)
@@ -264,13 +268,12 @@ class Executor:
             decision = obs.fault(exc, self.next_point)
             if decision is not None:
                 return decision
-        c = self.config["campaign"]
         used = self.retries.get(self.next_point, 0)
-        if c["on_fault"] == "abort" or isinstance(exc, InstrumentError):
+        if self.policy.on_fault == "abort" or isinstance(exc, InstrumentError):
             return "abort"
-        if c["on_fault"] == "skip":
+        if self.policy.on_fault == "skip":
             return "skip"
-        if used >= c["fault_retries"]:
+        if used >= self.policy.fault_retries:
             return "abort"
         self.retries[self.next_point] = used + 1
         return "retry"
@@ -279,8 +282,8 @@ class Executor:
         """Get the axis ready again before anything else is commanded: wait for a lost connection
         to return, wait until the halt has brought the axis to rest, then clear any error."""
         if isinstance(exc, AxisError) and exc.error_id == 0:
-            self._wait_for_connection(self.config["axis_driver"]["reconnect_s"])
-        end = self.now() + self.config["axis_driver"]["move_timeout_s"]
+            self._wait_for_connection(self.controller.reconnect_s)
+        end = self.now() + self.controller.move_timeout_s
         try:
             self._wait(self.tick_s)
             status = self.hw.axis.status()
@@ -378,22 +381,31 @@ class Executor:
         def seen(status: AxisStatus) -> None:
             self.axis_position = status.actual_position
 
-        move_and_wait(self.hw.axis, self.hw.clock, self._tick, step.position, step.velocity, self.config, seen)
+        move_and_wait(self.hw.axis, self.hw.clock, self._tick, step.position, step.velocity, self.axis,
+                      self.controller.move_timeout_s, seen)
         self.arrival_s = self.now()
         self.readings = []
 
     def _capture(self, step: Capture) -> None:
+        """Capture the point as its step says; after beam loss wait for the beam and capture again,
+        up to the spec's `retries` times."""
         self.point_index = step.point.index
-        capture = self.config["capture"]
-        for attempt in range(capture["retries"] + 1):
+        for attempt in range(step.spec.retries + 1):
             try:
-                self.captured = self._capture_once(step)
+                self.captured = capture_point(step, self.scale, self._capture_ticks(), self.now() - self.arrival_s)
                 return
             except BeamLost as exc:
-                if attempt == capture["retries"]:
+                if attempt == step.spec.retries:
                     raise
                 self.emit("capture_retry", f"point {step.point.index + 1}: {exc}; capture retried", step.point.index)
-                self._wait_for_beam(capture["stable_timeout_s"])
+                self._wait_for_beam(step.spec.stable_timeout_s)
+
+    def _capture_ticks(self) -> Iterator[tuple[float, list[Reading]]]:
+        """The running campaign as capture ticks: (time since arrival s, the readings of the tick)."""
+        while True:
+            self.readings = []
+            self._tick()
+            yield self.now() - self.arrival_s, self.readings
 
     def _wait_for_beam(self, timeout_s: float) -> None:
         end = self.now() + timeout_s
@@ -402,23 +414,6 @@ class Executor:
             if self.readings and self.readings[-1].signal_ok:
                 return
         raise BeamLost(f"beam not back within {timeout_s:g} s")
-
-    def _capture_once(self, step: Capture) -> Captured:
-        self.readings = []
-        if self.config["capture"]["method"] == "dwell":
-            self._wait(step.window_s)
-            return capture_dwell(self.readings, self.now() - self.arrival_s)
-        tolerance = self.config["capture"]["stable_tolerance"] / self.scale
-        drift = self.config["capture"]["stable_drift"] / self.scale
-        end = self.now() + step.timeout_s
-        while self.now() < end:
-            self._tick()
-            got = capture_stable(self.readings, step.window_s, tolerance, drift, self.now() - self.arrival_s)
-            if got is not None:
-                return got
-        if any(not r.signal_ok for r in self.readings):
-            raise BeamLost("beam not OK long enough for a stable capture")
-        raise NotStable(f"reading not stable within {step.timeout_s:g} s at point {step.point.index}")
 
     def _checkpoint(self, step: Checkpoint) -> None:
         point, t = step.point, self.now()
@@ -435,13 +430,13 @@ class Executor:
             self.emit("serial", f"{lines} garbage or partial serial line(s) skipped, not recorded", point.index,
                       lines=lines)
             self.skipped_seen = skipped
-        deviation, air, material = point_deviation(self.config, point.target, got)
+        deviation, air, material = point_deviation(self.environment, self.axis.unit, point.target, got)
         self.rec.point(point.run, point.direction, point.target, deviation, t, got.env,
                        {"point": point.index, "reading": got.position, "air_correction_um": air,
                         "material_correction_um": material, "capture_wait_s": got.wait_s,
                         "samples": got.samples})
         sign = "+" if point.direction > 0 else "-"
-        pos_unit = self.config["axis"]["unit"]
+        pos_unit = self.axis.unit
         dev_unit = deviation_label(pos_unit)
         self.emit("point", f"point {point.index + 1}: run {point.run} {sign}, target {point.target:g} {pos_unit}: "
                            f"deviation {deviation:+.4f} {dev_unit}", point.index,

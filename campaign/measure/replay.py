@@ -11,16 +11,18 @@ settings it shows what would change. Times in s, positions in axis unit, deviati
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from collections.abc import Iterator
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from campaign.config import Config, load_config
-from campaign.measure.capture import BeamLost, Captured, capture_dwell, capture_stable
+from campaign.config import capture_spec
+from campaign.measure.capture import BeamLost, Captured, capture_point
 from campaign.measure.deviation import point_deviation
 from campaign.measure.env_guard import EnvironmentGuard
-from campaign.plan import Plan
+from campaign.plan import Capture, Plan, capture_at
 from campaign.record.directory import load_raw, open_campaign
+from campaign.specs import CaptureSpec
 from protocols.hardware import Reading
 from protocols.units import DEVIATION_SCALE
 
@@ -28,7 +30,8 @@ if TYPE_CHECKING:
     import pandas as pd
 
 TICK_EPSILON_S = 1e-6
-"""Times closer than this are the same tick, s (far below the sample period)."""
+"""Recorded times closer than this are the same tick, s (far below the sample period)."""
+
 
 
 @dataclass
@@ -60,52 +63,57 @@ def _readings(rows: pd.DataFrame) -> list[Reading]:
             for r in rows.itertuples(index=False)]
 
 
-def _capture(config: Config, rows: pd.DataFrame, capture_step: int, arrival: float, dwell_s: float) -> Captured:
-    """Capture one point from its samples after arrival, with `config`'s capture settings."""
-
-    c = config["capture"]
-    if c["method"] == "dwell":
-        recorded = rows[rows.step == capture_step]
-        if recorded.empty:
-            raise BeamLost("no capture-window samples recorded")
-        end = float(recorded.t_s.max())
-        average_s = min(c["average_s"], dwell_s)  # as campaign.plan.build_plan
-        if end - arrival < average_s - TICK_EPSILON_S:
-            raise BeamLost(f"the recording holds only {end - arrival:.2f} s after arrival")
-        window = rows[rows.t_s > end - average_s + TICK_EPSILON_S]
-        return capture_dwell(_readings(window), end - arrival)
-    tolerance = c["stable_tolerance"] / DEVIATION_SCALE[config["axis"]["unit"]]
-    drift = c["stable_drift"] / DEVIATION_SCALE[config["axis"]["unit"]]
-    readings: list[Reading] = []
+def _ticks(rows: pd.DataFrame, arrival: float) -> Iterator[tuple[float, list[Reading]]]:
+    """Recorded samples as capture ticks: (time since arrival s, the readings of that tick)."""
     for t_s, tick in rows.groupby("t_s", sort=True):
-        t = float(t_s)  # type: ignore[arg-type]  # the group key of the float column t_s
-        if t - arrival > c["stable_timeout_s"] + TICK_EPSILON_S:
-            break
-        readings.extend(_readings(tick))
-        got = capture_stable(readings, c["stable_window_s"], tolerance, drift, t - arrival)
-        if got is not None:
-            return got
-    raise BeamLost("never stable within the recorded samples and the timeout")
+        yield float(t_s) - arrival, _readings(tick)  # type: ignore[arg-type]  # the float column t_s
+
+
+def _capture(step: Capture, deviation_scale: float, rows: pd.DataFrame, capture_step: int, arrival: float,
+             ) -> Captured:
+    """Capture one point from its samples after arrival (`rows`) with capture_point, as the executor
+    did. A dwell capture ends where the recorded capture window (`capture_step`'s samples) ended and
+    averages the last `step.window_s` before it."""
+    if step.spec.method != "dwell":
+        return capture_point(step, deviation_scale, _ticks(rows, arrival), 0.0)
+    recorded = rows[rows.step == capture_step]
+    if recorded.empty:
+        raise BeamLost("no capture-window samples recorded")
+    end = float(recorded.t_s.max())
+    if end - arrival < step.window_s - TICK_EPSILON_S:
+        raise BeamLost(f"the recording holds only {end - arrival:.2f} s after arrival")
+    start_s = end - arrival - step.window_s
+    window = rows[(rows.t_s > end - step.window_s + TICK_EPSILON_S) & (rows.t_s <= end + TICK_EPSILON_S)]
+    return capture_point(step, deviation_scale, _ticks(window, arrival), start_s)
 
 
 def replay(directory: str | Path, capture_overrides: dict | None = None, speed: float | None = None,
-           ) -> tuple[Config, Plan, list[ReplayedPoint]]:
-    """Replay `directory` with its recorded config, the [capture] keys in `capture_overrides`
-    replaced. `speed`: pace the timeline at N times real time (None: as fast as possible)."""
+           ) -> tuple[CaptureSpec, Plan, list[ReplayedPoint]]:
+    """Replay `directory` from its recorded plan (each capture step's CaptureSpec), with the keys
+    in `capture_overrides` replaced (validated as the [capture] table). Returns the capture spec of
+    the replay (that of the first point), the plan and the points. `speed`: pace the timeline at N
+    times real time (None: as fast as possible). Needs no config.toml when plan.jsonl describes the
+    campaign (plan format 2)."""
     path = Path(directory)
     campaign = open_campaign(path)
-    config = load_config(path / "config.toml")
+    config = campaign.config()
     plan = campaign.plan_for(config)  # its step indices are those in raw.csv
-    recorded_dwell = config["capture"]["method"] == "dwell"  # else the steps do not hold the dwell
-    config.sections["capture"] = {**config["capture"], **(capture_overrides or {})}
+    scale = DEVIATION_SCALE[config.axis.unit]
     raw = load_raw(path)
     guard = EnvironmentGuard()
     results: list[ReplayedPoint] = []
     last_t = 0.0
+    used: CaptureSpec | None = None
     for visit in plan.visits():
         point, move_step, capture_step = visit.point, visit.step, visit.capture_step
+        recorded = visit.capture.spec
+        spec = capture_spec({**asdict(recorded), **(capture_overrides or {})}, "replay") \
+            if capture_overrides else recorded
+        used = used or spec
+        # a dwell capture's dwell is the recorded one; a stable capture's steps do not hold it
+        dwell_s = visit.dwell_s if recorded.method == "dwell" else config.plan.dwell_s
+        _, step = capture_at(point, dwell_s, spec)
         rows = raw[raw.point == point.index]
-        dwell_s = visit.dwell_s if recorded_dwell else config["plan"]["dwell_s"]
         moves = rows[rows.step == move_step]
         if moves.empty:
             results.append(ReplayedPoint(point.index, point.run, point.direction, point.target, None, None, 0,
@@ -117,13 +125,13 @@ def replay(directory: str | Path, capture_overrides: dict | None = None, speed: 
             time.sleep(max(0.0, arrival - last_t) / speed)
             last_t = arrival
         try:
-            got = _capture(config, after, capture_step, arrival, dwell_s)
+            got = _capture(step, scale, after, capture_step, arrival)
         except BeamLost as exc:
             results.append(ReplayedPoint(point.index, point.run, point.direction, point.target, None, None,
                                          len(after), None, str(exc)))
             continue
         env, _ = guard.check(got.env, arrival + got.wait_s)  # as the live campaign does
-        deviation, _, _ = point_deviation(config, point.target, replace(got, env=env))
+        deviation, _, _ = point_deviation(config.environment, config.axis.unit, point.target, replace(got, env=env))
         results.append(ReplayedPoint(point.index, point.run, point.direction, point.target, deviation,
                                      got.wait_s, got.samples, arrival + got.wait_s))
-    return config, plan, results
+    return used or config.capture, plan, results

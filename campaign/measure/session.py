@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from campaign.config import Config, load_config, recorded_sections
+from campaign.config import Config, config_with, recorded_sections
 from campaign.errors import CampaignInterrupted, InputError
 from campaign.iso230 import Evaluation, evaluate
 from campaign.measure.executor import CampaignStopped, Control, Executor, Observer
@@ -30,7 +30,7 @@ Opened = tuple[Hardware, Any]
 """Open hardware and the simulated machine's parts (None on a real machine)."""
 
 Opener = Callable[..., Opened]
-"""opener(config, speed=None, model=None, start_position=None, start_time=0.0) -> (Hardware, the
+"""opener(driver_spec, speed=None, model=None, start_position=None, start_time=0.0) -> (Hardware, the
 simulated machine's parts or None). `speed`: N times real time (simulated machine); `model`: its
 error model; `start_position` (axis unit) and `start_time` (s): where and when it starts."""
 
@@ -56,16 +56,16 @@ class Outcome:
 
 def default_out_dir(config: Config) -> Path:
     stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
-    return Path("runs") / f"{config['campaign']['machine']}-{config['axis']['name']}-{stamp}"
+    return Path("runs") / f"{config.campaign.machine}-{config.axis.name}-{stamp}"
 
 
 def campaign_meta(config: Config, plan: Plan) -> dict:
-    c, a = config["campaign"], config["axis"]
-    return {"machine": c["machine"], "axis": a["name"], "operator": c["operator"], "kind": a["kind"],
-            "unit": a["unit"], "plan_seed": plan.seed, "points_planned": len(plan.points),
+    c, a = config.campaign, config.axis
+    return {"machine": c.machine, "axis": a.name, "operator": c.operator, "kind": a.kind,
+            "unit": a.unit, "plan_seed": plan.seed, "points_planned": len(plan.points),
             "targets": list(plan.targets), "offsets": list(plan.offsets),
-            "capture": config["capture"]["method"], "driver": config["axis_driver"]["type"],
-            "simulated": "sim" in (config["axis_driver"]["type"], config["instrument"]["type"])}
+            "capture": config.capture.method, "driver": config.controller.type,
+            "simulated": config.simulated}
 
 
 def execute(config: Config, plan: Plan, recorder: Recorder, todo: int | list[int], *, opener: Opener | None = None,
@@ -80,7 +80,7 @@ def execute(config: Config, plan: Plan, recorder: Recorder, todo: int | list[int
     if opened is None:
         if opener is None:
             raise ValueError("execute: give an opener or opened hardware")
-        opened = opener(config, speed=speed, model=model, start_position=start, start_time=t_offset)
+        opened = opener(config.driver, speed=speed, model=model, start_position=start, start_time=t_offset)
     hardware, sim = opened
     executor = Executor(plan, config, hardware, recorder, [observer] if observer else [],
                         t0=hardware.clock.now() - t_offset, control=control)
@@ -128,14 +128,15 @@ def start_campaign(config: Config, out: str | Path | None = None, meta_extra: di
     """A new campaign from `config` into `out` (a new directory); `meta_extra` goes into meta.json.
     The other keywords go to `execute` (`opener` or `opened` is required)."""
     plan = build_plan(config)
-    check_plan(plan, config)
-    if config["axis_driver"]["type"] == "sim" and kwargs.get("model") is None:
-        kwargs["model"] = sim_model(config)
+    check_plan(plan, config.axis)
+    if config.controller.type == "sim" and kwargs.get("model") is None:
+        kwargs["model"] = sim_model(config.sim)
     directory = Path(out) if out else default_out_dir(config)
     meta = {**campaign_meta(config, plan), **(meta_extra or {})}
     try:
-        recorder = Recorder.create(directory, config.text, recorded_sections(config), plan_records(plan), meta,
-                                   config["axis"]["kind"])
+        recorder = Recorder.create(directory, config.text, recorded_sections(config),
+                                   plan_records(plan, recorded_sections(config)), meta,
+                                   config.axis.kind)
     except BaseException:
         if kwargs.get("opened") is not None:
             kwargs["opened"][0].close()
@@ -151,9 +152,9 @@ def open_with_comp(opener: Opener, config: Config, comp: CompTable, speed: float
                    model: ErrorModel | None = None, start: float | None = None, start_time: float = 0.0) -> Opened:
     """Open the hardware and write `comp` into the controller (read back, compared, enabled).
     On the simulated machine the noise is drawn from sim.seed + COMP_SEED_OFFSET."""
-    if config["axis_driver"]["type"] == "sim":
-        config.sections["sim"] = {**config["sim"], "seed": config["sim"]["seed"] + COMP_SEED_OFFSET}
-    opened = opener(config, speed=speed, model=model, start_position=start, start_time=start_time)
+    if config.controller.type == "sim":
+        config = config_with(config, {"sim": {"seed": config.sim.seed + COMP_SEED_OFFSET}})
+    opened = opener(config.driver, speed=speed, model=model, start_position=start, start_time=start_time)
     try:
         opened[0].axis.write_comp_table(comp)
     except BaseException:
@@ -186,7 +187,7 @@ class Resumption:
         written again first."""
         if self.comp is not None:
             return open_with_comp(opener, self.config, self.comp, speed, self.model, self.position, self.t_last)
-        return opener(self.config, speed=speed, model=self.model, start_position=self.position,
+        return opener(self.config.driver, speed=speed, model=self.model, start_position=self.position,
                       start_time=self.t_last)
 
     def close(self) -> None:
@@ -201,12 +202,11 @@ def prepare_resume(directory: str | Path, faults: dict | None = None) -> Resumpt
     injected again). InputError for a completed campaign."""
     path = Path(directory)
     campaign = open_campaign(path)
-    config = load_config(path / "config.toml")
-    config.sections["sim"].pop("faults", None)  # rehearsed faults are not injected again on resume
+    config = campaign.config()  # config.toml, or without it the config plan.jsonl describes
     plan = campaign.plan_for(config)
-    if faults:
-        config.sections["sim"]["faults"] = faults
-    check_plan(plan, config)  # before anything is touched
+    # the config's own faults are not injected again on resume; rehearsed ones are
+    config = config_with(config, {"sim": {"faults": faults or {}}})
+    check_plan(plan, config.axis)  # before anything is touched
     if campaign.status == "completed" and not missing_points(path, plan):
         raise InputError(f"{path}: the campaign is already completed: every point is recorded")
     recorder = Recorder.reopen(path)  # torn tails are cut before anything is read
@@ -278,18 +278,18 @@ def dry_run(config: Config, opener: Opener | None = None, ticks: int = 10, opene
     sample periods of the interferometer. Returns what it saw (positions in axis unit).
     `opened`: hardware already opened read-only (tests inspect the simulated PLC afterwards)."""
     plan = build_plan(config)
-    check_plan(plan, config)
-    config.sections["axis_driver"] = {**config["axis_driver"], "read_only": True}
+    check_plan(plan, config.axis)
+    config = config_with(config, {"axis_driver": {"read_only": True}})
     if opened is None:
         if opener is None:
             raise ValueError("dry_run: give an opener or opened hardware")
-        opened = opener(config)
+        opened = opener(config.driver)
     hardware, _ = opened
     try:
         status = hardware.axis.status()
         readings: list[Reading] = []
         for _ in range(ticks):
-            hardware.clock.sleep(1.0 / config["instrument"]["rate_hz"])
+            hardware.clock.sleep(1.0 / config.instrument.rate_hz)
             readings.extend(hardware.interferometer.poll())
     finally:
         hardware.close()
@@ -299,4 +299,4 @@ def dry_run(config: Config, opener: Opener | None = None, ticks: int = 10, opene
             "axis_position": status.actual_position, "readings": len(readings),
             "beam_ok": bool(last and last.signal_ok), "reading": last.position if last else None,
             "points": len(plan.points), "moves": len(plan.stops()), "travel": plan.travel(),
-            "estimated_duration_s": estimate_duration_s(plan, config), "plan_within_limits": True}
+            "estimated_duration_s": estimate_duration_s(plan, config.axis), "plan_within_limits": True}

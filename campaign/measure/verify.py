@@ -37,10 +37,10 @@ def correction_limits(config: Config, max_rate: float | None, max_accel: float |
     correction rate axiscal takes, as in `axiscal correction`. Defaults: a tenth of the axis'
     velocity and acceleration limits (the 2024 motion-planning patent makes the bound proportional to the axis' maximum
     acceleration)."""
-    axis = config["axis"]
-    scale = DEVIATION_SCALE[axis["unit"]]
-    return (max_rate / scale if max_rate else 0.1 * axis["max_velocity"],
-            max_accel / scale if max_accel else 0.1 * axis["max_acceleration"])
+    axis = config.axis
+    scale = DEVIATION_SCALE[axis.unit]
+    return (max_rate / scale if max_rate else 0.1 * axis.max_velocity,
+            max_accel / scale if max_accel else 0.1 * axis.max_acceleration)
 
 
 def table_fits(table: ControllerTable, provenance: dict[str, str], config: Config, plan: Plan,
@@ -49,7 +49,7 @@ def table_fits(table: ControllerTable, provenance: dict[str, str], config: Confi
     axis); InputError when the table's range does not cover the plan's targets: the controller
     would get no compensation at some of them."""
     end = table.start + table.spacing * (len(table.forward) - 1)
-    unit = config["axis"]["unit"]
+    unit = config.axis.unit
     lo, hi = min(plan.targets), max(plan.targets)
     if lo < table.start - 1e-9 or hi > end + 1e-9:
         raise InputError(f"{where}: the table covers {table.start:g} to {end:g} {unit}, the plan's targets "
@@ -58,7 +58,7 @@ def table_fits(table: ControllerTable, provenance: dict[str, str], config: Confi
     if (end - table.start) > 1.5 * (hi - lo):
         warnings.append(f"the table spans {table.start:g} to {end:g} {unit}, the plan only {lo:g} to {hi:g} {unit}: "
                         "is it the table of this axis?")
-    for key, now in (("machine", config["campaign"]["machine"]), ("axis", config["axis"]["name"])):
+    for key, now in (("machine", config.campaign.machine), ("axis", config.axis.name)):
         then = provenance.get(key)
         if then and then != now:
             warnings.append(f"the table was made for {key} '{then}', the config measures {key} '{now}'")

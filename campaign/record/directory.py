@@ -1,11 +1,13 @@
 """The campaign directory, read back: what ran, how it ended, what was recorded.
 
-    config.toml   the config as given (resume compares it with the recorded one in meta.json)
+    config.toml   the config as given (resume compares it with the recorded one in meta.json); a
+                  directory whose plan.jsonl is of plan format 2 is read, replayed and resumed without it
     meta.json     written once at the start: format_version, software, host, created (UTC),
                   machine, axis, operator, kind, unit, plan seed, points planned, targets, offsets,
                   capture, driver, the config's sections as recorded, and what the command added
                   (a verification's table and baseline)
-    plan.jsonl    the plan that runs: a header, then one record per step (campaign.plan)
+    plan.jsonl    the plan that runs: a header (format 2: with the whole validated config), then one
+                  record per step, each capture with its CaptureSpec (campaign.plan)
     runs.jsonl    one record per start and per stop of the executor, appended, never rewritten
     raw.csv, points.csv, events.jsonl, events.log: see campaign/record/recorder.py
 
@@ -23,9 +25,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from campaign.config import Config, resume_conflicts
+from campaign.config import Config, config_from_sections, load_config, resume_conflicts
 from campaign.errors import InputError
-from campaign.plan import Plan, build_plan, plan_from_records
+from campaign.plan import Plan, build_plan, plan_from_records, plan_header
+from campaign.specs import CaptureSpec
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -123,14 +126,42 @@ class CampaignDir:
             return float(stop.get("duration_s", 0.0))
         return float(self.meta.get("duration_s", 0.0))
 
-    def recorded_plan(self) -> Plan | None:
-        """The plan from plan.jsonl, or None in a version-1 directory."""
+    def _plan_records(self) -> list[dict[str, Any]] | None:
         path = self.path / PLAN_FILE
         if not path.exists():
             if self.format_version >= 2:
                 raise InputError(f"{path}: missing (the directory says format version {self.format_version})")
             return None
-        return plan_from_records(read_json_lines(path), str(path))
+        return read_json_lines(path)
+
+    def described_config(self) -> Config | None:
+        """The config plan.jsonl records (plan format 2), validated again; None for an older plan."""
+        records = self._plan_records()
+        if records is None:
+            return None
+        where = str(self.path / PLAN_FILE)
+        sections = plan_header(records, where).get("config")
+        return None if sections is None else config_from_sections(sections, where)
+
+    def config(self) -> Config:
+        """The campaign's config: config.toml as it is now when present (an operator may change the
+        keys marked `resume` before a resume), else the one plan.jsonl records (plan format 2: the
+        directory describes itself). InputError when there is neither."""
+        if (self.path / CONFIG_FILE).is_file():
+            return load_config(self.path / CONFIG_FILE)
+        described = self.described_config()
+        if described is None:
+            raise InputError(f"{self.path}: no {CONFIG_FILE}, and its {PLAN_FILE} (an older format) does not "
+                             "describe the campaign: restore the config.toml it was recorded with")
+        return described
+
+    def recorded_plan(self, capture: CaptureSpec | None = None) -> Plan | None:
+        """The plan from plan.jsonl, or None in a version-1 directory. `capture`: how the points of
+        an older plan (format 1, whose capture steps do not say) were captured."""
+        records = self._plan_records()
+        if records is None:
+            return None
+        return plan_from_records(records, str(self.path / PLAN_FILE), capture)
 
     def plan_for(self, config: Config) -> Plan:
         """The plan a resume or a replay continues: the recorded one, when `config` (config.toml
@@ -144,7 +175,7 @@ class CampaignDir:
             if conflicts:
                 more = f" (and {len(conflicts) - 1} more)" if len(conflicts) > 1 else ""
                 raise InputError(f"{where}: {conflicts[0]}{more}; {refuse}")
-        recorded = self.recorded_plan()
+        recorded = self.recorded_plan(config.capture)
         if recorded is not None:
             return recorded
         plan = build_plan(config)
@@ -178,8 +209,8 @@ def open_campaign(directory: str | Path) -> CampaignDir:
     meta_path = path / META_FILE
     if not path.is_dir():
         raise InputError(f"{path}: no such campaign directory")
-    if not meta_path.is_file() or not (path / CONFIG_FILE).is_file():
-        raise InputError(f"{path}: not a campaign directory (no {META_FILE} / {CONFIG_FILE})")
+    if not meta_path.is_file():
+        raise InputError(f"{path}: not a campaign directory (no {META_FILE})")
     try:
         meta = json.loads(meta_path.read_text(encoding="utf-8"))
     except (ValueError, UnicodeDecodeError) as exc:

@@ -76,7 +76,7 @@ def _label(a: Assessment) -> str:
 
 def _campaign_facts(a: Assessment) -> list[tuple[str, str]]:
     m = a.meta or {}
-    axis = m.get("axis", a.config["axis"]["name"] if a.config else a.table.meta.get("axis", "?"))
+    axis = m.get("axis", a.config.axis.name if a.config else a.table.meta.get("axis", "?"))
     kind = f"{m.get('kind', a.table.kind)}, {a.table.position_unit}"
     rows = [("Machine", m.get("machine", a.table.meta.get("machine", "unknown"))), ("Axis", f"{axis} ({kind})"),
             ("Operator", m.get("operator") or a.table.meta.get("operator") or "not recorded"), ("Date", _date(a))]
@@ -94,8 +94,8 @@ def _campaign_facts(a: Assessment) -> list[tuple[str, str]]:
                  ("Software", m.get("software", "axiscal")), ("Campaign directory", str(a.directory))]
     else:
         rows += [("Points", str(len(a.table))), ("Point table", a.source)]
-    if a.config and a.config["campaign"]["description"]:
-        rows.insert(2, ("Description", a.config["campaign"]["description"]))
+    if a.config and a.config.campaign.description:
+        rows.insert(2, ("Description", a.config.campaign.description))
     return rows
 
 
@@ -104,18 +104,18 @@ def _instrument_facts(a: Assessment) -> list[tuple[str, str]]:
     if a.config is None:
         return [("Instrument", "not recorded (a point table without its campaign)"),
                 ("Corrections", "not recorded")]
-    inst, env = a.config["instrument"], a.config["environment"]
-    model = inst["model"] or ("axiscal's simulated interferometer" if a.simulated else "not recorded")
-    certificate = inst["certificate"] or "not recorded"
-    ppm = inst["wavelength_uncertainty_ppm"]
+    inst, env = a.config.instrument, a.config.environment
+    model = inst.model or ("axiscal's simulated interferometer" if a.simulated else "not recorded")
+    certificate = inst.certificate or "not recorded"
+    ppm = inst.wavelength_uncertainty_ppm
     air = ("by axiscal: updated Edlén equation (NIST form) from the air sensors, readings taken in vacuum "
-           f"wavelength {env['wavelength_nm']:g} nm" if env["air_correction"] == "edlen" else
+           f"wavelength {env.wavelength_nm:g} nm" if env.air_correction == "edlen" else
            "by the instrument (its own environmental compensation)")
-    material = (f"normalised to 20 °C with the material temperature, α = {env['expansion_ppm_per_k']:g} µm/m·K"
-                if env["normalise_to_20c"] else "not normalised to 20 °C (the uncertainty budget counts the "
+    material = (f"normalised to 20 °C with the material temperature, α = {env.expansion_ppm_per_k:g} µm/m·K"
+                if env.normalise_to_20c else "not normalised to 20 °C (the uncertainty budget counts the "
                                                 "uncorrected expansion)")
     if a.table.kind == "rotary":
-        arcsec = inst["angle_uncertainty_arcsec"]
+        arcsec = inst.angle_uncertainty_arcsec
         accuracy = ("Angle uncertainty", f"{arcsec:g} arcsec (k = 2), from the certificate" if arcsec is not None
                     else f"not given: the budget uses {TYPICAL['angle_uncertainty_arcsec']:g} arcsec, a typical "
                          "specification")
@@ -123,7 +123,7 @@ def _instrument_facts(a: Assessment) -> list[tuple[str, str]]:
         accuracy = ("Length uncertainty", f"{ppm:g} µm/m (k = 2), from the certificate" if ppm is not None else
                     f"not given: the budget uses {TYPICAL['wavelength_uncertainty_ppm']:g} µm/m, a typical "
                     "specification")
-    return [("Laser", model), ("Serial number", inst["serial"] or "not recorded"),
+    return [("Laser", model), ("Serial number", inst.serial or "not recorded"),
             ("Calibration certificate", certificate), accuracy,
             ("Air correction", air), ("Material temperature", material)]
 
@@ -135,13 +135,13 @@ def _plan_facts(a: Assessment) -> list[tuple[str, str]]:
     rows = [("Targets", f"{len(targets)}: {listed} {unit}"), ("Runs", str(a.evaluation.runs)),
             ("Directions", " and ".join("+" if d > 0 else "−" for d in a.table.directions))]
     if a.config:
-        p, cap = a.config["plan"], a.config["capture"]
-        method = (f"fixed dwell, mean of the last {cap['average_s']:g} s" if cap["method"] == "dwell" else
-                  f"stability trigger, {cap['stable_tolerance']:g} {unit_label(a.evaluation.unit)} band and "
-                  f"{cap['stable_drift']:g} {unit_label(a.evaluation.unit)} drift over {cap['stable_window_s']:g} s")
-        rows += [("Cycle", f"{p['cycle']}, overrun {p['overrun']:g} {unit}"),
-                 ("Dwell", f"{p['dwell_s']:g} s"), ("Velocity", f"{p['velocity']:g} {unit}/s"),
-                 ("Capture", method), ("Target offsets", p["offsets"])]
+        p, cap = a.config.plan, a.config.capture
+        method = (f"fixed dwell, mean of the last {cap.average_s:g} s" if cap.method == "dwell" else
+                  f"stability trigger, {cap.stable_tolerance:g} {unit_label(a.evaluation.unit)} band and "
+                  f"{cap.stable_drift:g} {unit_label(a.evaluation.unit)} drift over {cap.stable_window_s:g} s")
+        rows += [("Cycle", f"{p.cycle}, overrun {p.overrun:g} {unit}"),
+                 ("Dwell", f"{p.dwell_s:g} s"), ("Velocity", f"{p.velocity:g} {unit}/s"),
+                 ("Capture", method), ("Target offsets", p.offsets)]
     seed = (a.meta or {}).get("plan_seed", a.table.meta.get("plan_seed", "not recorded"))
     rows.append(("Plan seed", str(seed)))
     return rows
