@@ -77,3 +77,34 @@ def test_help_and_parsers_import_no_heavy_library():
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=Path(ROOT),
                           check=False, timeout=60)
     assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
+def test_specs_are_frozen_and_a_changed_copy_is_validated_again():
+    import dataclasses
+
+    from campaign.config import config_with, parse_config
+    from campaign.errors import InputError
+
+    config = parse_config(BASE, "base.toml")
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        config.axis.max_velocity = 1e9  # type: ignore[misc]
+    with pytest.raises(TypeError):
+        config.sections["axis"]["max_velocity"] = 1e9  # type: ignore[index]
+    slower = config_with(config, {"axis": {"max_velocity": 5.0}})
+    assert slower.axis.max_velocity == 5.0 and config.axis.max_velocity == 20.0
+    assert slower.plan == config.plan and slower.source == "base.toml"
+    with pytest.raises(InputError, match=r"base.toml: key 'axis.max_velocity': -1.0 is out of range"):
+        config_with(config, {"axis": {"max_velocity": -1.0}})
+    with pytest.raises(InputError, match=r"base.toml: key 'axis.soft_limit_max': must be above"):
+        config_with(config, {"axis": {"soft_limit_min": 500.0}})
+
+
+def test_every_key_has_one_owning_spec_field_with_its_meaning():
+    from dataclasses import fields
+
+    from campaign.config import SCHEMA, SECTIONS
+
+    owners = [(section, f.name) for section, specs in SECTIONS.items() for spec in specs
+              for f in fields(spec) if "key" in f.metadata]
+    assert len(owners) == len(set(owners)) == sum(len(keys) for keys in SCHEMA.values())
+    assert all(key.doc for keys in SCHEMA.values() for key in keys.values())

@@ -90,3 +90,46 @@ def test_a_capture_spec_out_of_range_in_the_plan_is_refused_naming_the_line(tmp_
     (d / "config.toml").unlink()
     with pytest.raises(InputError, match=rf"plan.jsonl: line {first + 1}: key 'capture.average_s'"):
         replay(d)
+
+
+def baseline(tmp_path, extra=""):
+    """A completed fake campaign, its config file and a compensation table made from it."""
+    (tmp_path / "small.toml").write_text(SMALL + extra)
+    cfg = parse_config(SMALL + extra, str(tmp_path / "small.toml"))
+    assert start_campaign(cfg, tmp_path / "before", opener=FakeMachine()).status == "completed"
+    return tmp_path / "before"
+
+
+@pytest.mark.parametrize("broken, fragment", [
+    ("format 1 plan, no config.toml", "not a baseline campaign"),
+    ("no meta.json", "not a campaign directory (no meta.json)"),
+    ("another axis", "the baseline measured axis 'X', the config measures axis 'Y'"),
+    ("no points", "recorded no points.csv"),
+])
+def test_verify_refuses_a_baseline_that_is_not_one(cli, tmp_path, broken, fragment):
+    from tests.conftest import assert_one_line_error
+
+    before = baseline(tmp_path)
+    assert cli("compensate", before / "points.csv", "--format", "json", "-o", tmp_path / "t.json").code == 0
+    if broken == "format 1 plan, no config.toml":
+        to_format_1(before)
+        (before / "config.toml").unlink()
+    elif broken == "no meta.json":
+        (before / "meta.json").unlink()
+    elif broken == "another axis":  # the baseline measured axis X
+        (tmp_path / "y.toml").write_text(SMALL.replace("[axis]", '[axis]\nname = "Y"'))
+    else:
+        (before / "points.csv").unlink()
+    config = tmp_path / ("y.toml" if broken == "another axis" else "small.toml")
+    result = cli("verify", config, "--comp", tmp_path / "t.json", "--before", before, "--out", tmp_path / "after")
+    assert_one_line_error(result, fragment)
+    assert not (tmp_path / "after").exists()  # refused before anything was opened or recorded
+
+
+def test_a_baseline_without_config_toml_is_valid_when_its_plan_describes_it(tmp_path):
+    from campaign.measure.verify import baseline_points
+
+    before = baseline(tmp_path)
+    (before / "config.toml").unlink()
+    table = baseline_points(before, parse_config(SMALL))
+    assert len(table) == 12

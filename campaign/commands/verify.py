@@ -57,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
     for warning in table_fits(table, read_comp_provenance(args.comp), config, plan, args.comp):
         console.print(f"[yellow]warning:[/] {warning}")
     baseline = Path(args.before) if args.before else None
-    before = baseline_points(baseline) if baseline else None
+    before = baseline_points(baseline, config) if baseline else None
     out = Path(args.out) if args.out else default_out_dir(config)
     unit = config.axis.unit
     with RichProgress(unit) as observer:

@@ -22,7 +22,7 @@ from campaign.measure.session import Opener, Outcome, open_with_comp, start_camp
 from campaign.plan import Plan
 from campaign.plot import draw_evaluation, pyplot
 from campaign.pointtable import PointTable, read_points
-from campaign.record.directory import COMP_FILE
+from campaign.record.directory import COMP_FILE, open_campaign
 from protocols.plc_contract import CompTable
 from protocols.units import DEVIATION_SCALE, unit_label
 
@@ -89,9 +89,26 @@ def save_comp(directory: Path, comp: CompTable) -> None:
     (directory / COMP_FILE).write_text(json.dumps(dataclasses.asdict(comp), indent=1), encoding="utf-8")
 
 
-def baseline_points(path: Path) -> PointTable:
-    """The before point table: a campaign directory or a points CSV."""
-    return read_points(path / "points.csv" if path.is_dir() else path)
+def baseline_points(path: Path, config: Config) -> PointTable:
+    """The before point table: a points CSV, or a campaign directory that describes itself (meta.json,
+    its config in config.toml or in plan.jsonl, points.csv) and measured the machine and axis
+    `config` measures. InputError naming the directory otherwise, before anything moves."""
+    if not path.is_dir():
+        return read_points(path)
+    campaign = open_campaign(path)
+    try:
+        recorded = campaign.config()
+    except InputError as exc:
+        raise InputError(f"--before {path}: not a baseline campaign: {exc}") from None
+    for what, then, now in (("machine", recorded.campaign.machine, config.campaign.machine),
+                            ("axis", recorded.axis.name, config.axis.name),
+                            ("axis kind", recorded.axis.kind, config.axis.kind)):
+        if then != now:
+            raise InputError(f"--before {path}: the baseline measured {what} '{then}', the config measures "
+                             f"{what} '{now}': compare like with like")
+    if not (path / "points.csv").is_file():
+        raise InputError(f"--before {path}: the baseline campaign recorded no points.csv")
+    return read_points(path / "points.csv")
 
 
 def direction_table(table: PointTable, ev: Evaluation, direction: int) -> list[str]:
