@@ -20,6 +20,7 @@ from drivers.ads_axis import AdsAxis
 from drivers.clock import RealClock
 from drivers.serial_interferometer import SerialInterferometer
 from protocols.hardware import Hardware, InstrumentError
+from protocols.plc_contract import CompTable
 
 if TYPE_CHECKING:
     from drivers.sim.ads_server import SimAdsServer
@@ -38,13 +39,31 @@ class SimParts:
     faults: object = None
 
 
+COMP_SEED_OFFSET = 1000
+"""A simulated machine opened with a compensation table draws its noise from sim.seed + this: a
+new measurement sees new scatter, not the baseline's again."""
+
+
 def open_hardware(spec: DriverSpec, speed: float | None = None, model: ErrorModel | None = None,
-                  start_position: float | None = None, start_time: float = 0.0,
+                  start_position: float | None = None, start_time: float = 0.0, comp: CompTable | None = None,
                   ) -> tuple[Hardware, SimParts | None]:
     """Open the axis, instrument and clock `spec` names. For the simulated machine also return
     its parts. `speed` overrides `sim.speed`; `model` overrides the config's error model;
     `start_position` (axis unit) and `start_time` (s) are where and when the simulated machine
-    starts (a resumed campaign continues where it stopped)."""
+    starts (a resumed campaign continues where it stopped); `comp`: a compensation table written
+    into the controller (read back, compared, enabled) before this returns."""
+    opened = _open(spec, speed, model, start_position, start_time, comp is not None)
+    if comp is not None:
+        try:
+            opened[0].axis.write_comp_table(comp)
+        except BaseException:
+            opened[0].close()
+            raise
+    return opened
+
+
+def _open(spec: DriverSpec, speed: float | None, model: ErrorModel | None, start_position: float | None,
+          start_time: float, compensated: bool) -> tuple[Hardware, SimParts | None]:
     inst, drv = spec.instrument, spec.controller
     if drv.type == "ads":
         axis = AdsAxis(drv.ams_net_id, drv.ip, drv.axis_index, drv.ams_port, read_only=drv.read_only,
@@ -57,7 +76,7 @@ def open_hardware(spec: DriverSpec, speed: float | None = None, model: ErrorMode
         return Hardware(axis, interferometer, RealClock(), [axis.close, interferometer.close]), None
     if drv.type == "linuxcnc":
         return _open_linuxcnc(spec, model)
-    return _open_sim(spec, speed, model, start_position, start_time)
+    return _open_sim(spec, speed, model, start_position, start_time, compensated)
 
 
 def _open_linuxcnc(spec: DriverSpec, model: ErrorModel | None) -> tuple[Hardware, None]:
@@ -124,7 +143,7 @@ def serve_on_free_loopback(plc: SimPLC) -> SimAdsServer:
 
 
 def _open_sim(spec: DriverSpec, speed: float | None, model: ErrorModel | None, start_position: float | None,
-              start_time: float) -> tuple[Hardware, SimParts]:
+              start_time: float, compensated: bool) -> tuple[Hardware, SimParts]:
     from campaign.faults import parse_faults
     from drivers.sim.compensation import SimCompensation
     from drivers.sim.faults import FaultScheduler
@@ -139,7 +158,8 @@ def _open_sim(spec: DriverSpec, speed: float | None, model: ErrorModel | None, s
                  start_time=start_time)
     clock.attach(plc.scan)
     clock.attach(SimCompensation(plc, clock.now()).tick)  # FB_AxiscalCompensation: idle until a table is enabled
-    physics = SimAxisPhysics(plc, model or sim_model(spec.sim), axis_spec.unit, spec.sim.seed,
+    seed = spec.sim.seed + (COMP_SEED_OFFSET if compensated else 0)
+    physics = SimAxisPhysics(plc, model or sim_model(spec.sim), axis_spec.unit, seed,
                              vacuum_readings=spec.vacuum_readings)
     server = serve_on_free_loopback(plc)
     closers: list[Callable[[], None]] = [server.stop]

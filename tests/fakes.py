@@ -174,7 +174,7 @@ class FakeMachine:
         self.setup = setup
         self.openings: list[FakeParts] = []
 
-    def __call__(self, spec: DriverSpec, speed=None, model=None, start_position=None, start_time=0.0):
+    def __call__(self, spec: DriverSpec, speed=None, model=None, start_position=None, start_time=0.0, comp=None):
         clock = FakeClock(start_time)
         start = start_position if start_position is not None else spec.start_position
         axis = FakeAxis(clock, start)
@@ -183,6 +183,8 @@ class FakeMachine:
         if self.setup is not None:
             self.setup(parts)
         self.openings.append(parts)
+        if comp is not None:
+            axis.write_comp_table(comp)
         return Hardware(axis, laser, clock, [axis.close, laser.close]), parts
 
 

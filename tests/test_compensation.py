@@ -8,12 +8,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from campaign.compensation.compensator import Compensator, table_lookup
 from campaign.compensation.corrections import choose_mode, corrections, inverse_corrections
 from campaign.compensation.grid import grid, resample
 from campaign.compensation.predict import predict
 from campaign.errors import InputError
 from campaign.pointtable import parse_points, read_points
+from protocols.compensator import Compensator, table_lookup
 from protocols.plc_contract import CompTable
 from tests.conftest import PAPER, assert_one_line_error
 

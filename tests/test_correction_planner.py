@@ -1,4 +1,4 @@
-"""The motion-planned correction (campaign/compensation/planner.py, the 2024 motion-planning patent)."""
+"""The motion-planned correction (protocols/correction_planner.py, the 2024 motion-planning patent)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import linprog
 
-from campaign.compensation.planner import (
+from protocols.correction_planner import (
     PlannerLimits,
     PlannerState,
     minimum_time,
@@ -168,7 +168,7 @@ def test_st_block_parses_and_mirrors_the_planner_constants():
 
     from blark.parse import parse
 
-    from campaign.compensation.planner import SLACK
+    from protocols.correction_planner import SLACK
 
     path = Path(__file__).resolve().parents[1] / "protocols" / "st" / "FB_AxiscalCompensation.st"
     results = list(parse(path))

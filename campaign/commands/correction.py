@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 
 from campaign.commands import SUMMARY, finite_number, positive_number
-from campaign.compensation.planner import PlannerLimits, minimum_time, plan
 from campaign.errors import InputError
 from campaign.plot import check_plot_path
 from campaign.views import make_console, print_json
+from protocols.correction_planner import PlannerLimits, minimum_time, plan
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

@@ -10,9 +10,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from campaign.compensation.compensator import table_lookup
 from campaign.compensation.corrections import AXIS_UNIT_PER_DEVIATION_UNIT, Corrections
 from campaign.errors import InputError
+from protocols.compensator import table_lookup
 from protocols.plc_contract import CompTable
 
 POINT_LIMITS = {"linuxcnc": 256, "pmac": 256, "twincat_cnc": 1500, "siemens": 1000, "fanuc": 128,

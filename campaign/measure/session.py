@@ -30,16 +30,14 @@ Opened = tuple[Hardware, Any]
 """Open hardware and the simulated machine's parts (None on a real machine)."""
 
 Opener = Callable[..., Opened]
-"""opener(driver_spec, speed=None, model=None, start_position=None, start_time=0.0) -> (Hardware, the
-simulated machine's parts or None). `speed`: N times real time (simulated machine); `model`: its
-error model; `start_position` (axis unit) and `start_time` (s): where and when it starts."""
+"""opener(driver_spec, speed=None, model=None, start_position=None, start_time=0.0, comp=None) ->
+(Hardware, the simulated machine's parts or None). `speed`: N times real time (simulated machine);
+`model`: its error model; `start_position` (axis unit) and `start_time` (s): where and when it
+starts; `comp`: a compensation table (CompTable) written into the controller before it returns."""
 
 SIM_MODEL_FILE = "sim-model.toml"
 """The simulated machine's effective error model, kept in the campaign directory for resume."""
 
-COMP_SEED_OFFSET = 1000
-"""A simulated campaign measured with a compensation table draws its noise from sim.seed + this:
-a new measurement sees new scatter, not the baseline's again."""
 
 
 @dataclass
@@ -150,17 +148,9 @@ def start_campaign(config: Config, out: str | Path | None = None, meta_extra: di
 
 def open_with_comp(opener: Opener, config: Config, comp: CompTable, speed: float | None = None,
                    model: ErrorModel | None = None, start: float | None = None, start_time: float = 0.0) -> Opened:
-    """Open the hardware and write `comp` into the controller (read back, compared, enabled).
-    On the simulated machine the noise is drawn from sim.seed + COMP_SEED_OFFSET."""
-    if config.controller.type == "sim":
-        config = config_with(config, {"sim": {"seed": config.sim.seed + COMP_SEED_OFFSET}})
-    opened = opener(config.driver, speed=speed, model=model, start_position=start, start_time=start_time)
-    try:
-        opened[0].axis.write_comp_table(comp)
-    except BaseException:
-        opened[0].close()
-        raise
-    return opened
+    """Open the hardware with `comp` written into the controller (the opener writes it, reads it
+    back, compares and enables it; a simulated machine also draws new noise, drivers.factory)."""
+    return opener(config.driver, speed=speed, model=model, start_position=start, start_time=start_time, comp=comp)
 
 
 @dataclass

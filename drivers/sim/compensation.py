@@ -2,16 +2,16 @@
 
 Reads the tables from the PLC's own compensation variables (GVL_Axiscal.astComp[n], as the PC
 wrote them over ADS), evaluates them at the NC's commanded position for the direction of motion
-with `campaign.compensation.compensator.Compensator` (the same table lookup, end-zone ramps and planner as the
+with `protocols.compensator.Compensator` (the same table lookup, end-zone ramps and planner as the
 Structured Text), and applies the result as the motor correction (`SimPLC.correction`).
 Positions in axis unit, times in s.
 """
 
 from __future__ import annotations
 
-from campaign.compensation.compensator import Compensator
 from drivers.sim.plc import SimPLC
 from protocols import plc_contract
+from protocols.compensator import Compensator
 from protocols.plc_contract import CompTable
 
 CYCLE_S = 0.002

@@ -5,14 +5,14 @@ Every cycle: pick the table of the direction of motion (keep the last one while 
 look up the correction at the commanded position (linear interpolation between points, end-zone
 ramps to 0 over the overrun L1 beyond either end, 0 further out, 0 when the table is disabled),
 and move the applied correction towards it with the motion planner of
-campaign/compensation/planner.py. All values in axis units (mm or degree) as in the PLC contract.
+protocols/correction_planner.py. All values in axis units (mm or degree) as in the PLC contract.
 """
 
 from __future__ import annotations
 
 import math
 
-from campaign.compensation.planner import PlannerLimits, PlannerState, plan_cycle
+from protocols.correction_planner import PlannerLimits, PlannerState, plan_cycle
 from protocols.plc_contract import CompTable
 
 
