@@ -9,7 +9,7 @@ import pytest
 
 from campaign.config import config_with, parse_config
 from campaign.errors import InputError, SafetyError
-from campaign.measure.executor import Observer
+from campaign.measure.executor import Control, Observer
 from campaign.measure.session import resume_campaign, start_campaign
 from campaign.plan import build_plan
 from campaign.pointtable import read_points
@@ -74,21 +74,20 @@ def test_an_axis_fault_is_retried_and_the_table_is_complete(tmp_path):
     assert axis.halts == 1 and axis.resets == 1
 
 
-class Decides(Observer):
-    def __init__(self, decision):
-        self.decision, self.seen = decision, []
-
-    def fault(self, exc, point):
-        self.seen.append((type(exc).__name__, point))
-        return self.decision
+def operator_answers(*decisions: str) -> Control:
+    """A control channel on which the operator has answered the coming faults."""
+    control = Control(asks_operator=True)
+    for decision in decisions:
+        control.answer(decision)
+    return control
 
 
 def test_a_skipped_point_is_missing_and_the_rest_measured(tmp_path):
     machine = FakeMachine(setup=lambda parts: parts.axis.faults.append(AxisFault(move=4)))
-    observer = Decides("skip")
-    outcome = start_campaign(config(), tmp_path / "c", opener=machine, observer=observer)
+    control = operator_answers("skip")
+    outcome = start_campaign(config(), tmp_path / "c", opener=machine, control=control)
     assert outcome.status == "completed" and outcome.points == 11
-    assert observer.seen == [("AxisError", 2)]
+    assert [(f["point"], f["data"]["error"]) for f in events(tmp_path / "c", "fault")] == [(2, "AxisError")]
     assert [r[0] for r in rows(tmp_path / "c")] == [i for i in range(12) if i != 2]
     assert [e["point"] for e in events(tmp_path / "c", "skip")] == [2]
 
@@ -269,7 +268,7 @@ def test_an_old_directory_whose_config_changed_is_refused(tmp_path):
 
 def test_resume_measures_a_skipped_point_and_the_table_reads_in_plan_order(tmp_path):
     machine = FakeMachine(setup=lambda parts: parts.axis.faults.append(AxisFault(move=4)))
-    first = start_campaign(config(), tmp_path / "c", opener=machine, observer=Decides("skip"))
+    first = start_campaign(config(), tmp_path / "c", opener=machine, control=operator_answers("skip"))
     assert first.status == "completed" and first.points == 11  # completed, one point short
     second = FakeMachine()
     again = resume_campaign(tmp_path / "c", opener=second)
@@ -316,3 +315,39 @@ def test_the_resume_checklist_sees_a_re_zeroed_laser(tmp_path, shift_mm, ok):
         hw.close()
         r.close()
     assert item.ok is ok, item.value
+
+
+def test_one_run_state_machine_from_idle_to_idle_or_stopped(tmp_path, monkeypatch):
+    from campaign.measure.executor import TRANSITIONS, Executor
+
+    seen: list[str] = []
+    enter = Executor._enter
+
+    def spy(self, state):
+        seen.append(state)
+        enter(self, state)
+
+    monkeypatch.setattr(Executor, "_enter", spy)
+    start_campaign(config(), tmp_path / "a", opener=FakeMachine())
+    assert seen[0] == "moving" and seen[-1] == "idle"
+    assert {"moving", "settling", "capturing"} <= set(seen)
+    path = ["idle", *seen]
+    assert all(b == a or b in TRANSITIONS[a] for a, b in zip(path, path[1:]))
+    seen.clear()
+    machine = FakeMachine(setup=lambda parts: parts.axis.faults.append(AxisFault(move=4)))
+    outcome = start_campaign(config(), tmp_path / "b", opener=machine, control=operator_answers("abort"))
+    assert outcome.status == "interrupted" and seen[-2:] == ["faulted", "stopped"]
+
+
+def test_the_operator_answers_through_the_control_channel_and_nothing_else_decides(tmp_path):
+    """A display is a passive sink: an observer cannot answer a fault; the control's answer does."""
+    class Display(Observer):
+        def fault(self, exc, point):  # the old way a display decided: never called now
+            raise AssertionError("a display decided a fault")
+
+    machine = FakeMachine(setup=lambda parts: parts.axis.faults.append(AxisFault(move=4)))
+    outcome = start_campaign(config(), tmp_path / "c", opener=machine, observer=Display(),
+                             control=operator_answers("retry"))
+    assert outcome.status == "completed" and rows(tmp_path / "c") == expected_rows(config())
+    assert [e["point"] for e in events(tmp_path / "c", "retry")] == [2]
+    assert events(tmp_path / "c", "display") == []

@@ -20,6 +20,7 @@ from rich.console import Console
 
 from campaign.commands import SUMMARY, hardware_opener, positive_number
 from campaign.commands.demo import demo_config_text
+from campaign.commands.run import with_on_fault
 from campaign.config import Config, config_with, load_config, parse_config
 from campaign.errors import BAD_INPUT, InputError
 from campaign.guide.checklist import (
@@ -73,6 +74,7 @@ def run(args: argparse.Namespace, on_hardware: Callable[[Hardware, Any], None] |
     """The whole session. `on_hardware(hw, sim)`: called right after the hardware is opened (tests
     use it to inject faults into the simulated machine)."""
     config = load_config(args.config) if args.config else parse_config(demo_config_text(), "demo.toml")
+    config = with_on_fault(config, args)  # --on-fault answers every fault: the executor's one policy
     interactive = sys.stdin.isatty()
     console = Console(stderr=True) if args.json else make_console()
     plan = build_plan(config)
@@ -172,9 +174,10 @@ def on_dashboard(config: Config, plan: Plan, args: argparse.Namespace, opened: O
     `campaign(dashboard, control)`. Keys and Ctrl-C are live throughout; an abort at any point ends
     with the outcome so far; the terminal and SIGINT are restored at the end."""
     hw, _ = opened
-    control = Control()
+    asks = args.on_fault is None and interactive  # else the config's policy (--on-fault is in the config)
+    control = Control(asks_operator=asks)
     with ExitStack() as stack:
-        dashboard = Dashboard(console, config, plan, control, args.on_fault or ("ask" if interactive else None), hw)
+        dashboard = Dashboard(console, config, plan, control, "ask" if asks else None, hw)
         if interactive:
             dashboard.keys = stack.enter_context(Keys(dashboard.on_key))
         stack.enter_context(CtrlC(dashboard, hw))

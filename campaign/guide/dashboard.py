@@ -62,25 +62,27 @@ def error_id_text(error_id: int) -> str:
     return f"{error_id} (0x{error_id:04X})"
 
 
-def describe_fault(exc: Exception) -> str:
-    """A short sentence for the operator: what happened and what to look at."""
-    if isinstance(exc, BeamLost):
-        return f"beam lost ({exc}). Check the beam path and the optics"
-    if isinstance(exc, NotStable):
-        return f"reading not stable ({exc}). Check for vibration or air draught"
-    if isinstance(exc, AxisError) and exc.error_id:
-        return f"axis error {error_id_text(exc.error_id)}: {exc}. Check the drive"
-    if isinstance(exc, AxisError):
-        return f"lost connection to the controller ({exc}). Check the network cable"
-    if isinstance(exc, InstrumentError):
-        return f"lost connection to the interferometer ({exc}). Check its cable"
-    return f"{type(exc).__name__}: {exc}"
+def describe_fault(error: str, error_id: int, detail: str) -> str:
+    """A short sentence for the operator from a fault event (the error's class name, the controller
+    error number, the error's text): what happened and what to look at."""
+    if error == BeamLost.__name__:
+        return f"beam lost ({detail}). Check the beam path and the optics"
+    if error == NotStable.__name__:
+        return f"reading not stable ({detail}). Check for vibration or air draught"
+    if error == AxisError.__name__ and error_id:
+        return f"axis error {error_id_text(error_id)}: {detail}. Check the drive"
+    if error == AxisError.__name__:
+        return f"lost connection to the controller ({detail}). Check the network cable"
+    if error == InstrumentError.__name__:
+        return f"lost connection to the interferometer ({detail}). Check its cable"
+    return f"{error}: {detail}"
 
 
 class Dashboard(Observer):
-    """The campaign on screen. `on_fault`: "ask" (a prompt through `keys`); the fixed answer "retry"
-    (at most campaign.fault_retries times per point, then abort), "skip" or "abort"; or None (the
-    config's own policy, [campaign] on_fault). `hw`: the hardware the campaign runs on.
+    """The campaign on screen, a passive sink of the event stream. `on_fault`: "ask" (the operator
+    answers a fault prompt with a key, which goes to the executor through `control`), or anything
+    else (the executor's FaultPolicy decides, [campaign] on_fault; the dashboard only shows what it
+    did). `hw`: the hardware the campaign runs on.
 
     Points are counted from 1 on screen, like the progress bars; points.csv's `point` column holds
     the plan index (from 0). The ETAs are machine time: the time per point measured so far (pauses
@@ -90,8 +92,6 @@ class Dashboard(Observer):
                  hw: Hardware | None = None, keys: Keys | None = None) -> None:
         self.console, self.plan, self.control, self.on_fault, self.keys = console, plan, control, on_fault, keys
         self.hw, self.tick_s = hw, 1.0 / config.instrument.rate_hz
-        self.max_retries = config.faults.fault_retries
-        self.retries: dict[int, int] = {}
         self.unit = config.axis.unit
         self.dev_unit = deviation_label(self.unit)
         self.runs = config.plan.cycles
@@ -190,6 +190,12 @@ class Dashboard(Observer):
     # -- keys -----------------------------------------------------------------------------------
 
     def on_key(self, key: str) -> None:
+        if self.prompt is not None and key in ("r", "s", "a"):  # the answer to the fault prompt
+            self.prompt = None
+            self.control.answer({"r": "retry", "s": "skip", "a": "abort"}[key])
+            if key == "a":
+                self.state = "ABORTING"
+            return
         if key == "p" and self.state == "RUNNING":
             self.control.request_pause()
             self.state = "PAUSE REQUESTED"
@@ -268,32 +274,36 @@ class Dashboard(Observer):
             self.paused_s += event.t_s - (self.pause_began if self.pause_began is not None else event.t_s)
             self.state, self.pause_began = "RUNNING", None
             self.say("resumed", warning=False)
+        elif kind == "fault":
+            self._fault(event)
+        elif kind in ("retry", "skip"):
+            self._answered(event)
+        elif kind == "resume":
+            self.say(event.message, warning=False)
         elif kind == "stop":
+            self.prompt = None
             self.state = str(event.data.get("status", "stopped")).upper()
         elif kind not in QUIET_KINDS or (kind == "halt" and not event.data.get("ok")):
             self.say(f"{kind}: {event.message}")
 
-    def fault(self, exc: Exception, point: int) -> str | None:
-        text = f"point {point + 1}: {describe_fault(exc)}. The axis is halted."
-        state, self.state = self.state, "FAULT"
+    def _fault(self, event: Event) -> None:
+        """A fault event: the axis is halted. When the operator answers faults (`on_fault` "ask"),
+        show the prompt; the answer goes to the executor through the Control (`on_key`)."""
+        point = event.point if event.point is not None else 0
+        detail = event.message.split(": ", 2)[-1]
+        text = (f"point {point + 1}: {describe_fault(str(event.data.get('error', '')), int(event.data.get('error_id', 0)), detail)}. "
+                "The axis is halted.")
+        self.state = "FAULT"
         self.say(text)
-        decision = self._decide(text, point)
-        self.say(f"fault at point {point + 1}: {decision or 'as the config says ([campaign] on_fault)'}",
-                 warning=False)
-        if decision == "skip":
+        if self.on_fault == "ask" and self.control.asks_operator:
+            self.prompt = f"{text}\nPress r to retry the point, s to skip it (resume measures it later), a to abort."
+
+    def _answered(self, event: Event) -> None:
+        """The executor went on after a fault (a retry or skip event)."""
+        point = event.point if event.point is not None else 0
+        self.prompt = None
+        self.say(f"fault at point {point + 1}: {event.kind}", warning=False)
+        if event.kind == "skip":
             self.skipped.add(point)
             self._update_bars()
-        self.state = state if decision != "abort" else "ABORTING"
-        return decision
-
-    def _decide(self, text: str, point: int) -> str | None:
-        if self.on_fault == "ask" and self.keys is not None:
-            self.prompt = f"{text}\nPress r to retry the point, s to skip it (resume measures it later), a to abort."
-            try:
-                return self.keys.ask({"r": "retry", "s": "skip", "a": "abort"}, self.control)
-            finally:
-                self.prompt = None
-        if self.on_fault == "retry":
-            self.retries[point] = self.retries.get(point, 0) + 1
-            return "retry" if self.retries[point] <= self.max_retries else "abort"
-        return self.on_fault
+        self.state = "RUNNING"

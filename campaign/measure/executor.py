@@ -62,32 +62,69 @@ FAULTS = (AxisError, InstrumentError, BeamLost, NotStable)
 
 
 class Observer:
-    """A display sink: sees every event, the plan at the start and the live readings, and may
-    answer faults. The default does nothing and leaves faults to the config's policy; the CLI
-    shows rich bars, the guided session a dashboard that asks the operator. An exception from an
-    observer never stops the campaign (it is logged once as a `display` event)."""
+    """A display sink, passive: sees every event, the plan at the start and the live readings, and
+    decides nothing (the operator answers through the Control). The CLI shows rich bars, the
+    guided session a dashboard. An exception from an observer never stops the campaign (it is
+    logged once as a `display` event)."""
 
     def started(self, plan: Plan, todo: list[int]) -> None:
         """The executor starts to measure the points `todo` (plan indices, ascending)."""
     def reading(self, t_s: float, reading: Reading, target: float | None) -> None: ...
     def emit(self, event: Event) -> None: ...
 
-    def fault(self, exc: Exception, point: int) -> str | None:
-        """A fault at point `point` (the axis is already halted): "retry", "skip" or "abort"; None
-        leaves it to the config's policy ([campaign] on_fault, fault_retries)."""
-        return None
+
+RUN_STATES = ("idle", "moving", "settling", "capturing", "paused", "faulted", "stopped")
+"""The executor's run states, in `Executor.state`."""
+
+TRANSITIONS: dict[str, frozenset[str]] = {
+    "idle": frozenset({"moving", "stopped"}),
+    "moving": frozenset({"moving", "settling", "capturing", "faulted", "stopped", "idle"}),
+    "settling": frozenset({"capturing", "faulted", "stopped"}),
+    "capturing": frozenset({"moving", "paused", "faulted", "stopped", "idle"}),
+    "paused": frozenset({"moving", "idle", "stopped"}),
+    "faulted": frozenset({"moving", "idle", "stopped"}),
+    "stopped": frozenset(),
+}
+"""Where each run state may go: the one state machine of a run (a point is captured after a move,
+with a settle between when the plan has one; a pause and a fault hold between points; stopped is
+the end)."""
+
+FAULT_ANSWERS = ("retry", "skip", "abort")
 
 
 class Control:
-    """Operator requests, set from another thread (keys, signals): pause between points, abort."""
+    """The one control channel from the operator (keys, signals; set from another thread): pause
+    between points, abort, and the answers to faults. With `asks_operator` the executor waits for
+    an `answer` after a fault; without it the config's FaultPolicy decides."""
 
-    def __init__(self) -> None:
+    def __init__(self, asks_operator: bool = False) -> None:
+        import queue
         import threading
 
         self._pause = threading.Event()
         self._abort = threading.Event()
         self._wake = threading.Event()
+        self._answers: queue.Queue[str] = queue.Queue()
+        self.asks_operator = asks_operator
         self.abort_reason = ""
+
+    def answer(self, decision: str) -> None:
+        """The operator's answer to the fault the executor waits on: retry, skip or abort."""
+        if decision not in FAULT_ANSWERS:
+            raise ValueError(f"a fault is answered with {', '.join(FAULT_ANSWERS)}, not {decision!r}")
+        self._answers.put(decision)
+        self._wake.set()
+
+    def await_answer(self) -> str:
+        """Wait (real time) for the operator's answer; "abort" when an abort is requested meanwhile."""
+        import queue
+
+        while not self.abort_requested():
+            try:
+                return self._answers.get(timeout=0.1)
+            except queue.Empty:
+                continue
+        return "abort"
 
     def pause_requested(self) -> bool:
         return self._pause.is_set()
@@ -170,15 +207,26 @@ class Executor:
         self.readings: list[Reading] = []
         self.captured: Captured | None = None
         self.halted = False
+        self.state = "idle"
         self._display_failed = False
+
+    def _enter(self, state: str) -> None:
+        """Go to run state `state` (RUN_STATES); a transition the state machine does not have is a bug."""
+        if state != self.state and state not in TRANSITIONS[self.state]:
+            raise RuntimeError(f"run state {self.state} cannot go to {state}")
+        self.state = state
 
     def now(self) -> float:
         """Seconds since campaign start."""
         return self.hw.clock.now() - self.t0
 
     def emit(self, kind: str, message: str, point: int | None = None, **data: Any) -> None:
-        """Emit one fact: recorded first (RecordingError propagates), then shown."""
-        event = Event(self.now(), kind, message, point, data)
+        """Emit one fact now: recorded first (RecordingError propagates), then shown."""
+        self.publish(Event(self.now(), kind, message, point, data))
+
+    def publish(self, event: Event) -> None:
+        """The one emitter of a run's events (the executor's own, and the session's resume and stop):
+        recorded first (RecordingError propagates), then shown."""
         self.rec.emit(event)
         self._show(lambda obs: obs.emit(event))
 
@@ -198,8 +246,9 @@ class Executor:
 
     def run(self, todo: int | list[int] = 0) -> None:
         """Measure the points `todo` (plan indices; an int n means n to the end) in plan order. On a
-        fault the observers decide: retry the point, skip it, or abort (CampaignStopped, after
-        halting). Ctrl-C or an abort request halts, flushes and re-raises KeyboardInterrupt."""
+        fault the fault policy decides (`_decide`): retry the point, skip it, or abort
+        (CampaignStopped, after halting). Ctrl-C or an abort request halts, flushes and re-raises
+        KeyboardInterrupt. The run state ends idle (done) or stopped."""
         total = len(self.plan.points)
         points = list(range(todo, total)) if isinstance(todo, int) else sorted(set(todo))
         self._show(lambda obs: obs.started(self.plan, points))
@@ -210,12 +259,15 @@ class Executor:
         try:
             while todo:
                 todo = self._run_points(todo)
+            self._enter("idle")
         except KeyboardInterrupt:
+            self._enter("stopped")
             by = self.control.abort_reason or "Ctrl-C"
             self._emit_safely("interrupt", f"interrupted ({by}); recording flushed", self.next_point, by=by)
             self._halt("interrupted")
             raise
         except RecordingError as exc:  # an event between steps (retry, skip, pause) could not be written
+            self._enter("stopped")
             self._halt("recording failed")
             raise CampaignStopped(f"recording failed: {exc}") from exc
 
@@ -230,6 +282,7 @@ class Executor:
                 try:
                     self._do(step)
                 except RecordingError as exc:
+                    self._enter("stopped")
                     self._emit_safely("fault", f"point {self.next_point + 1}: recording failed: {exc}",
                                       self.next_point, error="RecordingError", error_id=0)
                     self._halt("recording failed")
@@ -244,11 +297,13 @@ class Executor:
     def _after_fault(self, exc: Exception, todo: list[int], total: int) -> list[int]:
         """Halt, let the operator (or the policy) decide, get the axis ready again; the points left."""
         point = self.next_point
+        self._enter("faulted")
         self._emit_safely("fault", f"point {point + 1}: {type(exc).__name__}: {exc}", point,
                           error=type(exc).__name__, error_id=getattr(exc, "error_id", 0))
         self._halt("fault")
         decision = self._decide(exc, total)
         if decision == "abort":
+            self._enter("stopped")
             raise CampaignStopped(str(exc)) from exc
         self._recover(exc)
         if decision == "skip":
@@ -258,16 +313,15 @@ class Executor:
         return [p for p in todo if p >= point]
 
     def _decide(self, exc: Exception, total: int) -> str:
-        """The operator's decision, or without one the config's policy (`campaign.on_fault`): retry
-        a point up to `campaign.fault_retries` times after an axis fault, a lost connection or beam
-        loss, skip it at once (resume measures it later), or abort; a vanished instrument port
-        cannot be retried in this process (resume later)."""
+        """The one fault policy: the operator's answer through the control channel when it asks
+        the operator, else the config's (`campaign.on_fault`): retry a point up to
+        `campaign.fault_retries` times after an axis fault, a lost connection or beam loss (the one
+        retry budget), skip it at once (resume measures it later), or abort; a vanished instrument
+        port cannot be retried in this process (resume later)."""
         if self.next_point >= total:
             return "abort"
-        for obs in self.observers:
-            decision = obs.fault(exc, self.next_point)
-            if decision is not None:
-                return decision
+        if self.control.asks_operator:
+            return self.control.await_answer()
         used = self.retries.get(self.next_point, 0)
         if self.policy.on_fault == "abort" or isinstance(exc, InstrumentError):
             return "abort"
@@ -314,6 +368,7 @@ class Executor:
     def _maybe_pause(self) -> None:
         """Between points: hold while the control asks for a pause; abort when it asks to."""
         if self.control.pause_requested() and not self.control.abort_requested():
+            self._enter("paused")
             self.emit("pause", f"paused after point {self.next_point}: press r to resume, a to abort",
                       self.next_point - 1)
             while self.control.pause_requested() and not self.control.abort_requested():
@@ -342,10 +397,13 @@ class Executor:
 
     def _do(self, step: Step) -> None:
         if isinstance(step, Move):
+            self._enter("moving")
             self._move(step)
         elif isinstance(step, Settle):
+            self._enter("settling")
             self._wait(step.seconds)
         elif isinstance(step, Capture):
+            self._enter("capturing")
             self._capture(step)
         elif isinstance(step, Checkpoint):
             self._checkpoint(step)

@@ -70,7 +70,7 @@ def execute(config: Config, plan: Plan, recorder: Recorder, todo: int | list[int
             speed: float | None = None, model: ErrorModel | None = None, observer: Observer | None = None,
             t_offset: float = 0.0, start: float | None = None,
             on_open: Callable[[Hardware, Any, Executor], None] | None = None, control: Control | None = None,
-            opened: Opened | None = None) -> Outcome:
+            opened: Opened | None = None, announce: Event | None = None) -> Outcome:
     """Measure the points `todo` of `plan` (plan indices; an int n: from n to the end) into
     `recorder`, between a start and a stop record. Re-raises
     KeyboardInterrupt after the axis is halted and the recording flushed. `opened`: a (Hardware,
@@ -88,6 +88,8 @@ def execute(config: Config, plan: Plan, recorder: Recorder, todo: int | list[int
     try:
         if on_open:
             on_open(hardware, sim, executor)
+        if announce is not None:  # e.g. the resume event, through the run's one emitter
+            executor.publish(announce)
         first = todo if isinstance(todo, int) else min(todo)
         recorder.start(executor.now(), first, len(plan.points))
         executor.run(todo)
@@ -109,8 +111,8 @@ def execute(config: Config, plan: Plan, recorder: Recorder, todo: int | list[int
         for failure in hardware.close():
             message = f"{message}; closing: {failure}"
         try:
-            recorder.emit(Event(duration, "stop", f"campaign {status}" + (f": {message}" if message else ""),
-                                None, {"status": status, "points": recorder.points_written}))
+            executor.publish(Event(duration, "stop", f"campaign {status}" + (f": {message}" if message else ""),
+                                   None, {"status": status, "points": recorder.points_written}))
             recorder.stop(duration, status, message)
         except RecordingError as exc:  # e.g. the disk is full: no stop record, resume treats it as interrupted
             message = f"{message}; could not record the stop: {exc}"
@@ -220,19 +222,14 @@ def continue_campaign(r: Resumption, **kwargs: Any) -> Outcome:
         r.recorder.stop(r.t_last, "completed", "nothing left to measure")
         r.recorder.close()
         return Outcome(r.path, "completed", len(r.plan.points), len(r.plan.points), r.t_last, "nothing left to measure")
-    try:
-        text = f"resumed: {len(r.todo)} of {len(r.plan.points)} points to measure, from point {r.todo[0] + 1}"
-        if r.again:
-            text += f"; measured again after a skip: {', '.join(str(i + 1) for i in r.again)}"
-        r.recorder.emit(Event(r.t_last, "resume", text, r.todo[0], {"first_point": r.todo[0], "points": len(r.todo),
-                                                                    "skipped": r.again}))
-    except BaseException:
-        r.recorder.close()
-        if kwargs.get("opened") is not None:
-            kwargs["opened"][0].close()
-        raise
+    text = f"resumed: {len(r.todo)} of {len(r.plan.points)} points to measure, from point {r.todo[0] + 1}"
+    if r.again:
+        text += f"; measured again after a skip: {', '.join(str(i + 1) for i in r.again)}"
+    resumed = Event(r.t_last, "resume", text, r.todo[0], {"first_point": r.todo[0], "points": len(r.todo),
+                                                          "skipped": r.again})
     kwargs.setdefault("model", r.model)
-    return execute(r.config, r.plan, r.recorder, r.todo, t_offset=r.t_last, start=r.position, **kwargs)
+    return execute(r.config, r.plan, r.recorder, r.todo, t_offset=r.t_last, start=r.position, announce=resumed,
+                   **kwargs)
 
 
 def resume_campaign(directory: str | Path, faults: dict | None = None, *, opener: Opener,
