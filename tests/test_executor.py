@@ -3,6 +3,7 @@ table, the event stream, the run records, and what happens on retry, skip, abort
 loss, disk full, Ctrl-C, a failing display, and resume (with an unchanged, an edited and an old
 directory)."""
 
+import itertools
 import json
 
 import pytest
@@ -332,7 +333,7 @@ def test_one_run_state_machine_from_idle_to_idle_or_stopped(tmp_path, monkeypatc
     assert seen[0] == "moving" and seen[-1] == "idle"
     assert {"moving", "settling", "capturing"} <= set(seen)
     path = ["idle", *seen]
-    assert all(b == a or b in TRANSITIONS[a] for a, b in zip(path, path[1:]))
+    assert all(b == a or b in TRANSITIONS[a] for a, b in itertools.pairwise(path))
     seen.clear()
     machine = FakeMachine(setup=lambda parts: parts.axis.faults.append(AxisFault(move=4)))
     outcome = start_campaign(config(), tmp_path / "b", opener=machine, control=operator_answers("abort"))
