@@ -18,7 +18,7 @@ from campaign.errors import InputError
 from campaign.iso230 import STANDARDS, Evaluation, Standard, evaluate
 from campaign.outliers import Outliers, find_outliers
 from campaign.pointtable import PointTable, read_points
-from campaign.record.directory import META_FILE, open_campaign
+from campaign.record import META_FILE, open_campaign
 from campaign.uncertainty import Budget, budget
 from campaign.verdict import Planned, Verdict, completeness, judge
 

@@ -12,7 +12,7 @@ def test_import_contracts_are_kept():
     proc = subprocess.run([str(lint), "--no-cache"], cwd=ROOT, capture_output=True, text=True, timeout=120,
                           check=False)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:]
-    assert "5 kept, 0 broken" in proc.stdout
+    assert "6 kept, 0 broken" in proc.stdout
 
 
 def lint_a_copy(tmp_path, module: str, line: str) -> subprocess.CompletedProcess:
@@ -66,3 +66,9 @@ def test_the_system_layers_list_the_rooms_of_the_exhaustive_contract():
                    if layer.startswith("campaign.")]
     assert in_campaign == rooms
     assert system[-1] == "protocols" and "drivers" in system
+
+
+def test_outside_code_uses_a_room_through_its_public_face(tmp_path):
+    proc = lint_a_copy(tmp_path, "campaign/commands/plan.py", "from campaign.record.recorder import Recorder")
+    assert proc.returncode != 0
+    assert "campaign.commands.plan -> campaign.record.recorder" in proc.stdout

@@ -85,7 +85,7 @@ def campaign_of(path: str) -> tuple[str, str]:
     """The campaign a point table comes from: its directory's name and when it was started
     (meta.json `created`, ISO 8601); for a bare table, the file's name and ""."""
     from campaign.assess import campaign_dir_of
-    from campaign.record.directory import open_campaign
+    from campaign.record import open_campaign
 
     directory = campaign_dir_of(path)
     if directory is None:

@@ -20,7 +20,7 @@ from campaign.faults import parse_inject
 from campaign.measure.executor import Executor
 from campaign.measure.progress import RichProgress
 from campaign.measure.session import resume_campaign, start_campaign
-from campaign.record.directory import read_events
+from campaign.record import read_events
 from protocols.hardware import Hardware
 
 

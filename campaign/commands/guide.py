@@ -23,8 +23,11 @@ from campaign.commands.demo import demo_config_text
 from campaign.commands.run import with_on_fault
 from campaign.config import Config, config_with, load_config, parse_config
 from campaign.errors import BAD_INPUT, InputError
-from campaign.guide.checklist import (
+from campaign.guide import (
     CheckItem,
+    CtrlC,
+    Dashboard,
+    Keys,
     alignment_item,
     checklist_table,
     failures,
@@ -33,8 +36,6 @@ from campaign.guide.checklist import (
     record_item,
     soft_limit_item,
 )
-from campaign.guide.dashboard import Dashboard
-from campaign.guide.keys import CtrlC, Keys
 from campaign.measure.executor import Control
 from campaign.measure.session import (
     Opened,
@@ -44,7 +45,7 @@ from campaign.measure.session import (
 )
 from campaign.model import sim_model
 from campaign.plan import Plan, build_plan
-from campaign.record.directory import open_campaign, recorded_point_indices
+from campaign.record import open_campaign, recorded_point_indices
 from campaign.views import make_console, print_json, summary_table
 from protocols.hardware import AxisError, Hardware, InstrumentError
 from protocols.tables import FORMATS

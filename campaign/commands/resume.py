@@ -61,9 +61,9 @@ def guided(r: Resumption, args: argparse.Namespace) -> int:
     from rich.console import Console
 
     from campaign.commands.guide import conclude, confirm, on_dashboard, open_and_check
-    from campaign.guide.checklist import datum_item, reapproach_item, soft_limit_item
+    from campaign.guide import datum_item, reapproach_item, soft_limit_item
     from campaign.measure.session import continue_campaign
-    from campaign.record.directory import last_reading_offset
+    from campaign.record import last_reading_offset
     from campaign.views import make_console
 
     console = Console(stderr=True) if args.json else make_console()

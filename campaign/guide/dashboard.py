@@ -24,7 +24,7 @@ from campaign.measure.capture import BeamLost, NotStable
 from campaign.measure.executor import Control, Observer
 from campaign.measure.live import live_text
 from campaign.plan import Plan, Point
-from campaign.record.events import Event
+from campaign.record import Event
 from protocols.hardware import AxisError, Hardware, InstrumentError, Reading
 from protocols.units import deviation_label
 

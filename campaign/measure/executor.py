@@ -22,8 +22,7 @@ from campaign.measure.capture import BeamLost, Captured, NotStable, capture_poin
 from campaign.measure.deviation import point_deviation
 from campaign.measure.env_guard import EnvironmentGuard
 from campaign.plan import Capture, Checkpoint, Move, Plan, Settle, Step, check_motion
-from campaign.record.events import Event
-from campaign.record.recorder import Recorder, RecordingError
+from campaign.record import Event, Recorder, RecordingError
 from campaign.specs import AxisSpec
 from protocols.hardware import Axis, AxisError, AxisStatus, Clock, Hardware, InstrumentError, Reading
 from protocols.units import DEVIATION_SCALE, deviation_label

@@ -10,7 +10,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TaskID, TextC
 from campaign.measure.executor import Observer
 from campaign.measure.live import live_text
 from campaign.plan import Plan
-from campaign.record.events import Event
+from campaign.record import Event
 from protocols.hardware import Reading
 
 

@@ -21,7 +21,7 @@ from campaign.measure.capture import BeamLost, Captured, capture_point
 from campaign.measure.deviation import point_deviation
 from campaign.measure.env_guard import EnvironmentGuard
 from campaign.plan import Capture, Plan, capture_at
-from campaign.record.directory import load_raw, open_campaign
+from campaign.record import load_raw, open_campaign
 from campaign.specs import CaptureSpec
 from protocols.hardware import Reading
 from protocols.units import DEVIATION_SCALE

@@ -20,9 +20,14 @@ from campaign.measure.executor import CampaignStopped, Control, Executor, Observ
 from campaign.model import ErrorModel, read_model, sim_model
 from campaign.plan import Plan, build_plan, check_plan, estimate_duration_s, plan_records
 from campaign.pointtable import read_points
-from campaign.record.directory import last_raw_state, open_campaign, recorded_point_indices
-from campaign.record.events import Event
-from campaign.record.recorder import Recorder, RecordingError
+from campaign.record import (
+    Event,
+    Recorder,
+    RecordingError,
+    last_raw_state,
+    open_campaign,
+    recorded_point_indices,
+)
 from protocols.hardware import Hardware, Reading
 from protocols.plc_contract import CompTable
 

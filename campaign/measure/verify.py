@@ -22,7 +22,7 @@ from campaign.measure.session import Opener, Outcome, open_with_comp, start_camp
 from campaign.plan import Plan
 from campaign.plot import draw_evaluation, pyplot
 from campaign.pointtable import PointTable, read_points
-from campaign.record.directory import COMP_FILE, open_campaign
+from campaign.record import COMP_FILE, open_campaign
 from protocols.plc_contract import CompTable
 from protocols.units import DEVIATION_SCALE, unit_label
 

@@ -20,7 +20,7 @@ from pathlib import Path
 from campaign.assess import Assessment, assess_path
 from campaign.errors import InputError
 from campaign.plot import draw_evaluation, pyplot
-from campaign.record.directory import open_campaign
+from campaign.record import open_campaign
 from campaign.report.html import (
     budget_table,
     comparison_table,
