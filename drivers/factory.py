@@ -11,10 +11,11 @@ import random
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from campaign.errors import InputError
-from campaign.model import ErrorModel, sim_model
+from campaign.model import ErrorModel, read_model, sim_model
 from campaign.specs import DriverSpec, plain
 from drivers.ads_axis import AdsAxis
 from drivers.clock import RealClock
@@ -24,19 +25,35 @@ from protocols.plc_contract import CompTable
 
 if TYPE_CHECKING:
     from drivers.sim.ads_server import SimAdsServer
+    from drivers.sim.faults import FaultScheduler
+    from drivers.sim.machine import SimAxisPhysics
     from drivers.sim.plc import SimPLC
+
+
+SIM_MODEL_FILE = "sim-model.toml"
+"""The simulated machine's effective error model, kept in the campaign directory: a resume reopens
+the machine with it (`kept_dir`), whatever the config's model file says by then."""
 
 
 @dataclass
 class SimParts:
-    """The simulated machine's parts, for tests and fault injection."""
+    """The simulated machine's parts, for tests and fault injection. As the machine's state for the
+    session (campaign.measure.session.MachineParts): the files to keep in the campaign directory,
+    and the recorder's disk-full hook for the disk_full fault."""
 
     clock: object
     plc: object
     server: object
     instrument: object
-    physics: object
-    faults: object = None
+    physics: SimAxisPhysics
+    faults: FaultScheduler | None = None
+
+    def kept_files(self) -> dict[str, str]:
+        return {SIM_MODEL_FILE: self.physics.model.to_toml()}
+
+    def bind_recorder(self, inject_disk_full: Callable[[], None]) -> None:
+        if self.faults is not None:
+            self.faults.on_disk_full = inject_disk_full
 
 
 COMP_SEED_OFFSET = 1000
@@ -46,12 +63,16 @@ new measurement sees new scatter, not the baseline's again."""
 
 def open_hardware(spec: DriverSpec, speed: float | None = None, model: ErrorModel | None = None,
                   start_position: float | None = None, start_time: float = 0.0, comp: CompTable | None = None,
-                  ) -> tuple[Hardware, SimParts | None]:
+                  kept_dir: Path | None = None) -> tuple[Hardware, SimParts | None]:
     """Open the axis, instrument and clock `spec` names. For the simulated machine also return
     its parts. `speed` overrides `sim.speed`; `model` overrides the config's error model;
     `start_position` (axis unit) and `start_time` (s) are where and when the simulated machine
     starts (a resumed campaign continues where it stopped); `comp`: a compensation table written
-    into the controller (read back, compared, enabled) before this returns."""
+    into the controller (read back, compared, enabled) before this returns; `kept_dir`: a campaign
+    directory whose kept files (SimParts.kept_files: the simulated machine's model) reopen the
+    same machine."""
+    if model is None and kept_dir is not None and (kept_dir / SIM_MODEL_FILE).is_file():
+        model = read_model(kept_dir / SIM_MODEL_FILE)
     opened = _open(spec, speed, model, start_position, start_time, comp is not None)
     if comp is not None:
         try:
@@ -83,7 +104,6 @@ def _open_linuxcnc(spec: DriverSpec, model: ErrorModel | None) -> tuple[Hardware
     """A headless LinuxCNC (with `axis_driver.comp_file` loaded by its own COMP_FILE loader), its
     axis over linuxcncrsh, and the simulated laser reading the joint's motor position from HAL
     through the error model, on the wall clock (LinuxCNC runs in real time)."""
-    from pathlib import Path
 
     from drivers.clock import ListenedClock
     from drivers.linuxcnc.axis import LinuxCncAxis, LinuxCncShell

@@ -174,7 +174,8 @@ class FakeMachine:
         self.setup = setup
         self.openings: list[FakeParts] = []
 
-    def __call__(self, spec: DriverSpec, speed=None, model=None, start_position=None, start_time=0.0, comp=None):
+    def __call__(self, spec: DriverSpec, speed=None, model=None, start_position=None, start_time=0.0, comp=None,
+                 kept_dir=None):
         clock = FakeClock(start_time)
         start = start_position if start_position is not None else spec.start_position
         axis = FakeAxis(clock, start)

@@ -43,7 +43,6 @@ from campaign.measure.session import (
     default_out_dir,
     start_campaign,
 )
-from campaign.model import sim_model
 from campaign.plan import Plan, build_plan
 from campaign.record import open_campaign, recorded_point_indices
 from campaign.views import make_console, print_json, summary_table
@@ -92,8 +91,7 @@ def run(args: argparse.Namespace, on_hardware: Callable[[Hardware, Any], None] |
     if failures(offline):
         console.print(checklist_table(offline))
         stop_on(failures(offline)[0])
-    model = sim_model(config.sim) if config.controller.type == "sim" else None
-    opened = open_and_check(lambda: hardware_opener()(config.driver, speed=args.speed, model=model), config, offline,
+    opened = open_and_check(lambda: hardware_opener()(config.driver, speed=args.speed), config, offline,
                             console, interactive, on_hardware)
     try:
         lo, hi = plan.ends()
@@ -101,7 +99,7 @@ def run(args: argparse.Namespace, on_hardware: Callable[[Hardware, Any], None] |
         confirm(args, console, interactive, f"alignment check to {hi:g} {unit} and back to {lo:g} {unit}, then the "
                                             f"campaign ({len(plan.points)} points)")
         outcome = on_dashboard(config, plan, args, opened, console, interactive, out,
-                               lambda dashboard, control: start_campaign(config, out, speed=args.speed, model=model,
+                               lambda dashboard, control: start_campaign(config, out, speed=args.speed,
                                                                          observer=dashboard, control=control,
                                                                          opened=opened),
                                before=lambda control, keys: check_alignment(opened[0], plan, config, control,

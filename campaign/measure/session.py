@@ -11,13 +11,13 @@ import datetime as dt
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 from campaign.config import Config, config_with, recorded_sections
 from campaign.errors import CampaignInterrupted, InputError
 from campaign.iso230 import Evaluation, evaluate
 from campaign.measure.executor import CampaignStopped, Control, Executor, Observer
-from campaign.model import ErrorModel, read_model, sim_model
+from campaign.model import ErrorModel
 from campaign.plan import Plan, build_plan, check_plan, estimate_duration_s, plan_records
 from campaign.pointtable import read_points
 from campaign.record import (
@@ -35,13 +35,24 @@ Opened = tuple[Hardware, Any]
 """Open hardware and the simulated machine's parts (None on a real machine)."""
 
 Opener = Callable[..., Opened]
-"""opener(driver_spec, speed=None, model=None, start_position=None, start_time=0.0, comp=None) ->
-(Hardware, the simulated machine's parts or None). `speed`: N times real time (simulated machine);
-`model`: its error model; `start_position` (axis unit) and `start_time` (s): where and when it
-starts; `comp`: a compensation table (CompTable) written into the controller before it returns."""
+"""opener(driver_spec, speed=None, model=None, start_position=None, start_time=0.0, comp=None,
+kept_dir=None) -> (Hardware, the machine's parts or None, see MachineParts). `speed`: N times real
+time (simulated machine); `model`: its error model (default: the spec's, or the one kept in
+`kept_dir`); `start_position` (axis unit) and `start_time` (s): where and when it starts; `comp`: a
+compensation table (CompTable) written into the controller before it returns; `kept_dir`: the
+campaign directory holding the files the machine kept there (a resume reopens the same machine)."""
 
-SIM_MODEL_FILE = "sim-model.toml"
-"""The simulated machine's effective error model, kept in the campaign directory for resume."""
+
+
+@runtime_checkable
+class MachineParts(Protocol):
+    """What an opened machine's parts (the second of `Opened`) may offer the session: files to keep
+    in the campaign directory, so that a resume reopens the same machine (the opener reads them
+    back from `kept_dir`), and a hook for the recorder's disk-full fault injection. The simulated
+    machine has both (drivers.factory.SimParts); a real machine has no parts."""
+
+    def kept_files(self) -> dict[str, str]: ...
+    def bind_recorder(self, inject_disk_full: Callable[[], None]) -> None: ...
 
 
 
@@ -83,16 +94,20 @@ def execute(config: Config, plan: Plan, recorder: Recorder, todo: int | list[int
     if opened is None:
         if opener is None:
             raise ValueError("execute: give an opener or opened hardware")
-        opened = opener(config.driver, speed=speed, model=model, start_position=start, start_time=t_offset)
-    hardware, sim = opened
+        opened = opener(config.driver, speed=speed, model=model, start_position=start, start_time=t_offset,
+                        kept_dir=recorder.dir)
+    hardware, parts = opened
     executor = Executor(plan, config, hardware, recorder, [observer] if observer else [],
                         t0=hardware.clock.now() - t_offset, control=control)
-    if getattr(sim, "faults", None) is not None:
-        sim.faults.on_disk_full = recorder.inject_disk_full
+    if isinstance(parts, MachineParts):
+        parts.bind_recorder(recorder.inject_disk_full)
+        for name, text in parts.kept_files().items():
+            if not (recorder.dir / name).exists():
+                (recorder.dir / name).write_text(text, encoding="utf-8")
     status, message = "failed", "stopped by an unexpected error"
     try:
         if on_open:
-            on_open(hardware, sim, executor)
+            on_open(hardware, parts, executor)
         if announce is not None:  # e.g. the resume event, through the run's one emitter
             executor.publish(announce)
         first = todo if isinstance(todo, int) else min(todo)
@@ -134,8 +149,6 @@ def start_campaign(config: Config, out: str | Path | None = None, meta_extra: di
     The other keywords go to `execute` (`opener` or `opened` is required)."""
     plan = build_plan(config)
     check_plan(plan, config.axis)
-    if config.controller.type == "sim" and kwargs.get("model") is None:
-        kwargs["model"] = sim_model(config.sim)
     directory = Path(out) if out else default_out_dir(config)
     meta = {**campaign_meta(config, plan), **(meta_extra or {})}
     try:
@@ -146,18 +159,17 @@ def start_campaign(config: Config, out: str | Path | None = None, meta_extra: di
         if kwargs.get("opened") is not None:
             kwargs["opened"][0].close()
         raise
-    if kwargs.get("model") is not None:
-        (directory / SIM_MODEL_FILE).write_text(kwargs["model"].to_toml(), encoding="utf-8")
     if on_created is not None:
         on_created(directory)
     return execute(config, plan, recorder, 0, **kwargs)
 
 
 def open_with_comp(opener: Opener, config: Config, comp: CompTable, speed: float | None = None,
-                   model: ErrorModel | None = None, start: float | None = None, start_time: float = 0.0) -> Opened:
+                   start: float | None = None, start_time: float = 0.0, kept_dir: Path | None = None) -> Opened:
     """Open the hardware with `comp` written into the controller (the opener writes it, reads it
     back, compares and enables it; a simulated machine also draws new noise, drivers.factory)."""
-    return opener(config.driver, speed=speed, model=model, start_position=start, start_time=start_time, comp=comp)
+    return opener(config.driver, speed=speed, start_position=start, start_time=start_time, comp=comp,
+                  kept_dir=kept_dir)
 
 
 @dataclass
@@ -175,17 +187,16 @@ class Resumption:
     t_last: float
     position: float | None
     recorder: Recorder
-    model: ErrorModel | None = None
     comp: CompTable | None = None
 
     def open(self, opener: Opener, speed: float | None = None) -> Opened:
         """The hardware to continue on: a simulated machine starts where and when the campaign
-        stopped, with its recorded model; a campaign measured with compensation gets its table
+        stopped, with the files it kept (MachineParts); a campaign measured with compensation gets its table
         written again first."""
         if self.comp is not None:
-            return open_with_comp(opener, self.config, self.comp, speed, self.model, self.position, self.t_last)
-        return opener(self.config.driver, speed=speed, model=self.model, start_position=self.position,
-                      start_time=self.t_last)
+            return open_with_comp(opener, self.config, self.comp, speed, self.position, self.t_last, self.path)
+        return opener(self.config.driver, speed=speed, start_position=self.position, start_time=self.t_last,
+                      kept_dir=self.path)
 
     def close(self) -> None:
         self.recorder.close()
@@ -211,9 +222,8 @@ def prepare_resume(directory: str | Path, faults: dict | None = None) -> Resumpt
         todo = missing_points(path, plan)
         t_last, position = last_raw_state(path)
         last_done = max(set(range(len(plan.points))) - set(todo), default=-1)
-        model = read_model(path / SIM_MODEL_FILE) if (path / SIM_MODEL_FILE).exists() else None
         return Resumption(path, config, plan, todo, [i for i in todo if i < last_done], t_last, position, recorder,
-                          model, campaign.comp_table())
+                          campaign.comp_table())
     except BaseException:
         recorder.close()
         raise
@@ -232,7 +242,6 @@ def continue_campaign(r: Resumption, **kwargs: Any) -> Outcome:
         text += f"; measured again after a skip: {', '.join(str(i + 1) for i in r.again)}"
     resumed = Event(r.t_last, "resume", text, r.todo[0], {"first_point": r.todo[0], "points": len(r.todo),
                                                           "skipped": r.again})
-    kwargs.setdefault("model", r.model)
     return execute(r.config, r.plan, r.recorder, r.todo, t_offset=r.t_last, start=r.position, announce=resumed,
                    **kwargs)
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from campaign.faults import Fault
 
 
@@ -14,7 +16,7 @@ class FaultScheduler:
     def __init__(self, faults: list[Fault], plc, server, instrument, physics):
         self.faults = faults
         self.plc, self.server, self.instrument, self.physics = plc, server, instrument, physics
-        self.on_disk_full = None
+        self.on_disk_full: Callable[[], None] | None = None
         self.log: list[tuple[float, str, str]] = []
 
     def tick(self, t: float) -> None:
