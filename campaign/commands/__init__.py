@@ -11,7 +11,7 @@ import math
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # the session module is heavy: not imported for `axiscal --help`
-    from campaign.measure.session import Opener
+    from campaign.measure import Opener
 
 SUMMARY = {
     "analyze": "evaluate a point table to ISO 230-2 (or VDI 3441)",

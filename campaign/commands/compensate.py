@@ -161,7 +161,7 @@ def write_plc(args: argparse.Namespace, ctable: ControllerTable, console: Consol
     """TwinCAT (a): the tables into the PLC's compensation variables over ADS, read back, compared."""
     from campaign.commands import hardware_opener
     from campaign.config import load_config
-    from campaign.measure.verify import correction_limits
+    from campaign.measure import correction_limits
 
     config = load_config(args.write_plc)
     if ctable.kind != config.axis.kind:

@@ -17,9 +17,7 @@ from campaign.commands.run import add_run_options, finish, run_config, with_on_f
 from campaign.config import Config, parse_config
 from campaign.errors import InputError
 from campaign.faults import parse_inject
-from campaign.measure.executor import Executor
-from campaign.measure.progress import RichProgress
-from campaign.measure.session import resume_campaign, start_campaign
+from campaign.measure import Executor, RichProgress, resume_campaign, start_campaign
 from campaign.record import read_events
 from protocols.hardware import Hardware
 

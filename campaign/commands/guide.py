@@ -36,8 +36,8 @@ from campaign.guide import (
     record_item,
     soft_limit_item,
 )
-from campaign.measure.executor import Control
-from campaign.measure.session import (
+from campaign.measure import (
+    Control,
     Opened,
     Outcome,
     default_out_dir,

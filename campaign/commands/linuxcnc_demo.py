@@ -18,8 +18,7 @@ from campaign.config import Config, parse_config
 from campaign.convert import write_whole
 from campaign.errors import InputError
 from campaign.iso230 import evaluate
-from campaign.measure.progress import RichProgress
-from campaign.measure.session import Outcome, start_campaign
+from campaign.measure import Outcome, RichProgress, start_campaign
 from campaign.pointtable import read_points
 from campaign.views import make_console, print_json
 from protocols.tables import FormatOptions, render

@@ -12,7 +12,7 @@ from rich.table import Table
 from campaign.commands import SUMMARY, positive_number
 from campaign.errors import InputError
 from campaign.iso230 import evaluate
-from campaign.measure.replay import replay
+from campaign.measure import replay_campaign
 from campaign.pointtable import PointTable, read_points
 from campaign.views import fmt, make_console, print_json
 from protocols.units import unit_label
@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     if not (directory / "meta.json").is_file():
         raise InputError(f"{directory}: not a campaign directory (no meta.json)")
     recorded = read_points(directory / "points.csv")
-    capture, _, points = replay(directory, overrides, args.speed)
+    capture, _, points = replay_campaign(directory, overrides, args.speed)
     if "point" not in recorded.extra:
         raise InputError(f"{directory / 'points.csv'}: no 'point' column: not recorded by axiscal")
     rec_dev = {int(i): float(d) for i, d in zip(recorded.extra["point"], recorded.deviation)}

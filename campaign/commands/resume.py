@@ -14,7 +14,7 @@ import sys
 
 from campaign.commands import SUMMARY, hardware_opener, positive_number
 from campaign.commands.run import add_on_fault_option, finish, with_on_fault
-from campaign.measure.session import Resumption
+from campaign.measure import Resumption
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -33,7 +33,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from campaign.measure.session import continue_campaign, prepare_resume
+    from campaign.measure import continue_campaign, prepare_resume
     from campaign.plot import check_plot_path
 
     if args.plot:
@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     r.config = with_on_fault(r.config, args)
     if not args.yes and sys.stdin.isatty() and r.todo:
         return guided(r, args)
-    from campaign.measure.progress import RichProgress
+    from campaign.measure import RichProgress
 
     if not r.todo:
         return finish(continue_campaign(r), args)
@@ -62,7 +62,7 @@ def guided(r: Resumption, args: argparse.Namespace) -> int:
 
     from campaign.commands.guide import conclude, confirm, on_dashboard, open_and_check
     from campaign.guide import datum_item, reapproach_item, soft_limit_item
-    from campaign.measure.session import continue_campaign
+    from campaign.measure import continue_campaign
     from campaign.record import last_reading_offset
     from campaign.views import make_console
 

@@ -7,8 +7,7 @@ import argparse
 from campaign.commands import SUMMARY, hardware_opener, positive_number
 from campaign.config import Config, config_with, load_config
 from campaign.errors import InputError
-from campaign.measure.progress import RichProgress
-from campaign.measure.session import Outcome, dry_run, start_campaign
+from campaign.measure import Outcome, RichProgress, dry_run, start_campaign
 from campaign.plot import check_plot_path, plot_evaluation
 from campaign.views import make_console, print_evaluation, print_json
 from protocols.hardware import AxisError, InstrumentError

@@ -13,9 +13,15 @@ from campaign.commands.run import add_run_options, finish, with_on_fault
 from campaign.compensation.table_file import read_comp_provenance, read_comp_table
 from campaign.config import load_config
 from campaign.errors import InputError
-from campaign.measure.progress import RichProgress
-from campaign.measure.session import default_out_dir
-from campaign.measure.verify import SUMMARY_KEYS, baseline_points, run_verification, table_fits, write_report
+from campaign.measure import (
+    SUMMARY_KEYS,
+    RichProgress,
+    baseline_points,
+    default_out_dir,
+    run_verification,
+    table_fits,
+    write_report,
+)
 from campaign.plan import build_plan, check_plan
 from campaign.plot import check_plot_path
 from campaign.views import fmt, make_console

@@ -17,7 +17,7 @@ from rich.table import Table
 
 from campaign.config import Config
 from campaign.errors import SafetyError
-from campaign.measure.executor import Control, move_and_wait
+from campaign.measure import Control, move_and_wait
 from campaign.plan import Plan, check_motion, check_plan, estimate_duration_s
 from protocols.hardware import AxisError, Hardware, InstrumentError, Reading
 

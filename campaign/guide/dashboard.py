@@ -20,9 +20,7 @@ from rich.table import Table
 
 from campaign.config import Config
 from campaign.guide.keys import Keys
-from campaign.measure.capture import BeamLost, NotStable
-from campaign.measure.executor import Control, Observer
-from campaign.measure.live import live_text
+from campaign.measure import BeamLost, Control, NotStable, Observer, live_text
 from campaign.plan import Plan, Point
 from campaign.record import Event
 from protocols.hardware import AxisError, Hardware, InstrumentError, Reading

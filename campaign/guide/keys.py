@@ -19,7 +19,7 @@ from collections.abc import Callable
 from types import FrameType
 from typing import TYPE_CHECKING, Self
 
-from campaign.measure.executor import Control
+from campaign.measure import Control
 from protocols.hardware import Hardware
 
 if TYPE_CHECKING:
