@@ -33,7 +33,7 @@ def run(args) -> int:
         raise InputError(f"--still-tolerance: must be a positive number, found {args.still_tolerance:g}")
     config = load_config(args.config)
     plan = build_plan(config)
-    stream = read_stream(args.stream, config["axis"]["unit"])
+    stream = read_stream(args.stream, config.axis.unit)
     result = extract_points(stream, plan, config, args.still_tolerance)
     out = Path(args.output)
     try:

@@ -128,13 +128,13 @@ def simulate_campaign(config: Config, model: ErrorModel, seed: int = 1, dwell_ji
     environment columns when `environment` is given (each point's log: the value at the middle of
     its capture window), and `meta["sample_period_s"]`.
     """
-    if config["capture"]["method"] != "dwell":
+    if config.capture.method != "dwell":
         raise ValueError("simulate_campaign models the dwell capture method only")
     plan = build_plan(config)
     rng = np.random.default_rng(seed)
-    accel = config["axis"]["max_acceleration"]
-    period = 1.0 / config["instrument"]["rate_hz"]
-    dwell = config["plan"]["dwell_s"]
+    accel = config.axis.max_acceleration
+    period = 1.0 / config.instrument.rate_hz
+    dwell = config.plan.dwell_s
     n_points = len(plan.points)
     if dwells_s is None:
         dwells_s = list(dwell * rng.uniform(1 - dwell_jitter, 1 + dwell_jitter, n_points))
@@ -171,8 +171,8 @@ def simulate_campaign(config: Config, model: ErrorModel, seed: int = 1, dwell_ji
             noisy = values + (rng.normal(0.0, environment.log_sigma, len(values)) if environment.log_sigma else 0.0)
             optional[name] = np.round(noisy, 4)
     return PointTable(
-        kind=config["axis"]["kind"], run=run.astype(int), direction=direction.astype(int),
+        kind=config.axis.kind, run=run.astype(int), direction=direction.astype(int),
         target=target.astype(float), deviation=deviation,
         optional=optional,
-        meta={SAMPLE_PERIOD_META: f"{period:g}", "plan_seed": str(config["plan"]["seed"])},
+        meta={SAMPLE_PERIOD_META: f"{period:g}", "plan_seed": str(config.plan.seed)},
         source="<simulated>")

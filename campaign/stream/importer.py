@@ -244,11 +244,11 @@ def assign_dwells(stream: Stream, dwells: Dwells, positions: np.ndarray, plan: P
 def extract_points(stream: Stream, plan: Plan, config: Config, still_tolerance: float) -> StreamImport:
     """Segment the stream, match it to the plan and capture each point. `still_tolerance` in the
     deviation unit (µm or arcsec)."""
-    unit, kind = config["axis"]["unit"], config["axis"]["kind"]
+    unit, kind = config.axis.unit, config.axis.kind
     tolerance = still_tolerance / SCALE[unit]  # axis unit
-    dwells = find_dwells(stream.time, stream.reading, tolerance, config["plan"]["dwell_s"])
-    dwells = still_ends(stream.time, stream.reading, dwells, config["plan"]["dwell_s"], tolerance)
-    lo, hi = capture_windows(stream, dwells, config["capture"]["average_s"])
+    dwells = find_dwells(stream.time, stream.reading, tolerance, config.plan.dwell_s)
+    dwells = still_ends(stream.time, stream.reading, dwells, config.plan.dwell_s, tolerance)
+    lo, hi = capture_windows(stream, dwells, config.capture.average_s)
     positions = _window_means(stream.reading, lo, hi) if len(lo) else np.zeros(0)
     assigned, overruns, ignored = assign_dwells(stream, dwells, positions, plan, unit)
     pick = np.array(assigned, dtype=int)
@@ -259,7 +259,7 @@ def extract_points(stream: Stream, plan: Plan, config: Config, still_tolerance: 
         optional[name] = _window_means(values, lo, hi)[pick]
     optional["reading"] = positions[pick]
     optional["samples"] = (hi - lo)[pick].astype(float)
-    meta = {"machine": config["campaign"]["machine"], "axis": config["axis"]["name"],
+    meta = {"machine": config.campaign.machine, "axis": config.axis.name,
             "plan_seed": str(plan.seed), "source": stream.source}
     table = PointTable(kind=kind, run=np.array([p.run for p in points]),
                        direction=np.array([p.direction for p in points]), target=target,

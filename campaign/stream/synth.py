@@ -22,7 +22,7 @@ if TYPE_CHECKING:
 
 def _stops(plan: Plan, config: Config, overrun_dwell_s: float, skip_point: int | None):
     """(position, dwell s, point index or -1) per move endpoint; `skip_point` gets no stop at all."""
-    dwell = config["plan"]["dwell_s"]
+    dwell = config.plan.dwell_s
     stops = [[s.position, dwell, s.point.index] if s.point else [s.position, overrun_dwell_s, -1]
              for s in plan.stops()]
     return [s for s in stops if s[2] != skip_point or skip_point is None]
@@ -50,7 +50,7 @@ def synthetic_stream(plan: Plan, config: Config, rate_hz: float, seed: int = 0, 
     import pandas as pd
 
     rng = np.random.default_rng(seed)
-    velocity, accel = config["plan"]["velocity"], config["axis"]["max_acceleration"]
+    velocity, accel = config.plan.velocity, config.axis.max_acceleration
     stops = _stops(plan, config, overrun_dwell_s, skip_point)
     positions = np.array([plan.targets[0]] + [s[0] for s in stops])
     moves = np.array([move_time_s(b - a, velocity, accel) for a, b in itertools.pairwise(positions)])
@@ -75,5 +75,5 @@ def synthetic_stream(plan: Plan, config: Config, rate_hz: float, seed: int = 0, 
     truth = np.full(len(plan.points), np.nan)
     measured = np.array([s[2] for s in stops])
     truth[measured[measured >= 0]] = error[measured >= 0]
-    column = "reading_mm" if config["axis"]["unit"] == "mm" else "reading_deg"
+    column = "reading_mm" if config.axis.unit == "mm" else "reading_deg"
     return pd.DataFrame({"time_s": t, column: reading}), truth
