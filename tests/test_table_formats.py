@@ -97,6 +97,15 @@ def test_siemens_hand_worked():
         render("siemens", BI)
 
 
+def test_siemens_never_writes_minus_zero():
+    """A zero correction (0.0 negated is -0.0) and one under half a nanometre are written 0.000000."""
+    tiny = ControllerTable("linear", 0.0, 10.0, np.array([0.0, 4e-4, -1.0]), np.array([0.0, 4e-4, -1.0]),
+                           np.array([0.0, 4e-4, -1.0]), "uni", 0.0, reference=0.0)
+    out = render("siemens", tiny, FormatOptions(axis_name="AX1"))
+    assert "$AA_ENC_COMP[0,0,AX1]=0.000000" in out.text and "$AA_ENC_COMP[0,1,AX1]=0.000000" in out.text
+    assert "$AA_ENC_COMP[0,2,AX1]=0.001000" in out.text and "-0.000000" not in out.text + "".join(out.notes)
+
+
 def test_fanuc_unidirectional_hand_worked():
     # detection unit 1 µm (1000 per mm): cumulative [-6, 2, 1] -> increments [0, 8, -1];
     # reference at point 0, interval 10 mm = 10000; backlash 1851 = -B̄ = -2

@@ -19,6 +19,13 @@ MAX_POINTS = {"840d": 5000, "828d": 5000, "808d": 200}
 DEFAULT_CONTROL = "840d"
 
 
+def _mm(value: float) -> str:
+    """`value` in mm (deg) with 6 decimals; a value that rounds to zero is written 0.000000, never
+    -0.000000 (a correction of -0.4 nm, or -0.0)."""
+    text = f"{value:.6f}"
+    return "0.000000" if text == "-0.000000" else text
+
+
 def render(table, options: FormatOptions) -> Rendered:
     control = options.control or DEFAULT_CONTROL
     if control not in MAX_POINTS:
@@ -31,16 +38,16 @@ def render(table, options: FormatOptions) -> Rendered:
     axis = options.axis_name
     f = table.unit_factor
     lines = ["%_N_AX_EEC_INI", *provenance_lines(options, "; "), "CHANDATA(1)"]
-    lines += [f"$AA_ENC_COMP[0,{i},{axis}]={-c * f:.6f}" for i, c in enumerate(table.common)]
-    lines += [f"$AA_ENC_COMP_STEP[0,{axis}]={table.spacing:.6f}",
-              f"$AA_ENC_COMP_MIN[0,{axis}]={table.positions[0]:.6f}",
-              f"$AA_ENC_COMP_MAX[0,{axis}]={table.positions[-1]:.6f}",
+    lines += [f"$AA_ENC_COMP[0,{i},{axis}]={_mm(-c * f)}" for i, c in enumerate(table.common)]
+    lines += [f"$AA_ENC_COMP_STEP[0,{axis}]={_mm(table.spacing)}",
+              f"$AA_ENC_COMP_MIN[0,{axis}]={_mm(table.positions[0])}",
+              f"$AA_ENC_COMP_MAX[0,{axis}]={_mm(table.positions[-1])}",
               f"$AA_ENC_COMP_IS_MODULO[0,{axis}]=0", "M17"]
     notes = [f"MD38000 MM_ENC_COMP_MAX_POINTS >= {len(table.common)}", "MD32700 ENC_COMP_ENABLE = 1"]
     if table.reference is None:
         notes.append("the manual recommends 0 at the reference point: give --reference (the reference position)")
     if table.backlash is not None:
-        notes.append(f"MD32450 BACKLASH = {-table.backlash * f:.6f} (lost motion = -B̄)")
+        notes.append(f"MD32450 BACKLASH = {_mm(-table.backlash * f)} (lost motion = -B̄)")
     return Rendered("\n".join(lines) + "\n", notes)
 
 
