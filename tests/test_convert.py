@@ -110,6 +110,31 @@ def test_a_unidirectional_rtl(cli, tmp_path):
     assert "Flags: 0 1 2 0" in (tmp_path / "u2.rtl").read_text()
 
 
+def test_an_rtl_from_a_table_without_a_date_says_so(cli, tmp_path):
+    """A bare table with no `# date:` gives 'Date: not recorded' (it gave an empty 'Date:') and a
+    warning; read back, no date is invented."""
+    rtl = ("HEADER::\nTARGET DATA::\nTarget-count: 3\nTargets :\n0 50 100\nFlags: 0 1 2 0\nRUNS::\nRun-count: 2\n"
+           "DEVIATIONS::\nRun Target Data:\n1 1 0.0\n1 2 2.0\n1 3 4.0\n2 1 1.0\n2 2 3.0\n2 3 5.0\nEOF::")
+    (tmp_path / "u.rtl").write_text(rtl)
+    assert cli("convert", tmp_path / "u.rtl", "-o", tmp_path / "u.csv").code == 0
+    said = cli("convert", tmp_path / "u.csv", "-o", tmp_path / "u2.rtl")
+    assert said.code == 0 and "no measurement date" in " ".join(said.out.split())
+    assert "Date: not recorded" in (tmp_path / "u2.rtl").read_text().splitlines()
+    back = cli("convert", tmp_path / "u2.rtl", "-o", tmp_path / "u3.csv", "--json")
+    assert back.code == 0 and "date" not in json.loads(back.out)["meta"]
+
+
+def test_an_rtl_from_a_campaign_directory_carries_the_day_it_was_started(cli, tmp_path):
+    directory = tmp_path / "c"
+    directory.mkdir()
+    (directory / "meta.json").write_text(json.dumps({"format_version": 2, "created": "2026-03-02T08:15:00+00:00"}))
+    rows = "".join(f"{r},{d},{t},{e}\n" for r in (1, 2) for d, sign in (("+", 1), ("-", -1))
+                   for t, e in ((0.0, 1.0 * sign), (50.0, 2.0), (100.0, 3.0)))
+    (directory / "points.csv").write_text("run,direction,target_mm,deviation_um\n" + rows)
+    assert cli("convert", directory / "points.csv", "-o", tmp_path / "c.rtl").code == 0
+    assert "Date: 2026-03-02" in (tmp_path / "c.rtl").read_text().splitlines()
+
+
 def hand_ecmc(targets, fwd, bwd) -> str:
     """An ecmc file from the description: readings (mm) per target i and cycle j, 1-based."""
     lines = ["# Input data file for ISO230-2 calcs", "REF_PV=IOC_TEST:m0s005-Enc01-PosAct",

@@ -4,9 +4,10 @@ program's measurement file to a point table, or back (Renishaw .rtl, ecmc *_ISO2
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
-from campaign.assess import completeness
+from campaign.assess import campaign_dir_of, completeness
 from campaign.commands import SUMMARY
 from campaign.convert import FORMATS, format_of, read_any, render_any, write_whole
 from campaign.errors import InputError
@@ -28,11 +29,31 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.set_defaults(func=run)
 
 
+def campaign_started(path: str) -> str:
+    """The day (YYYY-MM-DD) the campaign a point table comes from was started (its directory's
+    meta.json `created`); "" for a bare table or a directory that does not say."""
+    from campaign.record import open_campaign
+
+    directory = campaign_dir_of(path)
+    if directory is None:
+        return ""
+    try:
+        return str(open_campaign(directory).meta.get("created", ""))[:10]
+    except (InputError, OSError, ValueError):
+        return ""
+
+
 def run(args: argparse.Namespace) -> int:
     source, target = format_of(args.input, args.source_format), format_of(args.output, args.target_format)
     if Path(args.input).resolve() == Path(args.output).resolve():
         raise InputError(f"{args.output}: the output would overwrite the input")
     table = read_any(args.input, source, args.kind)
+    undated = "date" not in table.meta
+    if undated:
+        measured = campaign_started(args.input)
+        if measured:
+            table = dataclasses.replace(table, meta={**table.meta, "date": measured})
+            undated = False
     text = render_any(table, target)
     write_whole(args.output, text)
     values = evaluate(table).summary
@@ -51,6 +72,9 @@ def run(args: argparse.Namespace) -> int:
                           for k in keys if values.get(k) is not None) or "no value (too few runs)"
         make_console().print(f"{args.output}: {len(table)} points, {summary['runs']} runs, {summary['targets']} "
                              f"targets ({source} → {target}); ISO 230-2: {shown}")
+        if undated and target == "rtl":
+            make_console().print(f"[yellow]warning:[/] {args.input}: no measurement date (no `# date:` comment and "
+                                 "no campaign directory): the .rtl says 'Date: not recorded'")
         for problem in missing:
             make_console().print(f"[yellow]warning:[/] {args.input}: incomplete: {problem}; the values above are "
                                  "from the points there are, and a verdict on them is not judged")

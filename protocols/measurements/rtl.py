@@ -31,6 +31,8 @@ USER_TEXT = {"Machine": "machine", "Serial No": "serial", "Date": "date", "By": 
 ENVIRONMENT = {"Air temp": "air_temp_c", "Air Press": "air_pressure_hpa", "Air Humid": "humidity_pct",
                "Mat temp 1": "material_temp_c"}
 """ENVIRONMENT key -> metadata key (°C, hPa (mbar), % RH: the metric settings are assumed)."""
+NO_DATE = "not recorded"
+"""The `Date:` written when the point table gives no measurement date (never an empty value)."""
 PER_LINE = 5
 """Targets written per line."""
 
@@ -138,7 +140,7 @@ def parse(text: str, name: str = "<rtl>", kind: str = "linear") -> Measurement:
             meta[_meta_key(pair[0])] = pair[1]
     for number, line in sections.get("USER-TEXT", []):
         pair = _key_value(line)
-        if pair and pair[1]:
+        if pair and pair[1] and pair != ("Date", NO_DATE):
             meta[USER_TEXT.get(pair[0]) or _meta_key(pair[0])] = pair[1]
     for number, line in sections.get("ENVIRONMENT", []):
         pair = _key_value(line)
@@ -212,7 +214,8 @@ def render(m: Measurement) -> str:
     for i in range(0, n, PER_LINE):
         lines.append(" ".join(_text(t) for t in m.targets[i:i + PER_LINE]))
     lines += ["Flags: 0 0 2 0" if bidirectional else "Flags: 0 1 2 0", "", "USER-TEXT::"]
-    lines += [f"{key}: {m.meta.get(meta_key, '')}" for key, meta_key in USER_TEXT.items()]
+    lines += [f"{key}: {m.meta.get(meta_key) or NO_DATE if key == 'Date' else m.meta.get(meta_key, '')}"
+              for key, meta_key in USER_TEXT.items()]
     runs = m.runs
     lines += ["", "RUNS::", f"Run-count: {2 * runs if bidirectional else runs}", "", "DEVIATIONS::", "Run Target Data:"]
     by_point = {(r.run, r.direction, r.target): r.deviation for r in m.rows}
