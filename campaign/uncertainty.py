@@ -153,6 +153,8 @@ def budget(table: PointTable, ev: Evaluation, config: Config | None = None) -> B
         terms.append(Term("statistics: 4s (finite runs)", 2 * u_band, ("R",),
                           f"4s/√(2(n−1)), n = {n} runs (measured)"))
     expanded = {key: K * math.sqrt(sum(t.u ** 2 for t in terms if key in t.applies)) for key in ("A", "E", "B", "R")}
+    if stats is None:  # every parameter rests on the scatter: without it no U can be stated, not a smaller one
+        expanded = {}
     return Budget(ev.unit, tuple(terms), expanded, tuple(missing), K, tuple(notes))
 
 

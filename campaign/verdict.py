@@ -114,8 +114,9 @@ def judge(table: PointTable, ev: Evaluation, tolerances: dict[str, float], uncer
         if value is None:
             reasons.append(f"{name} is unavailable")
             continue
-        result = PASS if value + u <= tol else FAIL if value - u > tol else NOT_JUDGED
-        checks.append({"parameter": key, "name": name, "value": round(value, 4), "U": round(u, 4), "tolerance": tol,
+        result = NOT_JUDGED if u is None else PASS if value + u <= tol else FAIL if value - u > tol else NOT_JUDGED
+        checks.append({"parameter": key, "name": name, "value": round(value, 4),
+                       "U": None if u is None else round(u, 4), "tolerance": tol,
                        "unit": ev.unit, "result": result})
     if reasons:  # the campaign itself does not allow a verdict: no parameter is judged on it either
         reasons += _undecided(checks, unit)
@@ -135,7 +136,9 @@ def judge(table: PointTable, ev: Evaluation, tolerances: dict[str, float], uncer
 
 def _undecided(checks: list[dict], unit: str) -> list[str]:
     """One sentence per parameter the decision rule cannot decide."""
-    return [f"{c['name']} = {c['value']:.2f} {unit} is within its uncertainty U = {c['U']:.2f} {unit} of the "
+    return [f"{c['name']} = {c['value']:.2f} {unit} has no stated uncertainty (one run: no scatter)"
+            if c["U"] is None else
+            f"{c['name']} = {c['value']:.2f} {unit} is within its uncertainty U = {c['U']:.2f} {unit} of the "
             f"tolerance {c['tolerance']:g} {unit}: the measurement cannot decide"
             for c in checks if c["result"] == NOT_JUDGED]
 

@@ -242,3 +242,23 @@ def test_report_of_a_bare_table_takes_a_tolerance_and_its_operator(cli, tmp_path
     assert cli("report", tmp_path / "p.csv", "--tolerance", "100").code == 0  # default: beside the table
     html = (tmp_path / "p.html").read_text()
     assert "<span class='word'>PASS</span>" in html and "Operator: J. Smith." in html
+
+
+def test_a_single_run_states_no_uncertainty_rather_than_a_smaller_one(cli, tmp_path):
+    """One run has no scatter: every parameter's U rests on it, so none is stated (it was stated
+    without the statistics terms, understated), and a tolerance gives 'not judged' naming why."""
+    t = table(runs=1)
+    ev = evaluate(t)
+    b = budget(t, ev)
+    assert b.expanded == {} and any("fewer than 2 runs" in m for m in b.missing)
+    five = budget(table(), evaluate(table()))
+    assert set(five.expanded) == {"A", "E", "B", "R"} and five.missing == ()
+    v = judge(t, ev, {"A": 1000.0, "E": 1000.0}, b)  # A needs s; E has a value from one run
+    assert v.verdict == "not judged" and [c["U"] for c in v.checks if c["parameter"] == "E"] == [None]
+    assert any("no stated uncertainty" in r for r in v.reasons)
+    rows = "".join(f"1,{'+' if d > 0 else '-'},{x:.3f},{e:.4f}\n" for d, x, e in zip(t.direction, t.target, t.deviation))
+    (tmp_path / "one.csv").write_text("run,direction,target_mm,deviation_um\n" + rows)
+    said = cli("analyze", tmp_path / "one.csv", "--tolerance", "1000", "--json")
+    assert said.code == 0, said.err
+    out = json.loads(said.out)
+    assert "U_A_um" not in json.dumps(out) and "not judged" in json.dumps(out)

@@ -180,8 +180,11 @@ def tolerance_table(verdict: Verdict, tolerances: dict[str, float], unit: str) -
         tol = tolerances.get(key) or 0.0
         c = checks.get(key)
         if c is not None:
-            rows.append([c.get("name", name), f"{tol:g}", f"{c['value']:.3f}", f"{c['U']:.3f}",
-                         f"{c['value'] - c['U']:.3f} … {c['value'] + c['U']:.3f}", c["result"].upper()])
+            if c["U"] is None:  # one run: no scatter, no U
+                rows.append([c.get("name", name), f"{tol:g}", f"{c['value']:.3f}", "—", "—", c["result"].upper()])
+            else:
+                rows.append([c.get("name", name), f"{tol:g}", f"{c['value']:.3f}", f"{c['U']:.3f}",
+                             f"{c['value'] - c['U']:.3f} … {c['value'] + c['U']:.3f}", c["result"].upper()])
         elif tol:
             rows.append([name, f"{tol:g}", "—", "—", "—", "unavailable"])
         else:
