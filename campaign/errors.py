@@ -1,5 +1,8 @@
 """Errors that end a command with exit status 2 and one line on stderr starting with `error:`."""
 
+from pathlib import Path
+from typing import Any
+
 from protocols.errors import FormatError, one_line
 
 
@@ -23,7 +26,7 @@ class CampaignInterrupted(KeyboardInterrupt):
     """Ctrl-C during a campaign, after the axis was asked to halt and the recording was flushed.
     `directory`: the campaign directory, for the resume hint."""
 
-    def __init__(self, directory):
+    def __init__(self, directory: str | Path) -> None:
         super().__init__(str(directory))
         self.directory = directory
 
@@ -32,7 +35,7 @@ class SafetyError(InputError):
     """A motion would leave the soft limits or exceed the velocity limit. Nothing was commanded."""
 
 
-def read_input_bytes(path, what: str, limit: int = -1) -> bytes:
+def read_input_bytes(path: str | Path, what: str, limit: int = -1) -> bytes:
     """The bytes of an input file (at most `limit`, all by default); InputError naming the file
     when it is missing, a directory or unreadable. `what` names the expected kind of file."""
     name = str(path)
@@ -47,7 +50,7 @@ def read_input_bytes(path, what: str, limit: int = -1) -> bytes:
         raise InputError(f"{name}: cannot read ({exc.strerror or exc})") from None
 
 
-def read_input_text(path, what: str) -> str:
+def read_input_text(path: str | Path, what: str) -> str:
     """An input file as UTF-8 text (BOM allowed); InputError for any problem."""
     try:
         return read_input_bytes(path, what).decode("utf-8-sig")
@@ -55,7 +58,7 @@ def read_input_text(path, what: str) -> str:
         raise InputError(f"{path}: not UTF-8 text (bad byte at offset {exc.start})") from None
 
 
-def read_toml(path, what: str) -> dict:
+def read_toml(path: str | Path, what: str) -> dict[str, Any]:
     """A TOML input file, parsed; InputError for any problem."""
     import tomllib
 

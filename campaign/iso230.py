@@ -103,16 +103,22 @@ def _stats(values: np.ndarray) -> tuple[int, float | None, float | None]:
     return n, mean, s
 
 
+def _known(values: list[float | None]) -> list[float] | None:
+    """The values when every one is known, else None."""
+    known = [v for v in values if v is not None]
+    return known if len(known) == len(values) else None
+
+
 def _span(high: list[float | None], low: list[float | None]) -> float | None:
-    if not high or any(v is None for v in high) or any(v is None for v in low):
+    hi, lo = _known(high), _known(low)
+    if not hi or lo is None:
         return None
-    return float(max(high) - min(low))
+    return float(max(hi) - min(lo))
 
 
 def _max(values: list[float | None]) -> float | None:
-    if not values or any(v is None for v in values):
-        return None
-    return float(max(values))
+    known = _known(values)
+    return float(max(known)) if known else None
 
 
 def _per_target(table: PointTable, k: float) -> list[TargetResult]:
@@ -128,15 +134,15 @@ def _per_target(table: PointTable, k: float) -> list[TargetResult]:
             b = m_up - m_dn
             mean = (m_up + m_dn) / 2
             if s_up is not None and s_dn is not None:
-                r = max(k * s_up + k * s_dn + abs(b), r_up, r_dn)
+                r = max(k * s_up + k * s_dn + abs(b), 2 * k * s_up, 2 * k * s_dn)  # R↑, R↓
         results.append(TargetResult(float(t), n_up, n_dn, m_up, m_dn, s_up, s_dn, r_up, r_dn, b, r, mean))
     return results
 
 
 def _direction_summary(rows: list[TargetResult], suffix: str, k: float) -> dict[str, float | None]:
-    means = [getattr(r, f"mean_{suffix}") for r in rows]
-    sds = [getattr(r, f"s_{suffix}") for r in rows]
-    if any(m is None for m in means):
+    means = _known([getattr(r, f"mean_{suffix}") for r in rows])
+    sds: list[float | None] = [getattr(r, f"s_{suffix}") for r in rows]
+    if means is None:
         return {f"A_{suffix}": None, f"E_{suffix}": None, f"R_{suffix}": None}
     high = [m + k * s if s is not None else None for m, s in zip(means, sds)]
     low = [m - k * s if s is not None else None for m, s in zip(means, sds)]
@@ -148,15 +154,15 @@ def _direction_summary(rows: list[TargetResult], suffix: str, k: float) -> dict[
 
 
 def _bidirectional_summary(rows: list[TargetResult], k: float) -> dict[str, float | None]:
-    none = dict.fromkeys(("A", "E", "M", "B", "B_mean", "R"))
-    if any(r.mean_up is None or r.mean_down is None for r in rows):
+    none: dict[str, float | None] = dict.fromkeys(("A", "E", "M", "B", "B_mean", "R"))
+    means = _known([r.mean_up for r in rows] + [r.mean_down for r in rows])
+    reversals = _known([r.B for r in rows])
+    bi_means = _known([r.mean for r in rows])
+    if means is None or reversals is None or bi_means is None:
         return none
-    means = [r.mean_up for r in rows] + [r.mean_down for r in rows]
     sds = [r.s_up for r in rows] + [r.s_down for r in rows]
     high = [m + k * s if s is not None else None for m, s in zip(means, sds)]
     low = [m - k * s if s is not None else None for m, s in zip(means, sds)]
-    reversals = [r.B for r in rows]
-    bi_means = [r.mean for r in rows]
     return {
         "A": _span(high, low),
         "E": float(max(means) - min(means)),
@@ -171,20 +177,23 @@ def _vdi_summary(rows: list[TargetResult]) -> dict[str, float | None]:
     """VDI/DGQ 3441 (reference.md §2, unverified against the standard's text): per target the mean
     over both directions, the reversal U = |B| and the scatter Ps = 6 s, with s the mean of the two
     directions' s. With one direction only, U = 0 and that direction's mean and s are used."""
-    centre, spread, scatter = [], [], []
+    centre: list[float] = []
+    spread: list[float] = []
+    scatter: list[float | None] = []
     for r in rows:
         pairs = [(m, s) for m, s in ((r.mean_up, r.s_up), (r.mean_down, r.s_down)) if m is not None]
         centre.append(float(np.mean([m for m, _ in pairs])))
         spread.append(abs(r.B) if r.B is not None else 0.0)
-        sds = [s for _, s in pairs]
-        scatter.append(6 * float(np.mean(sds)) if all(s is not None for s in sds) else None)
+        sds = _known([s for _, s in pairs])
+        scatter.append(6 * float(np.mean(sds)) if sds is not None else None)
     out: dict[str, float | None] = {"Pa": float(max(centre) - min(centre)), "U_max": float(max(spread))}
     out["Ps_max"] = _max(scatter)
-    if out["Ps_max"] is None:
+    known = _known(scatter)
+    if not known:
         out["P"] = None
     else:
-        out["P"] = float(max(c + u / 2 + p / 2 for c, u, p in zip(centre, spread, scatter))
-                         - min(c - u / 2 - p / 2 for c, u, p in zip(centre, spread, scatter)))
+        out["P"] = float(max(c + u / 2 + p / 2 for c, u, p in zip(centre, spread, known))
+                         - min(c - u / 2 - p / 2 for c, u, p in zip(centre, spread, known)))
     return out
 
 

@@ -25,7 +25,7 @@ import os
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import replace
 from typing import Any, TypeVar
@@ -60,7 +60,7 @@ _STDERR_LOCK = threading.Lock()
 
 
 @contextmanager
-def _native_stderr_silenced():
+def _native_stderr_silenced() -> Iterator[None]:
     """The ADS library's C++ code logs "connection closed by remote" and failed connects to
     stderr; keep those lines out of the command's output (an error must be one line). fd 2 is
     shared by the whole process, so one redirection at a time (a lock), kept short; Python code
@@ -279,7 +279,7 @@ class AdsAxis:
     def _where(self, error: Exception | None) -> str:
         """Where axiscal looked for the PLC, and what usually keeps it from answering."""
         net_id, port, ip = self._address
-        code = getattr(error, "err_code", None)
+        code: int = getattr(error, "err_code", None) or 0
         likely = {6: "the PLC runtime is not in RUN, or ams_port is wrong",
                   7: "there is no ADS route between this PC and the PLC (add it on both sides)",
                   1861: "no answer in time: check the cable, the IP address and the network"}.get(code, "")

@@ -1,6 +1,7 @@
 """The real-time clock used on real hardware. The simulated clock is in drivers/sim/clock.py."""
 
 import time
+from collections.abc import Callable
 
 
 class RealClock:
@@ -18,14 +19,14 @@ class ListenedClock:
     """Wall time from 0 at creation, s; after every sleep the attached listeners get the new time
     (the simulated laser beside a real-time controller emits its readings from there)."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self._start = time.monotonic()
-        self._listeners = []
+        self._listeners: list[Callable[[float], None]] = []
 
-    def attach(self, listener) -> None:
+    def attach(self, listener: Callable[[float], None]) -> None:
         self._listeners.append(listener)
 
-    def detach(self, listener) -> None:
+    def detach(self, listener: Callable[[float], None]) -> None:
         if listener in self._listeners:
             self._listeners.remove(listener)
 

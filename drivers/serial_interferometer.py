@@ -15,6 +15,7 @@ import serial
 from protocols.hardware import InstrumentError, Reading
 from protocols.serial_line import LineError, LineFormat, parse_line
 
+_TermiosError: type[Exception]
 try:
     from termios import error as _TermiosError  # pyserial lets tcflush errors through on POSIX
 except ImportError:  # Windows

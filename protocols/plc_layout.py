@@ -136,9 +136,17 @@ def resolve(path: str) -> Variable | None:
             return None
         name, kind, offset = f"{name}.{member[0]}", member[1], offset + member[2]
         for index in re.findall(r"-?\d+", match[2]):
-            if kind.element is None or not kind.bounds[0] <= int(index) <= kind.bounds[1]:
+            if kind.element is None or kind.bounds is None or not kind.bounds[0] <= int(index) <= kind.bounds[1]:
                 return None
             name += f"[{int(index)}]"
             offset += (int(index) - kind.bounds[0]) * kind.element.size
             kind = kind.element
     return Variable(name, kind, offset)
+
+
+def require(path: str) -> Variable:
+    """The variable named `path`; ValueError naming it when the GVL has no such variable."""
+    variable = resolve(path)
+    if variable is None:
+        raise ValueError(f"{path}: not a variable of {GVL}")
+    return variable

@@ -31,7 +31,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -127,7 +127,7 @@ class LineFormat:
         return self.line_end[-1]
 
 
-def _problems(fmt: LineFormat):
+def _problems(fmt: LineFormat) -> Iterator[str]:
     """Yield one message per bad value of fmt, each naming the key."""
     for key in ("tag", "separator", "decimal_mark", "beam_ok_text", "beam_lost_text", "line_end", "request"):
         value = getattr(fmt, key)
@@ -165,7 +165,7 @@ def _problems(fmt: LineFormat):
         yield "key 'checksum': must be true or false"
 
 
-def _field_problems(names: tuple[str, ...]):
+def _field_problems(names: tuple[str, ...]) -> Iterator[str]:
     if not all(isinstance(name, str) for name in names):
         yield "key 'fields': must be a list of field names"
         return

@@ -16,6 +16,7 @@ import subprocess
 import tempfile
 import time
 from pathlib import Path
+from typing import Self, TextIO
 
 from protocols.hardware import AxisError
 
@@ -91,7 +92,7 @@ class LinuxCnc:
                  comp_file: Path | None = None):
         if not installed():
             raise AxisError(INSTALL_HINT)
-        self._lock = _one_instance()
+        self._lock: TextIO | None = _one_instance()
         self.dir = Path(tempfile.mkdtemp(prefix="axiscal-linuxcnc-"))
         os.chmod(self.dir, 0o755)
         self.env = dict(os.environ)
@@ -147,10 +148,10 @@ class LinuxCnc:
             self._lock.close()  # the next instance may start
             self._lock = None
 
-    def __enter__(self):
+    def __enter__(self) -> Self:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         self.stop()
 
 
@@ -159,7 +160,7 @@ LOCK_FILE = Path(tempfile.gettempdir()) / "axiscal-linuxcnc.lock"
 linuxcncrsh's port 5007 are machine-wide), and a second would take over the first one's axis."""
 
 
-def _one_instance():
+def _one_instance() -> TextIO:
     """The lock of the one LinuxCNC this machine may run, as an open file; AxisError when another
     axiscal, or any LinuxCNC with linuxcncrsh, already runs here."""
     lock = open(LOCK_FILE, "a")  # noqa: SIM115 (held until stop())

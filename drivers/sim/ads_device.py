@@ -287,7 +287,7 @@ class AdsDevice(AbstractHandler):
 
     @staticmethod
     def _upload() -> bytes:
-        return b"".join(symbol_entry(plc_layout.resolve(name)) for name in _TOP_SYMBOLS)
+        return b"".join(symbol_entry(plc_layout.require(name)) for name in _TOP_SYMBOLS)
 
     @staticmethod
     def _type_upload() -> bytes:

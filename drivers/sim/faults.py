@@ -3,8 +3,15 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from campaign.faults import Fault
+
+if TYPE_CHECKING:
+    from drivers.sim.ads_server import SimAdsServer
+    from drivers.sim.interferometer import SimInterferometer
+    from drivers.sim.machine import SimAxisPhysics
+    from drivers.sim.plc import SimPLC
 
 
 class FaultScheduler:
@@ -13,7 +20,8 @@ class FaultScheduler:
     `on_disk_full` is called for the disk_full fault (the campaign wires it to its recorder).
     """
 
-    def __init__(self, faults: list[Fault], plc, server, instrument, physics):
+    def __init__(self, faults: list[Fault], plc: SimPLC, server: SimAdsServer, instrument: SimInterferometer,
+                 physics: SimAxisPhysics) -> None:
         self.faults = faults
         self.plc, self.server, self.instrument, self.physics = plc, server, instrument, physics
         self.on_disk_full: Callable[[], None] | None = None

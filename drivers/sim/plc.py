@@ -23,6 +23,7 @@ import math
 import struct
 import threading
 from dataclasses import dataclass
+from typing import Any
 
 from drivers.sim.ads_device import AdsDevice
 from protocols import plc_contract, plc_layout
@@ -132,7 +133,7 @@ class SimPLC:
             for group in (self._control, self._status, plc_contract.comp_symbols(axis))
             for s in group.values()
         }
-        self._places = {name: plc_layout.resolve(name) for name in self._symbols}
+        self._places = {name: plc_layout.require(name) for name in self._symbols}
         self._t = float(start_time)  # time of the last scan, s
         self._rest_position = float(position)  # where the axis is when no motion is running
         self._motion: _Motion | None = None
@@ -166,7 +167,7 @@ class SimPLC:
         for name, raised in flags.items():
             if raised:
                 self._set(name, False)
-        requests = [Command.RESET] if flags["bReset"] else []
+        requests: list[int] = [Command.RESET] if flags["bReset"] else []
         if flags["bHalt"]:
             requests.append(Command.HALT)
         elif flags["bExecute"]:
@@ -302,14 +303,14 @@ class SimPLC:
     # --- PLC variables -----------------------------------------------------------------------
 
     @staticmethod
-    def _encode(symbol: Symbol, value) -> bytes:
+    def _encode(symbol: Symbol, value: float | bool | list[float]) -> bytes:
         fmt = _FORMATS[symbol.iec_type]
         if symbol.array_length is None:
             return struct.pack("<" + fmt, value)
         values = [value] * symbol.array_length if not isinstance(value, list) else value
         return struct.pack(f"<{symbol.array_length}{fmt}", *values)
 
-    def _decode(self, name: str):
+    def _decode(self, name: str) -> Any:
         symbol, place = self._symbols[name], self._places[name]
         raw = self.memory[place.offset:place.offset + place.size]
         fmt = _FORMATS[symbol.iec_type]
@@ -317,12 +318,12 @@ class SimPLC:
             return struct.unpack("<" + fmt, raw)[0]
         return list(struct.unpack(f"<{symbol.array_length}{fmt}", raw))
 
-    def _get(self, member: str):
+    def _get(self, member: str) -> Any:
         """Value of a control or status member of this axis, e.g. "bExecute"."""
         symbol = self._control.get(member) or self._status[member]
         return self._decode(symbol.name)
 
-    def _set(self, member: str, value) -> None:
+    def _set(self, member: str, value: float | bool | list[float]) -> None:
         symbol = self._control.get(member) or self._status[member]
         place = self._places[symbol.name]
         self.memory[place.offset:place.offset + place.size] = self._encode(symbol, value)

@@ -71,13 +71,13 @@ def parse(text: str, name: str = "<ecmc>", kind: str | None = None) -> Measureme
             raise FormatError(f"{name}: line {number}: expected TGT_DATA[i]=value or REF_DATA_FWD|BWD[i,j]=value, "
                               f"found '{line[:60]}'")
         elif match := SETTING.match(line):
-            key, value = match.group(1), match.group(2)
-            if key == "UNIT":
-                if value not in KINDS:
-                    raise FormatError(f"{name}: line {number}: UNIT must be mm or deg, found '{value}'")
-                unit = value
-            elif key not in ("CYCLES", "POSITIONS"):  # written anew from the data
-                meta[f"ecmc.{key}"] = value
+            setting, text_value = match.group(1), match.group(2)
+            if setting == "UNIT":
+                if text_value not in KINDS:
+                    raise FormatError(f"{name}: line {number}: UNIT must be mm or deg, found '{text_value}'")
+                unit = text_value
+            elif setting not in ("CYCLES", "POSITIONS"):  # written anew from the data
+                meta[f"ecmc.{setting}"] = text_value
         else:
             comments.append(line)
     if comments:

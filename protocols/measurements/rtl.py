@@ -146,8 +146,11 @@ def parse(text: str, name: str = "<rtl>", kind: str = "linear") -> Measurement:
         pair = _key_value(line)
         if pair and pair[1]:
             key = ENVIRONMENT.get(pair[0])
-            numeric = key is not None and re.fullmatch(r"[-+]?\d+(\.\d*)?", pair[1].split()[0] if pair[1].split() else "")
-            meta[key if numeric else _meta_key(pair[0])] = pair[1].split()[0] if numeric else pair[1]
+            numeric = re.fullmatch(r"[-+]?\d+(\.\d*)?", pair[1].split()[0] if pair[1].split() else "")
+            if key is not None and numeric:
+                meta[key] = pair[1].split()[0]
+            else:
+                meta[_meta_key(pair[0])] = pair[1]
     for section, lines in sections.items():
         if section not in KNOWN:
             meta[_meta_key(section)] = " | ".join(line for _, line in lines)
@@ -167,7 +170,8 @@ def parse(text: str, name: str = "<rtl>", kind: str = "linear") -> Measurement:
     return Measurement(kind, tuple(targets), tuple(rows), meta)
 
 
-def _deviations(lines, name, n_targets, run_count, bidirectional) -> list[Row]:
+def _deviations(lines: list[tuple[int, str]], name: str, n_targets: int, run_count: int,
+                bidirectional: bool) -> list[Row]:
     rows: list[Row] = []
     seen: set[tuple[int, int]] = set()
     for number, line in lines:

@@ -11,6 +11,40 @@ from __future__ import annotations
 
 import importlib
 from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+
+class CorrectionTable(Protocol):
+    """What a renderer reads of an equidistant correction table (campaign.compensation.grid's
+    ControllerTable): positions in the axis unit, corrections in the deviation unit (µm, arcsec)."""
+
+    @property
+    def kind(self) -> str: ...
+    @property
+    def start(self) -> float: ...
+    @property
+    def spacing(self) -> float: ...
+    @property
+    def forward(self) -> np.ndarray: ...
+    @property
+    def reverse(self) -> np.ndarray: ...
+    @property
+    def common(self) -> np.ndarray: ...
+    @property
+    def mode(self) -> str: ...
+    @property
+    def backlash(self) -> float | None: ...
+    @property
+    def overrun(self) -> float: ...
+    @property
+    def reference(self) -> float | None: ...
+    @property
+    def positions(self) -> np.ndarray: ...
+    @property
+    def unit_factor(self) -> float: ...
+
 
 FORMATS = ("linuxcnc", "pmac", "twincat_cnc", "siemens", "fanuc", "heidenhain", "csv", "json")
 
@@ -123,7 +157,7 @@ def parse(name: str, text: str, path: str, options: FormatOptions = FormatOption
     return importlib.import_module(f"protocols.tables.{name}").parse(text, path, options)
 
 
-def render(name: str, table, options: FormatOptions = FormatOptions()) -> Rendered:
+def render(name: str, table: CorrectionTable, options: FormatOptions = FormatOptions()) -> Rendered:
     """Render `table` in format `name` (one of FORMATS)."""
     if name not in FORMATS:
         raise ValueError(f"unknown format '{name}'")

@@ -4,11 +4,19 @@ control adds to the command, ≈ -error) in the deviation unit, for both directi
 from __future__ import annotations
 
 from protocols.errors import FormatError
-from protocols.tables import FormatOptions, Rendered, TableRead, equidistant, number, provenance_lines
+from protocols.tables import (
+    CorrectionTable,
+    FormatOptions,
+    Rendered,
+    TableRead,
+    equidistant,
+    number,
+    provenance_lines,
+)
 from protocols.units import UNITS
 
 
-def render(table, options: FormatOptions) -> Rendered:
+def render(table: CorrectionTable, options: FormatOptions) -> Rendered:
     pos_unit, dev_unit = UNITS[table.kind]
     lines = provenance_lines(options, "# ")
     lines.append(f"position_{pos_unit},correction_forward_{dev_unit},correction_reverse_{dev_unit}")

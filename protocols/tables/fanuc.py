@@ -24,13 +24,13 @@ import re
 import numpy as np
 
 from protocols.errors import FormatError
-from protocols.tables import FormatOptions, Rendered, TableRead, number
+from protocols.tables import CorrectionTable, FormatOptions, Rendered, TableRead, number
 
 MAX_POINTS = 128
 MAX_INCREMENT = 127
 
 
-def render(table, options: FormatOptions) -> Rendered:
+def render(table: CorrectionTable, options: FormatOptions) -> Rendered:
     cpu = options.counts_per_unit
     if cpu is None or cpu <= 0:
         raise FormatError("fanuc needs --counts-per-unit (detection units per mm or degree)")

@@ -18,13 +18,13 @@ from __future__ import annotations
 import math
 
 from protocols.errors import FormatError
-from protocols.tables import FormatOptions, Rendered, TableRead, equidistant, number
+from protocols.tables import CorrectionTable, FormatOptions, Rendered, TableRead, equidistant, number
 
 MAX_POINTS = 256
 CONTROLS = ("tnc640", "tnc426")
 
 
-def render(table, options: FormatOptions) -> Rendered:
+def render(table: CorrectionTable, options: FormatOptions) -> Rendered:
     n = len(table.forward)
     if n > MAX_POINTS:
         raise FormatError(f"heidenhain takes at most {MAX_POINTS} entries, the table has {n}")

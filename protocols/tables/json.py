@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import json
 
-from protocols.tables import FormatOptions, Rendered
+from protocols.tables import CorrectionTable, FormatOptions, Rendered
 from protocols.units import UNITS
 
 
-def render(table, options: FormatOptions) -> Rendered:
+def render(table: CorrectionTable, options: FormatOptions) -> Rendered:
     pos_unit, dev_unit = UNITS[table.kind]
     doc = {
         "sign": "correction = value added to the commanded position; about -(measured - target)",

@@ -15,13 +15,13 @@ is not three numbers, so the file carries no comment and no provenance.
 from __future__ import annotations
 
 from protocols.errors import FormatError
-from protocols.tables import FormatOptions, Rendered, TableRead, equidistant, number
+from protocols.tables import CorrectionTable, FormatOptions, Rendered, TableRead, equidistant, number
 
 MAX_POINTS = 256
 MM_PER_INCH = 25.4
 
 
-def render(table, options: FormatOptions) -> Rendered:
+def render(table: CorrectionTable, options: FormatOptions) -> Rendered:
     positions = table.positions
     if len(positions) > MAX_POINTS:
         raise FormatError(f"linuxcnc takes at most {MAX_POINTS} points, the table has {len(positions)}")

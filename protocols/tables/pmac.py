@@ -11,10 +11,10 @@ from __future__ import annotations
 import re
 
 from protocols.errors import FormatError
-from protocols.tables import FormatOptions, Rendered, TableRead, provenance_lines
+from protocols.tables import CorrectionTable, FormatOptions, Rendered, TableRead, provenance_lines
 
 
-def render(table, options: FormatOptions) -> Rendered:
+def render(table: CorrectionTable, options: FormatOptions) -> Rendered:
     cpu = options.counts_per_unit
     if cpu is None or cpu <= 0:
         raise FormatError("pmac needs --counts-per-unit (encoder counts per mm or degree)")

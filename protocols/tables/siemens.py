@@ -12,7 +12,7 @@ from __future__ import annotations
 import re
 
 from protocols.errors import FormatError
-from protocols.tables import FormatOptions, Rendered, TableRead, number, provenance_lines
+from protocols.tables import CorrectionTable, FormatOptions, Rendered, TableRead, number, provenance_lines
 
 MAX_POINTS = {"840d": 5000, "828d": 5000, "808d": 200}
 """Points per EEC table by control: MD38000's upper limit (840D sl, 828D: 5000; 808D: 200)."""
@@ -26,7 +26,7 @@ def _mm(value: float) -> str:
     return "0.000000" if text == "-0.000000" else text
 
 
-def render(table, options: FormatOptions) -> Rendered:
+def render(table: CorrectionTable, options: FormatOptions) -> Rendered:
     control = options.control or DEFAULT_CONTROL
     if control not in MAX_POINTS:
         raise FormatError(f"siemens --control must be one of {', '.join(MAX_POINTS)}, found '{control}'")

@@ -13,7 +13,15 @@ from __future__ import annotations
 import re
 
 from protocols.errors import FormatError
-from protocols.tables import FormatOptions, Rendered, TableRead, equidistant, number, provenance_lines
+from protocols.tables import (
+    CorrectionTable,
+    FormatOptions,
+    Rendered,
+    TableRead,
+    equidistant,
+    number,
+    provenance_lines,
+)
 
 MAX_POINTS = 1500
 PER_AXIS_UNIT = 10_000  # 0.1 µm per mm
@@ -23,7 +31,7 @@ AXIS_NUMBERS = range(1, 65535)
 """kopf.achs_nr: UNS16, 0 not allowed (Beckhoff TF5200 axis compensation, P-COMP-00001)."""
 
 
-def render(table, options: FormatOptions) -> Rendered:
+def render(table: CorrectionTable, options: FormatOptions) -> Rendered:
     if options.axis_number is None:
         raise FormatError("twincat_cnc needs --axis-number: the axis' logical number (kopf.achs_nr, "
                           "P-AXIS-00016 in its axis parameters)")
