@@ -13,6 +13,7 @@ import os
 import signal
 import sys
 import threading
+from typing import NoReturn
 
 from campaign import __version__
 from campaign.commands import SUMMARY
@@ -23,7 +24,7 @@ from protocols.hardware import AxisError, InstrumentError
 class Parser(argparse.ArgumentParser):
     """argparse, but a usage error is one `error:` line and exit status 2."""
 
-    def error(self, message):
+    def error(self, message: str) -> NoReturn:
         raise InputError(f"{self.prog}: {message}")
 
 
@@ -59,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except (AxisError, InstrumentError) as exc:
-        print(f"error: {one_line(exc)}", file=sys.stderr)
+        print(f"error: {one_line(str(exc))}", file=sys.stderr)
         return 3
     except CampaignInterrupted as exc:
         print(f"interrupted (Ctrl-C): the axis was asked to halt and the recording is flushed in {exc.directory}; "
@@ -73,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # a bug: one line for the user, the traceback on request
         if os.environ.get("AXISCAL_DEBUG"):
             raise
-        print(f"error: internal error: {type(exc).__name__}: {one_line(exc)} (AXISCAL_DEBUG=1 shows the traceback)",
+        print(f"error: internal error: {type(exc).__name__}: {one_line(str(exc))} (AXISCAL_DEBUG=1 shows the traceback)",
               file=sys.stderr)
         return 1
 

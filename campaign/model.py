@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from campaign.errors import InputError, read_toml
 from campaign.specs import SimSpec, plain
@@ -53,7 +54,7 @@ def _legendre(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (3 * u**2 - 1) / 2, (5 * u**3 - 3 * u) / 2
 
 
-def effect_um(name: str, p: dict[str, float], x, d, t, w) -> np.ndarray:
+def effect_um(name: str, p: dict[str, float], x: ArrayLike, d: ArrayLike, t: ArrayLike, w: ArrayLike) -> np.ndarray:
     """The deviation one effect adds, µm, at commanded position x (mm), direction d (±1), time t
     (s) and wait since arrival w (s). Arguments broadcast as numpy arrays."""
     x, d, t, w = (np.asarray(a, dtype=float) for a in (x, d, t, w))
@@ -84,7 +85,7 @@ class ErrorModel:
 
     effects: dict[str, dict[str, float]] = field(default_factory=dict)
 
-    def deviation_um(self, x, d, t=0.0, w=math.inf) -> np.ndarray:
+    def deviation_um(self, x: ArrayLike, d: ArrayLike, t: ArrayLike = 0.0, w: ArrayLike = math.inf) -> np.ndarray:
         """The deterministic deviation, µm (noise excluded). See `effect_um` for the arguments."""
         total = np.zeros(np.broadcast(np.asarray(x), np.asarray(d), np.asarray(t), np.asarray(w)).shape)
         for name, params in self.effects.items():

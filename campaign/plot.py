@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -15,7 +16,7 @@ FORMATS = (".png", ".svg")
 DIRECTION_STYLE = {1: ("+ (forward)", "tab:blue"), -1: ("- (reverse)", "tab:red")}
 
 
-def pyplot():
+def pyplot() -> Any:
     """matplotlib.pyplot with the Agg backend (no screen), imported when a plot is drawn: it is the
     slowest import of axiscal, and most commands draw nothing."""
     import matplotlib
@@ -38,18 +39,18 @@ def _fmt(value: float | None) -> str:
     return "n/a" if value is None else f"{value:.3f}"
 
 
-def draw_evaluation(ax, table: PointTable, ev: Evaluation, label: str = "") -> None:
+def draw_evaluation(ax: Any, table: PointTable, ev: Evaluation, label: str = "") -> None:
     """Draw the usual laser-software plot on `ax`: per direction the mean deviation with a ±ks
     band and each run's points."""
     k = ev.standard.k
     targets = np.array([t.target for t in ev.targets])
     for direction, (name, colour) in DIRECTION_STYLE.items():
         suffix = "up" if direction > 0 else "down"
-        means = [getattr(t, f"mean_{suffix}") for t in ev.targets]
-        if any(m is None for m in means):
+        known = [getattr(t, f"mean_{suffix}") for t in ev.targets]
+        if any(m is None for m in known):
             continue
         sds = np.array([getattr(t, f"s_{suffix}") or 0.0 for t in ev.targets])
-        means = np.array(means)
+        means = np.array(known, dtype=float)
         ax.plot(targets, means, "-", color=colour, lw=1.8, label=f"mean {name}")
         ax.fill_between(targets, means - k * sds, means + k * sds, color=colour, alpha=0.15,
                         label=f"±{k:g}s {name}")

@@ -151,7 +151,8 @@ def _kind_from_header(header: list[str], path: str, line: int) -> str:
     return kind
 
 
-def _build(header, rows, kind, meta, path, partial=False) -> PointTable:
+def _build(header: list[str], rows: list[tuple[int, list[str]]], kind: str, meta: dict[str, str], path: str,
+           partial: bool = False) -> PointTable:
     target_col, dev_col = AXIS_KINDS[kind]
     index = {name: i for i, name in enumerate(header)}
     optional = [c for c in OPTIONAL_COLUMNS if c in index]

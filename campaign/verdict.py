@@ -76,7 +76,7 @@ def completeness(table: PointTable, plan: Planned | None) -> list[str]:
         if len(runs) < plan.runs:
             problems.append(f"{len(runs)} of {plan.runs} planned runs measured")
         return problems
-    counts = {}
+    counts: dict[tuple[float, int], int] = {}
     for t, d in zip(table.target.tolist(), table.direction.tolist()):
         counts[(t, d)] = counts.get((t, d), 0) + 1
     directions = {d for _, d in counts}

@@ -11,11 +11,15 @@ from __future__ import annotations
 import json
 import os
 import sys
+from typing import Protocol
 
 from rich.console import Console
 from rich.table import Table
 
 from campaign.iso230 import Evaluation
+from campaign.outliers import Outliers
+from campaign.uncertainty import Budget
+from campaign.verdict import Verdict
 from protocols.units import unit_label
 
 SUMMARY_ROWS = (
@@ -83,13 +87,13 @@ def summary_table(ev: Evaluation, title: str | None = None) -> Table:
     return table
 
 
-def verdict_line(verdict) -> str:
+def verdict_line(verdict: Verdict) -> str:
     """The verdict in one coloured word with its reasons (rich markup)."""
     colour = {"pass": "bold green", "fail": "bold red"}.get(verdict.verdict, "bold yellow")
     return f"[{colour}]{verdict.word}[/]: " + "; ".join(verdict.reasons)
 
 
-def budget_table(budget) -> Table:
+def budget_table(budget: Budget) -> Table:
     """The uncertainty budget: each term's standard uncertainty and source, then U (k = 2)."""
     unit = unit_label(budget.unit)
     table = Table(title=f"Measurement uncertainty (k = {budget.k:g})", header_style="bold")
@@ -104,7 +108,7 @@ def budget_table(budget) -> Table:
     return table
 
 
-def outlier_lines(outliers, unit: str) -> list[str]:
+def outlier_lines(outliers: Outliers, unit: str) -> list[str]:
     """One line per outlier, and what it does to the scatter (empty when there is none)."""
     u = unit_label(unit)
     if not outliers.found:
@@ -118,7 +122,20 @@ def outlier_lines(outliers, unit: str) -> list[str]:
     return lines
 
 
-def print_assessment(a, console: Console, per_target: bool = True, wide: bool = False) -> None:
+class Assessed(Protocol):
+    """What the console shows of an Assessment (campaign/assess.py, a room above this one)."""
+
+    @property
+    def evaluation(self) -> Evaluation: ...
+    @property
+    def outliers(self) -> Outliers: ...
+    @property
+    def uncertainty(self) -> Budget: ...
+    @property
+    def verdict(self) -> Verdict: ...
+
+
+def print_assessment(a: Assessed, console: Console, per_target: bool = True, wide: bool = False) -> None:
     """Evaluation, outliers, uncertainty and verdict of an Assessment (campaign/assess.py)."""
     print_evaluation(a.evaluation, console, per_target, wide)
     for line in outlier_lines(a.outliers, a.evaluation.unit):

@@ -3,6 +3,7 @@ dwells in another program's continuous log, match them to the plan and write the
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
@@ -15,7 +16,7 @@ from campaign.stream.importer import extract_points
 from campaign.stream.reader import read_stream
 
 
-def register(sub) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("import-stream", help=SUMMARY["import-stream"],
                        description="Find the dwells in a continuous log (CSV with time_s and a reading), "
                                    "match them to the config's plan and write the point table.")
@@ -28,7 +29,7 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     if not args.still_tolerance > 0:
         raise InputError(f"--still-tolerance: must be a positive number, found {args.still_tolerance:g}")
     config = load_config(args.config)

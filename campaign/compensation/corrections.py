@@ -164,7 +164,7 @@ def corrections(table: PointTable, mode: str = "auto", method: str = "inverse",
         inverse = inverse_corrections(targets, smoothed.values, factor)
         return (inverse if method == "inverse" else -smoothed.values), inverse + smoothed.values, smoothed
 
-    if not both:
+    if reversals is None:  # one direction measured
         d = 1 if None not in up else -1
         common, diff, sm = solve(np.array(up if d > 0 else down, dtype=float), 1 / (n_up if d > 0 else n_down),
                                 within.get(d))

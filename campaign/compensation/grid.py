@@ -89,7 +89,7 @@ def grid(targets: np.ndarray, max_points: int, spacing: float | None = None,
         raise InputError(f"--reference {reference:g} is outside the measured range {low:g}..{high:g}")
     equidistant = np.allclose(steps, steps[0], rtol=1e-9, atol=1e-12 * max(1.0, span))
     derived = spacing is None
-    if derived:
+    if spacing is None:
         spacing = float(steps[0]) if equidistant and len(targets) <= max_points else span / (max_points - 1)
     origin = low if reference is None else reference
     for _ in range(2):

@@ -52,14 +52,14 @@ def read_comp_json(path: str | Path) -> ControllerTable:
     if not isinstance(doc, dict):
         raise InputError(f"{name}: not a compensation JSON file (write it with --format json)")
 
-    def number(key, positive=False):
+    def number(key: str, positive: bool = False) -> float:
         value = doc.get(key)
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
                 or (positive and value <= 0):
             raise InputError(f"{name}: key '{key}' must be a {'positive ' if positive else ''}number")
         return float(value)
 
-    def values(key):
+    def values(key: str) -> np.ndarray:
         v = doc.get(key)
         if not isinstance(v, list) or len(v) < 2 or not all(
                 isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v):

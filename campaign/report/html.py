@@ -3,6 +3,7 @@ the pass/fail box. Every text that comes from a file is escaped."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from html import escape
 
 import numpy as np
@@ -71,14 +72,14 @@ def section(title: str, body: str) -> str:
     return f"<section>\n<h2>{escape(title)}</h2>\n{body}\n</section>\n"
 
 
-def _table(head: list[str], rows: list[list[str]], numeric_from: int = 1, css: str = "",
+def _table(head: list[str], rows: Sequence[Sequence[object]], numeric_from: int = 1, css: str = "",
            numeric: tuple[int, ...] | None = None) -> str:
     """A table; columns from `numeric_from` on (or the columns `numeric`) are right-aligned numbers.
     Cells are escaped here."""
     def is_num(i: int) -> bool:
         return i in numeric if numeric is not None else i >= numeric_from
 
-    def cells(tag: str, values: list[str]) -> str:
+    def cells(tag: str, values: Sequence[object]) -> str:
         return "".join(f"<{tag}{' class=num' if is_num(i) else ''}>{escape(str(v))}</{tag}>"
                        for i, v in enumerate(values))
     body = "".join(f"<tr>{cells('td', r)}</tr>" for r in rows)

@@ -200,7 +200,9 @@ def match_tolerance(stops: list[tuple[float, Point | None]]) -> float:
     return float(np.min(np.diff(positions))) / 4 if len(positions) > 1 else float("inf")
 
 
-def _describe(point: Point, unit: str, total: int) -> str:
+def _describe(point: Point | None, unit: str, total: int) -> str:
+    if point is None:
+        return "an overrun (no point)"
     sign = "+" if point.direction > 0 else "-"
     return (f"point {point.index + 1} of {total} (run {point.run}, direction {sign}, "
             f"target {point.target:g} {unit})")

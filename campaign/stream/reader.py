@@ -75,8 +75,7 @@ def read_stream(path: str, unit: str) -> Stream:
     if b"\x00" in head:
         raise InputError(f"{path}: not a CSV text file (binary data)")
     try:
-        header = pd.read_csv(path, comment="#", encoding="utf-8-sig", nrows=0).columns
-        header = [str(c).strip() for c in header]
+        header = [str(c).strip() for c in pd.read_csv(path, comment="#", encoding="utf-8-sig", nrows=0).columns]
         column = _reading_column(header, path, unit)
         frame = pd.read_csv(path, comment="#", encoding="utf-8-sig", skipinitialspace=True, low_memory=False)
     except pd.errors.EmptyDataError:

@@ -20,7 +20,7 @@ if TYPE_CHECKING:
     import pandas as pd
 
 
-def _stops(plan: Plan, config: Config, overrun_dwell_s: float, skip_point: int | None):
+def _stops(plan: Plan, config: Config, overrun_dwell_s: float, skip_point: int | None) -> list[list[float]]:
     """(position, dwell s, point index or -1) per move endpoint; `skip_point` gets no stop at all."""
     dwell = config.plan.dwell_s
     stops = [[s.position, dwell, s.point.index] if s.point else [s.position, overrun_dwell_s, -1]
