@@ -3,16 +3,19 @@ name the effects the model is missing (campaign/discovery/search.py, docs/discov
 
 from __future__ import annotations
 
+import argparse
+from collections.abc import Collection, Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from campaign.commands import SUMMARY
 from campaign.discovery.data import keep_rows, read_campaign, read_start_model
 from campaign.discovery.fit import derived
-from campaign.discovery.search import Discovery, discover
+from campaign.discovery.search import Candidate, Discovery, discover
 from campaign.errors import InputError
-from campaign.model import EFFECT_PARAMS
+from campaign.model import EFFECT_PARAMS, ErrorModel
 from campaign.outliers import Outliers, find_outliers
 from campaign.plot import check_plot_path
 from campaign.pointtable import read_points
@@ -20,7 +23,7 @@ from campaign.views import make_console, print_json
 from protocols.units import UNITS, unit_label
 
 
-def register(sub) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("discover", help=SUMMARY["discover"],
                        description="Fit MODEL to a measured point table, then name, add and refit the "
                                    "effects the residual shows, until what is left is noise.")
@@ -62,7 +65,7 @@ def with_error(value: float, error: float | None, unit: str) -> str:
 SPAN_KEYS = ("start_mm", "end_mm")
 
 
-def param_text(effect: str, key: str, value: float, errors: dict[str, float], given: set[str] | list[str],
+def param_text(effect: str, key: str, value: float, errors: dict[str, float], given: Collection[str],
                time_unit: str) -> str:
     """One parameter, once, with its unit and its error; a parameter that is not fitted says why
     it has none: given in the model, or the bow's span (the targets' range)."""
@@ -73,7 +76,8 @@ def param_text(effect: str, key: str, value: float, errors: dict[str, float], gi
     return f"{key} = {with_error(value, None, unit)} ({why})"
 
 
-def params_text(effect: str, params: dict[str, float], errors: dict[str, float], given, time_unit: str) -> str:
+def params_text(effect: str, params: dict[str, float], errors: dict[str, float], given: Collection[str],
+                time_unit: str) -> str:
     text = ", ".join(param_text(effect, k, v, errors, given, time_unit) for k, v in params.items())
     if effect == "thermal_drift" and time_unit == "s" and "tau_s" in params:
         rate = drift_rate(effect, params)["initial_rate_ppm_per_h"]
@@ -100,7 +104,7 @@ def outliers_json(outliers: Outliers) -> dict:
                            "without_outliers": None if outliers.s_without is None else round(outliers.s_without, 4)}}
 
 
-def ranking_json(ranking) -> list[dict]:
+def ranking_json(ranking: list[Candidate]) -> list[dict[str, Any]]:
     return [{"effect": c.name, "explained_pct": round(c.explained_pct, 2), "delta_bic": round(c.delta_bic, 2),
              "p_value": float(f"{c.p_value:.3g}"), "cv_before_um": round(c.cv_before_um, 4),
              "cv_after_um": round(c.cv_after_um, 4), "verdict": c.verdict} for c in ranking]
@@ -171,7 +175,7 @@ def incomplete_notes(path: str) -> list[str]:
              "short weighs the targets it reached more than the others; resume the campaign for the whole picture.")]
 
 
-def ranking_lines(ranking) -> list[str]:
+def ranking_lines(ranking: list[Candidate]) -> list[str]:
     return [f"    {c.name:28s} explains {c.explained_pct:5.1f} %  ΔBIC {c.delta_bic:8.1f}  p {c.p_value:.2g}  "
             f"CV {c.cv_before_um:.3f} -> {c.cv_after_um:.3f} µm  {c.verdict}" for c in ranking]
 
@@ -251,7 +255,7 @@ def print_text(result: Discovery, time_unit: str) -> None:
         console.print(f"note: {note}")
 
 
-def saved_model(result: Discovery, model, source: str, time_source: str) -> str:
+def saved_model(result: Discovery, model: ErrorModel, source: str, time_source: str) -> str:
     """The final model as TOML. The datum offset and `environment` (it follows this campaign's log)
     are left out, and said so. Without a time column thermal_drift's time constant is in points,
     not seconds: it is not saved as `tau_s` but as a comment, so that the simulator refuses the file
@@ -274,7 +278,7 @@ def saved_model(result: Discovery, model, source: str, time_source: str) -> str:
     return "\n".join(lines) + "\n" + text.rstrip("\n") + "\n"
 
 
-def _with_sections(lines: list[str]):
+def _with_sections(lines: list[str]) -> Iterator[tuple[str, str]]:
     """(the current [table] header, line) for each line of a TOML text."""
     section = ""
     for line in lines:
@@ -289,7 +293,8 @@ def plot_steps(result: Discovery, x: np.ndarray, d: np.ndarray, y: np.ndarray, o
     import matplotlib.pyplot as plt  # campaign.plot has set the Agg backend
 
     start = y - result.start.prediction
-    panels = [(f"add {s.effect}", s.residual_before, s.residual_after) for s in result.steps]
+    panels: list[tuple[str, np.ndarray | None, np.ndarray]] = [
+        (f"add {s.effect}", s.residual_before, s.residual_after) for s in result.steps]
     panels = panels or [("nothing added: residual of the starting model", None, start)]
     fig, axes = plt.subplots(len(panels), 1, figsize=(9, 3.2 * len(panels)), squeeze=False)
     for ax, (title, before, after) in zip(axes[:, 0], panels):
@@ -311,7 +316,7 @@ def plot_steps(result: Discovery, x: np.ndarray, d: np.ndarray, y: np.ndarray, o
     plt.close(fig)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     plot_path = check_plot_path(args.plot) if args.plot else None
     if args.save and Path(args.save).suffix.lower() != ".toml":
         raise InputError(f"--save: {args.save}: the model file must end in .toml")

@@ -86,7 +86,7 @@ def campaign_data(table: PointTable, capture: dict[str, np.ndarray] | None = Non
     if samples is None:
         samples, period = np.ones(n), 1.0
     else:
-        period = sample_period_s
+        period = sample_period_s or 1.0  # samples are known only with a sample period
     t, w = sample_times(end, wait if wait is not None else np.zeros(n), samples, period)
     env = {k: v for k, v in table.optional.items() if k not in ("time_s", *CAPTURE_COLUMNS)}
     return CampaignData(x=table.target.astype(float), d=table.direction.astype(float), run=table.run,

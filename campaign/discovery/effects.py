@@ -23,6 +23,9 @@ LASER_DATUM_MM = 0.0
 """Where the laser reading is zero: the table's positions are the laser's, so an air
 refractive-index error (and the material normalisation) pivots at x = 0."""
 
+Shape = dict[str, float]
+"""Shape parameters (or held parameters) of an effect by name: period_mm, tau_s, pivot_mm, ..."""
+
 PERIOD_RANGE_MM = (2.0, 100.0)
 """Plausible screw leads searched for a periodic error, mm (at most half the travel)."""
 
@@ -31,96 +34,110 @@ def _mean_samples(values: np.ndarray) -> np.ndarray:
     return np.nanmean(values, axis=1)
 
 
-def _span(data: CampaignData, held: dict) -> tuple[float, float]:
+def _span(data: CampaignData, held: Shape) -> tuple[float, float]:
     return held.get("start_mm", float(data.x.min())), held.get("end_mm", float(data.x.max()))
 
 
-def _linear_scale(data, shape, held):
+def _linear_scale(data: CampaignData, shape: Shape, held: Shape) -> np.ndarray:
     return (data.x * 1e-3)[:, None]
 
 
-def _backlash(data, shape, held):
+def _backlash(data: CampaignData, shape: Shape, held: Shape) -> np.ndarray:
     return (-data.d / 2)[:, None]
 
 
-def _periodic(data, shape, held):
+def _periodic(data: CampaignData, shape: Shape, held: Shape) -> np.ndarray:
     angle = 2 * np.pi * data.x / shape["period_mm"]
     return np.column_stack([np.sin(angle), np.cos(angle)])
 
 
-def _periodic_params(c, shape, held):
+def _periodic_params(c: np.ndarray, shape: Shape, held: Shape) -> dict[str, float]:
     return {"amplitude_um": float(math.hypot(c[0], c[1])), "period_mm": shape["period_mm"],
             "phase_rad": float(math.atan2(c[1], c[0]))}
 
 
-def _warming(data, tau_s):
+def _warming(data: CampaignData, tau_s: float) -> np.ndarray:
     return _mean_samples(1 - np.exp(-data.t / tau_s))
 
 
-def _thermal(data, shape, held):
+def _thermal(data: CampaignData, shape: Shape, held: Shape) -> np.ndarray:
     f = _warming(data, shape["tau_s"])
     if "pivot_mm" in held:
         return ((data.x - held["pivot_mm"]) * 1e-3 * f)[:, None]
     return np.column_stack([data.x * 1e-3 * f, -1e-3 * f])
 
 
-def _thermal_params(c, shape, held):
+def _thermal_params(c: np.ndarray, shape: Shape, held: Shape) -> dict[str, float]:
     if "pivot_mm" in held:
         return {"growth_ppm": float(c[0]), "tau_s": shape["tau_s"], "pivot_mm": held["pivot_mm"]}
     pivot = float(c[1] / c[0]) if abs(c[0]) > 1e-12 else 0.0
     return {"growth_ppm": float(c[0]), "tau_s": shape["tau_s"], "pivot_mm": pivot}
 
 
-def _nonlinear(data, shape, held):
+def _nonlinear(data: CampaignData, shape: Shape, held: Shape) -> np.ndarray:
     start, end = _span(data, held)
     p2, p3 = _legendre(2 * (data.x - start) / (end - start) - 1)
     return np.column_stack([p2, p3])
 
 
-def _nonlinear_params(c, shape, held):
+def _nonlinear_params(c: np.ndarray, shape: Shape, held: Shape) -> dict[str, float]:
     return {"p2_um": float(c[0]), "p3_um": float(c[1]), "start_mm": shape["start_mm"], "end_mm": shape["end_mm"]}
 
 
-def _pd_backlash(data, shape, held):
+def _pd_backlash(data: CampaignData, shape: Shape, held: Shape) -> np.ndarray:
     return np.column_stack([-data.d / 2, -data.d * data.x * 1e-3 / 2])
 
 
-def _settling(data, shape, held):
-    return (-data.d * _mean_samples(np.exp(-data.w / shape["tau_s"])))[:, None]
+def _settling(data: CampaignData, shape: Shape, held: Shape) -> np.ndarray:
+    return (-data.d * _mean_samples(np.exp(-_waits(data) / shape["tau_s"])))[:, None]
 
 
-def _duration(data):
+def _waits(data: CampaignData) -> np.ndarray:
+    """The sample waits since arrival, s; ValueError when the table has no capture_wait_s (settling
+    is never a candidate then)."""
+    if data.w is None:
+        raise ValueError("settling needs the waits since arrival (capture_wait_s)")
+    return data.w
+
+
+def _air(data: CampaignData) -> np.ndarray:
+    if data.air_index_change is None:
+        raise ValueError("the air term needs the air log")
+    return data.air_index_change
+
+
+def _duration(data: CampaignData) -> float:
     return float(np.nanmax(data.t) - np.nanmin(data.t)) or 1.0
 
 
-def _tau_grid(low, high, count=24):
+def _tau_grid(low: float, high: float, count: int = 24) -> list[Shape]:
     return [{"tau_s": float(v)} for v in np.geomspace(low, high, count)]
 
 
-def _thermal_grid(data, held):
+def _thermal_grid(data: CampaignData, held: Shape) -> list[Shape]:
     span = _duration(data)
     return _tau_grid(span / 30, span * 3)
 
 
-def _settling_grid(data, held):
-    waits = data.w[np.isfinite(data.w)]
+def _settling_grid(data: CampaignData, held: Shape) -> list[Shape]:
+    waits = _waits(data)[np.isfinite(_waits(data))]
     return _tau_grid(max(waits.min() / 10, 1e-3), waits.max() * 2)
 
 
-def _environment(data, shape, held):
+def _environment(data: CampaignData, shape: Shape, held: Shape) -> np.ndarray:
     """The slope that follows the log: the air's refractive-index change since the first point,
     x·(n/n0 - 1) (µm per unit air_factor), and the material's temperature above 20 °C,
     x·(T_m - 20) (µm per µm/m/K), both about the laser datum."""
     x = data.x - LASER_DATUM_MM
     cols = []
     if shape.get("air"):
-        cols.append(x * 1e3 * data.air_index_change)
+        cols.append(x * 1e3 * _air(data))
     if shape.get("material"):
         cols.append(x * 1e-3 * (data.env["material_temp_c"] - 20.0))
     return np.column_stack(cols) if cols else np.zeros((len(data), 0))
 
 
-def _environment_params(c, shape, held):
+def _environment_params(c: np.ndarray, shape: Shape, held: Shape) -> dict[str, float]:
     names = [k for k, flag in (("air_factor", "air"), ("alpha_ppm_per_k", "material")) if shape.get(flag)]
     return {k: float(v) for k, v in zip(names, c)}
 
@@ -135,7 +152,7 @@ def environment_logs(data: CampaignData) -> list[str]:
     return logs
 
 
-def _environment_grid(data, held):
+def _environment_grid(data: CampaignData, held: Shape) -> list[Shape]:
     logs = environment_logs(data)
     variants = [{log: 1.0} for log in logs]
     return variants + ([{log: 1.0 for log in logs}] if len(logs) > 1 else [])
@@ -158,9 +175,15 @@ class EffectForm:
     coefficients: tuple[str, ...]
     shape: tuple[str, ...]
     group: str
-    columns: Callable
-    to_params: Callable | None = None
-    shape_grid: Callable | None = None
+    columns: Callable[[CampaignData, Shape, Shape], np.ndarray]
+    to_params: Callable[[np.ndarray, Shape, Shape], dict[str, float]] | None = None
+    shape_grid: Callable[[CampaignData, Shape], list[Shape]] | None = None
+
+    def grid(self, data: CampaignData, held: Shape) -> list[Shape]:
+        """The starting values of the searched shape parameters; ValueError for an effect with none."""
+        if self.shape_grid is None:
+            raise ValueError(f"{self.name} has no shape parameters to search")
+        return self.shape_grid(data, held)
 
     def params(self, coefs: np.ndarray, shape: dict, held: dict) -> dict[str, float]:
         if self.to_params is not None:

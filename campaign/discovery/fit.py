@@ -115,7 +115,7 @@ def linear_fit(data: CampaignData, terms: list[Term]) -> Fit:
 def _shape_bounds(data: CampaignData, name: str, key: str) -> tuple[float, float]:
     if key == "period_mm":
         return period_limits(data)
-    grid = FORMS[name].shape_grid(data, {})
+    grid = FORMS[name].grid(data, {})
     return grid[0]["tau_s"] / 3, grid[-1]["tau_s"] * 3
 
 
@@ -128,13 +128,13 @@ def refine(data: CampaignData, terms: list[Term]) -> Fit:
     upper = np.log([_shape_bounds(data, terms[i].name, k)[1] for i, k in slots])
     start = np.clip(np.log([terms[i].shape[k] for i, k in slots]), lower + 1e-9, upper - 1e-9)
 
-    def with_shapes(logs) -> list[Term]:
+    def with_shapes(logs: np.ndarray) -> list[Term]:
         new = [replace(t, shape=dict(t.shape)) for t in terms]
         for (i, key), value in zip(slots, logs):
             new[i].shape[key] = float(math.exp(value))
         return new
 
-    def residual(logs):
+    def residual(logs: np.ndarray) -> np.ndarray:
         f = linear_fit(data, with_shapes(logs))
         return data.y - f.prediction
 
@@ -166,7 +166,7 @@ def confounders(data: CampaignData, terms: list[Term], term: Term) -> list[str]:
             continue
         q, _ = np.linalg.qr(design(data, [replace(other, fixed=False, keep=None)])[0])
         outside = cols - q @ (q.T @ cols)
-        if np.linalg.norm(outside) <= COLLINEAR * max(np.linalg.norm(cols), 1e-300):
+        if np.linalg.norm(outside) <= COLLINEAR * max(float(np.linalg.norm(cols)), 1e-300):
             names.append(other.name)
     return names
 
@@ -260,7 +260,8 @@ def jacobian(data: CampaignData, fit: Fit, step: float = 1e-4) -> tuple[np.ndarr
     (term index, "coef", column in the form's full order)) and the log of every searched shape
     (label (term index, "log", key)); the offset's label is None."""
     a, slices = design(data, fit.terms)
-    blocks, labels = [a], [None] * a.shape[1]
+    blocks = [a]
+    labels: list[tuple[int, str, int | str] | None] = [None] * a.shape[1]
     for i, (term, sl) in enumerate(zip(fit.terms, slices)):
         if term.fixed:
             continue
@@ -308,7 +309,7 @@ def standard_errors(data: CampaignData, fit: Fit, step: float = 1e-4) -> dict[st
         if term.fixed or not index:
             continue
 
-        def values(delta: np.ndarray, i=i, term=term, index=index) -> dict[str, float]:
+        def values(delta: np.ndarray, i: int = i, term: Term = term, index: list[int] = index) -> dict[str, float]:
             coefs, shape = fit.coefs[i].astype(float).copy(), dict(term.shape)
             for j, d in zip(index, delta):
                 _, kind, what = labels[j]

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -65,6 +66,13 @@ DWELL_SPREAD = 0.05
 @dataclass
 class Candidate:
     """An effect tried at one step: its fit, the residual share it explains (%), and the tests."""
+
+    @property
+    def fitted(self) -> Fit:
+        """The fit of an effect that was fitted; ValueError for one that could not be."""
+        if self.fit is None:
+            raise ValueError(f"{self.name} has no fit")
+        return self.fit
 
     name: str
     fit: Fit | None
@@ -170,7 +178,7 @@ def default_shape(name: str, key: str, data: CampaignData) -> float:
     """A starting shape parameter for an effect in the starting model: the middle of its grid."""
     if key == "period_mm":
         return 10.0
-    grid = FORMS[name].shape_grid(data, {})
+    grid = FORMS[name].grid(data, {})
     return grid[len(grid) // 2]["tau_s"]
 
 
@@ -252,16 +260,16 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
     """Fit the model plus `name` (best shape from a grid or periodogram) and test it."""
     n = len(data)
     held = fixed_shape(name, data, {})
-    starts = [{}]
+    starts: list[dict[str, float]] = [{}]
     if name == "periodic_lead":
         starts = [{"period_mm": p} for p in periodogram_periods(data, current, top=PERIOD_STARTS)]
     elif FORMS[name].shape_grid is not None:
-        starts = FORMS[name].shape_grid(data, {})
+        starts = FORMS[name].grid(data, {})
     best: Fit | None = None
     fits = []
     for shape in starts:
         term = drop_collinear(data, current.terms, Term(name, {}, False, {**held, **shape}))
-        if not any(term.keep):
+        if not any(term.keep or ()):
             continue
         fit = linear_fit(data, [*current.terms, term])
         fits.append(fit)
@@ -346,10 +354,10 @@ def environment_variant(fits: list[Fit], n: int) -> tuple[Fit, tuple[str, str] |
     among those with plausible coefficients (all of them if none is). When the air and material
     logs move together the variants fit alike: the note (text, topic) says so, and which one the
     coefficients rule out; it is said only when environment passes the tests (try_candidate)."""
-    def coefs(fit):
+    def coefs(fit: Fit) -> dict[str, float]:
         return fit.params()["environment"]
 
-    def plausible(fit):
+    def plausible(fit: Fit) -> bool:
         return all(lo <= coefs(fit)[k] <= hi for k, (lo, hi) in PLAUSIBLE.items() if k in coefs(fit))
 
     ranked = sorted(fits, key=lambda f: bic(f, n))
@@ -379,7 +387,7 @@ def prefer_simpler(best: Candidate, accepted: list[Candidate], n: int, notes: li
     simpler = next((c for c in accepted if c.name == NESTED_IN.get(best.name)), None)
     if simpler is None:
         return best
-    p = f_test_p(simpler.fit, best.fit, n)
+    p = f_test_p(simpler.fitted, best.fitted, n)
     if p < ALPHA:
         return best
     _note(notes, f"{best.name} fits a little better than {simpler.name}, but its extra parameter is not "
@@ -395,7 +403,10 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
         notes.append("the table has no time column: time effects use the point order (time constants "
                      "are in points, not seconds)")
     start = refine(data, start_terms(model, given, data, notes))
-    current, steps, choices, unresolved = start, [], [], []
+    current = start
+    steps: list[Step] = []
+    choices: list[dict[str, Any]] = []
+    unresolved: list[dict[str, Any]] = []
     ranking: list[Candidate] = []
     remaining: list[Candidate] = []
     remaining_beside = None
@@ -411,18 +422,18 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
             # something is there that cannot be named (rivals, or a period not known): test the
             # others beside the best of it as a stand-in, so that its residual does not hide them
             stand_in = min(held, key=lambda c: c.delta_bic)
-            others = [try_candidate(data, stand_in.fit, name, notes)
-                      for name in candidate_names(data, stand_in.fit.terms, notes)
+            others = [try_candidate(data, stand_in.fitted, name, notes)
+                      for name in candidate_names(data, stand_in.fitted.terms, notes)
                       if name not in {c.name for c in held}]
             others.sort(key=lambda c: (c.fit is None, c.delta_bic))
-            chosen, more = choose(data, stand_in.fit, others, notes)
+            chosen, more = choose(data, stand_in.fitted, others, notes)
             unresolved += more
             ranking = [*held, *others]
             if chosen is not None:
                 _note(notes, f"{chosen.name} was tested beside the unresolved {stand_in.name} (as a stand-in, "
                              "not named), whose residual would otherwise hide it")
                 # the search goes on from the named model
-                chosen.fit = refine(data, [t for t in chosen.fit.terms if t.name != stand_in.name])
+                chosen.fit = refine(data, [t for t in chosen.fitted.terms if t.name != stand_in.name])
             else:
                 remaining_beside = stand_in.name
         for cand in ranking:
@@ -437,7 +448,7 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
         if choice:
             choices.append(choice)
             _note(notes, choice["why"])
-        after = refine(data, chosen.fit.terms)
+        after = refine(data, chosen.fitted.terms)
         if chosen.periods:
             spreads[chosen.name] = period_spread_mm(chosen.periods)
         errors = standard_errors(data, after).get(chosen.name, {})
@@ -445,16 +456,16 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
         steps.append(Step(chosen.name, after.params()[chosen.name], current.rms_um(data.y), after.rms_um(data.y),
                           ranking, data.y - current.prediction, data.y - after.prediction, errors))
         current = after
-    errors = standard_errors(data, current)
-    for name in errors:
-        add_period_spread(errors[name], name, spreads)
+    all_errors = standard_errors(data, current)
+    for name in all_errors:
+        add_period_spread(all_errors[name], name, spreads)
     add_confounding_notes(data, current, notes)
     residual = data.y - current.prediction
     return Discovery(steps, start, current, start.rms_um(data.y), current.rms_um(data.y),
                      pooled_scatter_um(data, residual), data.time_source, notes,
                      disagreement(data, data.y - start.prediction), disagreement(data, residual), choices,
-                     unresolved, errors=errors, remaining=remaining, remaining_beside=remaining_beside,
-                     starting=starting_report(data, start, current, errors, given))
+                     unresolved, errors=all_errors, remaining=remaining, remaining_beside=remaining_beside,
+                     starting=starting_report(data, start, current, all_errors, given))
 
 
 def add_period_spread(errors: dict[str, float], name: str, spreads: dict[str, float]) -> None:
@@ -552,7 +563,7 @@ def hold_reversal(backlash: Candidate, ranking: list[Candidate], data: CampaignD
     direction: exactly a backlash. The reversal is listed as unresolved, not named; so is a
     position-dependent backlash whose growth is not significant (it is the same reversal). A
     significant growth along the travel is no settling and stays a candidate."""
-    b = backlash.fit.params()["backlash"].get("b_um")
+    b = backlash.fitted.params()["backlash"].get("b_um")
     size = f"a reversal of {b:+.3g} µm" if b is not None else "a reversal"
     wait = ("no wait before capture is recorded" if data.w is None else
             f"the wait before every capture is about {float(np.nanmean(data.w)):.2g} s")
@@ -566,7 +577,7 @@ def hold_reversal(backlash: Candidate, ranking: list[Candidate], data: CampaignD
     backlash.verdict = "not told apart from settling (the wait before capture does not vary)"
     held = [backlash]
     for cand in ranking:
-        if NESTED_IN.get(cand.name) == "backlash" and cand.accepted and f_test_p(backlash.fit, cand.fit, n) >= ALPHA:
+        if NESTED_IN.get(cand.name) == "backlash" and cand.accepted and f_test_p(backlash.fitted, cand.fitted, n) >= ALPHA:
             cand.verdict = "held with backlash, which is unresolved"
             held.append(cand)
     return held
@@ -582,12 +593,12 @@ def are_rivals(data: CampaignData, best: Candidate, other: Candidate, n: int) ->
         return False
     if other.delta_bic - best.delta_bic >= RIVAL_MARGIN:
         return False
-    term = next(t for t in other.fit.terms if t.name == other.name)
-    term = drop_collinear(data, best.fit.terms, replace(term, keep=None))
-    if not any(term.keep):
+    term = next(t for t in other.fitted.terms if t.name == other.name)
+    term = drop_collinear(data, best.fitted.terms, replace(term, keep=None))
+    if not any(term.keep or ()):
         return True
-    joint = linear_fit(data, [*best.fit.terms, term])
-    return bic(joint, n) > bic(best.fit, n) - RIVAL_MARGIN
+    joint = linear_fit(data, [*best.fitted.terms, term])
+    return bic(joint, n) > bic(best.fitted, n) - RIVAL_MARGIN
 
 
 def how_to_tell(names: list[str]) -> str:
@@ -653,11 +664,11 @@ def air_or_screw(data: CampaignData, ranking: list[Candidate], chosen: Candidate
                              or other.explained_pct >= PLAUSIBLE_SHARE * chosen.explained_pct):
         return None
     env, thermal = (chosen, other) if chosen.name == "environment" else (other, chosen)
-    pivot = thermal.fit.params()["thermal_drift"]["pivot_mm"]
+    pivot = thermal.fitted.params()["thermal_drift"]["pivot_mm"]
     travel = float(np.ptp(data.x)) or 1.0
     at_datum = abs(pivot - LASER_DATUM_MM) < 0.15 * travel
     logs = " and ".join(sorted({"air_factor": "air", "alpha_ppm_per_k": "material"}[k]
-                               for k in env.fit.params()["environment"]))
+                               for k in env.fitted.params()["environment"]))
     margin = abs(env.delta_bic - thermal.delta_bic)
     if chosen.name == "environment":
         better = "more than" if env.explained_pct >= thermal.explained_pct else "as much as, with fewer parameters,"

@@ -27,6 +27,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from campaign.config import Config
 from campaign.edlen import REFERENCE_TEMPERATURE_C, refractive_index
@@ -65,7 +66,7 @@ class Environment:
     alpha_ppm_per_k: float = 0.0
     log_sigma: float = 0.0
 
-    def values(self, t, t_end: float) -> dict[str, np.ndarray]:
+    def values(self, t: ArrayLike, t_end: float) -> dict[str, np.ndarray]:
         """The true values at times t (s): column name -> array (°C, hPa, %)."""
         t = np.asarray(t, dtype=float)
         if self.tau_s is None:
@@ -76,7 +77,7 @@ class Environment:
                  "humidity_pct": self.humidity_pct, "material_temp_c": self.material_temp_c}
         return {k: v[0] + (v[1] - v[0]) * share for k, v in pairs.items() if v is not None}
 
-    def deviation_um(self, x, t, t_end: float) -> np.ndarray:
+    def deviation_um(self, x: ArrayLike, t: ArrayLike, t_end: float) -> np.ndarray:
         """The reading error, µm, at position x (mm) and times t (s) (broadcast)."""
         v = self.values(t, t_end)
         index = np.vectorize(lambda tc, p, rh: refractive_index(tc, p * 100.0, rh))
@@ -89,7 +90,8 @@ class Environment:
         return error
 
 
-def capture_average_um(model: ErrorModel, x, d, t_samples, w_samples) -> np.ndarray:
+def capture_average_um(model: ErrorModel, x: ArrayLike, d: ArrayLike, t_samples: np.ndarray,
+                       w_samples: np.ndarray) -> np.ndarray:
     """The deterministic deviation (µm) each point's capture reads: the mean of
     `model.deviation_um` over its samples. x (mm) and d (±1) have one entry per point; t_samples
     (s since start) and w_samples (s since arrival) one row per point, one column per sample (NaN
@@ -100,7 +102,8 @@ def capture_average_um(model: ErrorModel, x, d, t_samples, w_samples) -> np.ndar
     return np.nanmean(np.where(np.isnan(t_samples), np.nan, values), axis=1)
 
 
-def sample_times(capture_end_s, capture_wait_s, samples, sample_period_s: float):
+def sample_times(capture_end_s: ArrayLike, capture_wait_s: ArrayLike, samples: ArrayLike,
+                 sample_period_s: float) -> tuple[np.ndarray, np.ndarray]:
     """(t, w) sample matrices, s: sample j of a point is at capture end - j·sample_period_s, for
     `samples` samples (NaN beyond a point's count)."""
     end = np.asarray(capture_end_s, dtype=float)
@@ -147,20 +150,20 @@ def simulate_campaign(config: Config, model: ErrorModel, seed: int = 1, dwell_ji
         if here is not None:
             t += move_time_s(stop.position - here, stop.move.velocity, accel)
         here = stop.position
-        if stop.point is not None:  # the plan's Settle is the dwell minus the window
+        if stop.point is not None and stop.capture is not None:  # the Settle is the dwell minus the window
             point, window = stop.point, stop.capture.window_s
             settle = max(dwells_s[point.index], window) - window
             count = max(round(window / period), 1)
             t += settle + window
             rows.append((point.run, point.direction, point.target, t, settle + window, count))
-    run, direction, target, end, wait, count = (np.array(c) for c in zip(*rows))
-    t_samples, w_samples = sample_times(end, wait, count, period)
+    run, direction, target, end, wait, counts = (np.array(c) for c in zip(*rows))
+    t_samples, w_samples = sample_times(end, wait, counts, period)
     deviation = capture_average_um(model, target, direction, t_samples, w_samples)
     deviation += rng.normal(0.0, model.sigma_um, len(rows)) if model.sigma_um else 0.0
     if model.reading_sigma_um:
         reading = rng.normal(0.0, model.reading_sigma_um, t_samples.shape)
         deviation += np.nanmean(np.where(np.isnan(t_samples), np.nan, reading), axis=1)
-    optional = {"time_s": end, "capture_wait_s": wait, "samples": count.astype(float)}
+    optional = {"time_s": end, "capture_wait_s": wait, "samples": counts.astype(float)}
     if environment is not None:
         t_end = float(end[-1])
         valid = ~np.isnan(t_samples)
