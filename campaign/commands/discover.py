@@ -138,6 +138,9 @@ def as_json(result: Discovery) -> dict:
                    "ranking": ranking_json(s.ranking)} for s in result.steps],
         "remaining": ranking_json(result.remaining),
         "remaining_beside": result.remaining_beside,
+        "stand_in": None if result.stand_in is None else {
+            **result.stand_in, "params": rounded(result.stand_in["params"]),
+            "gap_without_um": round(result.stand_in["gap_without_um"], 4)},
         "model": {name: rounded(p) for name, p in result.final.params().items()},
         "model_standard_errors": {name: errors_json(e) for name, e in result.errors.items()},
         "starting_model": {name: starting_json(entry) for name, entry in result.starting.items()},
@@ -247,6 +250,9 @@ def print_text(result: Discovery, time_unit: str) -> None:
             console.print(line)
     for entry in result.unresolved:
         console.print(f"[yellow]unresolved:[/] {entry['why']}. To tell: {entry['how_to_tell']}.")
+    if result.stand_in is not None:
+        console.print(f"[yellow]in the model as a stand-in:[/] {result.stand_in['observable']}; the model holds it "
+                      f"as {result.stand_in['effect']} (gap {result.stand_in['gap_without_um']:.3f} µm without it)")
     verdict = noise_verdict(result.gap_after_um, result.noise_um)
     line = (f"final gap {result.gap_after_um:.3f} µm RMS against a noise estimate of {result.noise_um:.3f} µm "
             f"(run-to-run scatter): what is left is {verdict}")

@@ -108,6 +108,12 @@ class Step:
     period's includes the spread over its competing optima."""
 
 
+STAND_IN_RIVALS = frozenset({"backlash", "settling"})
+"""An unresolved group made only of these predicts one constant offset per direction at a constant
+wait, wherever the axis is used: its size is known and is added (as backlash), its cause is not.
+Rivals that predict differently between the measured points (aliased periods) get no stand-in."""
+
+
 @dataclass
 class Discovery:
     """The result. gaps µm; noise_um: pooled run-to-run scatter of the final residual per target
@@ -134,6 +140,11 @@ class Discovery:
     """The candidates tried after the last step, none of them named."""
     remaining_beside: str | None = None
     """The unresolved effect the remaining candidates were tried beside (a stand-in), if any."""
+    stand_in: dict | None = None
+    """Rivals that predict the same deviation at every position the campaign can be used for
+    (backlash and settling at a constant wait): one of them is in the final model in their place,
+    not named (STAND_IN_RIVALS). effect, observable (what the data show, in words), rivals,
+    params, errors, gap_without_um (the gap had nothing been added for it)."""
     starting: dict[str, dict] = field(default_factory=dict)
     """The starting model's effects, as fitted at the end: params, errors, given (the keys the
     model gave), fixed, p_value (F-test of the effect against none of it) and significant."""
@@ -456,6 +467,17 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
         steps.append(Step(chosen.name, after.params()[chosen.name], current.rms_um(data.y), after.rms_um(data.y),
                           ranking, data.y - current.prediction, data.y - after.prediction, errors))
         current = after
+    kept: dict[str, Any] | None = None
+    group = next((u for u in unresolved if remaining_beside in u["effects"]), None)
+    if remaining_beside is not None and group is not None and set(group["effects"]) <= STAND_IN_RIVALS:
+        held_fit = next(c for c in remaining if c.name == remaining_beside).fitted
+        without = current.rms_um(data.y)
+        current = refine(data, held_fit.terms)
+        b_um = current.params()[remaining_beside]["b_um"]
+        kept = {"effect": remaining_beside, "rivals": list(group["effects"]),
+                "observable": f"a reversal of {abs(b_um):.1f} µm between the directions (x̄↑ − x̄↓ = "
+                              f"{-b_um:+.1f} µm): backlash, or settling not died out; cannot tell which",
+                "params": current.params()[remaining_beside], "gap_without_um": without}
     all_errors = standard_errors(data, current)
     for name in all_errors:
         add_period_spread(all_errors[name], name, spreads)
@@ -465,7 +487,7 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
                      pooled_scatter_um(data, residual), data.time_source, notes,
                      disagreement(data, data.y - start.prediction), disagreement(data, residual), choices,
                      unresolved, errors=all_errors, remaining=remaining, remaining_beside=remaining_beside,
-                     starting=starting_report(data, start, current, all_errors, given))
+                     stand_in=kept, starting=starting_report(data, start, current, all_errors, given))
 
 
 def add_period_spread(errors: dict[str, float], name: str, spreads: dict[str, float]) -> None:
