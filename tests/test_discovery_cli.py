@@ -114,7 +114,7 @@ def test_text_output_names_steps_units_and_noise(cli, tmp_path):
     write_points(tmp_path / "points.csv", table)
     model = tmp_path / "start.toml"
     model.write_text("[effects.linear_scale]\n[effects.backlash]\n")
-    result = cli("discover", tmp_path / "points.csv", "--model", model)
+    result = cli("discover", tmp_path / "points.csv", "--model", model, "--verbose")
     assert result.code == 0, result.err
     assert "add periodic_lead" in result.out and "period_mm = " in result.out and " mm" in result.out
     assert "add thermal_drift" in result.out and "µm/m per hour" in result.out
@@ -211,5 +211,5 @@ def test_environment_from_a_file_is_named_with_its_error_and_left_out_of_the_sav
     text = (tmp_path / "new.toml").read_text()
     assert "# Left out: environment (air_factor = " in text and "[effects.environment]" not in text
     assert set(read_model(tmp_path / "new.toml").effects) == {"linear_scale", "noise"}
-    out = cli("discover", tmp_path / "points.csv").out
+    out = cli("discover", tmp_path / "points.csv", "--verbose").out
     assert "add environment (air_factor = " in out and " ± " in out and "chose environment" in out

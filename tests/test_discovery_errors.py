@@ -50,7 +50,7 @@ def test_the_model_s_given_period_prints_its_amplitude_with_an_error(cli, tmp_pa
     path, model = tmp_path / "p.csv", tmp_path / "m.toml"
     write_points(path, table)
     model.write_text("[effects.linear_scale]\n[effects.backlash]\n[effects.periodic_lead]\nperiod_mm = 10.0\n")
-    out = cli("discover", path, "--model", model).out
+    out = cli("discover", path, "--model", model, "--verbose").out
     line = next(ln for ln in out.splitlines() if ln.strip().startswith("periodic_lead:"))
     assert "amplitude_um = " in line and "µm ± " in line and "period_mm = 10 mm (given)" in line
     assert "phase_rad = " in line and "rad ± " in line
@@ -91,7 +91,7 @@ def test_nothing_named_but_something_there_is_said_in_plain_words(cli, tmp_path)
     write_points(path, simulate_campaign(user_config(), true, seed=4))
     found = json.loads(cli("discover", path, "--json").out)
     assert found["added"] == [] and [e["effects"] for e in found["unresolved"]] == [["periodic_lead"]]
-    out = cli("discover", path).out
+    out = cli("discover", path, "--verbose").out
     assert "none of the vocabulary explains" not in out
     assert "no effect is named, but the residual is not noise" in out and "periodic_lead explains" in out
 

@@ -40,7 +40,7 @@ def test_a_glitch_is_flagged_left_out_and_the_noise_given_with_and_without(cli, 
     assert scatter["without_outliers"] == pytest.approx(0.5, rel=0.2) and scatter["with_outliers"] > 1.5 * scatter["without_outliers"]
     assert found["noise_um"] == pytest.approx(0.5, rel=0.2)
     assert any("left out of the fit" in n for n in found["notes"])
-    text = cli("discover", path)
+    text = cli("discover", path, "--verbose")
     assert "left out of the fit" in text.out and "µm without" in text.out
 
 
@@ -54,7 +54,7 @@ def test_each_parameter_once_with_its_unit(cli, tmp_path):
     assert unit_of("backlash", "b_um", "s") == "µm"
     assert unit_of("settling", "e0_um", "s") == "µm"
     path, _ = bow_table(tmp_path, extra={"backlash": {"b_um": 6.0}}, dwell_jitter=0.8)  # waits that tell settling
-    out = cli("discover", path).out
+    out = cli("discover", path, "--verbose").out
     line = next(ln for ln in out.splitlines() if "add backlash" in ln)
     said = line.split("(", 1)[1].split(");")[0]
     assert said.startswith("b_um = ") and said.count("µm") == 2 and "e = " not in said  # value and error

@@ -4,6 +4,7 @@ name the effects the model is missing (campaign/discovery/search.py, docs/discov
 from __future__ import annotations
 
 import argparse
+import re
 from collections.abc import Collection, Iterator
 from pathlib import Path
 from typing import Any
@@ -32,6 +33,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="starting model, [effects.NAME] tables; a parameter left out is fitted "
                         "(default: linear_scale only)")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+    p.add_argument("--verbose", action="store_true",
+                   help="after the summary, every step's candidates (ΔBIC, p, cross-validation), the unresolved "
+                        "groups in full and the notes")
     p.add_argument("--plot", metavar="OUT", help="write the residual before and after each step (.png or .svg)")
     p.add_argument("--save", metavar="NEW.toml", help="write the final model in the model TOML format")
     p.set_defaults(func=run)
@@ -222,8 +226,52 @@ def starting_lines(result: Discovery, time_unit: str) -> list[str]:
     return lines
 
 
-def print_text(result: Discovery, time_unit: str) -> None:
+def first_clause(text: str, most: int = 70) -> str:
+    """The gist of a how-to-tell sentence: up to its colon and its first comma outside
+    parentheses; without the parentheses when that is still longer than `most` characters."""
+    text = text.split(": ", 1)[0]
+    depth = 0
+    for i, c in enumerate(text):
+        depth += (c == "(") - (c == ")")
+        if c == "," and depth == 0:
+            text = text[:i]
+            break
+    if len(text) > most:
+        text = re.sub(r"\s*\([^()]*\)", "", text)
+    return text
+
+
+def summary_lines(result: Discovery, incomplete: list[str]) -> list[str]:
+    """What a technician reads first, one short line each: an incomplete campaign, what was named
+    with its size and error, the stand-in, what is unresolved and the one thing to do about it,
+    the gap against the noise."""
+    lines = [f"[yellow]incomplete campaign:[/] {note.split(': ', 1)[1].split('. ', 1)[0]}" for note in incomplete]
+    for step in result.steps:
+        sizes = ", ".join(param_text(step.effect, k, v, step.errors, (), "s").split(" (")[0]
+                          for k, v in list(step.params.items())[:2])
+        lines.append(f"named: [bold]{step.effect}[/] {sizes}")
+    if not result.steps:
+        lines.append("named: nothing" + (" (something is there: see unresolved)" if result.unresolved else ""))
+    if result.stand_in is not None:
+        b = abs(result.stand_in["params"]["b_um"])
+        lines.append(f"in the model as a stand-in: a reversal of {b:.1f} µm (backlash or settling)")
+    for entry in result.unresolved:
+        lines.append(f"[yellow]unresolved:[/] {' or '.join(entry['effects'])}; to tell: "
+                     f"{first_clause(entry['how_to_tell'])}")
+    verdict = noise_verdict(result.gap_after_um, result.noise_um)
+    lines.append(f"gap {result.gap_before_um:.2f} -> {result.gap_after_um:.2f} µm RMS, noise "
+                 f"{result.noise_um:.2f} µm: what is left is {verdict}")
+    return lines
+
+
+def print_text(result: Discovery, time_unit: str, incomplete: list[str], verbose: bool) -> None:
     console = make_console()
+    for line in summary_lines(result, incomplete):
+        console.print(line)
+    if not verbose:
+        console.print("[dim](--verbose: every candidate with ΔBIC, p and CV, how to tell in full, the notes)[/]")
+        return
+    console.print()
     before = result.disagreement_before
     console.print(f"start: gap {result.gap_before_um:.3f} µm RMS (measured - simulated), of which by position "
                   f"{before['by_position_rms_um']:.3f} µm RMS, by direction "
@@ -335,7 +383,8 @@ def run(args: argparse.Namespace) -> int:
     if outliers.found:
         data = keep_rows(data, ~outliers.mask(table))
     result = discover(data, model, given)
-    result.notes[:0] = incomplete_notes(args.file) + outlier_notes(outliers, table.kind)
+    incomplete = incomplete_notes(args.file)
+    result.notes[:0] = incomplete + outlier_notes(outliers, table.kind)
     if plot_path:
         plot_steps(result, data.x, data.d, data.y, plot_path)
     if args.save:
@@ -343,7 +392,7 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print_json({**as_json(result), **outliers_json(outliers)})
     else:
-        print_text(result, data.time_unit)
+        print_text(result, data.time_unit, incomplete, args.verbose)
         for path, what in ((plot_path, "plot"), (args.save, "model")):
             if path:
                 make_console().print(f"{what} written to {path}")

@@ -1,0 +1,52 @@
+"""Issue 26, item 2: discovery reads top down. A technician reads the first ten lines: what was
+named with its size, what is unresolved and what to do, the gap against the noise; the candidate
+tables follow only with --verbose; nothing is cut at 80 columns (fast tier)."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+from rich.cells import cell_len
+
+from tests.test_discovery_stand_in import iso_table
+
+
+def eleven_targets(tmp_path):
+    """An 11-target campaign, 60 mm apart: a 10 mm screw lead it cannot pin down, a constant
+    reversal of 4 µm and a lead error of 15 µm/m."""
+    return iso_table(tmp_path / "p.csv", lambda x, d, rng: 0.015 * x - d * 2.0 + 2.0 * np.sin(2 * np.pi * x / 10.0)
+                     + rng.normal(0, 0.4))
+
+
+def test_the_summary_comes_first_within_ten_lines_at_80_columns(cli, monkeypatch, tmp_path):
+    monkeypatch.setenv("COLUMNS", "80")
+    table = eleven_targets(tmp_path)
+    short = cli("discover", table)
+    assert short.code == 0, short.err
+    lines = short.out.splitlines()
+    assert len(lines) <= 10 and max(cell_len(line) for line in lines) <= 80
+    head = " ".join(" ".join(lines).split())
+    assert "unresolved: periodic_lead; to tell: more targets" in head
+    assert re.search(r"in the model as a stand-in: a reversal of (3\.[89]|4\.[01]) µm", head)
+    assert re.search(r"gap \d+\.\d\d -> \d+\.\d\d µm RMS, noise \d+\.\d\d µm", head)
+    assert "explains" not in head  # the candidate tables are under --verbose
+    verbose = cli("discover", table, "--verbose")
+    assert verbose.out.startswith(short.out.rsplit("\n", 2)[0])  # the same summary first
+    assert "ΔBIC" in verbose.out and "final gap" in verbose.out and "note:" in verbose.out
+    assert max(cell_len(line) for line in verbose.out.splitlines()) <= 80  # wrapped, never cut
+
+
+def test_a_named_effect_is_in_the_summary_with_its_size(cli, monkeypatch, tmp_path):
+    monkeypatch.setenv("COLUMNS", "80")
+    table = iso_table(tmp_path / "b.csv", lambda x, d, rng: 8e-6 * (x - 300.0) ** 2 + rng.normal(0, 0.3))
+    out = cli("discover", table).out
+    named = [line for line in out.splitlines()[:10] if line.startswith("named:")]
+    assert named and "nonlinear_lead" in named[0] and "±" in named[0]
+
+
+def test_the_json_is_unchanged_by_the_summary(cli, tmp_path):
+    out = json.loads(cli("discover", eleven_targets(tmp_path), "--json").out)
+    assert {"added", "gap_before_um", "gap_after_um", "noise_um", "steps", "remaining", "unresolved", "notes",
+            "model", "stand_in"} <= set(out)
