@@ -8,6 +8,11 @@ How pyads' AdsTestServer behaves, and what this class does about it:
   `start()` makes a new one. The socket has SO_REUSEADDR, so the port is free again at once.
 - It only calls listen() when its thread runs, so a client connecting right after start() could be
   refused: `start()` calls listen() itself before starting the thread.
+- Its client threads read one TCP segment at a time and take it for one request: a request split
+  over two sends went unanswered, several requests in one send got one answer, and a client that
+  dropped its connection left a ConnectionResetError traceback. `FramedConnection` frames the
+  byte stream by the AMS/TCP header's length instead (each request answered, in order) and logs a
+  dropped connection as one line.
 - Its stop() joins the client threads but not its own thread and closes the listening socket under
   it: `stop()` ends the accept loop and joins that thread first, then lets the server close the
   client threads (joined) and the socket. No thread is left behind.
@@ -15,14 +20,91 @@ How pyads' AdsTestServer behaves, and what this class does about it:
 
 from __future__ import annotations
 
+import logging
+import select
+import socket
+import struct
 from types import TracebackType
 from typing import Self
 
 from pyads.testserver import AdsTestServer
+from pyads.testserver.handler import AmsResponseData
+from pyads.testserver.testserver import AdsClientConnection
 
 from drivers.sim.plc import SimPLC
 
 ADS_TCP_PORT = 48898
+AMS_TCP_HEADER_BYTES = 6
+"""Two reserved bytes, then the length of the AMS packet that follows (uint32, little-endian)."""
+AMS_HEADER_BYTES = 32
+
+log = logging.getLogger(__name__)
+
+
+class FramedConnection(AdsClientConnection):
+    """One ADS client: the byte stream cut into AMS packets by their AMS/TCP length, each answered
+    in the order it came, whatever the TCP segments were."""
+
+    def run(self) -> None:
+        self._run = True
+        pending = b""
+        while self._run:
+            ready, _, _ = select.select([self.client], [], [], 0.1)
+            if not ready:
+                continue
+            try:
+                data = self.client.recv(65536)
+            except OSError as exc:  # ConnectionResetError: the client went away without closing
+                log.warning("ADS client %s:%s dropped the connection (%s)", *self.client_address[:2],
+                            exc.strerror or exc)
+                data = b""
+            if not data:
+                self.client.close()
+                self._run = False
+                continue
+            pending += data
+            while len(pending) >= AMS_TCP_HEADER_BYTES:
+                length = struct.unpack_from("<I", pending, 2)[0]
+                if len(pending) < AMS_TCP_HEADER_BYTES + length:
+                    break  # the rest of this packet is still on its way
+                packet, pending = pending[:AMS_TCP_HEADER_BYTES + length], pending[AMS_TCP_HEADER_BYTES + length:]
+                self._answer(packet)
+
+    def _answer(self, packet: bytes) -> None:
+        if len(packet) < AMS_TCP_HEADER_BYTES + AMS_HEADER_BYTES:
+            log.warning("ADS client %s:%s sent a packet too short for an AMS header (%d bytes): ignored",
+                        *self.client_address[:2], len(packet))
+            return
+        request = self.construct_request(packet)
+        self.server.request_history.append(request)
+        response = self.handler.handle_request(request)
+        if isinstance(response, AmsResponseData):
+            try:
+                self.client.sendall(self.construct_response(response, request))
+            except OSError as exc:
+                log.warning("ADS client %s:%s dropped the connection (%s)", *self.client_address[:2],
+                            exc.strerror or exc)
+                self._run = False
+
+
+class FramedServer(AdsTestServer):
+    """pyads' test server with FramedConnection for every client."""
+
+    def run(self) -> None:
+        self._run = True
+        while self._run:
+            ready, _, _ = select.select([self.server], [], [], 0.1)
+            if not ready:
+                continue
+            try:
+                client, address = self.server.accept()
+            except OSError:
+                continue
+            client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            connection = FramedConnection(handler=self.handler, client=client, address=address, server=self)
+            connection.daemon = True
+            connection.start()
+            self.clients.append(connection)
 
 
 class SimAdsServer:
@@ -48,7 +130,7 @@ class SimAdsServer:
         if self._server is not None:
             return
         self.plc.handler.net_id = self.net_id
-        server = AdsTestServer(handler=self.plc.handler, ip_address=self.ip, port=self.port, logging=False)
+        server = FramedServer(handler=self.plc.handler, ip_address=self.ip, port=self.port, logging=False)
         try:
             server.server.listen(5)
             server.start()
