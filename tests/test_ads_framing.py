@@ -92,3 +92,17 @@ def test_an_abrupt_disconnect_is_one_log_line(plc_server, caplog, capfd):
     with socket.create_connection((plc_server.ip, plc_server.port)) as again:  # still serving
         again.sendall(read_state(plc_server.net_id, 3))
         assert answers(again, 1) == [3]
+
+
+def test_a_refused_notification_has_beckhoffs_reply_layout(plc_server):
+    """AddDeviceNotification (command 6) is refused with 0x701 in 8 bytes: result, then a handle."""
+    payload = struct.pack("<IIIIII16x", 0x4040, 0, 4, 4, 0, 1_000_000)  # group, offset, length, mode, delays
+    ams = (net_id_bytes(plc_server.net_id) + struct.pack("<H", 851) + net_id_bytes("127.0.0.1.1.2")
+           + struct.pack("<H", 30000) + struct.pack("<HHIII", 6, REQUEST, len(payload), 0, 9) + payload)
+    with socket.create_connection((plc_server.ip, plc_server.port)) as sock:
+        sock.settimeout(3.0)
+        sock.sendall(struct.pack("<HI", 0, len(ams)) + ams)
+        reply = sock.recv(65536)
+    data_length, = struct.unpack_from("<I", reply, 6 + 20)
+    result, = struct.unpack_from("<I", reply, 6 + 32)
+    assert data_length == 8 and result == 0x701

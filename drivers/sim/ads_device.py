@@ -12,7 +12,8 @@ handler. What it answers as TwinCAT does:
 - a write by handle whose length is not the variable's size gets 0x705 and changes nothing;
 - an unknown name or handle gets 0x710, an unknown index group 0x702, an offset outside the
   memory 0x703, a reply longer than the read length asked for 0x705;
-- a command it does not implement (notifications, write control) gets 0x701.
+- a command it does not implement (notifications, write control) gets 0x701; a refused
+  notification's reply is 8 bytes, result and handle, as Beckhoff's.
 
 Not modelled: notifications, RPC methods, enum values in the data type information, the
 TwinCAT system symbols (TwinCAT_SystemInfoVarList and the like).
@@ -35,6 +36,8 @@ GVL_OFFSET = 0x10000
 
 # ADS commands
 _DEVICE_INFO, _READ, _WRITE, _READ_STATE, _READ_WRITE = 1, 2, 3, 4, 9
+_ADD_NOTIFICATION = 6
+"""Refused (0x701), in Beckhoff's reply layout: result, then the notification handle (0: none)."""
 # reserved index groups
 _HANDLE_BY_NAME, _VALUE_BY_HANDLE, _RELEASE_HANDLE = 0xF003, 0xF005, 0xF006
 _SYMBOL_VERSION, _SYMBOL_INFO_BY_NAME_EX, _DATA_TYPE_BY_NAME_EX = 0xF008, 0xF009, 0xF011
@@ -139,6 +142,8 @@ class AdsDevice(AbstractHandler):
         body = struct.pack("<I", result)
         if command in (_READ, _READ_WRITE):
             body += struct.pack("<I", len(data))
+        if command == _ADD_NOTIFICATION:
+            body += struct.pack("<I", 0)  # the handle: none given
         return AmsResponseData(state, struct.pack("<I", 0), body + data)
 
     def _route_error(self, net_id: bytes, port: int) -> int:
