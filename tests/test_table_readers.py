@@ -140,3 +140,51 @@ def test_the_control_is_named_as_the_manual_writes_it(cli, tmp_path):
         assert result.code == 2 and "at most 200" in result.err, result.err
     assert cli("compensate", tmp_path / "p.csv", "--format", "siemens", "--control", "808D",
                "--spacing", "5", "-o", tmp_path / "ok.spf").code == 0
+
+
+# Issue 26 item 4: a table is read in the unit it was written in.
+INCH_COMP = "0.0 0.0001 -0.0001\n1.0 1.0002 0.9998\n2.0 2.0001 1.9999\n3.0 3.0000 3.0000\n"
+"""An inch machine's LinuxCNC COMP_FILE (LINEAR_UNITS = inch): nominal every inch, actual a few
+ten-thousandths off."""
+
+
+def test_an_inch_linuxcnc_table_is_read_in_inches_when_told(tmp_path):
+    path = tmp_path / "inch.comp"
+    path.write_text(INCH_COMP)
+    as_mm = read_comp_table(path, "linear", "linuxcnc", FormatOptions(units="mm"))
+    as_inch = read_comp_table(path, "linear", "linuxcnc", FormatOptions(units="inch"))
+    assert as_inch.spacing == pytest.approx(25.4) and as_mm.spacing == pytest.approx(1.0)
+    assert np.allclose(as_inch.positions, np.array([0.0, 1.0, 2.0, 3.0]) * 25.4)
+    # trim = nominal - actual: -0.0001 in = -2.54 µm forward at 0
+    assert as_inch.forward[0] == pytest.approx(-2.54) and as_mm.forward[0] == pytest.approx(-0.1)
+    assert np.allclose(as_inch.forward, as_mm.forward * 25.4)
+    with pytest.raises(BAD_INPUT, match="rotary joint"):
+        read_comp_table(path, "rotary", "linuxcnc", FormatOptions(units="inch"))
+
+
+def test_the_unit_assumed_is_said_and_units_only_apply_to_linuxcnc(tmp_path):
+    from campaign.compensation.table_file import table_units_note
+
+    path = tmp_path / "t.comp"
+    path.write_text(INCH_COMP)
+    note = table_units_note(path, None, None)
+    assert note is not None and "read in mm" in note and "--units inch" in note
+    assert table_units_note(path, None, "inch") is None
+    csv = tmp_path / "t.csv"
+    csv.write_text(render("csv", ControllerTable("linear", 0.0, 10.0, np.zeros(3), np.zeros(3), np.zeros(3), "uni",
+                                                 None), FormatOptions()).text)
+    assert table_units_note(csv, None, None) is None
+    with pytest.raises(BAD_INPUT, match="--units applies to LinuxCNC"):
+        table_units_note(csv, None, "inch")
+
+
+def test_a_spike_between_neighbours_is_warned_about(tmp_path):
+    from campaign.compensation.table_file import table_spikes
+
+    smooth = np.array([0.0, 1.5, 3.0, 3.8, 5.1, 6.0, 6.4, 7.9])
+    table = ControllerTable("linear", 0.0, 60.0, smooth, smooth, smooth, "uni", None)
+    assert table_spikes(table, "t") == []
+    spiked = smooth.copy()
+    spiked[4] += 200.0  # a 0.2 mm trim typed among µm
+    warned = table_spikes(ControllerTable("linear", 0.0, 60.0, spiked, spiked, spiked, "uni", None), "t")
+    assert len(warned) == 1 and "between 180 and 240" in warned[0] and "spike" in warned[0]

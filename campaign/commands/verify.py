@@ -10,7 +10,12 @@ from rich.table import Table
 
 from campaign.commands import SUMMARY, finite_number, hardware_opener, positive_number
 from campaign.commands.run import add_run_options, finish, with_on_fault
-from campaign.compensation.table_file import read_comp_provenance, read_comp_table
+from campaign.compensation.table_file import (
+    read_comp_provenance,
+    read_comp_table,
+    table_spikes,
+    table_units_note,
+)
 from campaign.config import load_config
 from campaign.errors import InputError
 from campaign.measure import (
@@ -39,6 +44,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="pmac and fanuc tables: encoder counts (detection units) per mm or degree")
     p.add_argument("--reference", type=finite_number, default=0.0,
                    help="fanuc tables: the reference position, mm or deg (default 0)")
+    p.add_argument("--units", choices=("mm", "inch"),
+                   help="a LinuxCNC table's unit: its machine's LINEAR_UNITS (default: mm, and said so)")
     p.add_argument("--before", metavar="DIR|POINTS.csv", help="the baseline campaign (before compensation)")
     p.add_argument("--max-rate", type=positive_number, metavar="UM_PER_S",
                    help="rate limit of the correction, µm/s (arcsec/s on a rotary axis)")
@@ -51,7 +58,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 def run(args: argparse.Namespace) -> int:
     config = load_config(args.config)
     config = with_on_fault(config, args)
-    options = FormatOptions(counts_per_unit=args.counts_per_unit)
+    options = FormatOptions(counts_per_unit=args.counts_per_unit, units=args.units or "mm")
+    units_note = table_units_note(args.comp, args.comp_format, args.units)
     table = read_comp_table(args.comp, config.axis.kind, args.comp_format, options, args.reference)
     if args.plot:
         check_plot_path(args.plot)
@@ -60,7 +68,10 @@ def run(args: argparse.Namespace) -> int:
     plan = build_plan(config)
     check_plan(plan, config.axis)
     console = make_console(stderr=args.json)
-    for warning in table_fits(table, read_comp_provenance(args.comp), config, plan, args.comp):
+    if units_note:
+        console.print(f"note: {units_note}")
+    for warning in [*table_fits(table, read_comp_provenance(args.comp), config, plan, args.comp),
+                    *table_spikes(table, args.comp)]:
         console.print(f"[yellow]warning:[/] {warning}")
     baseline = Path(args.before) if args.before else None
     before = baseline_points(baseline, config) if baseline else None

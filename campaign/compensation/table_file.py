@@ -80,6 +80,51 @@ def read_comp_json(path: str | Path) -> ControllerTable:
                            None if reference is None else number("reference"))
 
 
+def table_units_note(path: str | Path, fmt: str | None, units: str | None) -> str | None:
+    """What the user is told about the unit a table is read in: LinuxCNC tables carry no unit (the
+    machine's INI says LINEAR_UNITS), so without `units` (mm or inch) the assumption is said; the
+    other formats name their unit (mm, µm, counts) and take no `units` (InputError)."""
+    if fmt is None:
+        raw = read_input_bytes(path, "a compensation table")
+        fmt = sniff(raw.decode("utf-8-sig", errors="replace"))
+    if fmt != "linuxcnc":
+        if units is not None:
+            raise InputError(f"--units applies to LinuxCNC tables, whose files carry no unit; {path} is {fmt}")
+        return None
+    if units is None:
+        return (f"{path}: a LinuxCNC table carries no unit; read in mm (an inch machine, LINEAR_UNITS = inch: "
+                "give --units inch)")
+    return None
+
+
+SPIKE_FACTOR = 10.0
+"""A step between neighbouring table points more than this many times the table's median step is
+a spike (a typing error, a table in the wrong unit, a point measured wrong)."""
+SPIKE_FLOOR = 10.0
+"""...and more than this, deviation unit (µm, arcsec): smaller steps are within what a screw shows."""
+
+
+def table_spikes(table: ControllerTable, name: str) -> list[str]:
+    """One warning per direction whose table has a step between neighbours far beyond the others
+    (SPIKE_FACTOR times the median step and above SPIKE_FLOOR): worth a look before it is loaded."""
+    warnings = []
+    unit = "µm" if table.kind == "linear" else "arcsec"
+    for label, values in (("forward", table.forward), ("reverse", table.reverse)):
+        steps = np.abs(np.diff(values))
+        if len(steps) < 2:
+            continue
+        i = int(np.argmax(steps))
+        limit = max(SPIKE_FACTOR * float(np.median(steps)), SPIKE_FLOOR)
+        if steps[i] > limit:
+            positions = table.positions
+            warnings.append(f"{name}: the {label} table steps by {steps[i]:.1f} {unit} between "
+                            f"{positions[i]:g} and {positions[i + 1]:g} (the median step is "
+                            f"{float(np.median(steps)):.2f} {unit}): a spike, or a table in another unit?")
+            if table.mode == "uni":
+                break  # one table for both directions: said once
+    return warnings
+
+
 def read_comp_table(path: str | Path, kind: str, fmt: str | None = None,
                     options: FormatOptions | None = None, reference: float = 0.0) -> ControllerTable:
     """Any table `axiscal compensate` writes, as a ControllerTable for an axis of `kind`. `fmt`:
@@ -98,6 +143,8 @@ def read_comp_table(path: str | Path, kind: str, fmt: str | None = None,
         raise InputError(f"{name}: not a table axiscal writes (give --comp-format: {', '.join(FORMATS)})")
     if fmt == "json":
         return read_comp_json(path)
+    if fmt == "linuxcnc" and kind == "rotary" and options.units == "inch":
+        raise InputError(f"{name}: a rotary joint's table is in degrees; --units inch is for a linear axis")
     read = (fanuc_parse(text, name, options, reference) if fmt == "fanuc" else parse_table(fmt, text, name, options))
     if read.kind is not None and read.kind != kind:
         raise InputError(f"{name}: a {read.kind} table does not fit the {kind} axis")

@@ -48,9 +48,9 @@ def parse(text: str, path: str, options: FormatOptions) -> TableRead:
             raise FormatError(f"{path}: line {i}: expected 'nominal actual_forward actual_reverse', "
                               f"found '{line.strip()[:60]}'")
         rows.append([number(c, path, i) for c in cells])
-    start, spacing = equidistant([r[0] for r in rows], path)
     scale = MM_PER_INCH if options.units == "inch" else 1.0
     rows = [[v * scale for v in r] for r in rows]
+    start, spacing = equidistant([r[0] for r in rows], path)  # mm (degree), whatever the file's unit
     forward = tuple(p - a for p, a, _ in rows)
     reverse = tuple(p - a for p, _, a in rows)
     return TableRead(start, spacing, forward, reverse, "uni" if forward == reverse else "bi")
