@@ -150,11 +150,13 @@ def print_assessment(a: Assessed, console: Console, per_target: bool = True, wid
 
 def make_console(stderr: bool = False) -> Console:
     """A rich console on stdout (stderr with `stderr`, when stdout carries JSON): the terminal's
-    width, or COLUMNS when set; 120 columns when the stream is not a terminal (a file or a pipe)."""
+    width, or COLUMNS when set. When the stream is not a terminal (a file or a pipe), tables are laid
+    out for 120 columns and a line of text is never wrapped: a file path in it may be any length,
+    and a line that is read by grep or a program stays one line."""
     stream = sys.stderr if stderr else sys.stdout
     if stream.isatty() or os.environ.get("COLUMNS"):
         return Console(stderr=stderr)
-    return Console(width=120, stderr=stderr)
+    return Console(width=120, stderr=stderr, soft_wrap=True)
 
 
 def print_evaluation(ev: Evaluation, console: Console | None = None, per_target: bool = True,

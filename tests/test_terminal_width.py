@@ -43,3 +43,16 @@ def test_a_command_says_the_same_at_60_and_200_columns(cli, monkeypatch, tmp_pat
         out[width] = result.out
     assert max(cell_len(line) for line in out[60].splitlines()) <= 60  # the width was used (x̄ is one cell)
     assert said(out[60]) == said(out[200])
+
+
+def test_into_a_file_or_pipe_a_line_of_text_stays_one_line_however_long_its_path(cli, tmp_path):
+    """Without a terminal and without COLUMNS (a pipe, a log file, pytest's capture), a sentence
+    with a long path is one line: it used to be wrapped at 120 columns, so a test's assertion
+    passed or failed with the length of pytest's temporary directory."""
+    deep = tmp_path / ("a-directory-with-a-long-name-" * 4)
+    deep.mkdir()
+    shutil.copy(PAPER / "vertical_before.csv", deep / "v.csv")
+    result = cli("convert", deep / "v.csv", "-o", deep / "v.rtl")
+    assert result.code == 0, result.err
+    summary = [line for line in result.out.splitlines() if "points" in line]
+    assert len(summary) == 1 and len(summary[0]) > 120 and "ISO 230-2: A" in summary[0], result.out
