@@ -118,8 +118,7 @@ def _open_linuxcnc(spec: DriverSpec, model: ErrorModel | None) -> tuple[Hardware
     comp = Path(drv.comp_file) if drv.comp_file else None
     if comp is not None and not comp.is_file():
         raise InputError(f"{spec.source}: axis_driver.comp_file: {comp}: no such file")
-    linuxcnc = LinuxCnc(axis_spec.soft_limit_min, axis_spec.soft_limit_max, axis_spec.max_velocity,
-                        axis_spec.max_acceleration, comp)
+    linuxcnc = LinuxCnc(axis_spec, comp)
     clock = ListenedClock()
     closers: list[Callable[[], None]] = [linuxcnc.stop]
     try:

@@ -1,9 +1,11 @@
 """The simulated PLC answers like TwinCAT, as seen by an ADS client we did not write.
 
 `tests/ads_client/probe.js` asks the simulated PLC, through ads-client (npm, installed by
-tests/setup_system.sh), what a TwinCAT client asks: device information and state, symbols and
-data types (member order, offsets, sizes), structured values, a write of the wrong size, an
-unknown symbol, services the simulation does not offer, a wrong AMS port and Net ID. The expected
+tests/setup_system.sh), what a TwinCAT client asks, after ads-client's default connect (the
+system service on port 10000, the runtime's state and symbol version by notification): device
+information and state, symbols and data types (member order, offsets, sizes), structured values,
+a write of the wrong size, an unknown symbol, a notification served and one refused, a service the
+simulation does not offer, a wrong AMS port and Net ID. The expected
 layouts below are worked out by hand from TwinCAT 3's pack-8 rule (a member starts at a multiple
 of min(its size or its structure's alignment, 8); a structure's size is rounded up to its
 alignment), not computed by the code under test.
@@ -96,6 +98,8 @@ def probed():
 
 def test_device_info_and_state_are_a_twincat_3_plc_in_run(probed):
     answers, _, _ = probed
+    assert answers["connection"]["rawClient"] is False  # ads-client's default connect
+    assert answers["connection"]["tcSystemState"]["adsStateStr"] == "Run"  # asked of port 10000
     assert answers["deviceInfo"]["value"]["deviceName"] == "Plc30 App"
     assert answers["deviceInfo"]["value"]["majorVersion"] == 3
     assert answers["state"]["value"]["adsStateStr"] == "Run"
@@ -152,11 +156,17 @@ def test_a_write_of_the_wrong_size_is_refused_in_the_result_field_and_changes_no
 
 @pytest.mark.parametrize("request_name, code, where", [
     ("unknownSymbol", 0x710, "ads"),  # symbol not found
-    ("notification", 0x701, "ads"),  # service not supported (the simulation has no notifications)
-    ("writeControl", 0x701, "ads"),
+    ("refusedNotification", 0x702, "ads"),  # invalid index group, in the reply's result field
+    ("writeControl", 0x701, "ads"),  # service not supported
     ("wrongPort", 0x6, "ams"),  # target port not found, from the router
     ("wrongNetId", 0x7, "ams"),  # target machine not found
 ])
 def test_errors_carry_twincats_code_in_twincats_place(probed, request_name, code, where):
     answers, _, _ = probed
     assert (answers[request_name]["error"], answers[request_name]["where"]) == (code, where)
+
+
+def test_a_notification_is_served_and_its_first_sample_is_the_value_when_subscribed(probed):
+    answers, status, _ = probed
+    notification = answers["notification"]["value"]
+    assert notification["handle"] > 0 and notification["first"] == status.actual_position == 37.5

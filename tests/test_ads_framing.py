@@ -1,7 +1,8 @@
 """The simulated PLC frames ADS by the AMS/TCP length, as TwinCAT does (issue 26 item 5): a request
 split over two TCP sends is answered, several requests in one send are each answered in order,
-and a client that drops its connection leaves one log line, not a traceback. Raw sockets, requests
-built by hand: ADS Read State (command 4), whose answer carries the ADS and device state."""
+a client that drops its connection leaves one log line, not a traceback, and so does a router
+command. A notification's reply and first sample come on the same stream. Raw sockets, requests
+built by hand (tests/ads_wire.py): mostly ADS Read State (command 4)."""
 
 from __future__ import annotations
 
@@ -13,24 +14,15 @@ import time
 import pytest
 
 from drivers.factory import serve_on_free_loopback
+from drivers.sim.ads_device import GVL_OFFSET
 from drivers.sim.plc import SimPLC
+from protocols import plc_layout
+from tests import ads_wire as w
 
 pytestmark = pytest.mark.machine
 
-READ_STATE = 4
-REQUEST = 0x0004  # state flags: a request over TCP with the ADS command bit
-
-
-def net_id_bytes(net_id: str) -> bytes:
-    return bytes(int(part) for part in net_id.split("."))
-
-
-def read_state(net_id: str, invoke_id: int) -> bytes:
-    """One AMS/TCP packet: header (reserved, length), AMS header (target, source, command, flags,
-    data length, error, invoke id), no data."""
-    ams = (net_id_bytes(net_id) + struct.pack("<H", 851) + net_id_bytes("127.0.0.1.1.2") + struct.pack("<H", 30000)
-           + struct.pack("<HHIII", READ_STATE, REQUEST, 0, 0, invoke_id))
-    return struct.pack("<HI", 0, len(ams)) + ams
+READ_STATE = w.READ_STATE
+read_state = w.read_state
 
 
 def answers(sock: socket.socket, count: int, timeout_s: float = 3.0) -> list[int]:
@@ -94,15 +86,34 @@ def test_an_abrupt_disconnect_is_one_log_line(plc_server, caplog, capfd):
         assert answers(again, 1) == [3]
 
 
-def test_a_refused_notification_has_beckhoffs_reply_layout(plc_server):
-    """AddDeviceNotification (command 6) is refused with 0x701 in 8 bytes: result, then a handle."""
-    payload = struct.pack("<IIIIII16x", 0x4040, 0, 4, 4, 0, 1_000_000)  # group, offset, length, mode, delays
-    ams = (net_id_bytes(plc_server.net_id) + struct.pack("<H", 851) + net_id_bytes("127.0.0.1.1.2")
-           + struct.pack("<H", 30000) + struct.pack("<HHIII", 6, REQUEST, len(payload), 0, 9) + payload)
+def test_a_notification_is_result_and_handle_then_its_first_sample_and_a_refused_one_is_8_bytes(plc_server):
+    """AddDeviceNotification (command 6): Beckhoff's reply layout (result, handle) whether served or
+    refused; a served one's first sample follows on the same connection as command 8."""
+    position = GVL_OFFSET + plc_layout.require("GVL_Axiscal.astAxes[1].stStatus.fActPosition").offset
     with socket.create_connection((plc_server.ip, plc_server.port)) as sock:
         sock.settimeout(3.0)
-        sock.sendall(struct.pack("<HI", 0, len(ams)) + ams)
-        reply = sock.recv(65536)
-    data_length, = struct.unpack_from("<I", reply, 6 + 20)
-    result, = struct.unpack_from("<I", reply, 6 + 32)
-    assert data_length == 8 and result == 0x701
+        sock.sendall(w.add_notification(plc_server.net_id, 0x4040, 0, 4, 4, 0.0, 0.1, invoke_id=9)
+                     + w.add_notification(plc_server.net_id, 0x4040, position, 8, 4, 0.0, 0.1, invoke_id=10))
+        stream, packets = b"", []
+        while len(packets) < 3:
+            stream += sock.recv(65536)
+            whole, stream = w.split(stream)
+            packets += [w.parse(p) for p in whole]
+    refused, served, first = packets
+    assert (refused.invoke_id, refused.command, refused.data) == (9, 6, struct.pack("<II", 0x703, 0))
+    result, handle = struct.unpack("<II", served.data)
+    assert (served.invoke_id, result, len(served.data)) == (10, 0, 8) and handle != 0
+    assert (first.command, first.invoke_id, first.target) == (8, 0, w.CLIENT)
+    ((_, [(sample_handle, raw)]),) = w.stamps(first.data)
+    assert sample_handle == handle and struct.unpack("<d", raw) == (0.0,)
+
+
+def test_a_router_command_is_one_warning_and_the_connection_goes_on(plc_server, caplog):
+    """A client without its own AMS Net ID asks the router for a port (AMS/TCP command 0x1000);
+    a PLC reached over the network does not serve it."""
+    caplog.set_level(logging.WARNING, logger="drivers.sim.ads_server")
+    with socket.create_connection((plc_server.ip, plc_server.port)) as sock:
+        sock.sendall(struct.pack("<HIH", 0x1000, 2, 0) + w.read_state(plc_server.net_id, 4))
+        assert answers(sock, 1) == [4]
+    (warning,) = [r.getMessage() for r in caplog.records if "router command" in r.getMessage()]
+    assert "0x1000" in warning and "own AMS Net ID" in warning

@@ -3,11 +3,18 @@ tests/setup_system.sh), the demo campaign through linuxcncrsh, and the closed lo
 LinuxCNC's own COMP_FILE loader and motion module. axiscal applies nothing itself on this path:
 the compensation can only come from LinuxCNC."""
 
+import configparser
 import json
 import shutil
 
 import pytest
 
+from campaign.commands.demo import demo_config_text
+from campaign.commands.linuxcnc_demo import linuxcnc_config
+from campaign.config import parse_config
+from campaign.plan import check_plan, make_plan
+from campaign.specs import AxisSpec
+from drivers.linuxcnc.process import ini_text
 from tests.conftest import assert_one_line_error
 from tests.test_demo_e2e import axiscal
 
@@ -48,3 +55,36 @@ def test_without_linuxcnc_the_demo_says_how_to_install(cli):
 
 def test_verify_needs_the_linuxcnc_controller(cli):
     assert_one_line_error(cli("demo", "--verify"), "--controller linuxcnc")
+
+
+def test_the_generated_ini_has_the_demo_configs_limits_and_the_quick_plan_keeps_within_them():
+    """The LinuxCNC demo's joint is the demo's axis: soft limits, maximum velocity and acceleration
+    from demo.toml's [axis] (issue 26 item 6; it had 300 mm/s and 3000 mm/s² of its own). Only the
+    plan is made quick, within those limits."""
+    demo = parse_config(demo_config_text(), "demo.toml").axis
+    config = linuxcnc_config(demo_config_text())
+    ini = configparser.ConfigParser()
+    ini.read_string(ini_text(config.axis, None))
+    for section in ("JOINT_0", "AXIS_X"):
+        got = {key: float(ini[section][key]) for key in ("MIN_LIMIT", "MAX_LIMIT", "MAX_VELOCITY", "MAX_ACCELERATION")}
+        assert got == {"MIN_LIMIT": demo.soft_limit_min, "MAX_LIMIT": demo.soft_limit_max,
+                       "MAX_VELOCITY": demo.max_velocity, "MAX_ACCELERATION": demo.max_acceleration}, section
+    assert float(ini["TRAJ"]["MAX_LINEAR_VELOCITY"]) == demo.max_velocity
+    assert float(ini["TRAJ"]["MAX_LINEAR_ACCELERATION"]) == demo.max_acceleration
+    assert ini["TRAJ"]["LINEAR_UNITS"] == "mm" and "COMP_FILE" not in ini["JOINT_0"]
+    # every move of the demo's plan on LinuxCNC keeps within the joint's limits as the INI states them
+    joint = AxisSpec(name="X", kind="linear", unit="mm", soft_limit_min=float(ini["JOINT_0"]["MIN_LIMIT"]),
+                     soft_limit_max=float(ini["JOINT_0"]["MAX_LIMIT"]),
+                     max_velocity=float(ini["JOINT_0"]["MAX_VELOCITY"]),
+                     max_acceleration=float(ini["JOINT_0"]["MAX_ACCELERATION"]))
+    check_plan(make_plan(config.plan, config.capture), joint)
+    assert config.plan.velocity == demo.max_velocity  # made quick: the fastest the demo's axis allows
+
+
+def test_the_generated_ini_takes_a_configs_own_limits_and_comp_file(tmp_path):
+    text = demo_config_text().replace("soft_limit_min = -10.0", "soft_limit_min = -2.5").replace(
+        "max_acceleration = 200.0", "max_acceleration = 150.0")
+    ini = configparser.ConfigParser()
+    ini.read_string(ini_text(linuxcnc_config(text).axis, tmp_path / "comp.txt"))
+    assert (ini["JOINT_0"]["MIN_LIMIT"], ini["AXIS_X"]["MAX_ACCELERATION"]) == ("-2.5", "150.0")
+    assert (ini["JOINT_0"]["COMP_FILE"], ini["JOINT_0"]["COMP_FILE_TYPE"]) == (str(tmp_path / "comp.txt"), "0")

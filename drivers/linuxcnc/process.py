@@ -1,5 +1,6 @@
 """A headless LinuxCNC: a generated INI and HAL file for one linear joint whose motor position
-loops back as its feedback, linuxcncrsh as the display (it keeps LinuxCNC up without a GUI and
+loops back as its feedback, with the campaign config's axis limits (soft limits, maximum velocity
+and acceleration: the joint, the X axis and the trajectory planner all get the same), linuxcncrsh as the display (it keeps LinuxCNC up without a GUI and
 is the command interface), started as root with an unprivileged RTAPI_UID and a writable
 RTAPI_FIFO_PATH. With `comp_file` the joint gets COMP_FILE / COMP_FILE_TYPE = 0 and LinuxCNC's
 own loader and motion module apply it."""
@@ -18,6 +19,7 @@ import time
 from pathlib import Path
 from typing import Self, TextIO
 
+from campaign.specs import AxisSpec
 from protocols.hardware import AxisError
 
 HAL = """loadrt [KINS]KINEMATICS
@@ -40,12 +42,12 @@ def installed() -> bool:
     return all(shutil.which(tool) for tool in ("linuxcnc", "linuxcncrsh", "halcmd"))
 
 
-def ini_text(min_mm: float, max_mm: float, max_velocity: float, max_acceleration: float,
-             comp_file: Path | None) -> str:
-    """The INI of one linear joint X (mm, mm/s, mm/s²) with soft limits [min_mm, max_mm]."""
+def ini_text(axis: AxisSpec, comp_file: Path | None) -> str:
+    """The INI of one linear joint X in mm with the limits of `axis` (the config's [axis]: soft limits
+    in mm, max_velocity in mm/s, max_acceleration in mm/s²)."""
     comp = f"COMP_FILE = {comp_file}\nCOMP_FILE_TYPE = 0\n" if comp_file else ""
-    limits = (f"MIN_LIMIT = {min_mm}\nMAX_LIMIT = {max_mm}\nMAX_VELOCITY = {max_velocity}\n"
-              f"MAX_ACCELERATION = {max_acceleration}\n")
+    limits = (f"MIN_LIMIT = {axis.soft_limit_min!r}\nMAX_LIMIT = {axis.soft_limit_max!r}\n"
+              f"MAX_VELOCITY = {axis.max_velocity!r}\nMAX_ACCELERATION = {axis.max_acceleration!r}\n")
     return f"""[EMC]
 VERSION = 1.1
 MACHINE = axiscal-linuxcnc
@@ -70,7 +72,8 @@ HALFILE = axiscal.hal
 COORDINATES = X
 LINEAR_UNITS = mm
 ANGULAR_UNITS = degree
-MAX_LINEAR_VELOCITY = {max_velocity}
+MAX_LINEAR_VELOCITY = {axis.max_velocity!r}
+MAX_LINEAR_ACCELERATION = {axis.max_acceleration!r}
 [KINS]
 KINEMATICS = trivkins coordinates=X
 JOINTS = 1
@@ -88,8 +91,8 @@ HOME_SEQUENCE = 0
 class LinuxCnc:
     """One running LinuxCNC; `stop()` (or the context manager) ends it and cleans up."""
 
-    def __init__(self, min_mm: float, max_mm: float, max_velocity: float, max_acceleration: float,
-                 comp_file: Path | None = None):
+    def __init__(self, axis: AxisSpec, comp_file: Path | None = None):
+        """`axis`: the config's [axis], whose limits the joint gets (a linear axis in mm)."""
         if not installed():
             raise AxisError(INSTALL_HINT)
         self._lock: TextIO | None = _one_instance()
@@ -104,8 +107,7 @@ class LinuxCnc:
             self.env["RTAPI_FIFO_PATH"] = str(sock_dir / "fifo")
         if comp_file is not None:
             shutil.copy(comp_file, self.dir / "comp.txt")
-        (self.dir / "axiscal.ini").write_text(ini_text(min_mm, max_mm, max_velocity, max_acceleration,
-                                                       self.dir / "comp.txt" if comp_file else None))
+        (self.dir / "axiscal.ini").write_text(ini_text(axis, self.dir / "comp.txt" if comp_file else None))
         (self.dir / "axiscal.hal").write_text(HAL)
         (self.dir / "tool.tbl").write_text("")
         self.log = open(self.dir / "linuxcnc.log", "w")  # noqa: SIM115 (open while LinuxCNC runs)

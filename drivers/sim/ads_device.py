@@ -1,31 +1,40 @@
-"""The ADS device of the simulated PLC: answers requests as a TwinCAT 3 PLC runtime (port 851) does.
+"""The ADS device of the simulated PLC: answers requests as a TwinCAT 3 PLC runtime (port 851) does,
+and as TwinCAT's system service (port 10000) does for what a client asks when it connects.
 
 It serves the PLC's memory (`protocols.plc_layout`: GVL_Axiscal with TwinCAT's pack-8 layout)
 to the ADS services a client uses: read and write by index group/offset and by handle, handles by
 name, symbol information by name, data type information by name, symbol and data type upload,
-sum read and sum write, device information and state. It plugs into `pyads.testserver` as its
+sum read and sum write, device information and state, the device data group 0xF100 (ADS state and
+device state), and device notifications on anything it can read (`drivers.sim.ads_notifications`).
+Port 10000 answers as `drivers.sim.ads_system` says. It plugs into `pyads.testserver` as its
 handler. What it answers as TwinCAT does:
 
 - an error of the service goes in the reply's result field; the AMS header's error stays 0;
-- a request addressed to another AMS Net ID gets 0x7 (target machine not found) and one to another
-  port 0x6 (target port not found) in the AMS header, as from the AMS router;
+- a request addressed to another AMS Net ID gets 0x7 (target machine not found) and one to a port
+  other than the runtime's and 10000 0x6 (target port not found) in the AMS header, as from the
+  AMS router;
 - a write by handle whose length is not the variable's size gets 0x705 and changes nothing;
 - an unknown name or handle gets 0x710, an unknown index group 0x702, an offset outside the
   memory 0x703, a reply longer than the read length asked for 0x705;
-- a command it does not implement (notifications, write control) gets 0x701; a refused
-  notification's reply is 8 bytes, result and handle, as Beckhoff's.
+- a notification on a range it cannot read gets that read's error, one in a transmission mode
+  other than cyclic (3) and on change (4) 0x70B, the deletion of an unknown notification 0x714;
+  a refused notification's reply is 8 bytes, result and handle 0, as Beckhoff's;
+- a command it does not implement (write control) gets 0x701.
 
-Not modelled: notifications, RPC methods, enum values in the data type information, the
-TwinCAT system symbols (TwinCAT_SystemInfoVarList and the like).
+Not modelled: RPC methods, enum values in the data type information, the TwinCAT system symbols
+(TwinCAT_SystemInfoVarList and the like), sum notifications.
 """
 
 from __future__ import annotations
 
 import struct
 import threading
+import time
 
-from pyads.testserver.handler import AbstractHandler, AmsPacket, AmsResponseData
+from pyads.testserver.handler import AbstractHandler, AmsHeader, AmsPacket, AmsResponseData
 
+from drivers.sim.ads_notifications import CYCLIC, ON_CHANGE, Notifications, NotificationSink
+from drivers.sim.ads_system import SYSTEM_SERVICE_PORT, serve_system
 from protocols import plc_layout
 from protocols.plc_layout import DataType
 
@@ -36,17 +45,20 @@ GVL_OFFSET = 0x10000
 
 # ADS commands
 _DEVICE_INFO, _READ, _WRITE, _READ_STATE, _READ_WRITE = 1, 2, 3, 4, 9
-_ADD_NOTIFICATION = 6
-"""Refused (0x701), in Beckhoff's reply layout: result, then the notification handle (0: none)."""
+_ADD_NOTIFICATION, _DELETE_NOTIFICATION, _DEVICE_NOTIFICATION = 6, 7, 8
+"""Add's reply is result, then the handle (0 when refused), as Beckhoff's; a client's own Device
+Notification (8) gets no reply."""
 # reserved index groups
 _HANDLE_BY_NAME, _VALUE_BY_HANDLE, _RELEASE_HANDLE = 0xF003, 0xF005, 0xF006
 _SYMBOL_VERSION, _SYMBOL_INFO_BY_NAME_EX, _DATA_TYPE_BY_NAME_EX = 0xF008, 0xF009, 0xF011
 _SYMBOL_UPLOAD, _UPLOAD_INFO, _DATA_TYPE_UPLOAD, _UPLOAD_INFO2 = 0xF00B, 0xF00C, 0xF00E, 0xF00F
 _SUM_READ, _SUM_WRITE = 0xF080, 0xF081
+_DEVICE_DATA = 0xF100
+"""ADS state (offset 0, 2 bytes) and device state (offset 2, 2 bytes) of the runtime."""
 # ADS error codes
 TARGET_PORT_NOT_FOUND, TARGET_MACHINE_NOT_FOUND = 0x6, 0x7
 SERVICE_NOT_SUPPORTED, INVALID_GROUP, INVALID_OFFSET = 0x701, 0x702, 0x703
-INVALID_SIZE, SYMBOL_NOT_FOUND = 0x705, 0x710
+INVALID_SIZE, INVALID_PARAMETER, SYMBOL_NOT_FOUND, INVALID_NOTIFICATION = 0x705, 0x70B, 0x710, 0x714
 
 ADS_TYPE_ID = {"BOOL": 33, "INT": 2, "UINT": 18, "UDINT": 19, "LREAL": 5}
 """ADS data type id (ADST_*) of each elementary type; structures are ADST_BIGTYPE."""
@@ -113,45 +125,101 @@ class AdsDevice(AbstractHandler):
     net_id: the AMS Net ID this device answers to ("" answers to any; `SimAdsServer` sets it).
     writes: how many write services changed memory (the simulated compensation rereads the
     table only after one).
+    time_s: the simulated time of the PLC's last scan, s (the PLC sets it at each scan).
+    notifications: the clients' device notifications; the PLC samples them at each scan
+    (`collect_notifications`).
     """
 
-    def __init__(self, memory: bytearray, lock: threading.Lock):
+    def __init__(self, memory: bytearray, lock: threading.Lock, start_time: float = 0.0):
         self.memory = memory
         self.lock = lock
         self.net_id = ""
         self.port = TWINCAT_PLC_PORT
         self.writes = 0
+        self.time_s = start_time
+        self.notifications = Notifications(epoch_s=time.time() - start_time)
         self._handles: dict[int, plc_layout.Variable] = {}
         self._next_handle = 0x1000
 
-    def handle_request(self, request: AmsPacket) -> AmsResponseData:
+    def handle_request(self, request: AmsPacket, sink: NotificationSink | None = None) -> AmsResponseData | None:
+        """The reply to `request` (None for a client's own Device Notification, which gets none).
+        `sink`: the client's connection, where the notifications it asks for go."""
         header = request.ams_header
         state = struct.pack("<H", struct.unpack("<H", header.state_flags)[0] | 0x0001)
-        routed = self._route_error(header.target_net_id, struct.unpack("<H", header.target_port)[0])
+        port = struct.unpack("<H", header.target_port)[0]
+        routed = self._route_error(header.target_net_id, port)
         if routed:
             return AmsResponseData(state, struct.pack("<I", routed), b"")
         command = struct.unpack("<H", header.command_id)[0]
-        with self.lock:
+        if command == _DEVICE_NOTIFICATION:
+            return None
+        if port == SYSTEM_SERVICE_PORT:
             try:
-                data = self._serve(command, header.data)
-                result = 0
-            except AdsError as e:
-                data, result = b"", e.code
-            except (struct.error, UnicodeDecodeError):
-                data, result = b"", INVALID_SIZE
+                result, data = serve_system(command, header.data)
+            except struct.error:
+                result, data = INVALID_SIZE, b""
+        else:
+            with self.lock:
+                try:
+                    data = self._serve(command, header.data, sink, header)
+                    result = 0
+                except AdsError as e:
+                    data, result = b"", e.code
+                except (struct.error, UnicodeDecodeError):
+                    data, result = b"", INVALID_SIZE
         body = struct.pack("<I", result)
         if command in (_READ, _READ_WRITE):
             body += struct.pack("<I", len(data))
-        if command == _ADD_NOTIFICATION:
+        if command == _ADD_NOTIFICATION and result:
             body += struct.pack("<I", 0)  # the handle: none given
         return AmsResponseData(state, struct.pack("<I", 0), body + data)
 
     def _route_error(self, net_id: bytes, port: int) -> int:
         if self.net_id and ".".join(str(b) for b in net_id) != self.net_id:
             return TARGET_MACHINE_NOT_FOUND
-        return TARGET_PORT_NOT_FOUND if port != self.port else 0
+        return TARGET_PORT_NOT_FOUND if port not in (self.port, SYSTEM_SERVICE_PORT) else 0
 
-    def _serve(self, command: int, data: bytes) -> bytes:
+    # --- notifications -----------------------------------------------------------------------
+
+    def collect_notifications(self, t_s: float, sample: bool = True) -> list[tuple[NotificationSink, bytes]]:
+        """The notification packets due at simulated time t_s, sampling first when `sample`
+        (the PLC's scan); the caller holds `lock` and sends them after releasing it."""
+        return self.notifications.collect(t_s, self._read if sample else None)
+
+    def due_notifications(self) -> list[tuple[NotificationSink, bytes]]:
+        """The packets already due (a new notification's first sample when its maximum delay
+        is 0), without sampling; takes `lock` itself."""
+        with self.lock:
+            return self.collect_notifications(self.time_s, sample=False)
+
+    def drop_notifications(self, sink: NotificationSink) -> None:
+        with self.lock:
+            self.notifications.drop(sink)
+
+    def _add_notification(self, data: bytes, sink: NotificationSink | None, header: AmsHeader) -> bytes:
+        group, offset, length, mode, max_delay, cycle = struct.unpack("<IIIIII", data[:24])
+        value = self._read(group, offset, length)
+        if len(value) != length:
+            raise AdsError(INVALID_SIZE)
+        if mode not in (CYCLIC, ON_CHANGE) or sink is None:
+            raise AdsError(INVALID_PARAMETER if sink is not None else SERVICE_NOT_SUPPORTED)
+        route = header.source_net_id + header.source_port + header.target_net_id + header.target_port
+        handle = self.notifications.add(sink, route, group, offset, length, mode, cycle, max_delay, value,
+                                        self.time_s)
+        return struct.pack("<I", handle)
+
+    def _delete_notification(self, data: bytes, sink: NotificationSink | None) -> bytes:
+        handle = struct.unpack("<I", data[:4])[0]
+        if sink is None or not self.notifications.delete(handle, sink):
+            raise AdsError(INVALID_NOTIFICATION)
+        return b""
+
+    def _serve(self, command: int, data: bytes, sink: NotificationSink | None = None,
+               header: AmsHeader | None = None) -> bytes:
+        if command == _ADD_NOTIFICATION and header is not None:
+            return self._add_notification(data, sink, header)
+        if command == _DELETE_NOTIFICATION:
+            return self._delete_notification(data, sink)
         if command == _DEVICE_INFO:
             return struct.pack("<BBH16s", 3, 1, 4024, b"Plc30 App")
         if command == _READ_STATE:
@@ -186,6 +254,11 @@ class AdsDevice(AbstractHandler):
             return self._slice(offset - GVL_OFFSET, length)
         if group == _SYMBOL_VERSION:
             return b"\x01"
+        if group == _DEVICE_DATA:
+            state = struct.pack("<HH", _RUN, 0)
+            if offset >= len(state):
+                raise AdsError(INVALID_OFFSET)
+            return state[offset:offset + length]
         if group == _UPLOAD_INFO:
             symbols = self._upload()
             return struct.pack("<II", len(_TOP_SYMBOLS), len(symbols))

@@ -13,6 +13,13 @@ How pyads' AdsTestServer behaves, and what this class does about it:
   dropped its connection left a ConnectionResetError traceback. `FramedConnection` frames the
   byte stream by the AMS/TCP header's length instead (each request answered, in order) and logs a
   dropped connection as one line.
+- It answers only what a handler returns, and nothing can reach a client unasked: FramedConnection
+  is also the client's notification sink (`send_notification`, serialised with the replies), and
+  after each reply it sends the notifications that became due (a new one's first sample); when it
+  ends, the client's notifications are deleted.
+- A packet whose AMS/TCP header is a router command (port register 0x1000 and the like, which a
+  client without a local AMS Net ID sends to its own router) is not an ADS request: it gets one
+  warning line saying so and no answer, as a TwinCAT PLC gives a remote client none.
 - Its stop() joins the client threads but not its own thread and closes the listening socket under
   it: `stop()` ends the accept loop and joins that thread first, then lets the server close the
   client threads (joined) and the socket. No thread is left behind.
@@ -24,6 +31,7 @@ import logging
 import select
 import socket
 import struct
+import threading
 from types import TracebackType
 from typing import Self
 
@@ -31,6 +39,7 @@ from pyads.testserver import AdsTestServer
 from pyads.testserver.handler import AmsResponseData
 from pyads.testserver.testserver import AdsClientConnection
 
+from drivers.sim.ads_device import AdsDevice
 from drivers.sim.plc import SimPLC
 
 ADS_TCP_PORT = 48898
@@ -45,8 +54,25 @@ class FramedConnection(AdsClientConnection):
     """One ADS client: the byte stream cut into AMS packets by their AMS/TCP length, each answered
     in the order it came, whatever the TCP segments were."""
 
+    handler: AdsDevice
+
+    def __init__(self, handler: AdsDevice, client: socket.socket, address: tuple[str, int], server: AdsTestServer):
+        super().__init__(handler=handler, client=client, address=address, server=server)
+        self._send_lock = threading.Lock()
+        """Held while sending and while closing: replies (this thread) and notifications (the PLC's
+        scan) never interleave, and nothing is sent on a closed socket."""
+
     def run(self) -> None:
         self._run = True
+        try:
+            self._serve()
+        finally:
+            self.handler.drop_notifications(self)
+            with self._send_lock:
+                self._run = False
+                self.client.close()
+
+    def _serve(self) -> None:
         pending = b""
         while self._run:
             ready, _, _ = select.select([self.client], [], [], 0.1)
@@ -57,13 +83,11 @@ class FramedConnection(AdsClientConnection):
             except OSError as exc:  # ConnectionResetError: the client went away without closing
                 log.warning("ADS client %s:%s dropped the connection (%s)", *self.client_address[:2],
                             exc.strerror or exc)
-                data = b""
+                return
             if not data:
-                self.client.close()
-                self._run = False
-                continue
+                return
             pending += data
-            while len(pending) >= AMS_TCP_HEADER_BYTES:
+            while len(pending) >= AMS_TCP_HEADER_BYTES and self._run:
                 length = struct.unpack_from("<I", pending, 2)[0]
                 if len(pending) < AMS_TCP_HEADER_BYTES + length:
                     break  # the rest of this packet is still on its way
@@ -71,16 +95,34 @@ class FramedConnection(AdsClientConnection):
                 self._answer(packet)
 
     def _answer(self, packet: bytes) -> None:
+        router_command = struct.unpack_from("<H", packet)[0]
+        if router_command:
+            log.warning("ADS client %s:%s sent AMS/TCP router command 0x%04x, which a PLC does not serve to a remote "
+                        "client: give the client its own AMS Net ID and port", *self.client_address[:2],
+                        router_command)
+            return
         if len(packet) < AMS_TCP_HEADER_BYTES + AMS_HEADER_BYTES:
             log.warning("ADS client %s:%s sent a packet too short for an AMS header (%d bytes): ignored",
                         *self.client_address[:2], len(packet))
             return
         request = self.construct_request(packet)
         self.server.request_history.append(request)
-        response = self.handler.handle_request(request)
+        response = self.handler.handle_request(request, sink=self)
         if isinstance(response, AmsResponseData):
+            self._send(self.construct_response(response, request))
+            for client, notification in self.handler.due_notifications():
+                client.send_notification(notification)
+
+    def send_notification(self, packet: bytes) -> None:
+        """Send a notification packet to this client (from any thread)."""
+        self._send(packet)
+
+    def _send(self, data: bytes) -> None:
+        with self._send_lock:
+            if not self._run:
+                return
             try:
-                self.client.sendall(self.construct_response(response, request))
+                self.client.sendall(data)
             except OSError as exc:
                 log.warning("ADS client %s:%s dropped the connection (%s)", *self.client_address[:2],
                             exc.strerror or exc)

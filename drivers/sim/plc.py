@@ -9,7 +9,8 @@ exist and stay as written.
 There is no PLC thread: `scan(t)` is one PLC cycle at simulated time t (s); attach it to the
 simulated clock with `clock.attach(plc.scan)`. The ADS server answers requests on its own threads,
 so every scan and every request holds the same lock: a request sees the variables between two
-cycles, as on a real PLC.
+cycles, as on a real PLC. Each scan also samples the clients' device notifications and sends
+those due (`drivers.sim.ads_notifications`), after releasing the lock.
 
 The motion is computed analytically from the start of each move: a trapezoidal velocity profile
 with the commanded velocity and the constructor's acceleration (also used to decelerate on a halt).
@@ -125,7 +126,7 @@ class SimPLC:
         self._lock = threading.Lock()
         self.memory = bytearray(plc_layout.GVL_TYPE.size)
         """GVL_Axiscal's bytes, laid out as TwinCAT does (`protocols.plc_layout`)."""
-        self.handler = AdsDevice(self.memory, self._lock)
+        self.handler = AdsDevice(self.memory, self._lock, start_time=float(start_time))
         self._control = plc_contract.control_symbols(axis)
         self._status = plc_contract.status_symbols(axis)
         self._symbols = {
@@ -159,6 +160,10 @@ class SimPLC:
             self._t = t
             self._finish_motion(t)
             self._write_status()
+            self.handler.time_s = t
+            due = self.handler.collect_notifications(t)
+        for client, packet in due:
+            client.send_notification(packet)
 
     def _take_requests(self) -> list[int]:
         """Read and clear the request flags, like FB_AxiscalAxis (separate MC_Reset and MC_Halt):

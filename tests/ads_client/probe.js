@@ -1,6 +1,7 @@
 // Asks the simulated PLC what a TwinCAT client asks, with ads-client (npm), and prints one JSON
 // object of what came back. Usage: node probe.js IP NET_ID. Used by tests/test_ads_fidelity.py.
-const { Client } = require("ads-client");
+// It connects as ads-client does by default (connect.js: the system service on port 10000 first).
+const { connected, connection } = require("./connect");
 
 const [ip, netId] = process.argv.slice(2);
 const AXIS = "GVL_Axiscal.astAxes[1]";
@@ -30,12 +31,8 @@ function items(type) {
 }
 
 async function main() {
-  const client = new Client({
-    targetAmsNetId: netId, targetAdsPort: 851, routerAddress: ip, routerTcpPort: 48898,
-    localAmsNetId: "127.0.0.1.1.7", localAdsPort: 32750, rawClient: true, timeoutDelay: 2000,
-  });
-  await client.connect();
-  const out = {};
+  const client = await connected(ip, netId);
+  const out = { connection: connection(client) };
   out.deviceInfo = await attempt(() => client.readDeviceInfo());
   out.state = await attempt(() => client.readState());
   out.symbols = {};
@@ -65,7 +62,16 @@ async function main() {
   out.rightSizeWrite = await attempt(() => client.writeRawByHandle(handle, Buffer.from([3, 0])).then(() => true));
   await client.deleteVariableHandle(handle);
   out.unknownSymbol = await attempt(() => client.getSymbol("MAIN.bNoSuchSymbol"));
-  out.notification = await attempt(() => client.subscribeRaw(0x4040, 0x10000, 2, () => {}, 100));
+  out.notification = await attempt(async () => {
+    // the first sample is the value when subscribing; it comes without waiting for the PLC to scan
+    let first;
+    const arrived = new Promise((resolve) => { first = resolve; });
+    const s = await client.subscribeValue(`${AXIS}.stStatus.fActPosition`, (data) => first(data.value), 100);
+    const value = await Promise.race([arrived, new Promise((resolve) => setTimeout(resolve, 2000, "none"))]);
+    await s.unsubscribe();
+    return { handle: s.notificationHandle, first: value };
+  });
+  out.refusedNotification = await attempt(() => client.subscribeRaw(0x1234, 0, 4, () => {}, 100));
   out.writeControl = await attempt(() => client.writeControl(6));
   out.wrongPort = await attempt(() => client.readDeviceInfo({ adsPort: 852 }));
   out.wrongNetId = await attempt(() => client.readDeviceInfo({ amsNetId: "10.1.2.3.1.1" }));
