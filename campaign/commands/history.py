@@ -22,16 +22,16 @@ if TYPE_CHECKING:
 VERDICTS = ("pass", "fail", "not judged")
 
 
-def record_after(path: str | Path, command: str) -> None:
-    """Record the campaign directory (or table) `path` measured or written by `command` into the
-    store; one line on stderr says what happened. Never raises."""
+def record_after(path: str | Path, command: str, fmt: str = "points") -> None:
+    """Record the campaign directory (or measurement file of format `fmt`) `path` measured or read
+    by `command` into the store; one line on stderr says what happened. Never raises."""
     from campaign.history.recording import record_now
     from campaign.record import META_FILE
 
     where = Path(path)
     if not (where.is_file() or (where / META_FILE).is_file()):
         return  # nothing was recorded: no campaign to remember
-    line = record_now({"kind": "campaign", "path": str(where.resolve()), "command": command})
+    line = record_now({"kind": "campaign", "path": str(where.resolve()), "command": command, "format": fmt})
     if line:
         print(line, file=sys.stderr)
 

@@ -214,13 +214,14 @@ def table_entry(table: PointTable, location: str | Path, raw: bytes, command: st
     return Entry(values, _results(a), _points(table))
 
 
-def path_entry(path: str | Path, command: str = "import") -> Entry:
-    """The entry of a campaign directory, a campaign's points.csv (its directory), or a point table."""
+def path_entry(path: str | Path, command: str = "import", fmt: str = "points") -> Entry:
+    """The entry of a campaign directory, a campaign's points.csv (its directory), or a
+    measurement file of format `fmt` (a point table, or another program's file: campaign.convert)."""
     directory = campaign_dir_of(path)
     if directory is not None:
         return directory_entry(directory, command)
+    from campaign.convert import read_any
     from campaign.errors import read_input_bytes
-    from campaign.pointtable import parse_points
 
-    raw = read_input_bytes(path, "a point table")
-    return table_entry(parse_points(raw.decode("utf-8-sig"), str(path)), path, raw, command)
+    raw = read_input_bytes(path, "a measurement file")
+    return table_entry(read_any(path, fmt), path, raw, command)

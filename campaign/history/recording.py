@@ -4,7 +4,8 @@ end-of-command hook that never stops a campaign (`record_now`).
 What is recorded is an *item*, a small JSON-able dict, so that it can wait in the queue
 (campaign/history/pending.py) when the store is unreachable:
 
-    {"kind": "campaign", "path": DIR or TABLE, "command": run|guide|demo|verify|resume|convert|import}
+    {"kind": "campaign", "path": DIR or FILE, "command": run|guide|demo|verify|resume|convert|import,
+     "format": the file's format (campaign.convert: points, rtl, ecmc; points by default)}
     {"kind": "comp", "key": ..., "points": the point table it came from, "values": the comp_tables row}
 """
 
@@ -19,11 +20,11 @@ from campaign.history.location import display_url, store_url
 from campaign.history.store import Store, StoreUnavailable, open_store
 
 
-def record_campaign(store: Store, path: str | Path, command: str = "import") -> tuple[int, str]:
-    """Record the campaign directory or point table `path` (a verification with its baseline and
-    the link between them): (its id, added / updated / unchanged). InputError for what is not a
-    campaign or a table."""
-    entry = path_entry(path, command)
+def record_campaign(store: Store, path: str | Path, command: str = "import", fmt: str = "points") -> tuple[int, str]:
+    """Record the campaign directory or measurement file `path` (of format `fmt`: campaign.convert;
+    a verification with its baseline and the link between them): (its id, added / updated /
+    unchanged). InputError for what is not a campaign or a measurement."""
+    entry = path_entry(path, command, fmt)
     campaign_id, what = store.put(entry)
     if entry.compensation is not None or entry.baseline is not None:
         before_id = None
@@ -58,7 +59,7 @@ def record_item(store: Store, item: dict[str, Any]) -> str:
     path = Path(str(item["path"]))
     if not path.exists():
         raise LookupError(f"{path}: gone; it was waiting to be recorded and is not")
-    return record_campaign(store, path, str(item.get("command", "import")))[1]
+    return record_campaign(store, path, str(item.get("command", "import")), str(item.get("format", "points")))[1]
 
 
 def drain_queue(store: Store) -> tuple[int, list[str]]:

@@ -37,6 +37,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from protocols.units import unit_label
+
 YEAR_S = 365.25 * 86400.0
 HORIZON_YEARS = 50.0
 """How far ahead a crossing is looked for, years."""
@@ -84,7 +86,7 @@ class ChangePoint:
         return {"parameter": self.parameter, "before": _obs_json(self.before), "after": _obs_json(self.after),
                 "jump": round(self.jump, 4), "U": round(self.U, 4),
                 "jump_less_expected_drift": round(self.beyond_drift, 4), "unit": unit,
-                "sentence": self.sentence(unit)}
+                "sentence": self.sentence(unit_label(unit))}
 
 
 def _obs_json(o: Observation) -> dict:
@@ -143,7 +145,7 @@ class Fit:
             out.update(rate_per_year=round(self.rate, 4), U_rate_per_year=round(self.U_rate or 0.0, 4),
                        k=round(self.k, 3), dof=self.dof, birge_ratio=None if self.birge is None else round(self.birge, 3),
                        significant=self.significant,
-                       sentence=self.sentence(unit),
+                       sentence=self.sentence(unit_label(unit)),
                        steps_between=[[self.observations[i - 1].when.date().isoformat(),
                                        self.observations[i].when.date().isoformat()] for i in self.step_at])
         return out
@@ -275,7 +277,7 @@ class Crossing:
                 "unit": unit, "date": day(self.date), "earliest": day(self.earliest), "latest": day(self.latest),
                 "latest_beyond_horizon": self.state == "predicted" and self.latest is None,
                 "U_assumed": None if self.U_assumed is None else round(self.U_assumed, 4),
-                "reason": self.reason, "sentence": self.sentence(unit),
+                "reason": self.reason, "sentence": self.sentence(unit_label(unit)),
                 "assumes": "the drift goes on as a straight line, no new jump, the same measurement uncertainty "
                            "as the last campaign"}
 
