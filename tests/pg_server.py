@@ -90,7 +90,7 @@ def start_server() -> tuple[PostgresServer | None, str, object]:
 
     def stop() -> None:
         subprocess.run(_as_owner([str(bin_dir / "pg_ctl"), "-D", str(data), "-m", "immediate", "stop"], owner),
-                       capture_output=True, env=env, timeout=60)
+                       capture_output=True, env=env, timeout=60, check=False)
         shutil.rmtree(root, ignore_errors=True)
 
     return PostgresServer(root, port), "", stop
