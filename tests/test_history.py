@@ -40,7 +40,7 @@ def no_password(*texts: str) -> None:
 
 # --- the simulated history and its truth ------------------------------------------------------
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def expected(lead_ppm: float, backlash_um: float, seeds: int = 30) -> tuple[float, float, float]:
     """(E[A], E[U_A], E[E]) of the demo axis with this lead error and reversal: the mean over many
     simulated campaigns (the fast simulator, new noise each), µm."""
@@ -312,3 +312,17 @@ def test_trend_rate_interval_covers_the_truth_most_of_the_time():
         covered += abs(fits["A"].rate - 0.8) <= fits["A"].U_rate
         found += [(j.before.label, j.after.label) for j in jumps] == [("c6", "c7")]
     assert covered >= 180 and found >= 190, (covered, found)
+
+
+def test_report_shows_the_axis_history(cli, db, tmp_path, monkeypatch):
+    made = json.loads(cli("demo", "--history", "4", "--out", tmp_path / "h", "--json").out)
+    last = max((tmp_path / "h").iterdir())
+    assert cli("report", last, "-o", tmp_path / "r.html").code == 0
+    html = (tmp_path / "r.html").read_text()
+    assert "<h2>History of this axis</h2>" in html and f"4 campaigns of machine {made['machine']}, axis X" in html
+    assert "alt='The axis over its campaigns' src='data:image/png;base64," in html
+    assert html.count("<td>recheck-0") == 4 and "drift not determined" not in html
+    no_password(html)
+    monkeypatch.setenv("AXISCAL_DB", "none")
+    assert cli("report", last, "-o", tmp_path / "r2.html").code == 0
+    assert "History of this axis" not in (tmp_path / "r2.html").read_text()
