@@ -15,7 +15,8 @@ import hashlib
 from pathlib import Path
 from typing import Any
 
-from campaign.history.entry import path_entry, utc
+from campaign.assess import campaign_dir_of
+from campaign.history.entry import directory_key, directory_state, path_entry, utc
 from campaign.history.location import display_url, store_url
 from campaign.history.store import Store, StoreUnavailable, open_store
 
@@ -24,6 +25,11 @@ def record_campaign(store: Store, path: str | Path, command: str = "import", fmt
     """Record the campaign directory or measurement file `path` (of format `fmt`: campaign.convert;
     a verification with its baseline and the link between them): (its id, added / updated /
     unchanged). InputError for what is not a campaign or a measurement."""
+    directory = campaign_dir_of(path)
+    if directory is not None and not (directory / "verification.md").exists():  # unchanged: nothing to read
+        known = store.known(directory_key(directory.resolve()))
+        if known is not None and known[1] == directory_state(directory.resolve()):
+            return known[0], "unchanged"
     entry = path_entry(path, command, fmt)
     campaign_id, what = store.put(entry)
     if entry.compensation is not None or entry.baseline is not None:

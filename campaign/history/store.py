@@ -192,6 +192,13 @@ class Store:
 
     # reading
 
+    def known(self, key: str) -> tuple[int, str] | None:
+        """(id, state) of the campaign recorded under `key`, or None."""
+        c = schema.campaigns
+        with self._reaching(), self.engine.connect() as conn:
+            row = conn.execute(sa.select(c.c.id, c.c.state).where(c.c.key == key)).first()
+        return None if row is None else (row.id, row.state)
+
     def campaign_id(self, key: str) -> int | None:
         c = schema.campaigns
         with self._reaching(), self.engine.connect() as conn:
