@@ -1,8 +1,9 @@
 """The campaign store and its history (issue 27): the store on SQLite and on a real PostgreSQL
 server (tests/pg_server.py), importing, the trend on a simulated history with a known truth, the
 change point, the crossing date, compare, the hooks of convert and compensate, an unreachable
-store and credentials. The SQLite cases are in the fast tier; the PostgreSQL ones start a server
-and are in the machine tier (the same tests, parametrized)."""
+store and credentials. The SQLite cases are in the fast tier (but the acceptance test, which
+simulates a few hundred campaigns for its truth); the PostgreSQL ones start a server and are in the
+machine tier (the same tests, parametrized)."""
 
 from __future__ import annotations
 
@@ -82,6 +83,7 @@ def true_crossing(truth: dict, last: dt.date, tolerance: float) -> dt.date:
     raise AssertionError("the simulated axis never reaches its tolerance")
 
 
+@pytest.mark.machine  # sweeps a few hundred simulated campaigns for the truth: seconds, not the fast tier
 def test_simulated_history_trend_finds_the_truth(cli, db, tmp_path):
     """The acceptance: 12 re-checks over 2 years, the lead error growing at a known rate, one
     reversal jump; `history trend --json` gives the drift within its U of the truth, names the
@@ -158,7 +160,7 @@ def test_import_is_idempotent_and_rebuilds_the_store(cli, db, tmp_path):
 
 
 def test_compare_two_campaigns(cli, db, tmp_path):
-    json.loads(cli("demo", "--history", "12", "--out", tmp_path / "h", "--json").out)
+    json.loads(cli("demo", "--history", "3", "--out", tmp_path / "h", "--json").out)
     dirs = sorted((tmp_path / "h").iterdir())
     result = cli("history", "compare", dirs[0], dirs[-1], "--json", "--plot", tmp_path / "cmp.png")
     assert result.code == 0, result.err
@@ -315,13 +317,13 @@ def test_trend_rate_interval_covers_the_truth_most_of_the_time():
 
 
 def test_report_shows_the_axis_history(cli, db, tmp_path, monkeypatch):
-    made = json.loads(cli("demo", "--history", "4", "--out", tmp_path / "h", "--json").out)
+    made = json.loads(cli("demo", "--history", "3", "--out", tmp_path / "h", "--json").out)
     last = max((tmp_path / "h").iterdir())
     assert cli("report", last, "-o", tmp_path / "r.html").code == 0
     html = (tmp_path / "r.html").read_text()
-    assert "<h2>History of this axis</h2>" in html and f"4 campaigns of machine {made['machine']}, axis X" in html
+    assert "<h2>History of this axis</h2>" in html and f"3 campaigns of machine {made['machine']}, axis X" in html
     assert "alt='The axis over its campaigns' src='data:image/png;base64," in html
-    assert html.count("<td>recheck-0") == 4 and "drift not determined" not in html
+    assert html.count("<td>recheck-0") == 3 and "drift not determined (too few campaigns (3" in html
     no_password(html)
     monkeypatch.setenv("AXISCAL_DB", "none")
     assert cli("report", last, "-o", tmp_path / "r2.html").code == 0
