@@ -15,7 +15,7 @@ from pathlib import Path
 HERE = Path(__file__).parent
 SCRIPTS = (("demo_wall_time.py",), ("stable_vs_dwell.py",), ("compensation.py",),
            ("compensation.py", "--smooth", "none"), ("compensation.py", "--cycles", "10"), ("import_stream.py",),
-           ("smoothing.py",), ("startup.py",))
+           ("smoothing.py",), ("startup.py",), ("history.py",))
 COMPENSATION = (("compensation", "5-run campaigns"),
                 ("compensation-raw-means", "5-run campaigns, table from the raw means (`--smooth none`)"),
                 ("compensation-10-runs", "10-run campaigns"))
@@ -36,7 +36,7 @@ def run_scripts() -> None:
 
 def summarise() -> int:
     r = {name: json.loads((HERE / "results" / f"{name}.json").read_text())
-         for name in ("demo_wall_time", "stable_vs_dwell", "import_stream", "startup")}
+         for name in ("demo_wall_time", "stable_vs_dwell", "import_stream", "startup", "history")}
     demo, stable = r["demo_wall_time"], r["stable_vs_dwell"]
     lines = ["| goal | measured | ratio (goal) |", "|---|---|---|"]
     lines.append(f"| paper campaign in `axiscal demo` ≤ 10 s wall | {demo['wall_s_median']:.2f} s "
@@ -69,6 +69,12 @@ def summarise() -> int:
     lines.append(f"| `axiscal --help` start-up / bare `python -c pass` | {start['axiscal_help_s'] * 1000:.0f} ms vs "
                  f"{start['python_pass_s'] * 1000:.0f} ms; slowest `axiscal {slowest[0]} --help` "
                  f"{slowest[1] * 1000:.0f} ms | {start['ratio']:.1f} (≤ {start['goal_ratio']:g}) |")
+    h = r["history"]
+    lines.append(f"| history: importing {h['campaigns']} campaign directories into a new SQLite store / reading them "
+                 f"alone | {h['import_s']:.1f} s vs {h['read_dirs_s']:.1f} s (again, unchanged: {h['reimport_s']:.1f} s) "
+                 f"| {h['import_ratio']:.1f} (seconds, not minutes) |")
+    lines.append(f"| history: the trend of one axis over {h['trend_campaigns']} campaigns / reading the directories "
+                 f"alone | {h['trend_s']:.2f} s vs {h['read_dirs_s']:.1f} s | {h['trend_ratio']:.2f} (seconds, not minutes) |")
     text = "\n".join(lines) + "\n"
     (HERE / "results" / "summary.md").write_text(text)
     print(text)

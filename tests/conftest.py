@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from campaign.cli import main
+from tests.pg_server import postgres_server  # noqa: F401 - the session's PostgreSQL server, a fixture
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "data"
@@ -24,6 +25,13 @@ def _no_terminal_size(monkeypatch):
     sets COLUMNS itself."""
     monkeypatch.delenv("COLUMNS", raising=False)
     monkeypatch.delenv("LINES", raising=False)
+
+
+@pytest.fixture(autouse=True)
+def _no_history_store(monkeypatch):
+    """Campaigns in the tests record into no history store (AXISCAL_DB=none), never the user's
+    default one; the history tests name their own (tests/test_history*.py)."""
+    monkeypatch.setenv("AXISCAL_DB", "none")
 
 
 MACHINE_WORDS = ("axiscal", "-m campaign", "chromium", "chromedriver", "node", "rs274", "linuxcnc")

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # System packages the test suite needs: headless Chromium for the HTML report check,
 # LinuxCNC (linuxcnc-uspace: its rs274 interpreter checks the part programs), and ads-client from
-# npm (tests/ads_client: an ADS client we did not write checks the simulated PLC).
+# npm (tests/ads_client: an ADS client we did not write checks the simulated PLC), and PostgreSQL
+# (postgresql: the history tests start a throwaway server of their own, tests/pg_server.py).
 # Installed here, by the tests' set-up, so a fresh machine needs nothing by hand.
 set -u
 if ! command -v chromium >/dev/null 2>&1; then
@@ -20,6 +21,15 @@ if ! command -v rs274 >/dev/null 2>&1; then
       >/dev/null 2>&1 || echo "tests/setup_system.sh: could not install linuxcnc-uspace; its tests skip"
   else
     echo "tests/setup_system.sh: rs274 missing and not root; the LinuxCNC tests skip"
+  fi
+fi
+if ! ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1; then
+  if [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then
+    echo "tests/setup_system.sh: installing postgresql (Debian package; the history tests start a throwaway server)"
+    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends postgresql) \
+      >/dev/null 2>&1 || echo "tests/setup_system.sh: could not install postgresql; the PostgreSQL history tests skip"
+  else
+    echo "tests/setup_system.sh: postgresql missing and not root; the PostgreSQL history tests skip"
   fi
 fi
 if [ ! -d tests/ads_client/node_modules/ads-client ]; then

@@ -30,6 +30,7 @@ SUMMARY = {
     "program": "the plan as a part program (LinuxCNC, FANUC, SINUMERIK, HEIDENHAIN) for another controller",
     "convert": "measurement files of other programs (.rtl, ecmc .dat) to point tables and back",
     "report": "write the HTML report of a campaign for quality",
+    "history": "the campaign store: every campaign of every axis, its trend, when it leaves tolerance",
 }
 """Every command's one-line help, in the order `axiscal --help` lists them. The module of a
 command is its name with '-' as '_'."""

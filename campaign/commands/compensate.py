@@ -133,6 +133,10 @@ def run(args: argparse.Namespace) -> int:
         out.write_text(rendered.text, encoding="utf-8")
     except OSError as exc:
         raise InputError(f"-o: {out}: cannot write ({exc.strerror})") from None
+    from campaign.commands.history import record_comp_after
+
+    record_comp_after(rendered.text, out, args.format, args.file, dict(provenance), table.meta.get("machine", ""),
+                      table.meta.get("axis", ""))
     pred = predict(table, ctable)
     unit = unit_label(table.deviation_unit)
     console.print(f"mode: [bold]{corr.mode}[/] ({corr.reason})")

@@ -56,6 +56,9 @@ def run(args: argparse.Namespace) -> int:
             undated = False
     text = render_any(table, target)
     write_whole(args.output, text)
+    from campaign.commands.history import record_after
+
+    record_after(args.input, "convert", source)
     values = evaluate(table).summary
     missing = completeness(table, None)
     summary = {"input": str(args.input), "from": source, "output": str(args.output), "to": target,

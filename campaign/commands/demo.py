@@ -41,6 +41,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--inject", metavar="NAME[@S],...",
                    help="rehearse faults at simulated times, e.g. beam_break@300,ads_lost@500 "
                         "(names: see docs/faults.md); the campaign resumes by itself where needed")
+    p.add_argument("--history", type=positive_integer, metavar="N",
+                   help="instead: N re-checks of the demo axis over two years (lead error growing, one reversal "
+                        "jump), simulated by the fast simulator in seconds, recorded into the history store, then "
+                        "its trend (docs/history.md)")
     p.set_defaults(func=run)
 
 
@@ -48,6 +52,10 @@ MAX_RESUMES = 3
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.history:
+        from campaign.commands.history import demo_history
+
+        return demo_history(args)
     text = demo_config_text()
     if args.cycles:
         text = text.replace("cycles = 5", f"cycles = {args.cycles}")

@@ -231,6 +231,9 @@ def conclude(outcome: Outcome, config: Config, args: argparse.Namespace, console
     if not (d / "meta.json").exists():
         say(f"Stopped: {outcome.message}.")
         return 3
+    from campaign.commands.history import record_after
+
+    record_after(d, getattr(args, "command", None) or "guide")
     assessment = assess_path(d) if outcome.points else None
     if assessment is not None:
         console.print(summary_table(assessment.evaluation))

@@ -51,8 +51,10 @@ def finish(outcome: Outcome, args: argparse.Namespace, extra: dict | None = None
     the same as `analyze`, `report` and the guide), and the resume hint when points are missing.
     Exit 0 when completed (points skipped after faults included), 3 when interrupted."""
     from campaign.assess import assess_path
+    from campaign.commands.history import record_after
     from campaign.views import outlier_lines, verdict_line
 
+    record_after(outcome.dir, getattr(args, "command", None) or "run")
     result = {"dir": str(outcome.dir), "status": outcome.status, "points": outcome.points,
               "planned": outcome.planned, "duration_s": round(outcome.duration_s, 3), **(extra or {})}
     a = assess_path(outcome.dir) if outcome.points else None

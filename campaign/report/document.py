@@ -21,6 +21,7 @@ from campaign.assess import Assessment, assess_path
 from campaign.errors import InputError
 from campaign.plot import draw_evaluation, pyplot
 from campaign.record import open_campaign
+from campaign.report.history import history_section
 from campaign.report.html import (
     budget_table,
     comparison_table,
@@ -187,6 +188,7 @@ def render_report(a: Assessment, before: Assessment | None = None) -> str:
               section("Measurement uncertainty", budget_table(a.uncertainty)),
               section("Outliers", outliers_table(a.outliers, ev.unit)),
               section("Deviation plot", f"<img class='plot' alt='Deviation per target' src='{plot}'>"),
+              history_section(str(machine), str(axis)),
               section("Per target", target_table(ev)),
               section("Per run", per_run_table(a.table))]
     if ev.warnings:

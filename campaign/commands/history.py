@@ -1,0 +1,403 @@
+"""`axiscal history import|list|trend|compare|store`: the campaign store (docs/history.md).
+
+Also the hook the measuring commands call at their end (`record_after`): it records the campaign
+into the store and tells the user in one line on stderr; a store that cannot be reached never
+stops a campaign (the campaign is queued and recorded at the next use of the store).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from campaign.commands import SUMMARY, positive_number
+from campaign.errors import InputError
+
+if TYPE_CHECKING:
+    from campaign.history.store import Store
+
+VERDICTS = ("pass", "fail", "not judged")
+
+
+def record_after(path: str | Path, command: str, fmt: str = "points") -> None:
+    """Record the campaign directory (or measurement file of format `fmt`) `path` measured or read
+    by `command` into the store; one line on stderr says what happened. Never raises."""
+    from campaign.history.recording import record_now
+    from campaign.record import META_FILE
+
+    where = Path(path)
+    if not (where.is_file() or (where / META_FILE).is_file()):
+        return  # nothing was recorded: no campaign to remember
+    line = record_now({"kind": "campaign", "path": str(where.resolve()), "command": command, "format": fmt})
+    if line:
+        print(line, file=sys.stderr)
+
+
+def record_comp_after(text: str, output: str | Path, fmt: str, points: str | Path, provenance: dict[str, str],
+                      machine: str, axis: str) -> None:
+    """Record a compensation table just written (and the campaign it came from). Never raises."""
+    from campaign.history.recording import comp_item, record_now
+
+    line = record_now(comp_item(text, output, fmt, Path(points).resolve(), provenance, machine, axis))
+    if line:
+        print(line, file=sys.stderr)
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = sub.add_parser("history", help=SUMMARY["history"],
+                       description="The campaign store: every campaign of every axis, its trend and when it "
+                                   "will leave its tolerance (docs/history.md). The store: --db, else "
+                                   "$AXISCAL_DB, else ~/.local/share/axiscal/history.sqlite.")
+    actions = p.add_subparsers(dest="action", metavar="ACTION", required=True, parser_class=type(p))
+    db = argparse.ArgumentParser(add_help=False)
+    db.add_argument("--db", metavar="URL|PATH",
+                    help="the store: a database URL (postgresql://USER@HOST/DB, sqlite:///PATH) or a SQLite file "
+                         "(default: $AXISCAL_DB, else ~/.local/share/axiscal/history.sqlite)")
+    db.add_argument("--json", action="store_true", help="print one JSON object")
+
+    a = actions.add_parser("import", parents=[db], help="record campaign directories (and the ones below them)",
+                           description="Record each campaign directory (or point table) into the store; a folder "
+                                       "that is not a campaign is searched for campaign directories. Importing "
+                                       "twice adds nothing.")
+    a.add_argument("paths", nargs="+", metavar="DIR")
+    a.set_defaults(func=run_import)
+
+    ls = actions.add_parser("list", parents=[db], help="the campaigns recorded",
+                            description="The campaigns in the store, oldest first.")
+    ls.add_argument("--machine")
+    ls.add_argument("--axis")
+    ls.add_argument("--since", type=day, metavar="YYYY-MM-DD", help="measured on or after this day (UTC)")
+    ls.add_argument("--until", type=day, metavar="YYYY-MM-DD", help="measured on or before this day (UTC)")
+    ls.add_argument("--verdict", choices=VERDICTS)
+    ls.set_defaults(func=run_list)
+
+    t = actions.add_parser("trend", parents=[db], help="an axis's A, E, B, R over time, drift, jumps, crossing",
+                           description="A, E, B and R of one axis over its campaigns with their U, the drift per "
+                                       "year of each (weighted fit), the jumps between campaigns, and when A + U "
+                                       "is predicted to reach the tolerance.")
+    t.add_argument("machine")
+    t.add_argument("axis")
+    t.add_argument("--tolerance", type=positive_number, metavar="T",
+                   help="tolerance on A, µm (arcsec on a rotary axis); default: the latest campaign's")
+    t.add_argument("--plot", metavar="OUT", help="write the trend plot (.png or .svg)")
+    t.set_defaults(func=run_trend)
+
+    c = actions.add_parser("compare", parents=[db], help="two campaigns' mean deviation curves and their difference",
+                           description="Overlay the mean deviation per target of two campaigns (id, key, directory "
+                                       "or label, as `history list` shows) and their difference with its U.")
+    c.add_argument("first", metavar="A")
+    c.add_argument("second", metavar="B")
+    c.add_argument("--plot", metavar="OUT", help="write the comparison plot (.png or .svg)")
+    c.set_defaults(func=run_compare)
+
+    s = actions.add_parser("store", parents=[db], help="where the store is, what it holds, what waits",
+                           description="Name the store (without its credentials), count what it holds and what "
+                                       "waits in the queue for it.")
+    s.set_defaults(func=run_store)
+
+
+def day(text: str) -> dt.datetime:
+    """argparse type: a day YYYY-MM-DD (UTC midnight)."""
+    try:
+        return dt.datetime.strptime(text, "%Y-%m-%d")
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a day YYYY-MM-DD") from None
+
+
+def open_for(args: argparse.Namespace) -> Store:
+    """The store the command names, migrated, with what waited in its queue recorded first."""
+    from campaign.history.location import store_url
+    from campaign.history.recording import drain_queue
+    from campaign.history.store import StoreUnavailable, open_store
+
+    url = store_url(args.db)
+    if url is None:
+        raise InputError("--db/AXISCAL_DB: the store is turned off (none): name a store")
+    try:
+        store = open_store(url)
+        drained, problems = drain_queue(store)
+    except StoreUnavailable as exc:
+        raise InputError(f"history store unreachable: {exc}") from None
+    if drained and not args.json:
+        print(f"history: {drained} campaign(s) waiting in the queue recorded first", file=sys.stderr)
+    for problem in problems:
+        print(f"history: warning: {problem}", file=sys.stderr)
+    return store
+
+
+def campaign_dirs(paths: list[str]) -> list[Path]:
+    """Each path that is a campaign directory or a point table, and the campaign directories
+    below each folder that is neither, sorted."""
+    from campaign.record import META_FILE
+
+    found: list[Path] = []
+    for text in paths:
+        path = Path(text)
+        if not path.exists():
+            raise InputError(f"{path}: no such directory or file")
+        if path.is_file() or (path / META_FILE).is_file():
+            found.append(path)
+            continue
+        below = sorted(meta.parent for meta in path.rglob(META_FILE))
+        if not below:
+            raise InputError(f"{path}: no campaign directory in it (none holds {META_FILE})")
+        found += below
+    return found
+
+
+def run_import(args: argparse.Namespace) -> int:
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from campaign.history.recording import record_campaign
+    from campaign.history.store import StoreUnavailable
+    from campaign.views import make_console, print_json
+
+    paths = campaign_dirs(args.paths)
+    counts = {"added": 0, "updated": 0, "unchanged": 0}
+    failed: list[dict[str, str]] = []
+    store = open_for(args)
+    console = make_console(stderr=True)
+    try:
+        with Progress(TextColumn("importing"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                      console=console, transient=True, disable=args.json or len(paths) < 20) as progress:
+            task = progress.add_task("import", total=len(paths))
+            for path in paths:
+                try:
+                    counts[record_campaign(store, path)[1]] += 1
+                except StoreUnavailable as exc:
+                    raise InputError(f"history store unreachable: {exc}") from None
+                except InputError as exc:
+                    failed.append({"path": str(path), "error": str(exc)})
+                progress.advance(task)
+    finally:
+        store.close()
+    result = {"store": store.display, **counts, "failed": failed}
+    if args.json:
+        print_json(result)
+    else:
+        print(f"{store.display}: {counts['added']} added, {counts['updated']} updated, {counts['unchanged']} "
+              f"unchanged, {len(failed)} not campaigns")
+        for f in failed:
+            print(f"  not recorded: {f['error']}")
+    return 0 if not failed else 2
+
+
+def _fmt(value: float | None, u: float | None = None) -> str:
+    if value is None:
+        return "n/a"
+    return f"{value:.2f}" + ("" if u is None else f" ± {u:.2f}")
+
+
+def run_list(args: argparse.Namespace) -> int:
+    from rich.table import Table
+
+    from campaign.views import make_console, print_json
+
+    with open_for(args) as store:
+        until = args.until + dt.timedelta(days=1) if args.until else None
+        rows = store.campaigns(args.machine, args.axis, args.since, until, args.verdict)
+    if args.json:
+        print_json({"store": store.display, "campaigns": [_listed(r) for r in rows]})
+        return 0
+    table = Table(title=f"{len(rows)} campaign(s) in {store.display}")
+    for head in ("id", "date", "machine", "axis", "command", "status", "points", "A ± U", "verdict", "where"):
+        table.add_column(head, justify="right" if head in ("id", "points", "A ± U") else "left",
+                         overflow="fold")
+    for r in rows:
+        a, u = r["results"].get(("A", "both"), (None, None))
+        table.add_row(str(r["id"]), _date(r["measured_utc"]), r["machine"], r["axis"], r["command"], r["status"],
+                      str(r["points"]), _fmt(a, u), r["verdict"], r["location"])
+    make_console().print(table)
+    return 0
+
+
+def _date(when: dt.datetime | None) -> str:
+    return "undated" if when is None else when.strftime("%Y-%m-%d %H:%M")
+
+
+def _listed(r: dict[str, Any]) -> dict[str, Any]:
+    out = {k: v for k, v in r.items() if k not in ("results", "uncertainty", "checks", "state")}
+    out["measured_utc"] = None if r["measured_utc"] is None else r["measured_utc"].isoformat()
+    out["recorded_utc"] = r["recorded_utc"].isoformat()
+    out["results"] = {f"{p}" + ("" if d == "both" else f"_{d}"): {"value": v, "U": u}
+                      for (p, d), (v, u) in r["results"].items()}
+    return out
+
+
+def trend_of(store: Store, machine: str, axis: str, tolerance: float | None) -> Any:
+    from campaign.history.axis import axis_trend
+
+    rows = store.campaigns(machine, axis)
+    if not rows:
+        known = sorted({(r["machine"], r["axis"]) for r in store.campaigns()})
+        hint = "; ".join(f"{m} {x}" for m, x in known[:8]) or "none yet (axiscal history import DIR)"
+        raise InputError(f"history trend: no campaign of machine '{machine}', axis '{axis}' in {store.display} "
+                         f"(recorded: {hint})")
+    return axis_trend(rows, machine, axis, tolerance)
+
+
+def run_trend(args: argparse.Namespace) -> int:
+    from campaign.plot import check_plot_path
+    from campaign.views import print_json
+
+    if args.plot:
+        check_plot_path(args.plot)
+    with open_for(args) as store:
+        trend = trend_of(store, args.machine, args.axis, args.tolerance)
+    if args.plot:
+        from campaign.history.plots import draw_trend, save
+
+        save(draw_trend(trend), args.plot)
+    if args.json:
+        print_json({"store": store.display, **trend.as_json()})
+        return 0
+    print_trend(trend)
+    if args.plot:
+        print(f"plot written to {args.plot}")
+    return 0
+
+
+def print_trend(trend: Any) -> None:
+    """The trend as a terminal table and sentences."""
+    from rich.table import Table
+
+    from campaign.views import make_console
+    from protocols.units import unit_label
+
+    console = make_console()
+    unit = unit_label(trend.unit)
+    table = Table(title=f"Machine {trend.machine}, axis {trend.axis}: {len(trend.counted)} campaigns ({unit}, ± U, k = 2)")
+    for head in ("date", "campaign", "A", "E", "B", "R", "verdict"):
+        table.add_column(head, justify="right" if head in "AEBR" else "left", overflow="fold")
+    for r in trend.counted:
+        cells = [_fmt(*r["results"].get((p, "both"), (None, None))) for p in ("A", "E", "B", "R")]
+        table.add_row(_date(r["measured_utc"])[:10], r["label"], *cells, r["verdict"])
+    console.print(table)
+    for r, why in trend.left_out:
+        console.print(f"left out: {r['label']}: {why}", markup=False)
+    console.print("drift per year (weighted fit, 95 %):", markup=False)
+    for fit in trend.fits.values():
+        console.print(f"  {fit.sentence(unit)}", markup=False)
+    for jump in trend.jumps:
+        console.print(f"jump: {jump.sentence(unit)}", markup=False)
+    if not trend.jumps:
+        console.print("no jump between consecutive campaigns beyond their combined uncertainty", markup=False)
+    if trend.crossing is not None:
+        console.print(trend.crossing.sentence(unit), markup=False)
+
+
+def run_compare(args: argparse.Namespace) -> int:
+    from rich.table import Table
+
+    from campaign.history.compare import compare
+    from campaign.plot import check_plot_path
+    from campaign.views import make_console, print_json
+    from protocols.units import unit_label
+
+    if args.plot:
+        check_plot_path(args.plot)
+    with open_for(args) as store:
+        try:
+            first, second = store.find(args.first), store.find(args.second)
+        except LookupError as exc:
+            raise InputError(f"history compare: {exc.args[0]}") from None
+        if first["axis_kind"] != second["axis_kind"]:
+            raise InputError(f"history compare: a {first['axis_kind']} and a {second['axis_kind']} axis")
+        result = compare(first, store.points(first["id"]), second, store.points(second["id"]))
+    if args.plot:
+        from campaign.history.plots import draw_compare, save
+
+        save(draw_compare(result), args.plot)
+    if args.json:
+        print_json(result.as_json())
+        return 0
+    unit = unit_label(result.unit)
+    table = Table(title=f"B = {second['label']} − A = {first['label']} ({unit}, U with k = 2)")
+    for head in (f"target ({result.position_unit})", "mean A", "mean B", "B − A", "U", "beyond U"):
+        table.add_column(head, justify="right")
+    for r in result.rows:
+        beyond = "" if r["U"] is None else ("yes" if abs(r["difference"]) > r["U"] else "no")
+        table.add_row(f"{r['target']:g}", f"{r['first']:.2f}", f"{r['second']:.2f}", f"{r['difference']:+.2f}",
+                      _fmt(r["U"]), beyond)
+    console = make_console()
+    console.print(table)
+    console.print(f"{result.sentence()}.", markup=False)
+    if result.only_one:
+        console.print(f"{result.only_one} target(s) measured in one campaign only are not compared", markup=False)
+    if args.plot:
+        console.print(f"plot written to {args.plot}", markup=False)
+    return 0
+
+
+def run_store(args: argparse.Namespace) -> int:
+    from campaign.history.location import store_url
+    from campaign.history.pending import queue_path, waiting
+    from campaign.views import print_json
+
+    with open_for(args) as store:
+        counts = store.counts()
+    url = store_url(args.db) or ""
+    result = {"store": store.display, **counts, "waiting": waiting(url), "queue": str(queue_path())}
+    if args.json:
+        print_json(result)
+    else:
+        print(f"{store.display}: {counts['campaigns']} campaigns ({counts['points']} points), "
+              f"{counts['comp_tables']} compensation tables; {result['waiting']} waiting in {result['queue']}")
+    return 0
+
+
+def demo_history(args: argparse.Namespace) -> int:
+    """`axiscal demo --history N`: N simulated re-checks of the demo axis over two years (its lead
+    error growing, its reversal jumping once), recorded into the store, then the trend."""
+    from campaign.history.location import store_url
+    from campaign.history.recording import record_campaign
+    from campaign.history.simulated import SIMULATOR, simulate_history
+    from campaign.history.store import StoreUnavailable, open_store
+    from campaign.plot import check_plot_path
+    from campaign.views import make_console, print_json
+
+    for given, what in ((args.inject, "--inject"), (args.verify, "--verify"), (args.capture == "stable", "--capture stable"),
+                        (args.controller != "sim", "--controller linuxcnc"), (args.cycles, "--cycles")):
+        if given:
+            raise InputError(f"--history: {what} does not go with a simulated history (its re-checks are the demo's "
+                             "campaign, simulated by the fast simulator)")
+    if args.plot:
+        check_plot_path(args.plot)
+    stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+    out = Path(args.out) if args.out else Path("runs") / f"history-{stamp}"
+    if out.exists() and any(out.iterdir()):
+        raise InputError(f"--out: {out} is not empty; a simulated history goes into a new directory")
+    url = store_url(None)
+    if url is None:
+        raise InputError("--history: the store is turned off (AXISCAL_DB=none): name a store to record the history in")
+    try:
+        store = open_store(url)
+    except StoreUnavailable as exc:
+        raise InputError(f"history store unreachable: {exc}") from None
+    machine = f"sim-history-{stamp}"
+    console = make_console(stderr=args.json)
+    with store:
+        truth, dirs = simulate_history(out, campaigns=args.history, machine=machine)
+        for directory in dirs:
+            record_campaign(store, directory, "demo")
+        trend = trend_of(store, machine, "X", None)
+    if args.plot:
+        from campaign.history.plots import draw_trend, save
+
+        save(draw_trend(trend), args.plot)
+    if args.json:
+        print_json({"dir": str(out), "store": store.display, "machine": machine, "axis": "X", "simulator": SIMULATOR,
+                    "truth": truth.as_json(), "trend": trend.as_json()})
+        return 0
+    console.print(f"{len(dirs)} re-checks of the demo axis over {truth.years:g} years, simulated by the {SIMULATOR}, "
+                  f"written to {out} and recorded in {store.display}. The truth: the lead error grows by "
+                  f"{truth.growth_ppm_per_year:g} µm/m a year (to {truth.lead_ppm_end:g} µm/m at the last re-check); "
+                  f"the reversal jumps to {truth.backlash_um:g} µm after re-check {truth.jump_after}.", markup=False)
+    print_trend(trend)
+    console.print(f"Again with: axiscal history trend {machine} X --plot trend.png", markup=False)
+    if args.plot:
+        console.print(f"plot written to {args.plot}", markup=False)
+    return 0

@@ -1,0 +1,300 @@
+"""The campaign store: one database of every campaign of every axis (SQLAlchemy Core).
+
+The same code runs on the embedded SQLite file (WAL mode: readers never wait for the writer,
+writers take turns through `BEGIN IMMEDIATE` and a busy timeout) and on a plant's shared
+PostgreSQL server (by URL). A store is brought to the newest schema revision by its migrations
+(Alembic, `migrations/`) when it is opened; two processes opening a new store at once migrate it
+once (the migration holds the write lock: SQLite's, or a PostgreSQL advisory lock).
+
+Two processes recording at once lose nothing: each campaign is written in one transaction, known
+by its unique key; when both record the same campaign, the second finds it there (a unique-key
+conflict is retried once) and changes nothing.
+
+Errors reaching the store (a server that does not answer, a file that cannot be opened) are
+`StoreUnavailable`, whose message names the store without its credentials.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, Self
+
+import sqlalchemy as sa
+from sqlalchemy.engine import Connection, Engine
+
+from campaign.history import schema
+from campaign.history.entry import Entry, now_utc
+from campaign.history.location import display_url, scrub
+
+MIGRATIONS = Path(__file__).parent / "migrations"
+ADVISORY_LOCK = 230_2027
+"""PostgreSQL advisory lock held while a store is migrated (an arbitrary number of ours)."""
+BUSY_TIMEOUT_MS = 60_000
+"""SQLite: how long a writer waits for another's transaction to end, ms."""
+CONNECT_TIMEOUT_S = 5
+"""PostgreSQL: how long to wait for the server to answer, s."""
+
+
+class StoreUnavailable(Exception):
+    """The store cannot be reached or written; the message names it without its credentials."""
+
+
+def _sqlite_engine(url: str) -> Engine:
+    database = sa.engine.make_url(url).database
+    if database and database != ":memory:":
+        try:
+            Path(database).parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise StoreUnavailable(f"{display_url(url)}: cannot create its folder ({exc.strerror})") from None
+    engine = sa.create_engine(url, connect_args={"timeout": BUSY_TIMEOUT_MS / 1000})
+
+    @sa.event.listens_for(engine, "connect")
+    def on_connect(dbapi_connection: Any, record: Any) -> None:
+        dbapi_connection.isolation_level = None  # transactions are begun below, not by the driver
+        cursor = dbapi_connection.cursor()
+        cursor.execute("PRAGMA journal_mode=WAL")
+        cursor.execute(f"PRAGMA busy_timeout={BUSY_TIMEOUT_MS}")
+        cursor.execute("PRAGMA foreign_keys=ON")
+        cursor.execute("PRAGMA synchronous=NORMAL")
+        cursor.close()
+
+    @sa.event.listens_for(engine, "begin")
+    def on_begin(conn: Connection) -> None:
+        conn.exec_driver_sql("BEGIN IMMEDIATE")  # one writer at a time, waiting its turn
+
+    return engine
+
+
+def _engine(url: str) -> Engine:
+    if url.startswith("sqlite"):
+        return _sqlite_engine(url)
+    return sa.create_engine(url, pool_pre_ping=True, connect_args={"connect_timeout": CONNECT_TIMEOUT_S})
+
+
+def _migrate(engine: Engine) -> None:
+    """Bring the store to the newest revision (nothing to do when it is there)."""
+    from alembic import command
+    from alembic.config import Config
+    from alembic.runtime.migration import MigrationContext
+    from alembic.script import ScriptDirectory
+
+    config = Config()
+    config.set_main_option("script_location", str(MIGRATIONS))
+    head = ScriptDirectory.from_config(config).get_current_head()
+    with engine.connect() as conn:
+        if MigrationContext.configure(conn).get_current_revision() == head:
+            conn.rollback()
+            return
+        conn.rollback()
+    with engine.begin() as conn:
+        if engine.dialect.name == "postgresql":
+            conn.execute(sa.text("SELECT pg_advisory_xact_lock(:key)"), {"key": ADVISORY_LOCK})
+        config.attributes["connection"] = conn
+        command.upgrade(config, "head")
+
+
+class Store:
+    """An open store. `url`: its SQLAlchemy URL (never shown as is: `display`)."""
+
+    def __init__(self, url: str):
+        self.url = url
+        self.display = display_url(url)
+        self.engine = _engine(url)
+        with self._reaching():
+            _migrate(self.engine)
+
+    @contextmanager
+    def _reaching(self) -> Iterator[None]:
+        """Database and OS errors as StoreUnavailable, credentials masked."""
+        try:
+            yield
+        except (sa.exc.OperationalError, sa.exc.InterfaceError, sa.exc.ProgrammingError) as exc:
+            reason = str(getattr(exc, "orig", None) or exc).strip().splitlines()
+            raise StoreUnavailable(scrub(f"{self.display}: {reason[0] if reason else type(exc).__name__}",
+                                         self.url)) from None
+        except OSError as exc:
+            raise StoreUnavailable(scrub(f"{self.display}: {exc.strerror or exc}", self.url)) from None
+
+    def close(self) -> None:
+        self.engine.dispose()
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # writing
+
+    def put(self, entry: Entry) -> tuple[int, str]:
+        """Record one campaign or table: (its id, "added", "updated" or "unchanged")."""
+        for attempt in (1, 2):
+            try:
+                with self._reaching(), self.engine.begin() as conn:
+                    return self._put(conn, entry)
+            except sa.exc.IntegrityError:
+                if attempt == 2:  # the same campaign, recorded by another process a moment ago: twice
+                    raise
+        raise AssertionError("unreachable")
+
+    def _put(self, conn: Connection, entry: Entry) -> tuple[int, str]:
+        c = schema.campaigns
+        row = conn.execute(sa.select(c.c.id, c.c.state, c.c.command).where(c.c.key == entry.key)).first()
+        values = dict(entry.values)
+        if row is not None:
+            if row.state == values["state"]:
+                return row.id, "unchanged"
+            if values["command"] == "import":  # the command that measured it stays named
+                values["command"] = row.command
+            conn.execute(c.update().where(c.c.id == row.id).values(**values))
+            conn.execute(schema.results.delete().where(schema.results.c.campaign_id == row.id))
+            conn.execute(schema.points.delete().where(schema.points.c.campaign_id == row.id))
+            campaign_id, what = row.id, "updated"
+        else:
+            campaign_id = conn.execute(c.insert().values(**values).returning(c.c.id)).scalar_one()
+            what = "added"
+        if entry.results:
+            conn.execute(schema.results.insert(), [
+                {"campaign_id": campaign_id, "parameter": p, "direction": d, "value": v, "expanded_u": u}
+                for p, d, v, u in entry.results])
+        if entry.points:
+            conn.execute(schema.points.insert(), [
+                {"campaign_id": campaign_id, "seq": i, "run": r, "direction": d, "target": t, "deviation": e,
+                 "time_s": s} for i, (r, d, t, e, s) in enumerate(entry.points)])
+        return campaign_id, what
+
+    def link_verification(self, after_id: int, before_id: int | None, before_location: str | None,
+                          compensation: dict[str, Any]) -> None:
+        """Record that campaign `after_id` verified a compensation against `before_id`."""
+        v = schema.verifications
+        with self._reaching(), self.engine.begin() as conn:
+            conn.execute(v.delete().where(v.c.campaign_id == after_id))
+            conn.execute(v.insert().values(campaign_id=after_id, before_id=before_id,
+                                           before_location=before_location, compensation=compensation))
+
+    def put_comp_table(self, key: str, values: dict[str, Any]) -> str:
+        """Record a compensation table written: "added" or "unchanged"."""
+        t = schema.comp_tables
+        for attempt in (1, 2):
+            try:
+                with self._reaching(), self.engine.begin() as conn:
+                    if conn.execute(sa.select(t.c.id).where(t.c.key == key)).first() is not None:
+                        return "unchanged"
+                    conn.execute(t.insert().values(key=key, **values))
+                    return "added"
+            except sa.exc.IntegrityError:
+                if attempt == 2:
+                    raise
+        raise AssertionError("unreachable")
+
+    # reading
+
+    def known(self, key: str) -> tuple[int, str] | None:
+        """(id, state) of the campaign recorded under `key`, or None."""
+        c = schema.campaigns
+        with self._reaching(), self.engine.connect() as conn:
+            row = conn.execute(sa.select(c.c.id, c.c.state).where(c.c.key == key)).first()
+        return None if row is None else (row.id, row.state)
+
+    def campaign_id(self, key: str) -> int | None:
+        c = schema.campaigns
+        with self._reaching(), self.engine.connect() as conn:
+            return conn.execute(sa.select(c.c.id).where(c.c.key == key)).scalar()
+
+    def campaigns(self, machine: str | None = None, axis: str | None = None, since: dt.datetime | None = None,
+                  until: dt.datetime | None = None, verdict: str | None = None) -> list[dict[str, Any]]:
+        """The campaigns recorded, oldest first (undated last), each with its `results`:
+        {(parameter, direction): (value, U)}."""
+        c = schema.campaigns
+        query = sa.select(c)
+        if machine:
+            query = query.where(c.c.machine == machine)
+        if axis:
+            query = query.where(c.c.axis == axis)
+        if since:
+            query = query.where(c.c.measured_utc >= since)
+        if until:
+            query = query.where(c.c.measured_utc < until)
+        if verdict:
+            query = query.where(c.c.verdict == verdict)
+        query = query.order_by(c.c.measured_utc.is_(None), c.c.measured_utc, c.c.id)
+        r = schema.results
+        with self._reaching(), self.engine.connect() as conn:
+            rows = [dict(row._mapping) for row in conn.execute(query)]
+            by_id = {row["id"]: row for row in rows}
+            for row in rows:
+                row["results"] = {}
+            ids = list(by_id)
+            for start in range(0, len(ids), 500):
+                chunk = ids[start:start + 500]
+                for res in conn.execute(sa.select(r).where(r.c.campaign_id.in_(chunk))):
+                    by_id[res.campaign_id]["results"][(res.parameter, res.direction)] = (res.value, res.expanded_u)
+        return rows
+
+    def points(self, campaign_id: int) -> list[tuple[int, int, float, float, float | None]]:
+        """The point table of a campaign, in its recorded order."""
+        p = schema.points
+        query = sa.select(p.c.run, p.c.direction, p.c.target, p.c.deviation, p.c.time_s).where(
+            p.c.campaign_id == campaign_id).order_by(p.c.seq)
+        with self._reaching(), self.engine.connect() as conn:
+            return [(row.run, row.direction, row.target, row.deviation, row.time_s) for row in conn.execute(query)]
+
+    def find(self, reference: str) -> dict[str, Any]:
+        """A campaign by its id number, its key (or a prefix of 8 or more), its directory's path or
+        its label. LookupError naming what matched when none or several do."""
+        c = schema.campaigns
+        text = reference.strip()
+        tests = []
+        if text.isdigit():
+            tests.append(c.c.id == int(text))
+        if len(text) >= 8:
+            tests.append(c.c.key.startswith(text))
+        tests += [c.c.location == str(Path(text).resolve()), c.c.label == Path(text).name]
+        with self._reaching(), self.engine.connect() as conn:
+            for test in tests:
+                rows = [dict(r._mapping) for r in conn.execute(sa.select(c).where(test))]
+                if len(rows) == 1:
+                    return rows[0]
+                if len(rows) > 1:
+                    raise LookupError(f"'{reference}' names {len(rows)} campaigns (ids "
+                                      f"{', '.join(str(r['id']) for r in rows[:6])}): give the id")
+        raise LookupError(f"'{reference}': no such campaign in the store (axiscal history list shows them)")
+
+    def verification_of(self, campaign_id: int) -> dict[str, Any] | None:
+        v = schema.verifications
+        with self._reaching(), self.engine.connect() as conn:
+            row = conn.execute(sa.select(v).where(v.c.campaign_id == campaign_id)).first()
+        return None if row is None else dict(row._mapping)
+
+    def comp_tables(self, machine: str | None = None, axis: str | None = None) -> list[dict[str, Any]]:
+        t = schema.comp_tables
+        query = sa.select(t).order_by(t.c.written_utc, t.c.id)
+        if machine:
+            query = query.where(t.c.machine == machine)
+        if axis:
+            query = query.where(t.c.axis == axis)
+        with self._reaching(), self.engine.connect() as conn:
+            return [dict(r._mapping) for r in conn.execute(query)]
+
+    def counts(self) -> dict[str, int]:
+        """Rows per table (for a summary)."""
+        with self._reaching(), self.engine.connect() as conn:
+            return {name: int(conn.execute(sa.select(sa.func.count()).select_from(table)).scalar_one())
+                    for name, table in (("campaigns", schema.campaigns), ("points", schema.points),
+                                        ("comp_tables", schema.comp_tables))}
+
+
+def open_store(url: str) -> Store:
+    """Open (and migrate) the store at `url`; StoreUnavailable when it cannot be reached."""
+    try:
+        return Store(url)
+    except StoreUnavailable:
+        raise
+    except sa.exc.ArgumentError as exc:
+        raise StoreUnavailable(scrub(f"{display_url(url)}: {exc}", url)) from None
+
+
+__all__ = ["Store", "StoreUnavailable", "now_utc", "open_store"]

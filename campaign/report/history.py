@@ -1,0 +1,93 @@
+"""The report's history section: when the campaign store (campaign/history/) holds other
+campaigns of the same machine and axis, the trend plot, the drift, the jumps, the crossing date
+and the last campaigns. Nothing when the store is turned off or holds no other campaign; one
+sentence (the store named without its credentials) when it cannot be reached. The report never
+creates a store: an embedded store file that does not exist is no store."""
+
+from __future__ import annotations
+
+import base64
+import io
+from html import escape
+from typing import Any
+
+from campaign.report.html import section
+from protocols.units import unit_label
+
+LAST = 10
+"""How many of the last campaigns the section lists."""
+
+
+def _store_rows(machine: str, axis: str) -> tuple[list[dict[str, Any]], str] | None:
+    """(the axis's rows, the store's name), or None without a store; RuntimeError with a sentence
+    when the store cannot be reached."""
+    from pathlib import Path
+
+    from sqlalchemy.engine import make_url
+
+    from campaign.history.location import display_url, store_url
+    from campaign.history.store import StoreUnavailable, open_store
+
+    url = store_url(None)
+    if url is None:
+        return None
+    if url.startswith("sqlite"):
+        database = make_url(url).database
+        if not database or not Path(database).is_file():
+            return None
+    try:
+        with open_store(url) as store:
+            return store.campaigns(machine, axis), store.display
+    except StoreUnavailable as exc:
+        raise RuntimeError(f"The history store could not be reached ({exc}); the axis's history is not shown.") from None
+    except Exception as exc:  # noqa: BLE001 - the report is made whatever the store says
+        raise RuntimeError(f"The history store {display_url(url)} could not be read ({type(exc).__name__}); "
+                           "the axis's history is not shown.") from None
+
+
+def history_section(machine: str, axis: str) -> str:
+    """The section's HTML ("" when there is no history to show)."""
+    try:
+        found = _store_rows(machine, axis)
+    except RuntimeError as exc:
+        return section("History of this axis", f"<p>{escape(str(exc))}</p>")
+    if found is None:
+        return ""
+    rows, name = found
+    from campaign.history.axis import axis_trend
+
+    trend = axis_trend(rows, machine, axis)
+    if len(trend.counted) < 2:
+        return ""
+    from campaign.history.plots import draw_trend
+    from campaign.plot import pyplot
+
+    fig = draw_trend(trend)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=100)
+    pyplot().close(fig)
+    image = "data:image/png;base64," + base64.b64encode(buffer.getvalue()).decode("ascii")
+    unit = unit_label(trend.unit)
+    sentences = [f.sentence(unit) for f in trend.fits.values()]
+    sentences += [j.sentence(unit) for j in trend.jumps]
+    if trend.crossing is not None:
+        sentences.append(trend.crossing.sentence(unit))
+    items = "".join(f"<li>{escape(s)}</li>" for s in sentences)
+    head = "".join(f"<th class='num'>{h}</th>" if h in "AEBR" else f"<th>{h}</th>"
+                   for h in ("Date", "Campaign", "A", "E", "B", "R", "Verdict"))
+    body = ""
+    for r in trend.counted[-LAST:]:
+        cells = []
+        for p in ("A", "E", "B", "R"):
+            value, u = r["results"].get((p, "both"), (None, None))
+            cells.append("n/a" if value is None else f"{value:.2f}" + ("" if u is None else f" ± {u:.2f}"))
+        when = r["measured_utc"].date().isoformat() if r["measured_utc"] else "undated"
+        body += (f"<tr><td>{escape(when)}</td><td>{escape(r['label'])}</td>"
+                 + "".join(f"<td class='num'>{escape(c)}</td>" for c in cells) + f"<td>{escape(r['verdict'])}</td></tr>")
+    left = f" {len(trend.left_out)} other record(s) of this axis are left out of the trend." if trend.left_out else ""
+    lead = (f"{len(trend.counted)} campaigns of machine {machine}, axis {axis} in {name}; values ± U (k = 2), "
+            f"{unit}.{left}")
+    return section("History of this axis",
+                   f"<p>{escape(lead)}</p><ul>{items}</ul>"
+                   f"<img class='plot' alt='The axis over its campaigns' src='{image}'>"
+                   f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>")

@@ -1,0 +1,330 @@
+"""The campaign store and its history (issue 27): the store on SQLite and on a real PostgreSQL
+server (tests/pg_server.py), importing, the trend on a simulated history with a known truth, the
+change point, the crossing date, compare, the hooks of convert and compensate, an unreachable
+store and credentials. The SQLite cases are in the fast tier (but the acceptance test, which
+simulates a few hundred campaigns for its truth); the PostgreSQL ones start a server and are in the
+machine tier (the same tests, parametrized)."""
+
+from __future__ import annotations
+
+import datetime as dt
+import functools
+import json
+import sqlite3
+
+import numpy as np
+import pytest
+
+from campaign.history.location import display_url, scrub, store_url
+from campaign.history.trend import Observation, analyse, crossing
+from tests.conftest import PAPER, assert_one_line_error
+from tests.pg_server import PASSWORD
+
+
+@pytest.fixture(params=["sqlite", pytest.param("postgresql", marks=pytest.mark.machine)])
+def db(request, tmp_path, monkeypatch):
+    """A new, empty store named by AXISCAL_DB: a SQLite file, or a database on the session's
+    PostgreSQL server (its URL carries the superuser's password)."""
+    if request.param == "sqlite":
+        url = str(tmp_path / "store" / "history.sqlite")
+    else:
+        url = request.getfixturevalue("postgres_server").new_database()
+    monkeypatch.setenv("AXISCAL_DB", url)
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "xdg"))
+    return url
+
+
+def no_password(*texts: str) -> None:
+    for text in texts:
+        assert PASSWORD not in text, text
+
+
+# --- the simulated history and its truth ------------------------------------------------------
+
+@functools.cache
+def expected(lead_ppm: float, backlash_um: float, seeds: int = 30) -> tuple[float, float, float]:
+    """(E[A], E[U_A], E[E]) of the demo axis with this lead error and reversal: the mean over many
+    simulated campaigns (the fast simulator, new noise each), µm."""
+    from campaign.assess import assess
+    from campaign.discovery.simulate import simulate_campaign
+    from campaign.history.simulated import demo_text, recheck_config
+    from campaign.model import sim_model
+
+    config = recheck_config(demo_text(), lead_ppm, backlash_um, 7)
+    a, u, e = [], [], []
+    for seed in range(seeds):
+        result = assess(simulate_campaign(config, sim_model(config.sim), seed=5000 + seed), config)
+        a.append(result.evaluation.summary["A"])
+        u.append(result.uncertainty.expanded["A"])
+        e.append(result.evaluation.summary["E"])
+    return float(np.mean(a)), float(np.mean(u)), float(np.mean(e))
+
+
+def true_drift(truth: dict) -> tuple[float, float]:
+    """The true drift of A and E, µm/year, after the jump: their expected values at the first and
+    the last lead error of the history, with the reversal after the jump, over the years between."""
+    start = truth["lead_ppm_end"] + truth["growth_ppm_per_year"] * truth["years"]
+    a0, _, e0 = expected(start, truth["backlash_um_after_jump"])
+    a1, _, e1 = expected(truth["lead_ppm_end"], truth["backlash_um_after_jump"])
+    return (a1 - a0) / truth["years"], (e1 - e0) / truth["years"]
+
+
+def true_crossing(truth: dict, last: dt.date, tolerance: float) -> dt.date:
+    """The day the expected A + U of the simulated axis reaches the tolerance, its lead error
+    going on growing as it did (interpolated between expected values half a year apart)."""
+    tau, previous = 0.0, None
+    while tau < 10:
+        a, u, _ = expected(truth["lead_ppm_end"] - truth["growth_ppm_per_year"] * tau, truth["backlash_um_after_jump"])
+        if a + u >= tolerance:
+            t0, v0 = previous
+            share = (tolerance - v0) / (a + u - v0)
+            return last + dt.timedelta(days=365.25 * (t0 + share * (tau - t0)))
+        previous, tau = (tau, a + u), tau + 0.5
+    raise AssertionError("the simulated axis never reaches its tolerance")
+
+
+@pytest.mark.machine  # sweeps a few hundred simulated campaigns for the truth: seconds, not the fast tier
+def test_simulated_history_trend_finds_the_truth(cli, db, tmp_path):
+    """The acceptance: 12 re-checks over 2 years, the lead error growing at a known rate, one
+    reversal jump; `history trend --json` gives the drift within its U of the truth, names the
+    jump between the right two campaigns, and the crossing interval contains the true date."""
+    made = cli("demo", "--history", "12", "--out", tmp_path / "history", "--json")
+    assert made.code == 0, made.err
+    demo = json.loads(made.out)
+    truth = demo["truth"]
+    assert truth["campaigns"] == 12 and truth["years"] == 2 and truth["jump_after_campaign"] == 7
+    result = cli("history", "trend", demo["machine"], "X", "--json")
+    assert result.code == 0, result.err
+    trend = json.loads(result.out)
+    no_password(result.out, result.err, made.out, made.err)
+    assert len(trend["campaigns"]) == 12 and trend["left_out"] == []
+    dates = [dt.date.fromisoformat(c["date"]) for c in trend["campaigns"]]
+    assert 1.9 < (dates[-1] - dates[0]).days / 365.25 < 2.1
+
+    rate_a, rate_e = true_drift(truth)
+    for parameter, true_rate in (("A", rate_a), ("E", rate_e)):
+        drift = trend["drift"][parameter]
+        assert drift["significant"], drift
+        assert abs(drift["rate_per_year"] - true_rate) <= drift["U_rate_per_year"], (parameter, drift, true_rate)
+        assert drift["U_rate_per_year"] < abs(true_rate), drift  # a statement, not a shrug
+
+    labels = [c["label"] for c in trend["campaigns"]]
+    jumps_b = [j for j in trend["change_points"] if j["parameter"] == "B"]
+    assert [(j["before"]["label"], j["after"]["label"]) for j in jumps_b] == [(labels[6], labels[7])]
+    jump = jumps_b[0]
+    assert abs(jump["jump"] - truth["backlash_um_after_jump"]) <= jump["U"]
+    assert jump["sentence"].startswith(f"B rose {jump['jump']:.1f} ± {jump['U']:.1f} µm between {dates[6]} and {dates[7]}")
+    assert all((j["before"]["label"], j["after"]["label"]) == (labels[6], labels[7]) for j in trend["change_points"])
+
+    c = trend["crossing"]
+    assert c["state"] == "predicted" and c["tolerance"] == 10.0, c
+    true_day = true_crossing(truth, dates[-1], 10.0)
+    earliest = dt.date.fromisoformat(c["earliest"])
+    latest = dt.date.fromisoformat(c["latest"]) if c["latest"] else dt.date.max
+    assert earliest <= true_day <= latest, (c, true_day)
+    assert earliest <= dt.date.fromisoformat(c["date"]) <= latest
+    assert earliest > dates[-1]  # the axis is still within its tolerance at the last re-check
+
+
+def test_trend_table_plot_and_list(cli, db, tmp_path):
+    made = json.loads(cli("demo", "--history", "5", "--out", tmp_path / "h", "--json").out)
+    shown = cli("history", "trend", made["machine"], "X", "--plot", tmp_path / "trend.png")
+    assert shown.code == 0, shown.err
+    assert "drift per year" in shown.out and "A: +" in shown.out
+    assert (tmp_path / "trend.png").stat().st_size > 10_000
+    listed = json.loads(cli("history", "list", "--machine", made["machine"], "--json").out)["campaigns"]
+    assert len(listed) == 5 and all(c["command"] == "demo" for c in listed)
+    first_day = listed[0]["measured_utc"][:10]
+    since = cli("history", "list", "--machine", made["machine"], "--since",
+                (dt.date.fromisoformat(first_day) + dt.timedelta(days=1)).isoformat(), "--json")
+    assert len(json.loads(since.out)["campaigns"]) == 4
+    until = cli("history", "list", "--until", first_day, "--json")
+    assert [c["label"] for c in json.loads(until.out)["campaigns"]] == [listed[0]["label"]]
+    assert json.loads(cli("history", "list", "--verdict", "pass", "--json").out)["campaigns"] == []
+    assert cli("history", "list", "--axis", "X").code == 0
+
+
+def test_import_is_idempotent_and_rebuilds_the_store(cli, db, tmp_path):
+    made = json.loads(cli("demo", "--history", "4", "--out", tmp_path / "h", "--json").out)
+    again = json.loads(cli("history", "import", tmp_path / "h", "--json").out)
+    assert (again["added"], again["updated"], again["unchanged"]) == (0, 0, 4)
+    rebuilt = tmp_path / "rebuilt.sqlite"
+    first = json.loads(cli("history", "import", tmp_path / "h", "--db", rebuilt, "--json").out)
+    second = json.loads(cli("history", "import", tmp_path / "h", "--db", rebuilt, "--json").out)
+    assert (first["added"], second["added"], second["unchanged"]) == (4, 0, 4)
+    counts = json.loads(cli("history", "store", "--db", rebuilt, "--json").out)
+    assert counts["campaigns"] == 4 and counts["points"] == 4 * 110
+    trend = json.loads(cli("history", "trend", made["machine"], "X", "--db", rebuilt, "--json").out)
+    assert len(trend["campaigns"]) == 4
+    assert "not predictable" in trend["crossing"]["sentence"] or trend["crossing"]["state"] != "predicted"
+
+
+def test_compare_two_campaigns(cli, db, tmp_path):
+    json.loads(cli("demo", "--history", "3", "--out", tmp_path / "h", "--json").out)
+    dirs = sorted((tmp_path / "h").iterdir())
+    result = cli("history", "compare", dirs[0], dirs[-1], "--json", "--plot", tmp_path / "cmp.png")
+    assert result.code == 0, result.err
+    c = json.loads(result.out)
+    assert len(c["targets"]) == 11 and c["targets_not_in_both"] == 0
+    at_end = c["targets"][-1]  # 600 mm: the lead error grew by 6 µm/m over 2 years: about -3.6 µm there
+    assert at_end["target"] == 600.0 and at_end["difference"] < -at_end["U"] < 0
+    assert c["targets"][0]["U"] > 0 and abs(c["targets"][0]["difference"]) < c["targets"][0]["U"]  # 0 mm: no change
+    assert (tmp_path / "cmp.png").stat().st_size > 10_000
+    table = cli("history", "compare", dirs[0], dirs[-1])
+    assert "differs beyond its uncertainty" in table.out
+    assert_one_line_error(cli("history", "compare", "nosuch", dirs[0]), "no such campaign")
+
+
+def test_convert_and_compensate_are_recorded(cli, db, tmp_path):
+    from campaign.history.location import store_url as url_of
+    from campaign.history.store import open_store
+
+    source = tmp_path / "before.csv"
+    source.write_text("# date: 2026-01-05\n" + (PAPER / "horizontal_before.csv").read_text())
+    converted = cli("convert", source, "-o", tmp_path / "before.rtl")
+    assert converted.code == 0, converted.err
+    assert "history: added" in converted.err
+    back = cli("convert", tmp_path / "before.rtl", "-o", tmp_path / "again.csv")
+    assert back.code == 0 and "history: added" in back.err
+    table = cli("compensate", source, "--format", "linuxcnc", "-o", tmp_path / "comp.tbl")
+    assert table.code == 0, table.err
+    with open_store(url_of()) as store:
+        rows = store.campaigns()
+        tables = store.comp_tables()
+    assert [r["command"] for r in rows] == ["convert", "convert"]
+    assert rows[0]["fingerprint"] == rows[1]["fingerprint"]  # one measurement, carried by two files
+    assert len(tables) == 1 and tables[0]["format"] == "linuxcnc"
+    assert tables[0]["text"] == (tmp_path / "comp.tbl").read_text()
+    assert tables[0]["campaign_id"] == rows[0]["id"] and tables[0]["provenance"]["software"].startswith("axiscal")
+    machine, axis = rows[0]["machine"], rows[0]["axis"]
+    trend = json.loads(cli("history", "trend", machine, axis, "--json").out)
+    assert len(trend["campaigns"]) == 1 and "the same measurement as" in trend["left_out"][0]["reason"]
+    assert trend["drift"]["A"]["reason"].startswith("too few campaigns (1")
+
+
+def test_unreachable_store_never_stops_a_campaign(cli, db, tmp_path, monkeypatch, request):
+    """The store cannot be reached: the command ends normally and says so in one line, the
+    campaign waits in the queue; when the same store can be reached again, the next use of it
+    records what waited."""
+    from campaign.history.simulated import simulate_history
+
+    _, dirs = simulate_history(tmp_path / "h", campaigns=2)
+    if db.startswith("postgresql"):  # a role that does not exist yet: refused until it is made
+        server = request.getfixturevalue("postgres_server")
+        later = db.replace("axiscal:", "late_user:")
+
+        def reachable() -> None:
+            import psycopg
+
+            with psycopg.connect(server.url(), autocommit=True) as conn:
+                conn.execute(f"CREATE ROLE late_user LOGIN SUPERUSER PASSWORD '{PASSWORD}'")
+    else:  # its folder cannot be made while a file stands in the way
+        (tmp_path / "in-the-way").write_text("")
+        later = str(tmp_path / "in-the-way" / "history.sqlite")
+
+        def reachable() -> None:
+            (tmp_path / "in-the-way").unlink()
+    monkeypatch.setenv("AXISCAL_DB", later)
+    converted = cli("convert", dirs[0] / "points.csv", "-o", tmp_path / "out.rtl")
+    assert converted.code == 0 and (tmp_path / "out.rtl").is_file()
+    told = [line for line in converted.err.splitlines() if line.startswith("history:")]
+    assert len(told) == 1 and "unreachable" in told[0] and "queued" in told[0], converted.err
+    no_password(converted.err, converted.out)
+    failed = cli("history", "list")
+    assert_one_line_error(failed, "unreachable")
+    no_password(failed.err)
+    assert cli("history", "store", "--db", db, "--json").code == 0  # another store: the queue is not for it
+    assert json.loads(cli("history", "list", "--db", db, "--json").out)["campaigns"] == []
+    reachable()
+    listed = cli("history", "list", "--json")
+    assert listed.code == 0, listed.err
+    assert [c["label"] for c in json.loads(listed.out)["campaigns"]] == [dirs[0].name]
+    assert [c["command"] for c in json.loads(listed.out)["campaigns"]] == ["convert"]
+    assert json.loads(cli("history", "store", "--json").out)["waiting"] == 0
+
+
+def test_credentials_never_shown(cli, db, tmp_path):
+    if not db.startswith("postgresql"):
+        pytest.skip("a SQLite file has no credentials")
+    from campaign.history.simulated import simulate_history
+
+    simulate_history(tmp_path / "h", campaigns=2)
+    for args in (("history", "store", "--db", db), ("history", "store", "--db", db, "--json"),
+                 ("history", "import", tmp_path / "h", "--db", db)):
+        result = cli(*args)
+        no_password(result.out, result.err)
+        assert "***@127.0.0.1" in result.out + result.err
+    wrong = db.replace(PASSWORD, PASSWORD + "-wrong")
+    refused = cli("history", "list", "--db", wrong)
+    assert_one_line_error(refused, "unreachable")
+    no_password(refused.err)
+    assert "-wrong" not in refused.err
+
+
+# --- the pieces, without a store ----------------------------------------------------------------
+
+def test_location_masks_credentials(monkeypatch, tmp_path):
+    url = "postgresql://plant:s3cr%40t@db.example:5432/axiscal"
+    assert display_url(url) == "postgresql://plant:***@db.example:5432/axiscal"
+    assert "s3cr" not in scrub(f"connection to {url} failed: password=s3cr@t rejected", url)
+    assert store_url(url).startswith("postgresql+psycopg://plant:s3cr%40t@")
+    assert store_url(str(tmp_path / "h.sqlite")) == f"sqlite:///{tmp_path / 'h.sqlite'}"
+    monkeypatch.setenv("AXISCAL_DB", "none")
+    assert store_url() is None
+    monkeypatch.setenv("AXISCAL_DB", "")
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path))
+    assert store_url() == f"sqlite:///{tmp_path / 'axiscal' / 'history.sqlite'}"
+
+
+def test_sqlite_store_is_in_wal_mode(cli, tmp_path, monkeypatch):
+    path = tmp_path / "h.sqlite"
+    assert cli("history", "store", "--db", path).code == 0
+    assert sqlite3.connect(path).execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+
+
+def series(values, us, start=dt.datetime(2024, 1, 1), days=60):
+    return [Observation(start + dt.timedelta(days=days * i), f"c{i}", v, u) for i, (v, u) in enumerate(zip(values, us))]
+
+
+def test_trend_says_when_it_cannot_predict():
+    fits, jumps = analyse({"A": series([5.0, 5.1], [1.0, 1.0])})
+    assert fits["A"].rate is None and "too few campaigns (2" in fits["A"].reason
+    assert crossing(fits["A"], 10.0).state == "not predictable"
+    flat = series([5.0, 5.2, 4.9, 5.1, 5.0, 4.95], [1.0] * 6)
+    fits, jumps = analyse({"A": flat})
+    assert not fits["A"].significant and jumps == []
+    c = crossing(fits["A"], 10.0)
+    assert c.state == "not predictable" and "no significant upward drift" in c.reason
+    assert "no tolerance" in crossing(fits["A"], None).reason
+    assert crossing(fits["A"], 5.5).state == "already"
+
+
+def test_trend_rate_interval_covers_the_truth_most_of_the_time():
+    """Synthetic series (a known rate, one jump, scatter smaller than U as in real budgets): the
+    stated 95 % interval of the rate covers the truth in most of 200 histories, and the jump is
+    found between the right campaigns nearly always."""
+    rng = np.random.default_rng(27)
+    covered = found = 0
+    for _ in range(200):
+        t = np.arange(12) / 6.0  # years
+        truth = 1.0 + 0.8 * t + np.where(np.arange(12) >= 7, 2.5, 0.0)
+        values = truth + rng.normal(0, 0.3, 12)
+        obs = series(values, [1.2] * 12, days=int(365.25 / 6))
+        fits, jumps = analyse({"A": obs})
+        covered += abs(fits["A"].rate - 0.8) <= fits["A"].U_rate
+        found += [(j.before.label, j.after.label) for j in jumps] == [("c6", "c7")]
+    assert covered >= 180 and found >= 190, (covered, found)
+
+
+def test_report_shows_the_axis_history(cli, db, tmp_path, monkeypatch):
+    made = json.loads(cli("demo", "--history", "3", "--out", tmp_path / "h", "--json").out)
+    last = max((tmp_path / "h").iterdir())
+    assert cli("report", last, "-o", tmp_path / "r.html").code == 0
+    html = (tmp_path / "r.html").read_text()
+    assert "<h2>History of this axis</h2>" in html and f"3 campaigns of machine {made['machine']}, axis X" in html
+    assert "alt='The axis over its campaigns' src='data:image/png;base64," in html
+    assert html.count("<td>recheck-0") == 3 and "drift not determined (too few campaigns (3" in html
+    no_password(html)
+    monkeypatch.setenv("AXISCAL_DB", "none")
+    assert cli("report", last, "-o", tmp_path / "r2.html").code == 0
+    assert "History of this axis" not in (tmp_path / "r2.html").read_text()
