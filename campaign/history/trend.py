@@ -11,10 +11,11 @@ rounds): a jump found becomes a step in the fit, which then says what drift to e
 
 **Drift rate.** A weighted least-squares line over time, y = a + r·t + Σ c_j·[t ≥ t_j] (one step
 c_j per change point), with weights 1/u_i², u_i = U_i/2: a campaign with a larger U counts less.
-The rate's standard uncertainty comes from the fit's covariance. When the campaigns scatter more
-than their U says (χ²/ν > 1, ν = n − p), the covariance is scaled by χ²/ν (the Birge ratio) and the
-coverage factor is Student's t at 95 % for ν; otherwise k = 2. The rate is significant when
-|r| > U(r). A rate needs ν ≥ 1: at least three campaigns, one more per change point.
+The rate's standard uncertainty comes from the fit's covariance scaled by χ²/ν (ν = n − p, the
+Birge ratio squared): the weights set how much each campaign counts relative to the others, and
+the campaigns' own scatter about the line sets the scale (a budget's U is often larger than the
+scatter between campaigns, and a stated U can be too small). The coverage factor is Student's t
+at 95 % for ν. The rate is significant when |r| > U(r). A rate needs ν ≥ 1: at least three campaigns, one more per change point.
 
 **Crossing.** For A with a tolerance T: the date at which the fitted A plus the U of the last
 campaign reaches T, continuing the line from the last campaign (every step in place). Its
