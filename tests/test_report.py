@@ -153,3 +153,24 @@ def test_bad_directories_give_one_error_line(demo_dir, tmp_path, cli):
                           "no meta.json")
     (campaign / "meta.json").write_text("{not json")
     assert_one_line_error(cli("report", campaign), "meta.json: not valid JSON")
+
+
+@pytest.mark.machine
+def test_a_report_with_the_axis_history_renders_in_headless_chromium(tmp_path, cli, monkeypatch):
+    """The history section (issue 27 item 3) as a browser shows it: a store with three re-checks
+    of one simulated axis, the report of the last one, its trend plot decoded and drawn."""
+    monkeypatch.setenv("AXISCAL_DB", str(tmp_path / "history.sqlite"))
+    assert cli("demo", "--history", "3", "--out", tmp_path / "h").code == 0
+    last = max((tmp_path / "h").iterdir())
+    report = tmp_path / "report.html"
+    assert cli("report", last, "-o", report).code == 0
+    # the page as Chromium builds it: the section, its table of campaigns, and the plot decoded
+    # (an <img> whose data: URL does not decode has naturalWidth 0)
+    probe = tmp_path / "probe.html"
+    probe.write_text(report.read_text().replace(
+        "</body>", "<script>document.body.setAttribute('data-plot-widths', Array.from("
+                   "document.images).map(i => i.naturalWidth).join(','))</script></body>"))
+    dom = chromium("--dump-dom", probe.as_uri(), tmp_path=tmp_path)
+    assert "History of this axis" in dom and dom.count("<td>recheck-0") == 3
+    widths = [int(w) for w in dom.split('data-plot-widths="')[1].split('"')[0].split(",")]
+    assert len(widths) >= 2 and all(w > 100 for w in widths), widths
