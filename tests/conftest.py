@@ -27,11 +27,10 @@ def _no_terminal_size(monkeypatch):
     monkeypatch.delenv("LINES", raising=False)
 
 
-@pytest.fixture(autouse=True)
-def _no_history_store(monkeypatch):
-    """Campaigns in the tests record into no history store (AXISCAL_DB=none), never the user's
-    default one; the history tests name their own (tests/test_history*.py)."""
-    monkeypatch.setenv("AXISCAL_DB", "none")
+os.environ["AXISCAL_DB"] = "none"
+"""Campaigns in the tests record into no history store, never the user's default one: set for the
+whole session (module- and session-scoped fixtures and their subprocesses included; an autouse
+fixture starts too late for them). The history tests name their own store (tests/test_history*.py)."""
 
 
 MACHINE_WORDS = ("axiscal", "-m campaign", "chromium", "chromedriver", "node", "rs274", "linuxcnc")

@@ -140,7 +140,8 @@ def test_trend_table_plot_and_list(cli, db, tmp_path):
     assert len(json.loads(since.out)["campaigns"]) == 4
     until = cli("history", "list", "--until", first_day, "--json")
     assert [c["label"] for c in json.loads(until.out)["campaigns"]] == [listed[0]["label"]]
-    assert json.loads(cli("history", "list", "--verdict", "pass", "--json").out)["campaigns"] == []
+    assert len(json.loads(cli("history", "list", "--verdict", "pass", "--json").out)["campaigns"]) == 5
+    assert json.loads(cli("history", "list", "--verdict", "fail", "--json").out)["campaigns"] == []
     assert cli("history", "list", "--axis", "X").code == 0
 
 

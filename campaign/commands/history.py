@@ -202,16 +202,39 @@ def run_list(args: argparse.Namespace) -> int:
     if args.json:
         print_json({"store": store.display, "campaigns": [_listed(r) for r in rows]})
         return 0
+    console = make_console()
     table = Table(title=f"{len(rows)} campaign(s) in {store.display}")
-    for head in ("id", "date", "machine", "axis", "command", "status", "points", "A ± U", "verdict", "where"):
+    heads = ["id", "date", "machine", "axis", "command", "status", "points", "A ± U", "verdict", "where"]
+    if console.width < WIDE_LIST:  # a narrow terminal: what identifies a campaign and its result (--json: all)
+        heads = ["id", "date", "machine", "axis", "A ± U", "verdict"]
+    for head in heads:
+        # what identifies a campaign stays on one line; the path folds
         table.add_column(head, justify="right" if head in ("id", "points", "A ± U") else "left",
-                         overflow="fold")
+                         overflow="fold", no_wrap=head in ("id", "date", "A ± U"), ratio=2 if head == "where" else None)
     for r in rows:
         a, u = r["results"].get(("A", "both"), (None, None))
-        table.add_row(str(r["id"]), _date(r["measured_utc"]), r["machine"], r["axis"], r["command"], r["status"],
-                      str(r["points"]), _fmt(a, u), r["verdict"], r["location"])
-    make_console().print(table)
+        cells = {"id": str(r["id"]), "date": _date(r["measured_utc"]), "machine": r["machine"], "axis": r["axis"],
+                 "command": r["command"], "status": r["status"], "points": str(r["points"]), "A ± U": _fmt(a, u),
+                 "verdict": r["verdict"], "where": _shown_path(r["location"])}
+        table.add_row(*(cells[head] for head in heads))
+    console.print(table)
     return 0
+
+
+WIDE_LIST = 110
+"""Columns below which `history list` shows id, date, machine, axis, A ± U and verdict only."""
+
+
+def _shown_path(location: str) -> str:
+    """A campaign's place as the list shows it: relative to the working directory when inside it
+    (the JSON keeps the absolute path)."""
+    import os
+
+    try:
+        relative = os.path.relpath(location)
+    except ValueError:
+        return location
+    return location if relative.startswith("..") else relative
 
 
 def _date(when: dt.datetime | None) -> str:

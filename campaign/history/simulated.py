@@ -31,6 +31,12 @@ from campaign.record import Event, Recorder
 
 SIMULATOR = "fast simulator (campaign/discovery/simulate.py): the simulated machine's error model and noise, no ADS or pty"
 DAY = dt.timedelta(days=1)
+ROOM: dict[str, float | None] = {"air_temp_c": 20.0, "air_pressure_hpa": 1013.25, "humidity_pct": 50.0,
+                                 "material_temp_c": 20.0}
+"""The environment each simulated point records: the simulated machine's room at its set values
+(drivers/sim/machine.py, without its slow 30-minute swing), so the uncertainty budget is complete
+and a re-check gets a verdict, as a campaign on the simulated machine does. At 20 °C the material
+correction is zero, and the instrument reports air-compensated lengths as on the demo."""
 
 
 @dataclass(frozen=True)
@@ -112,7 +118,7 @@ def write_campaign(directory: Path, config: Config, created: dt.datetime, truth:
         times = table.optional["time_s"]
         for i in range(len(table)):
             target, deviation = float(table.target[i]), float(table.deviation[i])
-            recorder.point(int(table.run[i]), int(table.direction[i]), target, deviation, float(times[i]), {},
+            recorder.point(int(table.run[i]), int(table.direction[i]), target, deviation, float(times[i]), ROOM,
                            {"point": i, "reading": target + deviation / 1000.0, "air_correction_um": 0.0,
                             "material_correction_um": 0.0, "capture_wait_s": float(table.optional["capture_wait_s"][i]),
                             "samples": float(table.optional["samples"][i])})
