@@ -30,6 +30,8 @@ from campaign.errors import InputError
 from campaign.plan import Plan, Point
 from campaign.pointtable import PointTable
 from campaign.stream.reader import Stream, locate
+from campaign.stream.stillness import MIN_SAMPLES, LineFits, sliding_fits, window_fits
+from protocols.units import UNITS, unit_label
 
 SCALE = {"mm": 1000.0, "deg": 3600.0}
 """Axis unit -> deviation unit factor (mm -> µm, deg -> arcsec)."""
@@ -37,10 +39,12 @@ SCALE = {"mm": 1000.0, "deg": 3600.0}
 
 @dataclass
 class Dwells:
-    """Dwells as sample index ranges [start, end] (inclusive) into the stream."""
+    """Dwells as sample index ranges [start, end] (inclusive) into the stream; `still`: where each
+    one's reading stops approaching (its still part begins), the start until `settle` finds it."""
 
     start: np.ndarray
     end: np.ndarray
+    still: np.ndarray
 
 
 @dataclass
@@ -52,13 +56,15 @@ class StreamImport:
     overrun_stops: int
     ignored_stops: int
     warnings: list[str]
+    stillness: LineFits
+    """Per point: the line fitted through its capture window (axis unit)."""
 
 
 def sample_interval(time: np.ndarray) -> float:
     """The typical time between samples (s): the median over up to 100 000 evenly spread pairs."""
     if len(time) < 2:
         return 0.0
-    pick = np.unique(np.linspace(0, len(time) - 2, min(len(time) - 1, 100_000)).astype(int))
+    pick = np.linspace(0, len(time) - 2, min(len(time) - 1, 100_000)).astype(int)  # distinct: spaced >= 1
     return float(np.median(time[pick + 1] - time[pick]))
 
 
@@ -86,7 +92,7 @@ def find_dwells(time: np.ndarray, reading: np.ndarray, tolerance: float, dwell_s
     start = first - lag
     start[1:] = np.maximum(start[1:], last[:-1] + 1)  # a run may reach back into the previous one
     keep = (start > 0) & (time[last] - time[np.maximum(start, 0)] >= dwell_s / 2 - dt / 2)
-    return Dwells(start[keep], last[keep])
+    return Dwells(start[keep], last[keep], start[keep])
 
 
 SPIKE_SAMPLES = 2
@@ -129,43 +135,76 @@ def onset(time: np.ndarray, y: np.ndarray) -> int:
     return int(c[np.argmax(explained)])
 
 
-def still_ends(time: np.ndarray, reading: np.ndarray, dwells: Dwells, dwell_s: float,
-               tolerance: float) -> Dwells:
-    """The dwells with their ends where the axis begins to leave (see the module text). From a
-    quarter of `dwell_s` (s) into the dwell, the level is the median of the next quarter; the
-    reading is followed past the dwell's end until a group of SMOOTH samples departs from the level
-    by more than DEPART_SE standard errors of the stream's noise (and a tenth of `tolerance`, axis
-    unit); the end is the onset of that departure (`onset`). A dwell whose reading never departs
-    (the end of the stream) keeps its end."""
+def longest_run(flags: np.ndarray) -> tuple[int, int]:
+    """The first and last index of the longest run of True in `flags` (the earliest of equals)."""
+    edges = np.diff(np.concatenate([[0], flags.astype(np.int8), [0]]))
+    firsts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    longest = int(np.argmax(ends - firsts))
+    return int(firsts[longest]), int(ends[longest]) - 1
+
+
+def settle(time: np.ndarray, reading: np.ndarray, dwells: Dwells, dwell_s: float, samples: int) -> Dwells:
+    """The dwells from where the reading stops approaching to where it begins to leave (see the
+    module text); `samples`: the capture window's length in samples. The search runs from each
+    dwell's start to a quarter of `dwell_s` (s) past its end."""
     dt = sample_interval(time) or 1e-9
     lag = int(max(1.0, np.ceil(dwell_s / 4 / dt)))
-    limit = max(DEPART_SE * stream_noise(reading, dwells, lag) / np.sqrt(SMOOTH), tolerance / 10, 1e-12)
-    ends = dwells.end.copy()
-    for i, (start, end) in enumerate(zip(dwells.start, dwells.end)):
-        a = min(int(start) + lag, int(end))
-        b = min(int(end) + lag, len(reading) - 1)
-        if b - a < 2 * SMOOTH:
+    n = max(MIN_SAMPLES, samples)
+    parts, noises = [], []
+    for start, end in zip(dwells.start.tolist(), dwells.end.tolist()):
+        b = min(end + lag, len(reading) - 1)
+        fits, step = sliding_fits(time[start:b + 1], reading[start:b + 1], n)
+        still = fits.still
+        if still.any():
+            runs = longest_run(still)
+            first, last = (start + step * p for p in runs)
+            parts.append((first, last + n, last, b, False))
+            noises.append(float(fits.noise[runs[0]]))
+        elif len(still):  # it never stops moving: from its slowest window, along that window's trend
+            first = start + step * int(np.argmin(np.abs(fits.trend)))
+            parts.append((first, first + n, first, b, True))
+        else:  # too short for one window: a quarter dwell in
+            a = min(start + lag, end)
+            parts.append((a, min(a + lag, end) + 1, a, b, False))
+    noise = float(np.median(noises)) if noises else stream_noise(reading, dwells, lag)
+    limit = max(DEPART_SE * noise / np.sqrt(SMOOTH), 1e-12)  # axis unit
+    firsts, ends = [], []
+    for (first, level_end, search, b, moving), end in zip(parts, dwells.end.tolist(), strict=True):
+        firsts.append(first)
+        ends.append(max(end, first))
+        if b - search < 2 * SMOOTH:
             continue
-        level = float(np.median(reading[a:min(a + lag, int(end)) + 1]))
-        means = np.convolve(reading[a:b + 1], np.ones(SMOOTH) / SMOOTH, mode="valid")  # means[j]: from a + j
+        y = reading[first:b + 1]
+        if moving:  # take the window's own trend out: what is left is flat until the move begins
+            t = time[first:b + 1] - time[first]
+            y = y - np.polyval(np.polyfit(t[:level_end - first], y[:level_end - first], 1), t)
+        level = float(np.median(y[:level_end - first:max(1, (level_end - first) // LEVEL_SAMPLES)]))
+        means = np.convolve(y[search - first:], np.ones(SMOOTH) / SMOOTH, mode="valid")  # from search + j
         away = np.abs(means - level) > limit
         if not away.any():
             continue
-        leave = a + int(np.argmax(away)) + SMOOTH - 1  # the last sample of the first group that left
-        if leave - a >= 3 * SMOOTH:
-            ends[i] = a + onset(time[a:leave + 1], reading[a:leave + 1])
+        leave = search + int(np.argmax(away)) + SMOOTH - 1  # the last sample of the first group that left
+        fit = max(first, search - n)  # a still stretch before the departure, past any creep left
+        if leave - fit >= 3 * SMOOTH:
+            ends[-1] = fit + onset(time[fit:leave + 1], y[fit - first:leave - first + 1])
+            if abs(y[ends[-1] - first] - level) > limit:  # the move began between two samples: it left
+                ends[-1] = max(first, ends[-1] - 1)
         else:  # it leaves at once: too few samples to fit, end before the group that left
-            ends[i] = max(a, leave - SMOOTH)
-    return Dwells(dwells.start, ends)
+            ends[-1] = max(first, leave - SMOOTH)
+    return Dwells(dwells.start, np.array(ends, dtype=int), np.array(firsts, dtype=int))
+
+
+LEVEL_SAMPLES = 1000
+"""About how many evenly spread samples of a still part give its level (their median)."""
 
 
 DEPART_SE = 8.0
 """Standard errors of a SMOOTH-sample mean by which the reading must leave a dwell's level before
-`still_ends` looks for where it began to leave."""
+`settle` looks for where it began to leave."""
 
 
 SMOOTH = 5
-"""Samples averaged when looking for the end of a dwell (`still_ends`)."""
+"""Samples averaged when looking for the end of a dwell (`settle`)."""
 
 
 def _window_means(values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -181,7 +220,7 @@ def capture_windows(stream: Stream, dwells: Dwells, average_s: float) -> tuple[n
     hi = dwells.end + 1
     half = sample_interval(stream.time) / 2  # s
     lo = np.searchsorted(stream.time, stream.time[dwells.end] - average_s + half, side="left")
-    return np.clip(lo, dwells.start, dwells.end), hi  # at least the last sample
+    return np.clip(lo, dwells.still, dwells.end), hi  # at least the last sample
 
 
 def plan_stops(plan: Plan) -> list[tuple[float, Point | None]]:
@@ -243,13 +282,45 @@ def assign_dwells(stream: Stream, dwells: Dwells, positions: np.ndarray, plan: P
     return assigned, overruns, 0
 
 
+def stillness_warnings(table: PointTable, fits: LineFits, samples: np.ndarray, plan: Plan, unit: str,
+                       ) -> list[str]:
+    """The warnings on capture windows that still trend, or hold too few samples to tell."""
+    scale = SCALE[unit]  # deviation unit per axis unit
+    total = len(plan.points)
+    dev = unit_label(table.deviation_unit)
+    judged = samples >= MIN_SAMPLES
+    trending = np.flatnonzero(judged & ~fits.still)
+    warnings = []
+    if len(trending):
+        named = [f"{i + 1} {fits.trend[i] * scale:+.2g} {dev}" for i in trending[:MAX_NAMED]]
+        more = f" and {len(trending) - MAX_NAMED} more" if len(trending) > MAX_NAMED else ""
+        approaching = int(np.sum(np.sign(fits.trend[trending]) == table.direction[trending]))
+        warnings.append(f"{len(trending)} of {total} points were captured while the reading still moved, "
+                        f"a trend over the capture window beyond the noise (points {', '.join(named)}{more}; "
+                        f"{approaching} of them still approaching their target). Their deviations are biased "
+                        f"by the approach, and so are A, B and the means at their targets: the log holds no "
+                        f"still reading for them (columns capture_trend_{table.deviation_unit} and capture_still "
+                        f"of the point table; docs/import-stream.md says what to do)")
+    short = np.flatnonzero(~judged)
+    if len(short):
+        warnings.append(f"the capture windows of {len(short)} of {total} points hold fewer than {MIN_SAMPLES} "
+                        f"samples: how still they were cannot be told (a log sampled faster, or a longer "
+                        f"capture.average_s, can)")
+    return warnings
+
+
+MAX_NAMED = 5
+"""Points named in the warning on trending capture windows; the table has them all."""
+
+
 def extract_points(stream: Stream, plan: Plan, config: Config, still_tolerance: float) -> StreamImport:
     """Segment the stream, match it to the plan and capture each point. `still_tolerance` in the
-    deviation unit (µm or arcsec)."""
+    deviation unit (µm or arcsec): it bounds the search for the dwells, not their capture."""
     unit, kind = config.axis.unit, config.axis.kind
     tolerance = still_tolerance / SCALE[unit]  # axis unit
     dwells = find_dwells(stream.time, stream.reading, tolerance, config.plan.dwell_s)
-    dwells = still_ends(stream.time, stream.reading, dwells, config.plan.dwell_s, tolerance)
+    samples = round(config.capture.average_s / (sample_interval(stream.time) or 1e-9))
+    dwells = settle(stream.time, stream.reading, dwells, config.plan.dwell_s, samples)
     lo, hi = capture_windows(stream, dwells, config.capture.average_s)
     positions = _window_means(stream.reading, lo, hi) if len(lo) else np.zeros(0)
     assigned, overruns, ignored = assign_dwells(stream, dwells, positions, plan, unit)
@@ -261,10 +332,17 @@ def extract_points(stream: Stream, plan: Plan, config: Config, still_tolerance: 
         optional[name] = _window_means(values, lo, hi)[pick]
     optional["reading"] = positions[pick]
     optional["samples"] = (hi - lo)[pick].astype(float)
+    fits = window_fits(stream.time, stream.reading, lo[pick], hi[pick])
+    suffix = UNITS[kind][1]  # um or arcsec
+    optional[f"capture_trend_{suffix}"] = fits.trend * SCALE[unit]
+    optional[f"capture_noise_{suffix}"] = fits.noise * SCALE[unit]
+    optional["capture_still"] = ((hi - lo)[pick] >= MIN_SAMPLES) & fits.still
+    optional["capture_still"] = optional["capture_still"].astype(float)
     meta = {"machine": config.campaign.machine, "axis": config.axis.name,
             "plan_seed": str(plan.seed), "source": stream.source}
     table = PointTable(kind=kind, run=np.array([p.run for p in points]),
                        direction=np.array([p.direction for p in points]), target=target,
                        deviation=(positions[pick] - target) * SCALE[unit], optional=optional, meta=meta,
                        source=stream.source)
-    return StreamImport(table, len(dwells.start), overruns, ignored, stream.warnings)
+    warnings = stream.warnings + stillness_warnings(table, fits, (hi - lo)[pick], plan, unit)
+    return StreamImport(table, len(dwells.start), overruns, ignored, warnings, fits)
