@@ -7,14 +7,20 @@ air or material correction is applied.
 1. Dwells: a sample is still when the reading is within `still_tolerance` of the reading a quarter
    of the planned dwell earlier; a dwell is a run of still samples (extended back by that quarter,
    joined across a noise spike of SPIKE_SAMPLES) that lasts at least half the planned dwell and
-   does not begin at the start of the stream. The run ends only after the next move has begun, so
-   its end is found by the reading itself (`still_ends`): the level from the dwell's second
-   quarter, the first clear departure from it after that, and the onset of that departure
-   (`onset`): a slow start of the next move does not enter the capture.
+   does not begin at the start of the stream. This only bounds the search: the run may begin
+   while the axis still creeps in (a loose tolerance) and ends only after the next move has begun.
+   Within it (`settle`), the still part is the longest run of capture-window-long stretches whose
+   fitted line shows no trend beyond the noise (campaign/stream/stillness.py): there the reading
+   has stopped approaching. Its level, the first clear departure from that level after its last
+   still window, and the onset of that departure (`onset`) give the dwell's end: a slow start of
+   the next move does not enter the capture either. A dwell with no still stretch is followed
+   along the trend of its slowest one.
 2. Matching: the dwells are matched in order to the plan's move endpoints. Every measured point
    needs a dwell at its target; overrun stops may be missing (they are motion only); stops after the
    last point are ignored.
-3. Capture: like the fixed-dwell method, the mean of the last `capture.average_s` of each dwell.
+3. Capture: like the fixed-dwell method, the mean of the last `capture.average_s` of each dwell,
+   never reaching before its still part. How still each capture window was (its trend and noise)
+   goes into the point table; the points whose window still trends are named in a warning.
 
 Everything per sample is vectorised numpy/pandas; only the dwells are walked in Python.
 """
