@@ -58,8 +58,9 @@ def run(args: argparse.Namespace) -> int:
 def stillness_summary(table: PointTable) -> str:
     """One line on how still the capture windows were (docs/import-stream.md)."""
     unit, suffix = unit_label(table.deviation_unit), table.deviation_unit
-    trend, noise = table.optional[f"capture_trend_{suffix}"], table.optional[f"capture_noise_{suffix}"]
+    trend = table.optional[f"capture_trend_{suffix}"]
     still = int(np.sum(table.optional["capture_still"] == 1))
     worst = int(np.argmax(np.abs(trend)))
-    return (f"capture windows: {still} of {len(table)} still (no trend beyond the noise); largest trend "
-            f"{trend[worst]:+.2g} {unit} (point {worst + 1}), median noise {float(np.median(noise)):.2g} {unit}")
+    noise = float(table.meta[f"reading_noise_{suffix}"])
+    return (f"capture windows: {still} of {len(table)} still (no trend beyond the reading noise, "
+            f"{noise:.2g} {unit}); largest trend {trend[worst]:+.2g} {unit} (point {worst + 1})")

@@ -36,7 +36,7 @@ from campaign.errors import InputError
 from campaign.plan import Plan, Point
 from campaign.pointtable import PointTable
 from campaign.stream.reader import Stream, locate
-from campaign.stream.stillness import MIN_SAMPLES, LineFits, sliding_fits, window_fits
+from campaign.stream.stillness import MIN_SAMPLES, LineFits, log_noise, sliding_fits, window_fits
 from protocols.units import UNITS, unit_label
 
 SCALE = {"mm": 1000.0, "deg": 3600.0}
@@ -64,6 +64,8 @@ class StreamImport:
     warnings: list[str]
     stillness: LineFits
     """Per point: the line fitted through its capture window (axis unit)."""
+    noise: float
+    """The log's reading noise (axis unit) the stillness is judged against."""
 
 
 def sample_interval(time: np.ndarray) -> float:
@@ -106,17 +108,6 @@ SPIKE_SAMPLES = 2
 noise spike beyond the still tolerance, not a move."""
 
 
-def stream_noise(reading: np.ndarray, dwells: Dwells, lag: int) -> float:
-    """The instrument's noise (axis unit), one value for the whole stream: the median over the
-    dwells of 1.4826 · the median absolute deviation of each dwell's middle half."""
-    spreads = []
-    for start, end in zip(dwells.start, dwells.end):
-        lo = min(int(start) + lag, int(end))
-        settled = reading[lo:max(int(end) - lag, lo) + 1]
-        spreads.append(1.4826 * float(np.median(np.abs(settled - np.median(settled)))))
-    return float(np.median(spreads)) if spreads else 0.0
-
-
 def onset(time: np.ndarray, y: np.ndarray) -> int:
     """Where a reading that is flat and then leaves it (a slow start, then the move) begins to
     leave: the index c that minimises the residual of y = L + k·(t - t_c)² after t_c (L before),
@@ -149,36 +140,36 @@ def longest_run(flags: np.ndarray) -> tuple[int, int]:
     return int(firsts[longest]), int(ends[longest]) - 1
 
 
-def settle(time: np.ndarray, reading: np.ndarray, dwells: Dwells, dwell_s: float, samples: int) -> Dwells:
+def settle(time: np.ndarray, reading: np.ndarray, dwells: Dwells, dwell_s: float, samples: int,
+           noise: float) -> Dwells:
     """The dwells from where the reading stops approaching to where it begins to leave (see the
-    module text); `samples`: the capture window's length in samples. The search runs from each
-    dwell's start to a quarter of `dwell_s` (s) past its end."""
+    module text); `samples`: the capture window's length in samples; `noise`: the log's reading
+    noise (axis unit, `log_noise`). The search runs from each dwell's start to a quarter of
+    `dwell_s` (s) past its end, and at least a window and two groups of SMOOTH samples."""
     dt = sample_interval(time) or 1e-9
     lag = int(max(1.0, np.ceil(dwell_s / 4 / dt)))
     n = max(MIN_SAMPLES, samples)
-    parts, noises = [], []
+    parts = []
     for start, end in zip(dwells.start.tolist(), dwells.end.tolist()):
-        b = min(end + lag, len(reading) - 1)
+        b = min(end + max(lag, n + 2 * SMOOTH), len(reading) - 1)
         fits, step = sliding_fits(time[start:b + 1], reading[start:b + 1], n)
-        still = fits.still
+        still = fits.still(noise)
         if still.any():
-            runs = longest_run(still)
-            first, last = (start + step * p for p in runs)
+            first, last = (start + step * p for p in longest_run(still))
             parts.append((first, last + n, last, b, False))
-            noises.append(float(fits.noise[runs[0]]))
         elif len(still):  # it never stops moving: from its slowest window, along that window's trend
             first = start + step * int(np.argmin(np.abs(fits.trend)))
             parts.append((first, first + n, first, b, True))
         else:  # too short for one window: a quarter dwell in
             a = min(start + lag, end)
             parts.append((a, min(a + lag, end) + 1, a, b, False))
-    noise = float(np.median(noises)) if noises else stream_noise(reading, dwells, lag)
     limit = max(DEPART_SE * noise / np.sqrt(SMOOTH), 1e-12)  # axis unit
     firsts, ends = [], []
     for (first, level_end, search, b, moving), end in zip(parts, dwells.end.tolist(), strict=True):
         firsts.append(first)
         ends.append(max(end, first))
-        if b - search < 2 * SMOOTH:
+        if b - search < 2 * SMOOTH:  # the end of the log: up to the end of the still part
+            ends[-1] = max(first, min(end, level_end - 1))
             continue
         y = reading[first:b + 1]
         if moving:  # take the window's own trend out: what is left is flat until the move begins
@@ -193,7 +184,7 @@ def settle(time: np.ndarray, reading: np.ndarray, dwells: Dwells, dwell_s: float
         fit = max(first, search - n)  # a still stretch before the departure, past any creep left
         if leave - fit >= 3 * SMOOTH:
             ends[-1] = fit + onset(time[fit:leave + 1], y[fit - first:leave - first + 1])
-            if abs(y[ends[-1] - first] - level) > limit:  # the move began between two samples: it left
+            if abs(y[ends[-1] - first] - level) > ONSET_SIGMA * noise:  # the move began between two samples
                 ends[-1] = max(first, ends[-1] - 1)
         else:  # it leaves at once: too few samples to fit, end before the group that left
             ends[-1] = max(first, leave - SMOOTH)
@@ -211,6 +202,11 @@ DEPART_SE = 8.0
 
 SMOOTH = 5
 """Samples averaged when looking for the end of a dwell (`settle`)."""
+
+ONSET_SIGMA = 4.0
+"""The onset sample is left out of the dwell when it is this many times the reading noise away
+from the level: the move began between it and the sample before (noise alone does so for about
+one point in 16 000)."""
 
 
 def _window_means(values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -288,21 +284,23 @@ def assign_dwells(stream: Stream, dwells: Dwells, positions: np.ndarray, plan: P
     return assigned, overruns, 0
 
 
-def stillness_warnings(table: PointTable, fits: LineFits, samples: np.ndarray, plan: Plan, unit: str,
-                       ) -> list[str]:
-    """The warnings on capture windows that still trend, or hold too few samples to tell."""
+def stillness_warnings(table: PointTable, fits: LineFits, noise: float, samples: np.ndarray, plan: Plan,
+                       unit: str) -> list[str]:
+    """The warnings on capture windows that still trend beyond `noise` (axis unit), or hold too few
+    samples to tell."""
     scale = SCALE[unit]  # deviation unit per axis unit
     total = len(plan.points)
     dev = unit_label(table.deviation_unit)
     judged = samples >= MIN_SAMPLES
-    trending = np.flatnonzero(judged & ~fits.still)
+    trending = np.flatnonzero(judged & ~fits.still(noise))
     warnings = []
     if len(trending):
         named = [f"{i + 1} {fits.trend[i] * scale:+.2g} {dev}" for i in trending[:MAX_NAMED]]
         more = f" and {len(trending) - MAX_NAMED} more" if len(trending) > MAX_NAMED else ""
         approaching = int(np.sum(np.sign(fits.trend[trending]) == table.direction[trending]))
         warnings.append(f"{len(trending)} of {total} points were captured while the reading still moved, "
-                        f"a trend over the capture window beyond the noise (points {', '.join(named)}{more}; "
+                        f"a trend over the capture window beyond the reading noise of {noise * scale:.2g} {dev} "
+                        f"(points {', '.join(named)}{more}; "
                         f"{approaching} of them still approaching their target). Their deviations are biased "
                         f"by the approach, and so are A, B and the means at their targets: the log holds no "
                         f"still reading for them (columns capture_trend_{table.deviation_unit} and capture_still "
@@ -326,7 +324,8 @@ def extract_points(stream: Stream, plan: Plan, config: Config, still_tolerance: 
     tolerance = still_tolerance / SCALE[unit]  # axis unit
     dwells = find_dwells(stream.time, stream.reading, tolerance, config.plan.dwell_s)
     samples = round(config.capture.average_s / (sample_interval(stream.time) or 1e-9))
-    dwells = settle(stream.time, stream.reading, dwells, config.plan.dwell_s, samples)
+    noise = log_noise(stream.reading, dwells.start, dwells.end + 1)  # axis unit
+    dwells = settle(stream.time, stream.reading, dwells, config.plan.dwell_s, samples, noise)
     lo, hi = capture_windows(stream, dwells, config.capture.average_s)
     positions = _window_means(stream.reading, lo, hi) if len(lo) else np.zeros(0)
     assigned, overruns, ignored = assign_dwells(stream, dwells, positions, plan, unit)
@@ -341,14 +340,14 @@ def extract_points(stream: Stream, plan: Plan, config: Config, still_tolerance: 
     fits = window_fits(stream.time, stream.reading, lo[pick], hi[pick])
     suffix = UNITS[kind][1]  # um or arcsec
     optional[f"capture_trend_{suffix}"] = fits.trend * SCALE[unit]
-    optional[f"capture_noise_{suffix}"] = fits.noise * SCALE[unit]
-    optional["capture_still"] = ((hi - lo)[pick] >= MIN_SAMPLES) & fits.still
-    optional["capture_still"] = optional["capture_still"].astype(float)
+    optional[f"capture_scatter_{suffix}"] = fits.scatter * SCALE[unit]
+    optional["capture_still"] = (((hi - lo)[pick] >= MIN_SAMPLES) & fits.still(noise)).astype(float)
     meta = {"machine": config.campaign.machine, "axis": config.axis.name,
-            "plan_seed": str(plan.seed), "source": stream.source}
+            "plan_seed": str(plan.seed), "source": stream.source,
+            f"reading_noise_{suffix}": f"{noise * SCALE[unit]:.4g}"}
     table = PointTable(kind=kind, run=np.array([p.run for p in points]),
                        direction=np.array([p.direction for p in points]), target=target,
                        deviation=(positions[pick] - target) * SCALE[unit], optional=optional, meta=meta,
                        source=stream.source)
-    warnings = stream.warnings + stillness_warnings(table, fits, (hi - lo)[pick], plan, unit)
-    return StreamImport(table, len(dwells.start), overruns, ignored, warnings, fits)
+    warnings = stream.warnings + stillness_warnings(table, fits, noise, (hi - lo)[pick], plan, unit)
+    return StreamImport(table, len(dwells.start), overruns, ignored, warnings, fits, noise)

@@ -1,11 +1,14 @@
 """How still a reading is over a window: a straight line fitted through the window's readings.
 
-The trend is the change of the fitted line from the window's first sample to its last (axis unit),
-the noise the standard deviation of the readings about the line (axis unit), and the trend's
-standard error follows from the noise and the sample times. A window still trends when its trend
-is beyond the noise: larger than STILL_SE standard errors (noise alone does so for about one
-window in 16 000) and larger than the noise itself (a trend below the scatter of single readings
-moves the window's mean by less than half that scatter, however many samples there are).
+The trend is the change of the fitted line from the window's first sample to its last (axis unit);
+the window's scatter is the standard deviation of its readings about the line (axis unit). Whether
+the window still trends is judged against the log's noise (`log_noise`, one value for the log,
+from successive samples), not the window's own scatter, which grows when something moves within
+the window (a move beginning in its last samples). A window still trends when its trend is beyond
+that noise: larger than STILL_SE standard errors of the trend that noise gives (noise alone does
+so for about one window in 16 000) and larger than the noise itself (a trend below the scatter of
+single readings moves the window's mean by less than half that scatter, however many samples
+there are).
 
 Used by the stream import to find where a dwell's reading stops approaching and to report how
 still each capture window was.
@@ -26,16 +29,35 @@ MIN_SAMPLES = 4
 
 @dataclass
 class LineFits:
-    """Line fits over windows: trend and noise in axis unit, the trend's standard error (axis unit)."""
+    """Line fits over windows: trend and scatter about the line (axis unit), and the lever that
+    turns a reading noise into the trend's standard error (span / √(Σ(t - mean t)²), no unit)."""
 
     trend: np.ndarray
-    noise: np.ndarray
-    trend_se: np.ndarray
+    scatter: np.ndarray
+    lever: np.ndarray
 
-    @property
-    def still(self) -> np.ndarray:
-        """True where the window does not trend beyond the noise."""
-        return np.abs(self.trend) <= np.maximum(STILL_SE * self.trend_se, self.noise)
+    def still(self, noise: float) -> np.ndarray:
+        """True where the window does not trend beyond `noise` (axis unit; see the module text)."""
+        return np.abs(self.trend) <= np.maximum(STILL_SE * noise * self.lever, noise)
+
+
+def log_noise(reading: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float:
+    """The reading noise of a log (axis unit), one value: from the second differences of the
+    readings in [lo, hi) (an evenly spaced white noise σ gives them σ·√6; a steady creep adds
+    little), 1.4826 · their median absolute deviation / √6, up to NOISE_SAMPLES spread evenly."""
+    picks = [np.arange(a + 1, b - 1, max(1, (b - a) // max(1, NOISE_SAMPLES // max(len(lo), 1))))
+             for a, b in zip(lo.tolist(), hi.tolist(), strict=True) if b - a >= 3]
+    if not picks:
+        return 0.0
+    i = np.concatenate(picks)
+    second = reading[i + 1] - 2 * reading[i] + reading[i - 1]
+    mad = float(np.median(np.abs(second - np.median(second))))
+    spread = 1.4826 * mad if mad > 0 else float(np.std(second))  # readings coarser than their noise
+    return spread / np.sqrt(6)
+
+
+NOISE_SAMPLES = 200_000
+"""About how many second differences `log_noise` takes from a log."""
 
 
 def _fits(t_span: np.ndarray, n: np.ndarray, t_sum: np.ndarray, tt_sum: np.ndarray,
@@ -46,9 +68,9 @@ def _fits(t_span: np.ndarray, n: np.ndarray, t_sum: np.ndarray, tt_sum: np.ndarr
         tx = tx_sum - t_sum * x_sum / n
         x_ss = xx_sum - x_sum**2 / n
         slope = np.where(t_ss > 0, tx / t_ss, 0.0)  # axis unit / s
-        noise = np.sqrt(np.maximum(x_ss - slope * tx, 0.0) / np.maximum(n - 2, 1))
-        trend_se = np.where(t_ss > 0, noise * t_span / np.sqrt(t_ss), np.inf)
-    return LineFits(slope * t_span, noise, trend_se)
+        scatter = np.sqrt(np.maximum(x_ss - slope * tx, 0.0) / np.maximum(n - 2, 1))
+        lever = np.where(t_ss > 0, t_span / np.sqrt(t_ss), np.inf)
+    return LineFits(slope * t_span, scatter, lever)
 
 
 def line_fit(time: np.ndarray, reading: np.ndarray) -> LineFits:
@@ -92,4 +114,4 @@ def window_fits(time: np.ndarray, reading: np.ndarray, lo: np.ndarray, hi: np.nd
     """The line fitted through reading[lo:hi] for each pair."""
     fits = [line_fit(time[a:b], reading[a:b]) for a, b in zip(lo.tolist(), hi.tolist(), strict=True)]
     return LineFits(*(np.concatenate([getattr(f, name) for f in fits]) if fits else np.zeros(0)
-                      for name in ("trend", "noise", "trend_se")))
+                      for name in ("trend", "scatter", "lever")))
