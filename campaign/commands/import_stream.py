@@ -7,13 +7,16 @@ import argparse
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from campaign.commands import SUMMARY, positive_number
 from campaign.config import load_config
 from campaign.errors import InputError
 from campaign.plan import build_plan
-from campaign.pointtable import write_points
+from campaign.pointtable import PointTable, write_points
 from campaign.stream.importer import extract_points
 from campaign.stream.reader import read_stream
+from protocols.units import unit_label
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -25,7 +28,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--config", required=True, help="the campaign config (TOML) the log was measured with")
     p.add_argument("-o", "--output", required=True, help="point table CSV to write")
     p.add_argument("--still-tolerance", type=positive_number, default=5.0, metavar="T",
-                   help="band the reading stays in while the axis dwells, µm or arcsec (default 5)")
+                   help="band the reading stays in while the axis dwells, µm or arcsec (default 5); it "
+                        "bounds the search for the dwells, not where they are captured")
     p.set_defaults(func=run)
 
 
@@ -46,5 +50,17 @@ def run(args: argparse.Namespace) -> int:
     print(f"{len(result.table)} points from {result.dwells} dwells in {args.stream} "
           f"(column '{stream.column}'); {result.overrun_stops} overrun stops skipped, "
           f"{result.ignored_stops} stops after the last point ignored")
+    print(stillness_summary(result.table))
     print(f"point table written to {out}")
     return 0
+
+
+def stillness_summary(table: PointTable) -> str:
+    """One line on how still the capture windows were (docs/import-stream.md)."""
+    unit, suffix = unit_label(table.deviation_unit), table.deviation_unit
+    trend = table.optional[f"capture_trend_{suffix}"]
+    still = int(np.sum(table.optional["capture_still"] == 1))
+    worst = int(np.argmax(np.abs(trend)))
+    noise = float(table.meta[f"reading_noise_{suffix}"])
+    return (f"capture windows: {still} of {len(table)} still (no trend beyond the reading noise, "
+            f"{noise:.2g} {unit}); largest trend {trend[worst]:+.2g} {unit} (point {worst + 1})")

@@ -4,6 +4,11 @@ the plan's endpoints, a dwell at each target, noise. Used by the import-stream t
 Positions in the axis unit (mm or deg), times in s. The machine error is a scale error
 (`ppm` of the position), a reversal value (`backlash` in the axis unit, split ± by approach
 direction) and a per-visit scatter; the readings add white noise of `noise` (axis unit).
+
+Two ways a real axis is not still where a controller's dwell begins or ends can be added: a slow
+final approach (the move stops short and the axis creeps in, its speed decaying exponentially from
+`approach_speed`; the controller starts its dwell timer when the creep is within `in_position` of
+the stop) and a slow start (the axis creeps toward the next stop over the end of the dwell).
 """
 
 from __future__ import annotations
@@ -41,30 +46,51 @@ def _trapezoid(tau: np.ndarray, distance: np.ndarray, velocity: float, accel: fl
 def synthetic_stream(plan: Plan, config: Config, rate_hz: float, seed: int = 0, noise: float = 0.3e-3,
                      ppm: float = -12.0, backlash: float = 2e-3, scatter: float = 0.5e-3,
                      overrun_dwell_s: float = 0.0, skip_point: int | None = None, creep_s: float = 0.0,
-                     creep: float = 0.0) -> tuple[pd.DataFrame, np.ndarray]:
+                     creep: float = 0.0, approach: float = 0.0, approach_speed: float = 0.2,
+                     in_position: float = 1e-3) -> tuple[pd.DataFrame, np.ndarray]:
     """The stream (columns time_s and reading_mm or reading_deg) and the true error of each plan
     point (axis unit; NaN for a skipped point). The stream starts moving at t = 0 from the first
-    target. `creep_s`, `creep`: a slow start, as a real axis shows: over the last `creep_s` s of
-    each dwell the axis already creeps `creep` (axis unit, growing with the square of time) toward
-    the next stop; the move then makes up the difference."""
+    target.
+
+    `creep_s`, `creep`: a slow start, as a real axis shows: over the last `creep_s` s of each dwell
+    the axis already creeps `creep` (axis unit, growing with the square of time) toward the next
+    stop; the move then makes up the difference.
+
+    `approach`, `approach_speed`, `in_position`: a slow final approach. Each move's trapezoid
+    stops `approach` (axis unit) short of the stop, from where the axis creeps in at
+    `approach_speed` (axis unit/s), decaying exponentially (time constant approach /
+    approach_speed, s). The dwell (`plan.dwell_s`, at whose end a controller captures) begins when
+    the creep is within `in_position` (axis unit) of the stop; the creep goes on decaying through
+    the dwell. The next move starts from the stop itself (the creep left at the dwell's end,
+    in_position · exp(-dwell / time constant), is dropped)."""
     import pandas as pd
 
     rng = np.random.default_rng(seed)
     velocity, accel = config.plan.velocity, config.axis.max_acceleration
     stops = _stops(plan, config, overrun_dwell_s, skip_point)
     positions = np.array([plan.targets[0]] + [s[0] for s in stops])
-    moves = np.array([move_time_s(b - a, velocity, accel) for a, b in itertools.pairwise(positions)])
+    short = np.minimum(approach, np.abs(np.diff(positions)) / 2)  # creep-in distance per move, axis unit
+    tau = short / approach_speed if approach > 0 else np.zeros(len(stops))  # s
+    settle = np.where(short > in_position, tau * np.log(np.maximum(short, in_position) / in_position), 0.0)  # s
+    moves = np.array([move_time_s(abs(b - a) - c, velocity, accel)
+                      for (a, b), c in zip(itertools.pairwise(positions), short)])
     dwells = np.array([s[1] for s in stops])
     direction = np.sign(np.diff(positions))
     error = positions[1:] * ppm * 1e-6 + direction * backlash / 2 + rng.normal(0, scatter, len(stops))
-    # segment k: move to stop k during [arrive_k - moves_k, arrive_k), then dwell until leave_k
-    leave = np.cumsum(moves + dwells)
+    # segment k: move to `short` before stop k during [ends_k - moves_k, ends_k), creep in until
+    # arrive_k, then dwell until leave_k
+    leave = np.cumsum(moves + settle + dwells)
     arrive = leave - dwells
+    ends = arrive - settle
     t = np.arange(1, int(leave[-1] * rate_hz) + 1) / rate_hz
     k = np.minimum(np.searchsorted(leave, t, side="right"), len(stops) - 1)
     start = np.concatenate([[positions[0]], positions[1:-1] + error[:-1]])
     travel = positions[1:] + error - start
-    covered = _trapezoid(np.clip(t - (arrive[k] - moves[k]), 0, moves[k]), np.abs(travel[k]), velocity, accel)
+    trapezoid = np.abs(travel) - short  # axis unit
+    covered = _trapezoid(np.clip(t - (ends[k] - moves[k]), 0, moves[k]), trapezoid[k], velocity, accel)
+    if approach > 0:
+        since = np.maximum(t - ends[k], 0)  # s
+        covered = covered + short[k] * (1 - np.exp(-since / np.maximum(tau[k], 1e-12)))
     reading = start[k] + np.sign(travel[k]) * covered + rng.normal(0, noise, len(t))
     if creep_s > 0 and creep:
         ahead = np.sign(travel[np.minimum(k + 1, len(stops) - 1)])  # the next move's direction
