@@ -218,3 +218,34 @@ def test_follow_up_options_are_checked(cli, tmp_path, args, fragment):
     write_points(tmp_path / "p.csv", table)
     said = cli("discover", tmp_path / "p.csv", *args)
     assert said.code == 2 and said.err.startswith("error:") and fragment in said.err
+
+
+FIVE_TARGETS = ("run,direction,target_mm,deviation_um,time_s,capture_wait_s,samples\n"
+                "1,+,152.579827,-2.3188,25.9,3.3,2\n"
+                "1,+,290.237031,-4.4211,46,2.8,2\n"
+                "1,+,457.702636,-6.5805,68.3,1.3,2\n"
+                "1,+,595.358840,-6.8706,89.8,4.2,2\n"
+                "1,-,595.358840,-5.3515,91.8,0.6,2\n"
+                "1,-,457.702636,-5.0399,110,0.9,2\n"
+                "1,-,290.237031,-3.2488,133.5,2.5,2\n"
+                "1,-,152.579827,-0.7688,155.6,4.8,2\n"
+                "1,-,0.000000,0.7988,179,4.2,2\n"
+                "2,+,0.000000,-1.1206,182.2,1.8,2\n"
+                "2,+,152.579827,-2.3379,204.6,3.2,2\n"
+                "2,+,290.237031,-4.5923,223.4,1.5,2\n"
+                "2,+,457.702636,-6.5940,246.3,1.9,2\n"
+                "2,+,595.358840,-6.6019,264.3,0.7,2\n"
+                "2,-,595.358840,-5.8117,266.3,0.6,2\n"
+                "2,-,457.702636,-5.6290,287.7,4.1,2\n"
+                "2,-,290.237031,-3.2408,313.1,4.4,2\n"
+                "2,-,152.579827,-1.0203,335.4,5,2\n"
+                "2,-,0.000000,0.5709,357.2,2.6,2\n")
+"""A follow-up recorded on the simulated machine: 5 targets, 2 runs, waits 0.5 to 5 s."""
+
+
+def test_a_follow_up_alone_is_read(cli, tmp_path):
+    """Its periodogram has no peak, which is no internal error (it was a KeyError)."""
+    (tmp_path / "p.csv").write_text(FIVE_TARGETS)
+    said = cli("discover", tmp_path / "p.csv")
+    assert said.code == 0, said.err
+    assert "backlash" in said.out

@@ -229,6 +229,17 @@ def find_local(data: CampaignData, fit: Fit) -> LocalError | None:
                     p_value=p_value, cv_before_um=cv_before, cv_after_um=cv_after, gap_without_um=fit.rms_um(data.y))
 
 
+def passes(data: CampaignData, without: Fit, with_local: Fit) -> bool:
+    """Does the local term in `with_local` pass the tests against the same model without it (BIC
+    and F-test with the search's look-elsewhere factor, leave-one-target-out CV)?"""
+    n, factor = len(data), look_elsewhere(data)
+    delta_bic = bic(with_local, n) - bic(without, n) + 2 * math.log(factor)
+    p_value = min(1.0, f_test_p(without, with_local, n) * factor)
+    groups = data.target_index
+    return bool(delta_bic < -BIC_MARGIN and p_value < ALPHA
+                and cv_rms_um(data, with_local.terms, groups) < cv_rms_um(data, without.terms, groups))
+
+
 def describe(data: CampaignData, fit: Fit, **tests: float) -> LocalError:
     """The LocalError of the local term in `fit`: parameters, errors, directions, time."""
     i = next(k for k, t in enumerate(fit.terms) if t.name.startswith("local_error"))

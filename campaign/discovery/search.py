@@ -45,7 +45,7 @@ from campaign.discovery.fit import (
     shape_bounds,
     standard_errors,
 )
-from campaign.discovery.local import LocalError, find_local, refit_local
+from campaign.discovery.local import LocalError, find_local, look_elsewhere, passes, refit_local
 from campaign.errors import InputError
 from campaign.model import EFFECT_PARAMS, ErrorModel
 
@@ -299,6 +299,8 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
     starts: list[dict[str, float]] = [{}]
     if name == "periodic_lead":
         starts = [{"period_mm": p} for p in periodogram_periods(data, current, top=PERIOD_STARTS)]
+        if not starts:  # a flat periodogram (few targets): no period to start from
+            return Candidate(name, None, verdict="not significant (no period stands out)")
     elif FORMS[name].shape_grid is not None:
         starts = FORMS[name].grid(data, {})
     best: Fit | None = None
@@ -457,6 +459,14 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
         if not (periodic and any("periodic_lead" in u["effects"] for u in third.unresolved)):
             again = third
             final, local = refit_local(data, again.final, local)
+    others = linear_fit(data, [t for t in final.terms if not t.name.startswith("local_error")])
+    n = len(data)
+    # its centre and width count as parameters, its search as in its tests
+    with_local = bic(final, n) + 2 * math.log(n) + 2 * math.log(look_elsewhere(data))
+    if not passes(data, others, final) or with_local > bic(result.final, n) - BIC_MARGIN:
+        # beside what is named now it explains nothing more, or the vocabulary alone explains the
+        # campaign better than with it (a real period is no bump)
+        return beside_unresolved_period(data, result)
     soaked = [name for name in result.added if name not in again.added]
     for name in soaked:
         _note(again.notes, f"{name} explained part of the residual before the local error was found; beside the "
