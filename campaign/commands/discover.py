@@ -1,5 +1,6 @@
-"""`axiscal discover POINTS.csv [--model MODEL.toml] [--json] [--plot OUT] [--save NEW.toml]`:
-name the effects the model is missing (campaign/discovery/search.py, docs/discovery.md)."""
+"""`axiscal discover POINTS.csv [MORE.csv ...] [--model MODEL.toml] [--json] [--plot OUT] [--save NEW.toml]
+[--follow-up -o FOLLOW.toml [--config CONFIG]]`: name the effects the model is missing, and plan the
+campaign that would separate what is left unresolved (campaign/discovery/, docs/discovery.md)."""
 
 from __future__ import annotations
 
@@ -12,12 +13,15 @@ from typing import Any
 import numpy as np
 
 from campaign.commands import SUMMARY
-from campaign.discovery.data import keep_rows, read_campaign, read_start_model
+from campaign.config import Config, load_config
+from campaign.discovery.data import CampaignData, join_campaigns, keep_rows, read_campaign, read_start_model
 from campaign.discovery.fit import derived
+from campaign.discovery.followup import FollowUp, plan_follow_up
 from campaign.discovery.search import Candidate, Discovery, discover
 from campaign.errors import InputError
 from campaign.model import EFFECT_PARAMS, ErrorModel
 from campaign.outliers import Outliers, find_outliers
+from campaign.plan import build_plan
 from campaign.plot import check_plot_path
 from campaign.pointtable import read_points
 from campaign.views import make_console, print_json
@@ -28,7 +32,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("discover", help=SUMMARY["discover"],
                        description="Fit MODEL to a measured point table, then name, add and refit the "
                                    "effects the residual shows, until what is left is noise.")
-    p.add_argument("file", help="point table CSV (see docs/point-table.md)")
+    p.add_argument("files", nargs="+", metavar="POINTS.csv",
+                   help="point table CSV (see docs/point-table.md); several campaigns of one axis are fitted "
+                        "together: shared effects, an offset per campaign (a new laser datum), each campaign's "
+                        "time its own")
     p.add_argument("--model", metavar="MODEL.toml",
                    help="starting model, [effects.NAME] tables; a parameter left out is fitted "
                         "(default: linear_scale only)")
@@ -38,6 +45,12 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                         "groups in full and the notes")
     p.add_argument("--plot", metavar="OUT", help="write the residual before and after each step (.png or .svg)")
     p.add_argument("--save", metavar="NEW.toml", help="write the final model in the model TOML format")
+    p.add_argument("--follow-up", action="store_true",
+                   help="write (with -o) a campaign config for the same axis that would separate what is "
+                        "unresolved, within its limits, with why each part is there and its machine time")
+    p.add_argument("-o", "--output", metavar="FOLLOW.toml", help="--follow-up: where to write the campaign config")
+    p.add_argument("--config", metavar="CONFIG",
+                   help="--follow-up: the first campaign's config (default: config.toml next to the first table)")
     p.set_defaults(func=run)
 
 
@@ -108,6 +121,15 @@ def outliers_json(outliers: Outliers) -> dict:
                            "without_outliers": None if outliers.s_without is None else round(outliers.s_without, 4)}}
 
 
+def all_outliers_json(outliers: list[Outliers], files: list[str]) -> dict:
+    """outliers_json of one campaign; of several: each outlier with its file, the scatter per file."""
+    if len(outliers) == 1:
+        return outliers_json(outliers[0])
+    each = [outliers_json(o) for o in outliers]
+    return {"outliers": [{**o, "campaign": f} for e, f in zip(each, files) for o in e["outliers"]],
+            "scatter_um": {f: e["scatter_um"] for e, f in zip(each, files)}}
+
+
 def ranking_json(ranking: list[Candidate]) -> list[dict[str, Any]]:
     return [{"effect": c.name, "explained_pct": round(c.explained_pct, 2), "delta_bic": round(c.delta_bic, 2),
              "p_value": float(f"{c.p_value:.3g}"), "cv_before_um": round(c.cv_before_um, 4),
@@ -145,7 +167,7 @@ def as_json(result: Discovery) -> dict:
         "stand_in": None if result.stand_in is None else {
             **result.stand_in, "params": rounded(result.stand_in["params"]),
             "gap_without_um": round(result.stand_in["gap_without_um"], 4)},
-        "model": {name: rounded(p) for name, p in result.final.params().items()},
+        "model": {name: rounded(p) for name, p in result.params().items()},
         "model_standard_errors": {name: errors_json(e) for name, e in result.errors.items()},
         "starting_model": {name: starting_json(entry) for name, entry in result.starting.items()},
         "offset_um": round(result.final.offset_um, 4),
@@ -153,6 +175,7 @@ def as_json(result: Discovery) -> dict:
         "disagreement_after": result.disagreement_after,
         "choices": result.choices,
         "unresolved": result.unresolved,
+        "local": None if result.local is None else result.local.as_dict(),
         "notes": result.notes,
     }
 
@@ -241,6 +264,17 @@ def first_clause(text: str, most: int = 70) -> str:
     return text
 
 
+def local_said(result: Discovery) -> str:
+    """The local error in words, with the error of its size and place."""
+    local = result.local
+    assert local is not None
+    e = local.errors
+    size = "amplitude_um" if "amplitude_um" in e else None
+    errs = ", ".join(f"{k.split('_')[0]} ± {e[k]:.2g} {'µm' if k.endswith('um') else 'mm'}"
+                     for k in (size, "centre_mm", "width_mm") if k and k in e)
+    return f"{local.sentence()} ({errs})" if errs else local.sentence()
+
+
 def summary_lines(result: Discovery, incomplete: list[str]) -> list[str]:
     """What a technician reads first, one short line each: an incomplete campaign, what was named
     with its size and error, the stand-in, what is unresolved and the one thing to do about it,
@@ -251,7 +285,10 @@ def summary_lines(result: Discovery, incomplete: list[str]) -> list[str]:
                           for k, v in list(step.params.items())[:2])
         lines.append(f"named: [bold]{step.effect}[/] {sizes}")
     if not result.steps:
-        lines.append("named: nothing" + (" (something is there: see unresolved)" if result.unresolved else ""))
+        lines.append("named: nothing" + (" (something is there: see unresolved)" if result.unresolved else "")
+                     + (" from the model's effects" if result.local is not None else ""))
+    if result.local is not None:
+        lines.append(f"found outside the model: [bold]{local_said(result)}[/]; no effect of the model has this shape")
     if result.stand_in is not None:
         b = abs(result.stand_in["params"]["b_um"])
         lines.append(f"in the model as a stand-in: a reversal of {b:.1f} µm (backlash or settling)")
@@ -301,6 +338,16 @@ def print_text(result: Discovery, time_unit: str, incomplete: list[str], verbose
     if result.stand_in is not None:
         console.print(f"[yellow]in the model as a stand-in:[/] {result.stand_in['observable']}; the model holds it "
                       f"as {result.stand_in['effect']} (gap {result.stand_in['gap_without_um']:.3f} µm without it)")
+    if result.local is not None:
+        local = result.local
+        console.print(f"[yellow]found outside the model:[/] {local_said(result)}; no effect of the model has this "
+                      f"shape; {local.time_text()}. It explains {local.explained_pct:.1f} % of the residual (ΔBIC "
+                      f"{local.delta_bic:.1f} with its search's look-elsewhere, p {local.p_value:.2g}, CV "
+                      f"{local.cv_before_um:.3f} -> {local.cv_after_um:.3f} µm); the model holds it as a smooth local "
+                      f"term (gap {local.gap_without_um:.3f} µm without it), not as an effect, and does not save it")
+    if len(result.final.offsets_um) > 1:
+        console.print("campaigns fitted together, each with its own datum offset: "
+                      + ", ".join(f"{o:+.3f} µm" for o in result.final.offsets_um))
     verdict = noise_verdict(result.gap_after_um, result.noise_um)
     line = (f"final gap {result.gap_after_um:.3f} µm RMS against a noise estimate of {result.noise_um:.3f} µm "
             f"(run-to-run scatter): what is left is {verdict}")
@@ -316,10 +363,12 @@ def saved_model(result: Discovery, model: ErrorModel, source: str, time_source: 
     until a time constant in seconds is given, and `discover --model` refits it."""
     noise = model.effects.get("noise") if "sigma_um" in model.effects.get("noise", {}) else None
     lines = [f"# Error model found by `axiscal discover {source}`; the datum offset is left out."]
-    params = result.final.params()
+    params = result.params()
     if "environment" in params:
         found = ", ".join(f"{k} = {v:.4g}" for k, v in params["environment"].items())
         lines.append(f"# Left out: environment ({found}), which follows this campaign's air/material log.")
+    if result.local is not None:
+        lines.append(f"# Left out: {result.local.sentence()}, which no effect of the model has the shape of.")
     text = result.final_model(noise).to_toml()
     if time_source != "time_s" and "thermal_drift" in params:
         tau = params["thermal_drift"]["tau_s"]
@@ -370,30 +419,94 @@ def plot_steps(result: Discovery, x: np.ndarray, d: np.ndarray, y: np.ndarray, o
     plt.close(fig)
 
 
+def read_tables(files: list[str]) -> tuple[CampaignData, list[Outliers], list[str]]:
+    """The campaigns, each with its outliers left out, joined for one fit; the outliers of each;
+    the notes on an incomplete campaign (named by its file when there are several)."""
+    parts, found, incomplete = [], [], []
+    for name in files:
+        data = read_campaign(name)
+        table = read_points(name)
+        outliers = find_outliers(table)
+        if outliers.found:
+            data = keep_rows(data, ~outliers.mask(table))
+        parts.append(data)
+        found.append(outliers)
+        notes = incomplete_notes(name)
+        incomplete += [f"incomplete campaign: {name}: {n.split(': ', 1)[1]}" if len(files) > 1 else n for n in notes]
+    return join_campaigns(parts, files), found, incomplete
+
+
+def follow_up_config(args: argparse.Namespace) -> Config:
+    """The config the follow-up starts from: --config, else config.toml next to the first table."""
+    path = Path(args.config) if args.config else Path(args.files[0]).parent / "config.toml"
+    if not path.is_file():
+        raise InputError(f"--follow-up: {path}: no such file; give the first campaign's config with --config CONFIG")
+    return load_config(path)
+
+
+def reversal_um(result: Discovery) -> float | None:
+    """The size of the reversal the unresolved backlash stands for, µm (the stand-in's, or the
+    backlash candidate's), if any."""
+    if result.stand_in is not None:
+        return float(result.stand_in["params"]["b_um"])
+    for cand in result.remaining:
+        if cand.name == "backlash" and cand.fit is not None:
+            return float(cand.fit.params()["backlash"]["b_um"])
+    return None
+
+
 def run(args: argparse.Namespace) -> int:
     plot_path = check_plot_path(args.plot) if args.plot else None
     if args.save and Path(args.save).suffix.lower() != ".toml":
         raise InputError(f"--save: {args.save}: the model file must end in .toml")
-    data = read_campaign(args.file)
+    if args.follow_up and not args.output:
+        raise InputError("--follow-up: give the file to write with -o FOLLOW.toml")
+    if args.output and not args.follow_up:
+        raise InputError(f"-o {args.output}: only with --follow-up")
+    if args.output and Path(args.output).suffix.lower() != ".toml":
+        raise InputError(f"-o: {args.output}: the campaign config must end in .toml")
+    config = follow_up_config(args) if args.follow_up else None
+    data, outliers, incomplete = read_tables(args.files)
     model, given = read_start_model(args.model)
     if len(data) < 4:
-        raise InputError(f"{args.file}: {len(data)} points are too few to fit a model")
-    table = read_points(args.file)
-    outliers = find_outliers(table)
-    if outliers.found:
-        data = keep_rows(data, ~outliers.mask(table))
+        raise InputError(f"{args.files[0]}: {len(data)} points are too few to fit a model")
+    kind = read_points(args.files[0]).kind
     result = discover(data, model, given)
-    incomplete = incomplete_notes(args.file)
-    result.notes[:0] = incomplete + outlier_notes(outliers, table.kind)
+    result.notes[:0] = incomplete + [n for o in outliers for n in outlier_notes(o, kind)]
+    follow = None
+    if config is not None:
+        follow = plan_follow_up(result.unresolved, result.remaining, data, result.final, config, reversal_um(result),
+                                result.noise_um, Path(args.output), args.files)
+        if follow is not None:
+            Path(args.output).write_text(follow.text, encoding="utf-8")
     if plot_path:
         plot_steps(result, data.x, data.d, data.y, plot_path)
     if args.save:
-        Path(args.save).write_text(saved_model(result, model, args.file, data.time_source), encoding="utf-8")
+        Path(args.save).write_text(saved_model(result, model, " ".join(args.files), data.time_source), encoding="utf-8")
     if args.json:
-        print_json({**as_json(result), **outliers_json(outliers)})
+        extra = {"campaigns": args.files, "offsets_um": [round(o, 4) for o in result.final.offsets_um]}
+        if args.follow_up:
+            extra["follow_up"] = None if follow is None else {**follow.as_dict(), "file": args.output}
+        print_json({**as_json(result), **all_outliers_json(outliers, args.files), **extra})
     else:
         print_text(result, data.time_unit, incomplete, args.verbose)
+        console = make_console()
+        if args.follow_up:
+            for line in follow_up_lines(follow, args.output):
+                console.print(line)
         for path, what in ((plot_path, "plot"), (args.save, "model")):
             if path:
-                make_console().print(f"{what} written to {path}")
+                console.print(f"{what} written to {path}")
     return 0
+
+
+def follow_up_lines(follow: FollowUp | None, path: str) -> list[str]:
+    """What the follow-up campaign is for, part by part, and its machine time against the first's."""
+    if follow is None:
+        return ["follow-up: nothing is unresolved that another campaign could separate; no file written"]
+    lines = [(f"follow-up written to {path}: {len(build_plan(follow.config).points)} points, "
+             f"{follow.duration_s / 60:.1f} min of machine time (the first campaign: {follow.first_duration_s / 60:.1f} "
+             "min); measure it, then discover both tables together")]
+    lines += [f"  for {' or '.join(p.effects)}: {p.why}" for p in follow.parts]
+    lines += [f"  [yellow]not planned:[/] {u}" for u in follow.unplanned]
+    return lines

@@ -15,7 +15,7 @@ import numpy as np
 
 from campaign.discovery.simulate import SAMPLE_PERIOD_META, sample_times
 from campaign.edlen import refractive_index
-from campaign.errors import read_toml
+from campaign.errors import InputError, read_toml
 from campaign.model import ErrorModel, model_from_dict
 from campaign.pointtable import PointTable, read_points
 
@@ -32,6 +32,9 @@ class CampaignData:
     unknown). time_source: "time_s" or "point order". env: environment columns present.
     air_index_change: n/n0 - 1 per point from the air log (n0: the first point's index; a column
     that is missing is taken at its standard value), None without an air log.
+    campaign: which campaign each point belongs to (0, 1, ...; None: all of one campaign). Campaigns
+    fitted together (`join_campaigns`) share the effects and get an offset each (a new laser datum);
+    their times and runs are each their own campaign's.
     """
 
     x: np.ndarray
@@ -43,6 +46,7 @@ class CampaignData:
     time_source: str
     env: dict[str, np.ndarray]
     air_index_change: np.ndarray | None = None
+    campaign: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.y)
@@ -51,6 +55,16 @@ class CampaignData:
     def target_index(self) -> np.ndarray:
         """Index of each point's target among the distinct targets."""
         return np.unique(np.round(self.x, 6), return_inverse=True)[1]
+
+    @property
+    def campaign_index(self) -> np.ndarray:
+        """The campaign of each point (0 for a single campaign)."""
+        return np.zeros(len(self.y), dtype=int) if self.campaign is None else self.campaign
+
+    @property
+    def campaigns(self) -> int:
+        """How many campaigns are fitted together."""
+        return int(self.campaign_index.max()) + 1 if len(self.y) else 1
 
     @property
     def time_unit(self) -> str:
@@ -62,7 +76,44 @@ def keep_rows(data: CampaignData, keep: np.ndarray) -> CampaignData:
     return CampaignData(x=data.x[keep], d=data.d[keep], run=data.run[keep], y=data.y[keep], t=data.t[keep],
                         w=None if data.w is None else data.w[keep], time_source=data.time_source,
                         env={k: v[keep] for k, v in data.env.items()},
-                        air_index_change=None if data.air_index_change is None else data.air_index_change[keep])
+                        air_index_change=None if data.air_index_change is None else data.air_index_change[keep],
+                        campaign=None if data.campaign is None else data.campaign[keep])
+
+
+def _padded(rows: list[np.ndarray]) -> np.ndarray:
+    """Sample matrices of several campaigns stacked, padded with NaN to the widest."""
+    width = max(r.shape[1] for r in rows)
+    return np.vstack([np.pad(r, ((0, 0), (0, width - r.shape[1])), constant_values=np.nan) for r in rows])
+
+
+def join_campaigns(parts: list[CampaignData], names: list[str]) -> CampaignData:
+    """Several campaigns of one axis as one data set for a joint fit: the points of each in turn,
+    `campaign` saying whose; runs numbered on (the second campaign's run 1 follows the first's
+    last run), each campaign's times its own (time since its own start: a thermal drift starts
+    again with each campaign). A wait or an air log is used only when every campaign has it.
+    InputError when some have a time column and others not (`names`: the files, for the message)."""
+    if len(parts) == 1:
+        return parts[0]
+    sources = {p.time_source for p in parts}
+    if len(sources) > 1:
+        with_time = [n for n, p in zip(names, parts) if p.time_source == "time_s"]
+        without = [n for n, p in zip(names, parts) if p.time_source != "time_s"]
+        raise InputError(f"{without[0]}: no time_s column, but {with_time[0]} has one: campaigns fitted together "
+                         "must all have a time column or none")
+    runs, first = [], 0
+    for p in parts:
+        runs.append(p.run - p.run.min() + 1 + first)
+        first = int(runs[-1].max())
+    waits = None if any(p.w is None for p in parts) else _padded([p.w for p in parts if p.w is not None])
+    env_keys = set.intersection(*(set(p.env) for p in parts))
+    air = None if any(p.air_index_change is None for p in parts) else np.concatenate(
+        [p.air_index_change for p in parts if p.air_index_change is not None])
+    return CampaignData(x=np.concatenate([p.x for p in parts]), d=np.concatenate([p.d for p in parts]),
+                        run=np.concatenate(runs), y=np.concatenate([p.y for p in parts]),
+                        t=_padded([p.t for p in parts]), w=waits, time_source=parts[0].time_source,
+                        env={k: np.concatenate([p.env[k] for p in parts]) for k in sorted(env_keys)},
+                        air_index_change=air,
+                        campaign=np.concatenate([np.full(len(p), i) for i, p in enumerate(parts)]))
 
 
 def campaign_data(table: PointTable, capture: dict[str, np.ndarray] | None = None,

@@ -206,6 +206,38 @@ FORMS: dict[str, EffectForm] = {f.name: f for f in (
 )}
 """Effect name -> its form, in the order candidates are listed."""
 
+
+
+def local_shape(x: np.ndarray, centre_mm: float | np.ndarray, width_mm: float) -> np.ndarray:
+    """A smooth local bump of height 1 at centre_mm, width_mm wide at half its height (a Gaussian):
+    the shape discovery gives an error outside its vocabulary (campaign.discovery.local)."""
+    return np.exp(-4 * math.log(2) * ((x - centre_mm) / width_mm) ** 2)
+
+
+def _local(data: CampaignData, shape: Shape, held: Shape) -> np.ndarray:
+    return local_shape(data.x, shape["centre_mm"], shape["width_mm"])[:, None]
+
+
+def _local_by_direction(data: CampaignData, shape: Shape, held: Shape) -> np.ndarray:
+    bump = local_shape(data.x, shape["centre_mm"], shape["width_mm"])
+    return np.column_stack([bump * (data.d > 0), bump * (data.d < 0)])
+
+
+LOCAL_FORMS: dict[str, EffectForm] = {f.name: f for f in (
+    EffectForm("local_error", ("amplitude_um",), (), "target", _local),
+    EffectForm("local_error_by_direction", ("plus_um", "minus_um"), (), "target", _local_by_direction),
+)}
+"""Not in the vocabulary: the smooth local term discovery adds for an error no effect of the model
+has the shape of (a screw defect, a worn zone). Its centre and width (mm) are found by its own search
+(campaign.discovery.local) and held in the term's shape; only its amplitudes are fitted with the
+model. Never a candidate, never in the saved model."""
+
+
+def form_of(name: str) -> EffectForm:
+    """The least-squares form of a term in the model: a vocabulary effect or a local error."""
+    return FORMS[name] if name in FORMS else LOCAL_FORMS[name]
+
+
 SHAPE_KEYS = ("period_mm", "tau_s", "pivot_mm", "start_mm", "end_mm")
 """Parameters held when the model file gives them although the effect is refitted."""
 

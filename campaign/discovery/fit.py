@@ -1,6 +1,6 @@
 """Least-squares fitting of a model of effect terms to a campaign, and the tests discovery uses.
 
-The deviation is offset + Σ (free terms' columns · coefficients) + Σ (fixed terms' deviations).
+The deviation is offset (one per campaign fitted together) + Σ (free terms' columns · coefficients) + Σ (fixed terms' deviations).
 Shape parameters (periods, time constants) are found by variable projection: for given shapes the
 coefficients are a linear least-squares solution; the shapes are refined with
 scipy.optimize.least_squares (in log space, within bounds) from a grid or periodogram start.
@@ -16,7 +16,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from campaign.discovery.data import CampaignData
-from campaign.discovery.effects import FORMS, period_limits
+from campaign.discovery.effects import form_of, period_limits
 from campaign.model import effect_um
 
 COLLINEAR = 1e-3
@@ -38,17 +38,18 @@ class Term:
 
     @property
     def searched(self) -> list[str]:
-        return [] if self.fixed else [k for k in FORMS[self.name].shape if k not in self.held]
+        return [] if self.fixed else [k for k in form_of(self.name).shape if k not in self.held]
 
     def columns(self, data: CampaignData) -> np.ndarray:
-        cols = FORMS[self.name].columns(data, self.shape, self.held)
+        cols = form_of(self.name).columns(data, self.shape, self.held)
         return cols if self.keep is None else cols[:, list(self.keep)]
 
 
 @dataclass
 class Fit:
-    """Fitted terms: coefficients per free term (in the form's full column order), offset µm,
-    prediction µm per point, residual sum of squares µm², number of fitted parameters."""
+    """Fitted terms: coefficients per free term (in the form's full column order), offset µm (the
+    first campaign's), prediction µm per point, residual sum of squares µm², number of fitted
+    parameters, and the offset of every campaign fitted together, µm."""
 
     terms: list[Term]
     coefs: list[np.ndarray]
@@ -56,12 +57,13 @@ class Fit:
     prediction: np.ndarray
     rss: float
     n_params: int
+    offsets_um: tuple[float, ...] = ()
 
     def params(self) -> dict[str, dict[str, float]]:
         """Effect name -> model parameters (physical units, see model.EFFECT_PARAMS)."""
         out = {}
         for term, coefs in zip(self.terms, self.coefs):
-            out[term.name] = dict(term.held) if term.fixed else FORMS[term.name].params(coefs, term.shape, term.held)
+            out[term.name] = dict(term.held) if term.fixed else form_of(term.name).params(coefs, term.shape, term.held)
         return out
 
     def rms_um(self, y: np.ndarray) -> float:
@@ -80,8 +82,10 @@ def fixed_deviation(data: CampaignData, terms: list[Term]) -> np.ndarray:
 
 
 def design(data: CampaignData, terms: list[Term]) -> tuple[np.ndarray, list[slice]]:
-    """The regressors: a column of ones (the offset), then each free term's kept columns."""
-    blocks, slices, start = [np.ones((len(data), 1))], [], 1
+    """The regressors: one offset column per campaign (ones at its points: each campaign has its
+    own laser datum), then each free term's kept columns."""
+    offsets = (data.campaign_index[:, None] == np.arange(data.campaigns)[None, :]).astype(float)
+    blocks, slices, start = [offsets], [], data.campaigns
     for term in terms:
         cols = np.zeros((len(data), 0)) if term.fixed else term.columns(data)
         blocks.append(cols)
@@ -102,20 +106,23 @@ def linear_fit(data: CampaignData, terms: list[Term]) -> Fit:
     prediction = base + a @ beta
     coefs = []
     for term, sl in zip(terms, slices):
-        full = np.zeros(FORMS[term.name].columns(data, term.shape, term.held).shape[1]) if not term.fixed \
+        full = np.zeros(form_of(term.name).columns(data, term.shape, term.held).shape[1]) if not term.fixed \
             else np.zeros(0)
         if not term.fixed:
             keep = term.keep if term.keep is not None else (True,) * len(full)
             full[list(np.flatnonzero(keep))] = beta[sl]
         coefs.append(full)
     n_params = a.shape[1] + sum(len(t.searched) for t in terms)
-    return Fit(terms, coefs, float(beta[0]), prediction, float(np.sum((data.y - prediction) ** 2)), n_params)
+    return Fit(terms, coefs, float(beta[0]), prediction, float(np.sum((data.y - prediction) ** 2)), n_params,
+               tuple(float(b) for b in beta[:data.campaigns]))
 
 
-def _shape_bounds(data: CampaignData, name: str, key: str) -> tuple[float, float]:
+def shape_bounds(data: CampaignData, name: str, key: str) -> tuple[float, float]:
+    """The bounds of a searched shape parameter: the period's range, or a third of the lowest and
+    three times the highest time constant of its grid."""
     if key == "period_mm":
         return period_limits(data)
-    grid = FORMS[name].grid(data, {})
+    grid = form_of(name).grid(data, {})
     return grid[0]["tau_s"] / 3, grid[-1]["tau_s"] * 3
 
 
@@ -124,8 +131,8 @@ def refine(data: CampaignData, terms: list[Term]) -> Fit:
     slots = [(i, key) for i, term in enumerate(terms) for key in term.searched]
     if not slots:
         return linear_fit(data, terms)
-    lower = np.log([_shape_bounds(data, terms[i].name, k)[0] for i, k in slots])
-    upper = np.log([_shape_bounds(data, terms[i].name, k)[1] for i, k in slots])
+    lower = np.log([shape_bounds(data, terms[i].name, k)[0] for i, k in slots])
+    upper = np.log([shape_bounds(data, terms[i].name, k)[1] for i, k in slots])
     start = np.clip(np.log([terms[i].shape[k] for i, k in slots]), lower + 1e-9, upper - 1e-9)
 
     def with_shapes(logs: np.ndarray) -> list[Term]:
@@ -150,7 +157,7 @@ def drop_collinear(data: CampaignData, terms: list[Term], term: Term) -> Term:
     """`term` with its columns that the model's columns already span dropped (keep mask)."""
     base, _ = design(data, terms)
     q, _ = np.linalg.qr(base)
-    cols = FORMS[term.name].columns(data, term.shape, term.held)
+    cols = form_of(term.name).columns(data, term.shape, term.held)
     outside = cols - q @ (q.T @ cols)
     norms = np.linalg.norm(cols, axis=0)
     keep = tuple(bool(n > 0 and np.linalg.norm(o) > COLLINEAR * n) for o, n in zip(outside.T, norms))
@@ -159,7 +166,7 @@ def drop_collinear(data: CampaignData, terms: list[Term], term: Term) -> Term:
 
 def confounders(data: CampaignData, terms: list[Term], term: Term) -> list[str]:
     """The model's effects whose columns (with the offset) span `term`'s columns on this data."""
-    cols = FORMS[term.name].columns(data, term.shape, term.held)
+    cols = form_of(term.name).columns(data, term.shape, term.held)
     names = []
     for other in terms:
         if other.name == term.name:
@@ -256,9 +263,9 @@ ANGLES = ("phase_rad",)
 
 
 def jacobian(data: CampaignData, fit: Fit, step: float = 1e-4) -> tuple[np.ndarray, list]:
-    """The Jacobian of the prediction with respect to the offset, every fitted coefficient (label
+    """The Jacobian of the prediction with respect to the offsets, every fitted coefficient (label
     (term index, "coef", column in the form's full order)) and the log of every searched shape
-    (label (term index, "log", key)); the offset's label is None."""
+    (label (term index, "log", key)); an offset's label is None."""
     a, slices = design(data, fit.terms)
     blocks = [a]
     labels: list[tuple[int, str, int | str] | None] = [None] * a.shape[1]
@@ -271,9 +278,9 @@ def jacobian(data: CampaignData, fit: Fit, step: float = 1e-4) -> tuple[np.ndarr
             labels[j] = (i, "coef", int(col))
     for i, (term, coefs) in enumerate(zip(fit.terms, fit.coefs)):
         for key in term.searched:
-            base = FORMS[term.name].columns(data, term.shape, term.held) @ coefs
+            base = form_of(term.name).columns(data, term.shape, term.held) @ coefs
             moved = {**term.shape, key: term.shape[key] * math.exp(step)}
-            blocks.append(((FORMS[term.name].columns(data, moved, term.held) @ coefs - base) / step)[:, None])
+            blocks.append(((form_of(term.name).columns(data, moved, term.held) @ coefs - base) / step)[:, None])
             labels.append((i, "log", key))
     return np.hstack(blocks), labels
 
@@ -286,7 +293,7 @@ def derived(effect: str, params: dict[str, float]) -> dict[str, float]:
 
 def term_params(term: Term, coefs: np.ndarray) -> dict[str, float]:
     """A free term's model parameters and its derived quantities (DERIVED)."""
-    params = FORMS[term.name].params(coefs, term.shape, term.held)
+    params = form_of(term.name).params(coefs, term.shape, term.held)
     return {**params, **derived(term.name, params)}
 
 

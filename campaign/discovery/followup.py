@@ -1,0 +1,279 @@
+"""The follow-up campaign: a campaign config for the same axis that would separate every group
+discovery left unresolved, within the axis's limits and as short as it can be.
+
+Each unresolved group asks for one part of the plan (`Part`), and the parts are merged into one
+campaign (its targets, capture and cycles):
+- settling against backlash (or position-dependent backlash): waits before capture that vary over
+  a decade (the dwell method with a short window and `dwell_jitter`), at a few targets close
+  together, with as many points as the reversal's size against the noise needs;
+- a periodic error whose period is not identifiable (or that rivals the bow): a cluster of targets
+  at most a quarter of the shortest candidate period apart, over a few of the longest candidate
+  periods, in the middle of the travel measured;
+- thermal drift against linear scale (or the environment): more runs than the first campaign;
+- a growing against a constant reversal: both directions at targets over the whole travel.
+A group none of these fits is said, not planned.
+
+Units: positions in the axis unit (mm or deg), times s, deviations µm.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from campaign.config import Config, parse_config
+from campaign.discovery.data import CampaignData
+from campaign.discovery.fit import Fit, Term, linear_fit
+from campaign.discovery.search import RIVAL_MARGIN
+from campaign.plan import build_plan, check_plan, estimate_duration_s
+
+WAITS_S = (0.5, 5.0)
+"""The waits before capture of the dwell part, s: a decade (stretched upwards to include the first
+campaign's longest wait)."""
+DWELL_WINDOW_S = 0.2
+"""The capture window of the dwell part, s: short, so that the wait is what varies."""
+FEW_TARGETS = 5
+FEW_SPACING = 0.025
+"""Targets (and their spacing, a fraction of the travel) when no cluster is asked for."""
+SEPARATION = 5.0
+"""How clearly (in standard errors) a part should tell its rivals apart: settling from backlash
+(sets the dwell part's points from the reversal and the noise), the closest candidate periods
+(sets the cluster's length from the wave's amplitude and the noise)."""
+
+CLUSTER_LEADS = 3.0
+"""The cluster spans at least this many of the longest plausible candidate periods."""
+CLUSTER_STEP = 5
+"""Nominal targets per shortest candidate period in the cluster; with golden offsets of
+CLUSTER_OFFSET of the spacing no two targets are more than a quarter of that period apart."""
+CLUSTER_OFFSET = 0.2
+
+
+@dataclass
+class Part:
+    """One part of the follow-up: the unresolved effects it separates and why it looks as it does."""
+
+    effects: list[str]
+    why: str
+
+
+@dataclass
+class FollowUp:
+    """The follow-up campaign: its config (validated, within the limits), the TOML text to write,
+    the parts and why each is there, the groups it cannot plan for, and the machine time of the
+    follow-up and of the first campaign (the project's estimate, s)."""
+
+    config: Config
+    text: str
+    parts: list[Part]
+    unplanned: list[str] = field(default_factory=list)
+    duration_s: float = 0.0
+    first_duration_s: float = 0.0
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"parts": [{"effects": p.effects, "why": p.why} for p in self.parts], "unplanned": self.unplanned,
+                "duration_s": round(self.duration_s, 1), "first_duration_s": round(self.first_duration_s, 1),
+                "targets": list(build_plan(self.config).targets), "cycles": self.config.plan.cycles,
+                "capture": self.config.capture.method}
+
+
+def _targets(data: CampaignData) -> np.ndarray:
+    return np.unique(np.round(data.x, 6))
+
+
+def _few(data: CampaignData) -> list[float]:
+    """FEW_TARGETS targets FEW_SPACING of the travel apart about the middle of the targets measured:
+    where the first campaign already holds the shape along the travel, the follow-up needs only to
+    see the reversal, and short moves keep it short."""
+    t = _targets(data)
+    step = FEW_SPACING * float(t[-1] - t[0])
+    middle = float(np.median(t)) - step * (FEW_TARGETS - 1) / 2
+    return [round(middle + i * step, 3) for i in range(FEW_TARGETS)]
+
+
+def _amplitude(data: CampaignData, final: Fit, period: float) -> float:
+    """The amplitude (µm) of a sine of `period` fitted beside the final model."""
+    term = Term("periodic_lead", {"period_mm": period}, False, {"period_mm": period})
+    return float(np.hypot(*linear_fit(data, [*final.terms, term]).coefs[-1]))
+
+
+def frequency_error(span: float, step: float, amplitude_um: float, noise_um: float) -> float:
+    """The standard error of a sine's frequency (1/mm) fitted to targets `step` apart over `span`,
+    each measured once in each direction (the Cramér-Rao bound: √12·σ / (2π·A·√N·L))."""
+    n = 2 * (span / step + 1)
+    return math.sqrt(12) * noise_um / (2 * math.pi * max(amplitude_um, 1e-6) * math.sqrt(n) * span)
+
+
+def _cluster(data: CampaignData, final: Fit, periods: list[float], delta_bic: list[float],
+             noise_um: float) -> tuple[list[float], str]:
+    """A cluster of targets at most a quarter of the shortest candidate period apart (no candidate
+    aliases there), over a few of the longest plausible candidate periods (ΔBIC below
+    RIVAL_MARGIN), and long enough that the cluster alone tells the two closest plausible
+    candidates apart by SEPARATION standard errors of the frequency; and why it looks so."""
+    t = _targets(data)
+    plausible = [p for p, d in zip(periods, delta_bic or [0.0] * len(periods)) if d < RIVAL_MARGIN] or periods[:1]
+    shortest, longest = min(periods), max(plausible)
+    step = shortest / CLUSTER_STEP
+    freqs = sorted(1 / p for p in plausible)
+    closest = min((b - a for a, b in itertools.pairwise(freqs)), default=1 / longest)
+    amplitude = _amplitude(data, final, periods[0])
+    travel = float(t[-1] - t[0])
+    span = CLUSTER_LEADS * longest
+    while frequency_error(span, step, amplitude, noise_um) * SEPARATION > closest and span < travel:
+        span *= 1.25
+    span = min(span, travel)
+    count = math.floor(span / step) + 1
+    middle = float(np.median(t))
+    first = min(max(middle - span / 2, float(t[0])), float(t[-1]) - span)
+    targets = [round(first + i * step, 4) for i in range(count)]
+    shown = ", ".join(f"{p:.4g}" for p in plausible[:6]) + (", ..." if len(plausible) > 6 else "")
+    sigma = frequency_error(span, step, amplitude, noise_um)
+    why = (f"the period is not identifiable: {len(plausible)} candidate periods fit alike ({shown} mm); "
+           f"{len(targets)} targets {step:.3g} mm apart (golden offsets of {CLUSTER_OFFSET:g} of that: no two more "
+           f"than a quarter of the shortest candidate, {shortest:.3g} mm, apart) over {span:.4g} mm "
+           f"({span / longest:.2g} × the longest plausible candidate): no candidate aliases there, and a "
+           f"{amplitude:.2g} µm wave at a noise of {noise_um:.2g} µm gives its frequency to ±{sigma:.2g} per mm, "
+           f"{closest / sigma:.0f} times closer than the two closest candidates")
+    return targets, why
+
+
+def _dwell_points(reversal_um: float, noise_um: float) -> int:
+    """Points the dwell part needs so that settling and backlash differ by SEPARATION standard
+    errors: a settling that explains the reversal at the first campaign's wait differs from a
+    constant reversal by about a quarter of it between the shortest and longest waits."""
+    signal = max(abs(reversal_um), 1e-6) / 4
+    return math.ceil((SEPARATION * max(noise_um, 1e-3) / signal) ** 2)
+
+
+def _periods_of(group: dict[str, Any], remaining: list[Any]) -> list[float]:
+    if group.get("periods_mm"):
+        return [float(p) for p in group["periods_mm"]]
+    for cand in remaining:
+        if cand.name == "periodic_lead" and cand.fit is not None:
+            if cand.periods:
+                return [float(p) for p, _ in cand.periods]
+            return [float(cand.fit.params()["periodic_lead"]["period_mm"])]
+    return []
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    raise TypeError(f"no TOML form for {value!r}")
+
+
+def toml_text(data: dict[str, Any], prefix: str = "") -> str:
+    """A config's tables as TOML: the keys of a table, then its sub-tables ([sim.effects.NAME])."""
+    lines: list[str] = []
+    plain = {k: v for k, v in data.items() if not isinstance(v, dict)}
+    tables = {k: v for k, v in data.items() if isinstance(v, dict)}
+    if prefix and (plain or not tables):
+        lines.append(f"[{prefix}]")
+    lines += [f"{k} = {_toml_value(v)}" for k, v in plain.items() if v is not None]
+    if plain:
+        lines.append("")
+    for name, table in tables.items():
+        lines.append(toml_text(table, f"{prefix}.{name}" if prefix else name))
+    return "\n".join(lines)
+
+
+def _moved_paths(data: dict[str, Any], base_dir: Path, out_dir: Path) -> None:
+    """Paths in the config (the sim model, a LinuxCNC comp file) made relative to where the
+    follow-up config is written."""
+    for section, key in (("sim", "model"), ("axis_driver", "comp_file")):
+        value = data.get(section, {}).get(key)
+        if value:
+            data[section][key] = os.path.relpath((base_dir / value).resolve(), out_dir.resolve())
+
+
+def plan_follow_up(unresolved: list[dict[str, Any]], remaining: list[Any], data: CampaignData, final: Fit,
+                   config: Config, reversal_um: float | None, noise_um: float, out: Path,
+                   sources: list[str]) -> FollowUp | None:
+    """The follow-up campaign for the `unresolved` groups of a discovery on `data`, from the first
+    campaign's `config` (written to `out`), `final` the model fitted; None when nothing is unresolved. `reversal_um`: the size
+    of a reversal kept as a stand-in or named rival (sets the dwell part's points)."""
+    if not unresolved:
+        return None
+    parts: list[Part] = []
+    unplanned: list[str] = []
+    targets: list[float] | None = None
+    capture: dict[str, Any] = {}
+    plan: dict[str, Any] = {}
+    cycles = 1
+    points_needed = 0
+    first_cycles = config.plan.cycles
+    for group in unresolved:
+        names = set(group["effects"])
+        if "settling" in names:
+            waits = data.w if data.w is not None else np.array([[config.plan.dwell_s]])
+            high = max(WAITS_S[1], 1.25 * float(np.nanmax(waits)))
+            low = max(high / 10, WAITS_S[0] * high / WAITS_S[1])
+            dwell = (low + high) / 2
+            capture.update(method="dwell", average_s=DWELL_WINDOW_S)
+            plan.update(dwell_s=round(dwell, 3), dwell_jitter=round((high - low) / (high + low), 3))
+            points_needed = max(points_needed, _dwell_points(reversal_um or 0.0, noise_um))
+            parts.append(Part(sorted(names), (
+                f"a reversal{'' if reversal_um is None else f' of {abs(reversal_um):.2g} µm'} that backlash and "
+                f"settling explain alike: waits before capture from {low:.2g} to {high:.2g} s (a decade, the dwell "
+                f"method with a {DWELL_WINDOW_S:g} s window): settling fades with the wait, backlash does not; at "
+                f"least {points_needed} points tell them apart by {SEPARATION:g} standard errors at a noise of "
+                f"{noise_um:.2g} µm")))
+        elif "periodic_lead" in names:
+            periods = _periods_of(group, remaining)
+            if not periods:
+                unplanned.append(f"{' or '.join(group['effects'])}: no candidate period to plan for")
+                continue
+            targets, why = _cluster(data, final, periods, group.get("delta_bic") or [], noise_um)
+            plan.update(offsets="golden", offset_fraction=CLUSTER_OFFSET)
+            parts.append(Part(sorted(names), why))
+        elif names & {"thermal_drift", "environment"}:
+            cycles = max(cycles, 2 * first_cycles)
+            parts.append(Part(sorted(names), (
+                f"a slope that changes from run to run or not at all: {2 * first_cycles} runs (the first campaign "
+                f"had {first_cycles}) over a longer time; a drift changes from run to run, a scale does not")))
+        elif names <= {"backlash", "position_dependent_backlash"}:
+            targets = targets or [round(float(v), 3) for v in _targets(data)]
+            parts.append(Part(sorted(names), "a reversal that may grow along the travel: both directions at "
+                                             "targets over the whole travel"))
+        else:
+            unplanned.append(f"{' or '.join(group['effects'])}: {group.get('how_to_tell', '')}")
+    if not parts:
+        return None
+    targets = targets or _few(data)
+    if points_needed:
+        cycles = max(cycles, 2, math.ceil(points_needed / (2 * len(targets))))
+    plan.update(targets=targets, cycles=cycles)
+    raw = {section: dict(table) for section, table in config.data.items()}
+    raw.setdefault("plan", {})
+    for key in ("start", "length", "count"):
+        raw["plan"].pop(key, None)
+    raw["plan"].update(plan)
+    raw.setdefault("capture", {}).update(capture)
+    _moved_paths(raw, config.base_dir, out.parent)
+    said = "; ".join(" or ".join(p.effects) for p in parts)
+    raw.setdefault("campaign", {})["description"] = f"follow-up of {', '.join(sources)}: to tell {said}"
+    followed = parse_config(toml_text(raw), str(out))
+    plan_built = build_plan(followed)
+    check_plan(plan_built, followed.axis)
+    duration = estimate_duration_s(plan_built, followed.axis)
+    first = estimate_duration_s(build_plan(config), config.axis)
+    header = [f"# Follow-up campaign written by `axiscal discover {' '.join(sources)} --follow-up`.",
+              "# It would separate what the first campaign left unresolved; measure it on the same axis, then",
+              f"# fit both together: axiscal discover {' '.join(sources)} NEW/points.csv",
+              *(f"# - {', '.join(p.effects)}: {p.why}" for p in parts),
+              *(f"# - not planned: {u}" for u in unplanned),
+              f"# Machine time (estimate): {duration / 60:.1f} min; the first campaign's: {first / 60:.1f} min.", ""]
+    text = "\n".join(header) + "\n" + toml_text(raw)
+    return FollowUp(followed, text, parts, unplanned, duration, first)

@@ -1,0 +1,271 @@
+"""An error outside the vocabulary: where the residual is not noise and no effect of the model has its
+shape (a local defect of the screw, a worn zone, a scale joint), locate it and add a smooth local
+term for it (campaign.discovery.effects.local_shape: a Gaussian bump, width at half height).
+
+The search: a grid of centres (a quarter of the target spacing apart) and widths (from twice the
+target spacing, so that at least three targets see it at half its height or more, to half the
+travel), each bump fitted beside the model with the model projected out; the best is refined
+(scipy.optimize.least_squares on centre and width). It is added only when it passes the tests every
+effect passes (campaign.discovery.search: BIC, F-test, leave-one-target-out cross-validation), with
+the look-elsewhere factor of its search (LOOK_ELSEWHERE). Then: one amplitude for both directions,
+or one per direction when that is significantly better (nested F-test); and whether it changes with
+time (an F-test of a term that grows linearly in time, reported, not added).
+
+Units: positions mm (deg), deviations µm (arcsec), times s (or point order).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from campaign.discovery.data import CampaignData
+from campaign.discovery.effects import local_shape
+from campaign.discovery.fit import Fit, Term, bic, cv_rms_um, design, f_test_p, fixed_deviation, linear_fit
+
+ALPHA = 0.001
+"""Largest p-value of the F-test (after the look-elsewhere factor), as for the vocabulary."""
+BIC_MARGIN = 2.0
+WIDTHS = 8
+"""Widths tried on the grid, logarithmically spaced."""
+MIN_WIDTH_SPACINGS = 2.0
+"""The narrowest bump looked for, in target spacings (width at half height): three targets see it."""
+HOPELESS = 10.0
+"""A bump whose ΔBIC on the grid (with the look-elsewhere factor) is above this is not refined."""
+MIN_SEEN = 3
+"""A bump is looked for only where at least this many targets see it at half its height or more:
+fewer cannot tell its size from its width, nor a bump from one target's odd reading."""
+
+
+@dataclass
+class LocalError:
+    """A local error found: its term (in the final model), parameters (amplitude_um, or plus_um and
+    minus_um per direction; centre_mm; width_mm, at half height), their 1-σ errors, which
+    directions show it ("both", "+", "-"), whether it changes with time (time_p: F-test p of a
+    linear growth in time), the tests it passed, and the gap without it, µm."""
+
+    term: Term
+    params: dict[str, float]
+    errors: dict[str, float]
+    directions: str
+    time_p: float
+    time_change_um: float
+    explained_pct: float
+    delta_bic: float
+    p_value: float
+    cv_before_um: float
+    cv_after_um: float
+    gap_without_um: float = 0.0
+
+    @property
+    def size_um(self) -> float:
+        """The peak of the bump, µm (the larger of the two directions when they differ)."""
+        if "amplitude_um" in self.params:
+            return self.params["amplitude_um"]
+        return max(self.params["plus_um"], self.params["minus_um"], key=abs)
+
+    def sentence(self, unit: str = "mm", dev: str = "µm") -> str:
+        """'a local error of +2.4 µm at 214 mm, width 18 mm, both directions'."""
+        p = self.params
+        sides = {"both": "both directions", "+": "the + direction only", "-": "the − direction only"}[self.directions]
+        if self.directions == "both" and "plus_um" in p:
+            sides = f"both directions ({p['plus_um']:+.2g} {dev} in +, {p['minus_um']:+.2g} {dev} in −)"
+        return (f"a local error of {self.size_um:+.2g} {dev} at {p['centre_mm']:.4g} {unit}, width "
+                f"{p['width_mm']:.3g} {unit}, {sides}")
+
+    def time_text(self) -> str:
+        if self.time_p < ALPHA:
+            return f"it changes with time ({self.time_change_um:+.2g} µm over the campaign, F-test p = {self.time_p:.2g})"
+        return f"it does not change with time (F-test p = {self.time_p:.2g})"
+
+    def as_dict(self) -> dict:
+        return {"sentence": self.sentence(), "effect": self.term.name,
+                "params": {k: round(v, 4) for k, v in self.params.items()},
+                "standard_errors": {k: float(f"{v:.3g}") for k, v in self.errors.items()},
+                "directions": self.directions, "time_p_value": float(f"{self.time_p:.3g}"),
+                "changes_with_time": bool(self.time_p < ALPHA), "explained_pct": round(self.explained_pct, 2),
+                "delta_bic": round(self.delta_bic, 2), "p_value": float(f"{self.p_value:.3g}"),
+                "cv_before_um": round(self.cv_before_um, 4), "cv_after_um": round(self.cv_after_um, 4),
+                "gap_without_um": round(self.gap_without_um, 4)}
+
+
+def _targets(data: CampaignData) -> np.ndarray:
+    return np.unique(np.round(data.x, 6))
+
+
+def width_range(data: CampaignData) -> tuple[float, float] | None:
+    """The widths looked for, mm: from MIN_WIDTH_SPACINGS target spacings (the median spacing) to
+    half the travel; None when the targets are too few for that."""
+    targets = _targets(data)
+    if len(targets) < 5:
+        return None
+    low, high = MIN_WIDTH_SPACINGS * float(np.median(np.diff(targets))), float(np.ptp(targets)) / 2
+    return (low, high) if high > low else None
+
+
+def seen_at(targets: np.ndarray, centre_mm: np.ndarray, width_mm: float) -> np.ndarray:
+    """How many targets each bump sees at half its height or more (within width/2 of its centre)."""
+    return (np.abs(targets[None, :] - np.asarray(centre_mm)[..., None]) <= width_mm / 2).sum(axis=-1)
+
+
+def look_elsewhere(data: CampaignData) -> float:
+    """About how many independent bumps the search tries: one per target and octave of width."""
+    widths = width_range(data)
+    octaves = 1.0 if widths is None else 1 + math.log2(widths[1] / widths[0])
+    return len(_targets(data)) * octaves
+
+
+def local_term(centre_mm: float, width_mm: float, by_direction: bool = False) -> Term:
+    name = "local_error_by_direction" if by_direction else "local_error"
+    return Term(name, {}, False, {"centre_mm": float(centre_mm), "width_mm": float(width_mm)})
+
+
+def _grid_best(data: CampaignData, fit: Fit, widths: tuple[float, float]) -> tuple[float, float]:
+    """The (centre, width) on the grid whose bump explains most of the residual beside the model."""
+    targets = _targets(data)
+    step = float(np.median(np.diff(targets))) / 4
+    centres = np.arange(targets[0], targets[-1] + step / 2, step)
+    q, _ = np.linalg.qr(design(data, fit.terms)[0])
+    r = data.y - fit.prediction
+    best, power_best = (float(centres[0]), widths[0]), -1.0
+    for width in np.geomspace(*widths, WIDTHS):
+        g = local_shape(data.x[:, None], centres[None, :], width)
+        g -= q @ (q.T @ g)
+        norm = (g * g).sum(0)
+        power = np.where(norm > 1e-12, (r @ g) ** 2 / np.maximum(norm, 1e-300), 0.0)
+        power[seen_at(targets, centres, width) < MIN_SEEN] = 0.0
+        i = int(np.argmax(power))
+        if power[i] > power_best:
+            best, power_best = (float(centres[i]), float(width)), float(power[i])
+    return best
+
+
+def _refine(data: CampaignData, terms: list[Term], start: tuple[float, float], widths: tuple[float, float],
+            by_direction: bool) -> Fit:
+    """Centre and width of the local term beside `terms`, by least squares from `start`."""
+    from scipy import optimize
+
+    targets = _targets(data)
+    lower, upper = np.array([targets[0], widths[0]]), np.array([targets[-1], widths[1]])
+
+    def fit_at(v: np.ndarray) -> Fit:
+        return linear_fit(data, [*terms, local_term(v[0], v[1], by_direction)])
+
+    x0 = np.clip(np.array(start, dtype=float), lower + 1e-9, upper - 1e-9)
+    result = optimize.least_squares(lambda v: data.y - fit_at(v).prediction, x0, bounds=(lower, upper),
+                                    x_scale=np.array([widths[0], widths[0]]), diff_step=1e-4)
+    best, first = fit_at(result.x), fit_at(x0)
+    return best if best.rss <= first.rss else first
+
+
+def _errors(data: CampaignData, fit: Fit, step: float = 1e-3) -> dict[str, float]:
+    """1-σ errors of the local term's amplitudes, centre and width (cov = s²·(JᵀJ)⁻¹ over every
+    coefficient of the fit and the two shape parameters, the other shapes held)."""
+    a, slices = design(data, fit.terms)
+    i = next(k for k, t in enumerate(fit.terms) if t.name.startswith("local_error"))
+    term, coefs = fit.terms[i], fit.coefs[i]
+    extra = []
+    for key in ("centre_mm", "width_mm"):
+        h = step * term.shape["width_mm"]
+        moved = replace(term, shape={**term.shape, key: term.shape[key] + h})
+        extra.append((moved.columns(data) - term.columns(data)) @ coefs / h)
+    jac = np.column_stack([a, *extra])
+    n, p = jac.shape
+    if n <= p:
+        return {}
+    cov = np.linalg.pinv(jac.T @ jac) * fit.rss / (n - p)
+    names = ["amplitude_um"] if term.name == "local_error" else ["plus_um", "minus_um"]
+    out = {name: float(math.sqrt(max(cov[j, j], 0.0))) for name, j in zip(names, range(slices[i].start, slices[i].stop))}
+    out["centre_mm"] = float(math.sqrt(max(cov[p - 2, p - 2], 0.0)))
+    out["width_mm"] = float(math.sqrt(max(cov[p - 1, p - 1], 0.0)))
+    return out
+
+
+def _time_test(data: CampaignData, fit: Fit) -> tuple[float, float]:
+    """F-test p of the local error growing linearly in time beside `fit` (its shape held), and the
+    change that growth would have over the campaign, µm."""
+    term = next(t for t in fit.terms if t.name.startswith("local_error"))
+    tm = np.nanmean(data.t, axis=1)
+    span = float(np.ptp(tm)) or 1.0
+    growth = term.columns(data).sum(axis=1) * (tm - tm.mean()) / span
+    base = fixed_deviation(data, fit.terms)
+    full = np.column_stack([design(data, fit.terms)[0], growth])
+    beta = np.linalg.lstsq(full, data.y - base, rcond=None)[0]
+    prediction = base + full @ beta
+    grown = replace(fit, prediction=prediction, rss=float(np.sum((data.y - prediction) ** 2)),
+                    n_params=fit.n_params + 1)
+    return f_test_p(fit, grown, len(data)), float(beta[-1])
+
+
+def find_local(data: CampaignData, fit: Fit) -> LocalError | None:
+    """The local error beside `fit`'s model, or None when no bump passes the tests."""
+    widths = width_range(data)
+    if widths is None or fit.rss <= 0:
+        return None
+    n = len(data)
+    start = _grid_best(data, fit, widths)
+    factor = look_elsewhere(data)
+    on_grid = linear_fit(data, [*fit.terms, local_term(*start)])
+    if bic(on_grid, n) - bic(fit, n) + 2 * math.log(factor) > HOPELESS:
+        return None  # refining the shape would not bring it near the tests
+    best = _refine(data, fit.terms, start, widths, by_direction=False)
+    term = next(t for t in best.terms if t.name == "local_error")
+    split = linear_fit(data, [*fit.terms, replace(term, name="local_error_by_direction")])
+    by_direction = f_test_p(best, split, n) < ALPHA
+    if by_direction:
+        best = _refine(data, fit.terms, (term.shape["centre_mm"], term.shape["width_mm"]), widths, True)
+    shape = next(t for t in best.terms if t.name.startswith("local_error")).shape
+    if seen_at(_targets(data), np.array(shape["centre_mm"]), shape["width_mm"]) < MIN_SEEN:
+        return None
+    delta_bic = bic(best, n) - bic(fit, n) + 2 * math.log(factor)
+    p_value = min(1.0, f_test_p(fit, best, n) * factor)
+    groups = data.target_index
+    cv_before, cv_after = cv_rms_um(data, fit.terms, groups), cv_rms_um(data, best.terms, groups)
+    if not (delta_bic < -BIC_MARGIN and p_value < ALPHA and cv_after < cv_before):
+        return None
+    return describe(data, best, explained_pct=100 * (1 - best.rss / fit.rss), delta_bic=delta_bic,
+                    p_value=p_value, cv_before_um=cv_before, cv_after_um=cv_after, gap_without_um=fit.rms_um(data.y))
+
+
+def passes(data: CampaignData, without: Fit, with_local: Fit) -> bool:
+    """Does the local term in `with_local` pass the tests against the same model without it (BIC
+    and F-test with the search's look-elsewhere factor, leave-one-target-out CV)?"""
+    n, factor = len(data), look_elsewhere(data)
+    delta_bic = bic(with_local, n) - bic(without, n) + 2 * math.log(factor)
+    p_value = min(1.0, f_test_p(without, with_local, n) * factor)
+    groups = data.target_index
+    return bool(delta_bic < -BIC_MARGIN and p_value < ALPHA
+                and cv_rms_um(data, with_local.terms, groups) < cv_rms_um(data, without.terms, groups))
+
+
+def describe(data: CampaignData, fit: Fit, **tests: float) -> LocalError:
+    """The LocalError of the local term in `fit`: parameters, errors, directions, time."""
+    i = next(k for k, t in enumerate(fit.terms) if t.name.startswith("local_error"))
+    term = fit.terms[i]
+    params = fit.params()[term.name]
+    errors = _errors(data, fit)
+    directions = "both"
+    if term.name == "local_error_by_direction":
+        shows = {side: abs(params[key]) > 3 * errors.get(key, math.inf) for side, key in (("+", "plus_um"),
+                                                                                          ("-", "minus_um"))}
+        if shows["+"] != shows["-"]:
+            directions = "+" if shows["+"] else "-"
+    time_p, change = _time_test(data, fit)
+    return LocalError(term, params, errors, directions, time_p, change, **tests)
+
+
+def refit_local(data: CampaignData, fit: Fit, found: LocalError) -> tuple[Fit, LocalError]:
+    """After the vocabulary was searched again beside the local term: its centre and width refined
+    beside the final model, and its description from that fit (the tests it passed are kept)."""
+    others = [t for t in fit.terms if not t.name.startswith("local_error")]
+    widths = width_range(data) or (found.params["width_mm"], found.params["width_mm"])
+    term = found.term
+    refined = _refine(data, others, (term.shape["centre_mm"], term.shape["width_mm"]), widths,
+                      term.name == "local_error_by_direction")
+    best = refined if refined.rss <= fit.rss else fit
+    again = describe(data, best, explained_pct=found.explained_pct, delta_bic=found.delta_bic,
+                     p_value=found.p_value, cv_before_um=found.cv_before_um, cv_after_um=found.cv_after_um,
+                     gap_without_um=linear_fit(data, others).rms_um(data.y))
+    return best, again

@@ -1,0 +1,251 @@
+"""Issue 24, items 2 to 4 and the bow left from issue 26, in the fast tier (the fast simulator, tables
+written as the recorder writes them): several campaigns fitted together, the follow-up campaign
+discover writes, an error outside the vocabulary, and the bow beside an unresolved period. The
+acceptance on the simulated machine is tests/test_discovery_loop_machine.py."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pytest
+
+from campaign.config import load_config, parse_config
+from campaign.discovery.data import campaign_data, join_campaigns
+from campaign.discovery.effects import FORMS
+from campaign.discovery.search import discover
+from campaign.discovery.simulate import simulate_campaign
+from campaign.model import EFFECT_PARAMS, ErrorModel
+from campaign.pointtable import write_points
+from tests.conftest import DATA
+
+USER = (DATA / "configs" / "horizontal-sim.toml").read_text()
+"""The shipped horizontal config: 11 targets over 600 mm, golden offsets, 5 runs."""
+BOW = {"linear_scale": {"ppm": -12.4},
+       "nonlinear_lead": {"p2_um": 0.49, "p3_um": 0.73, "start_mm": 0.0, "end_mm": 600.0},
+       "noise": {"sigma_um": 0.34, "reading_sigma_um": 0.05}}
+BUMP = {"amplitude_um": 3.0, "centre_mm": 250.0, "width_mm": 100.0, "direction": 0.0}
+
+
+def user_config(count: int = 11, seed: int = 3):
+    """The shipped config with a fixed dwell (the fast simulator models the dwell capture)."""
+    text = USER.replace("count = 11", f"count = {count}").replace('method = "stable"', 'method = "dwell"')
+    return parse_config(re.sub(r"(\[plan\][^\[]*?)seed = \d+", lambda m: m.group(1) + f"seed = {seed}", text,
+                               flags=re.DOTALL))
+
+
+def found(config, machine: dict, seed: int, **kwargs):
+    table = simulate_campaign(config, ErrorModel(machine), seed=seed, **kwargs)
+    return discover(campaign_data(table), ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
+
+
+def test_the_simulators_bump_is_not_in_the_vocabulary():
+    """The two lists are kept apart on purpose: the simulated machine can make an error that
+    discovery has no name for."""
+    assert "local_defect" in EFFECT_PARAMS and "local_defect" not in FORMS
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_local_bump_is_located_and_nothing_soaks_it_up(seed):
+    """21 targets (30 mm apart), a +3 µm bump 100 mm wide at 250 mm (three targets see it at half its height or more) beside the bow: located within
+    its width, the gap shrinks to the noise, no vocabulary effect named for it."""
+    result = found(user_config(count=21), {**BOW, "local_defect": BUMP}, seed)
+    assert result.local is not None, result.notes
+    p = result.local.params
+    assert abs(p["centre_mm"] - 250.0) <= 100.0 and 50.0 <= p["width_mm"] <= 200.0
+    assert p["amplitude_um"] == pytest.approx(3.0, abs=0.6) and result.local.directions == "both"
+    assert set(result.added) <= {"nonlinear_lead"} and not result.unresolved
+    assert result.gap_after_um <= 1.3 * result.noise_um < result.local.gap_without_um
+    assert "no effect of the model" not in result.local.sentence()  # the command adds that
+    assert re.fullmatch(r"a local error of \+\d\.?\d* µm at \d+\.?\d* mm, width \d+\.?\d* mm, both directions",
+                        result.local.sentence())
+
+
+def test_a_bump_in_one_direction_says_so():
+    result = found(user_config(count=21), {**BOW, "local_defect": {**BUMP, "direction": -1.0}}, 2)
+    assert result.local is not None and result.local.directions == "-"
+    assert "backlash" not in result.added and "position_dependent_backlash" not in result.added
+
+
+@pytest.mark.parametrize("seed", range(1, 9))
+def test_no_local_error_where_there_is_none(seed):
+    """The null case: the bow alone, 11 and 21 targets; the local search adds nothing."""
+    for count in (11, 21):
+        assert found(user_config(count=count), BOW, seed).local is None
+
+
+def test_a_start_model_with_the_simulators_bump(cli, tmp_path):
+    table = simulate_campaign(user_config(count=21), ErrorModel({**BOW, "local_defect": BUMP}), seed=1)
+    write_points(tmp_path / "p.csv", table)
+    (tmp_path / "half.toml").write_text("[effects.linear_scale]\n[effects.local_defect]\namplitude_um = 3.0\n")
+    said = cli("discover", tmp_path / "p.csv", "--model", tmp_path / "half.toml")
+    assert said.code == 2 and said.err.startswith("error:") and "local_defect" in said.err
+    whole = "".join(f"{k} = {v!r}\n" for k, v in BUMP.items())
+    (tmp_path / "whole.toml").write_text(f"[effects.linear_scale]\n[effects.local_defect]\n{whole}")
+    held = json.loads(cli("discover", tmp_path / "p.csv", "--model", tmp_path / "whole.toml", "--json").out)
+    assert held["local"] is None and held["gap_after_um"] <= 1.3 * held["noise_um"]
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_the_bow_beside_an_unresolved_period_is_not_biased(seed):
+    """A 1 µm, 10 mm lead at 11 targets stays unresolved; the bow fitted without it took the wave's
+    values at the targets: P3 came out 0.30 to 0.44 µm low on these seeds (true 0.73 µm) with the
+    old code. Averaged over the candidate periods it is within 0.15 µm, and both within 3 reported σ."""
+    lead = {"periodic_lead": {"amplitude_um": 1.0, "period_mm": 10.0, "phase_rad": 0.3}}
+    result = found(user_config(seed=seed), {**BOW, **lead}, seed)
+    assert [u["effects"] for u in result.unresolved] == [["periodic_lead"]]
+    bow, error = result.params()["nonlinear_lead"], result.errors["nonlinear_lead"]
+    for key, true in (("p2_um", 0.49), ("p3_um", 0.73)):
+        assert abs(bow[key] - true) < 3 * error[key], (key, bow, error)
+    assert abs(bow["p3_um"] - 0.73) < 0.15, bow
+    assert "periodic_lead" not in result.params()  # nothing added for the period itself
+
+
+def test_campaigns_fitted_together_share_effects_and_each_has_its_offset(cli, tmp_path):
+    config = user_config()
+    machine = {**BOW, "backlash": {"b_um": 2.0}}
+    first = simulate_campaign(config, ErrorModel(machine), seed=1)
+    second = simulate_campaign(config, ErrorModel(machine), seed=2)
+    second.deviation = second.deviation + 5.0  # a new laser datum
+    write_points(tmp_path / "a.csv", first)
+    write_points(tmp_path / "b.csv", second)
+    out = json.loads(cli("discover", tmp_path / "a.csv", tmp_path / "b.csv", "--json").out)
+    assert out["campaigns"] == [str(tmp_path / "a.csv"), str(tmp_path / "b.csv")]
+    assert out["offsets_um"][1] - out["offsets_um"][0] == pytest.approx(5.0, abs=0.2)
+    assert out["gap_after_um"] <= 1.3 * out["noise_um"]
+    assert len(out["disagreement_after"]["by_run"]) == 10  # runs numbered on: 1-5, then 6-10
+    data = join_campaigns([campaign_data(first), campaign_data(second)], ["a", "b"])
+    assert data.campaigns == 2 and float(np.nanmax(data.t)) < 1.01 * float(np.nanmax(campaign_data(first).t))
+
+
+def test_campaigns_with_and_without_a_time_column_are_refused(cli, tmp_path):
+    table = simulate_campaign(user_config(), ErrorModel(BOW), seed=1)
+    write_points(tmp_path / "a.csv", table)
+    lines = (tmp_path / "a.csv").read_text().splitlines()
+    header = next(i for i, line in enumerate(lines) if line.startswith("run,"))
+    names = lines[header].split(",")
+    keep = [i for i, n in enumerate(names) if n != "time_s"]
+    cut = lines[:header] + [",".join(line.split(",")[i] for i in keep) for line in lines[header:]]
+    (tmp_path / "b.csv").write_text("\n".join(cut) + "\n")
+    said = cli("discover", tmp_path / "a.csv", tmp_path / "b.csv")
+    assert said.code == 2 and said.err.startswith("error:") and len(said.err.strip().splitlines()) == 1
+
+
+def written_follow_up(cli, tmp_path, config_text: str, machine: dict, seed: int = 1):
+    """A first campaign from `config_text` on the fast simulator, recorded beside its config; then
+    discover --follow-up. Returns (the first table's path, its config, discover's JSON)."""
+    directory = tmp_path / "first"
+    directory.mkdir()
+    (directory / "config.toml").write_text(config_text)
+    config = load_config(directory / "config.toml")
+    write_points(directory / "points.csv", simulate_campaign(config, ErrorModel(machine), seed=seed))
+    said = cli("discover", directory / "points.csv", "--follow-up", "-o", tmp_path / "follow.toml", "--json")
+    assert said.code == 0, said.err
+    return directory / "points.csv", config, json.loads(said.out)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+@pytest.mark.parametrize("truth", ["backlash", "settling"])
+def test_the_follow_up_tells_backlash_from_settling(cli, tmp_path, truth, seed):
+    """A fixed-dwell first campaign (the ISO test) with a reversal: backlash or settling, cannot tell;
+    the follow-up discover writes (waits over a decade), simulated and fitted with the first,
+    names the true one and leaves nothing unresolved, in less machine time than the first."""
+    effect = {"backlash": {"backlash": {"b_um": 1.5}}, "settling": {"settling": {"e0_um": 3.0, "tau_s": 2.0}}}[truth]
+    text = user_config().text.replace('method = "stable"', 'method = "dwell"')
+    first, _, out = written_follow_up(cli, tmp_path, text, {**BOW, **effect}, seed)
+    assert any(set(u["effects"]) == {"backlash", "settling"} for u in out["unresolved"])
+    follow = out["follow_up"]
+    assert follow["capture"] == "dwell" and follow["duration_s"] <= follow["first_duration_s"]
+    assert any("decade" in p["why"] for p in follow["parts"])
+    assert cli("plan", tmp_path / "follow.toml").code == 0
+    config = load_config(tmp_path / "follow.toml")
+    assert config.plan.dwell_s * (1 + config.plan.dwell_jitter) >= 10 * config.plan.dwell_s * (
+        1 - config.plan.dwell_jitter) * 0.99
+    second = simulate_campaign(config, ErrorModel({**BOW, **effect}), seed=seed + 100,
+                               dwell_jitter=config.plan.dwell_jitter)
+    write_points(tmp_path / "second.csv", second)
+    both = json.loads(cli("discover", first, tmp_path / "second.csv", "--json").out)
+    assert truth in both["added"] and not both["unresolved"], (both["added"], both["unresolved"])
+    assert set(both["added"]) <= {truth, "nonlinear_lead"}
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_the_follow_up_pins_an_aliased_period(cli, tmp_path, seed):
+    """A 10 mm lead at 11 targets: periods fit alike; the follow-up is a cluster of targets at most a
+    quarter of the shortest candidate apart, shorter than the first campaign; fitted together, the
+    period is named within 2 %."""
+    lead = {"periodic_lead": {"amplitude_um": 1.0, "period_mm": 10.0, "phase_rad": 0.3}}
+    first, _, out = written_follow_up(cli, tmp_path, user_config(seed=seed).text, {**BOW, **lead}, seed)
+    candidates = next(u["periods_mm"] for u in out["unresolved"] if u["effects"] == ["periodic_lead"])
+    follow = out["follow_up"]
+    assert follow["duration_s"] <= follow["first_duration_s"]
+    config = load_config(tmp_path / "follow.toml")
+    from campaign.plan import build_plan
+
+    targets = build_plan(config).targets
+    assert max(np.diff(targets)) <= min(candidates) / 4 and np.ptp(targets) >= 2 * 10.0
+    second = simulate_campaign(config, ErrorModel({**BOW, **lead}), seed=seed + 100)
+    write_points(tmp_path / "second.csv", second)
+    both = json.loads(cli("discover", first, tmp_path / "second.csv", "--json").out)
+    assert "periodic_lead" in both["added"] and not both["unresolved"]
+    assert both["model"]["periodic_lead"]["period_mm"] == pytest.approx(10.0, rel=0.02)
+
+
+def test_the_follow_up_stays_within_the_limits_and_says_why(cli, tmp_path):
+    lead = {"periodic_lead": {"amplitude_um": 1.0, "period_mm": 10.0, "phase_rad": 0.3}}
+    text = user_config().text.replace("soft_limit_max = 610.0", "soft_limit_max = 601.5")
+    _, config, _ = written_follow_up(cli, tmp_path, text, {**BOW, **lead})
+    said = (tmp_path / "follow.toml").read_text()
+    assert said.startswith("# Follow-up campaign") and "Machine time (estimate)" in said
+    followed = load_config(tmp_path / "follow.toml")
+    assert followed.axis == config.axis and cli("plan", tmp_path / "follow.toml").code == 0
+
+
+def test_nothing_unresolved_writes_no_follow_up(cli, tmp_path):
+    _, _, out = written_follow_up(cli, tmp_path, user_config().text, BOW)
+    assert out["follow_up"] is None and not (tmp_path / "follow.toml").exists()
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["--follow-up"], "-o"),
+    (["-o", "x.toml"], "--follow-up"),
+    (["--follow-up", "-o", "x.json"], ".toml"),
+    (["--follow-up", "-o", "x.toml", "--config", "nope.toml"], "nope.toml"),
+])
+def test_follow_up_options_are_checked(cli, tmp_path, args, fragment):
+    table = simulate_campaign(user_config(), ErrorModel(BOW), seed=1)
+    write_points(tmp_path / "p.csv", table)
+    said = cli("discover", tmp_path / "p.csv", *args)
+    assert said.code == 2 and said.err.startswith("error:") and fragment in said.err
+
+
+FIVE_TARGETS = ("run,direction,target_mm,deviation_um,time_s,capture_wait_s,samples\n"
+                "1,+,152.579827,-2.3188,25.9,3.3,2\n"
+                "1,+,290.237031,-4.4211,46,2.8,2\n"
+                "1,+,457.702636,-6.5805,68.3,1.3,2\n"
+                "1,+,595.358840,-6.8706,89.8,4.2,2\n"
+                "1,-,595.358840,-5.3515,91.8,0.6,2\n"
+                "1,-,457.702636,-5.0399,110,0.9,2\n"
+                "1,-,290.237031,-3.2488,133.5,2.5,2\n"
+                "1,-,152.579827,-0.7688,155.6,4.8,2\n"
+                "1,-,0.000000,0.7988,179,4.2,2\n"
+                "2,+,0.000000,-1.1206,182.2,1.8,2\n"
+                "2,+,152.579827,-2.3379,204.6,3.2,2\n"
+                "2,+,290.237031,-4.5923,223.4,1.5,2\n"
+                "2,+,457.702636,-6.5940,246.3,1.9,2\n"
+                "2,+,595.358840,-6.6019,264.3,0.7,2\n"
+                "2,-,595.358840,-5.8117,266.3,0.6,2\n"
+                "2,-,457.702636,-5.6290,287.7,4.1,2\n"
+                "2,-,290.237031,-3.2408,313.1,4.4,2\n"
+                "2,-,152.579827,-1.0203,335.4,5,2\n"
+                "2,-,0.000000,0.5709,357.2,2.6,2\n")
+"""A follow-up recorded on the simulated machine: 5 targets, 2 runs, waits 0.5 to 5 s."""
+
+
+def test_a_follow_up_alone_is_read(cli, tmp_path):
+    """Its periodogram has no peak, which is no internal error (it was a KeyError)."""
+    (tmp_path / "p.csv").write_text(FIVE_TARGETS)
+    said = cli("discover", tmp_path / "p.csv")
+    assert said.code == 0, said.err
+    assert "backlash" in said.out
