@@ -13,6 +13,14 @@ import pytest
 from campaign.cli import main
 from tests.pg_server import postgres_server  # noqa: F401 - the session's PostgreSQL server, a fixture
 
+
+def sweep(fast, *more):
+    """Parameters of a sweep over seeds (or cases): the first runs in the fast tier, the others are
+    marked `machine` (the marker's "sweeps many simulated campaigns"), so `make test` runs them all
+    and the fast tier stays under a minute run plain."""
+    return [fast, *(pytest.param(m, marks=pytest.mark.machine) for m in more)]
+
+
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "data"
 PAPER = DATA / "paper-2022-beckhoff-press"

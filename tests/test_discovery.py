@@ -14,6 +14,7 @@ from campaign.discovery.search import discover
 from campaign.discovery.simulate import Environment, simulate_campaign
 from campaign.model import ErrorModel
 from campaign.plan import build_plan
+from tests.conftest import sweep
 
 PLAN = """
 [axis]
@@ -110,7 +111,7 @@ def test_one_hidden_effect_is_named_and_recovered(hidden):
 
 
 @pytest.mark.parametrize("hidden", list(TIME_CAMPAIGNS))
-@pytest.mark.parametrize("seed", [3, 4])
+@pytest.mark.parametrize("seed", sweep(3, 4))
 def test_time_constants_are_recovered_within_15_percent_on_a_campaign_designed_for_them(hidden, seed):
     plan, true_params, dwell_range = TIME_CAMPAIGNS[hidden]
     config = parse_config(plan)
@@ -130,6 +131,7 @@ def test_time_constants_are_recovered_within_15_percent_on_a_campaign_designed_f
     assert result.gap_after_um <= 1.3 * NOISE_UM
 
 
+@pytest.mark.machine  # a sweep of simulated campaigns, about 3 s of CPU
 def test_time_constants_on_the_short_campaign_are_only_known_to_about_12_percent():
     """What PLAN's 12-minute campaign can do: the reported standard error of tau is 7-25 %, so a
     15 % check would fail on a fair share of seeds; the errors stay within 3 standard errors."""
@@ -230,7 +232,7 @@ def test_environment_material_is_named_and_alpha_recovered_when_the_air_log_move
     assert "environment" not in result.final_model().effects  # it follows one campaign's log
 
 
-@pytest.mark.parametrize("seed", [3, 4, 5])
+@pytest.mark.parametrize("seed", sweep(3, 4, 5))
 def test_thermal_drift_with_a_flat_environment_log_is_not_named_environment(seed):
     flat = Environment(material_temp_c=(20.0, 20.0))
     result = run_discovery({**BASE, "thermal_drift": HIDDEN["thermal_drift"][0]}, ["linear_scale", "backlash"],

@@ -29,6 +29,7 @@ def user_config():
     return parse_config(text[:text.index("[capture]")] + "[capture]\naverage_s = 0.5\n")
 
 
+@pytest.mark.machine  # a sweep of 30 simulated campaigns, 1.5 s of CPU: the fast tier keeps the single-campaign checks
 def test_a_given_period_s_amplitude_and_phase_errors_match_their_spread_over_campaigns():
     start = ErrorModel({"linear_scale": {}, "backlash": {}, "periodic_lead": {"period_mm": 10.0}})
     given = {"linear_scale": set(), "backlash": set(), "periodic_lead": {"period_mm"}}

@@ -5,6 +5,7 @@ Every protocols/st/*.st file is parsed, so files added later are covered too.
 
 from __future__ import annotations
 
+import functools
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -47,17 +48,21 @@ def _type_text(init) -> str:
     return str(getattr(init, "spec", init))
 
 
-def _parse_file(path: Path) -> list:
+@functools.cache
+def parse_st(path: Path) -> tuple:
+    """The blark parse of one Structured Text file, transformed; each file is parsed once a
+    session (the declarations, the parse test and the correction planner's test share it)."""
     results = list(parse(path))
     errors = [r.exception for r in results if r.exception is not None]
     assert results and not errors, f"{path.name}: {errors}"
-    return [r.transform() for r in results]
+    return tuple(r.transform() for r in results)
+
 
 
 def _collect(paths: list[Path]) -> Declarations:
     decls = Declarations()
     for path in paths:
-        for source in _parse_file(path):
+        for source in parse_st(path):
             for item in source.items:
                 if isinstance(item, GlobalVariableDeclarations):
                     variables = decls.globals.setdefault(item.name, {})
@@ -132,7 +137,7 @@ def test_the_plc_sources_are_there():
 
 @pytest.mark.parametrize("path", ST_FILES, ids=[p.name for p in ST_FILES])
 def test_st_file_parses_with_blark(path):
-    _parse_file(path)
+    parse_st(path)
 
 
 def _all_symbols(n: int) -> list[plc_contract.Symbol]:
