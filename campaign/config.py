@@ -86,11 +86,6 @@ class Config:
     capture: CaptureSpec
     sim: SimSpec
 
-    def __getitem__(self, section: str) -> dict[str, Any]:
-        """A copy of the raw section, for commands not yet moved to the specs (discover,
-        import-stream); the rooms read the specs."""
-        return dict(plain(self.sections[section]))
-
     @property
     def base_dir(self) -> Path:
         return Path(self.source).resolve().parent

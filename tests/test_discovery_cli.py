@@ -13,7 +13,7 @@ import pytest
 from campaign.config import parse_config
 from campaign.discovery.simulate import Environment, simulate_campaign
 from campaign.errors import InputError
-from campaign.model import model_from_dict, read_model
+from campaign.model import read_model, sim_model
 from campaign.pointtable import write_points
 from tests.conftest import PAPER, ROOT, assert_one_line_error
 
@@ -110,7 +110,7 @@ def test_an_incomplete_campaign_is_said_first(cli, tmp_path):
 
 def test_text_output_names_steps_units_and_noise(cli, tmp_path):
     config = parse_config(REAL_PLAN + SPATIAL_AND_TIME)
-    table = simulate_campaign(config, model_from_dict({"effects": config["sim"]["effects"]}, "t"), seed=2)
+    table = simulate_campaign(config, sim_model(config.sim), seed=2)
     write_points(tmp_path / "points.csv", table)
     model = tmp_path / "start.toml"
     model.write_text("[effects.linear_scale]\n[effects.backlash]\n")
@@ -145,7 +145,7 @@ def run_real_campaign(tmp_path, effects: str) -> tuple:
                           capture_output=True, text=True, timeout=300, cwd=ROOT, check=False)
     assert proc.returncode == 0, proc.stderr
     config = parse_config(REAL_PLAN + effects)
-    fast = simulate_campaign(config, model_from_dict({"effects": config["sim"]["effects"]}, "t"), seed=7)
+    fast = simulate_campaign(config, sim_model(config.sim), seed=7)
     write_points(tmp_path / "fast.csv", fast)
     return tmp_path / "real" / "points.csv", tmp_path / "fast.csv"
 
@@ -180,7 +180,7 @@ def test_save_without_a_time_column_does_not_save_a_time_constant_in_points(cli,
     leaves tau_s out, so that the simulator refuses it and discover refits it."""
     config = parse_config(REAL_PLAN.replace("cycles = 4", "cycles = 5") + SPATIAL_AND_TIME.split("[sim.effects.periodic")[0]
                           + "[sim.effects.thermal_drift]\ngrowth_ppm = 20.0\ntau_s = 200.0\npivot_mm = 300.0\n")
-    table = simulate_campaign(config, model_from_dict({"effects": config["sim"]["effects"]}, "t"), seed=2)
+    table = simulate_campaign(config, sim_model(config.sim), seed=2)
     table.optional = {}
     write_points(tmp_path / "points.csv", table)
     model = tmp_path / "start.toml"
@@ -200,7 +200,7 @@ def test_save_without_a_time_column_does_not_save_a_time_constant_in_points(cli,
 def test_environment_from_a_file_is_named_with_its_error_and_left_out_of_the_saved_model(cli, tmp_path):
     config = parse_config(REAL_PLAN.replace("dwell_s = 1.0", "dwell_s = 10.0").replace("cycles = 4", "cycles = 10"))
     env = Environment(air_temp_c=(20.0, 24.0), air_pressure_hpa=(1015.0, 1011.0), humidity_pct=(45.0, 45.0))
-    table = simulate_campaign(config, model_from_dict({"effects": config["sim"]["effects"]}, "t"), seed=3,
+    table = simulate_campaign(config, sim_model(config.sim), seed=3,
                               environment=env)
     write_points(tmp_path / "points.csv", table)
     data = discover_json(cli, tmp_path / "points.csv", "--save", tmp_path / "new.toml")
