@@ -43,7 +43,7 @@ def test_linuxcnc_program_runs_in_rs274_with_the_plans_stops_and_dwells(cli, tmp
     dwells = [s for kind, s in calls if kind == "DWELL"]
     assert len(dwells) == 110 and set(dwells) == {4.0}
     feeds = {f for kind, f in calls if kind == "SET_FEED_RATE" and f > 0}
-    assert feeds == {load_config(DEMO)["plan"]["velocity"] * 60}
+    assert feeds == {load_config(DEMO).plan.velocity * 60}
     # every dwell follows the move to a target, in the plan's order
     sequence = [kind for kind, _ in calls if kind in ("STRAIGHT_FEED", "DWELL")]
     measured = [s.point is not None for s in plan.stops()]
