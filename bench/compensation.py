@@ -29,7 +29,7 @@ import numpy as np
 
 from campaign.compensation.corrections import corrections
 from campaign.compensation.grid import POINT_LIMITS, resample
-from campaign.config import load_config
+from campaign.config import config_with, load_config
 from campaign.iso230 import evaluate
 from campaign.measure.session import start_campaign
 from campaign.measure.verify import run_verification
@@ -43,17 +43,14 @@ PAPER = {"horizontal": 5.927, "vertical": 38.142}
 
 
 def config_for(path: Path, seed: int, cycles: int = 5):
-    config = load_config(path)
-    config.sections["plan"] = {**config["plan"], "offsets": "none", "cycles": cycles}  # the paper's targets
-    config.sections["capture"] = {**config["capture"], "method": "dwell"}
-    config.sections["sim"] = {**config["sim"], "seed": seed}
-    return config
+    return config_with(load_config(path), {"plan": {"offsets": "none", "cycles": cycles},  # the paper's targets
+                                           "capture": {"method": "dwell"}, "sim": {"seed": seed}})
 
 
 def one(axis: str, seed: int, tmp: str, cycles: int, smooth: str = "auto") -> dict:
     before = start_campaign(config_for(AXES[axis], seed, cycles), f"{tmp}/{axis}-{seed}-before", opener=open_hardware)
     table = read_points(before.dir / "points.csv")
-    overrun = config_for(AXES[axis], seed)["plan"]["overrun"]
+    overrun = config_for(AXES[axis], seed).plan.overrun
     ctable = resample(corrections(table, "auto", "inverse", smooth), POINT_LIMITS["json"], overrun=overrun)
     after = run_verification(config_for(AXES[axis], seed, cycles), ctable, Path(f"{tmp}/{axis}-{seed}-after"),
                              opener=open_hardware)

@@ -51,7 +51,7 @@ def main() -> int:
     config = parse_config(demo_config_text(), "demo.toml")
     plan = build_plan(config)
     overrun_dwell_s = 2.5
-    duration = estimate_duration_s(plan, config.axis) + overrun_dwell_s * (config["plan"]["cycles"] * 2 + 1)
+    duration = estimate_duration_s(plan, config.axis) + overrun_dwell_s * (config.plan.cycles * 2 + 1)
     rate_hz = args.samples / duration
     frame, truth = synthetic_stream(plan, config, rate_hz, seed=5, overrun_dwell_s=overrun_dwell_s)
     with tempfile.TemporaryDirectory() as tmp:

@@ -37,7 +37,7 @@ def campaign(method: str, seed: int, tmp: str) -> tuple[float, float, float, flo
     outcome = start_campaign(config, f"{tmp}/{method}-{seed}", opener=open_hardware)
     assert outcome.status == "completed" and outcome.points == outcome.planned
     table, ev = analyse_dir(outcome.dir)
-    return outcome.duration_s, ev.summary["A"], float(np.mean(table.extra["capture_wait_s"])), config["plan"]["dwell_s"]
+    return outcome.duration_s, ev.summary["A"], float(np.mean(table.extra["capture_wait_s"])), config.plan.dwell_s
 
 
 def main() -> int:
