@@ -231,9 +231,6 @@ def conclude(outcome: Outcome, config: Config, args: argparse.Namespace, console
     if not (d / "meta.json").exists():
         say(f"Stopped: {outcome.message}.")
         return 3
-    from campaign.commands.history import record_after
-
-    record_after(d, getattr(args, "command", None) or "guide")
     assessment = assess_path(d) if outcome.points else None
     if assessment is not None:
         console.print(summary_table(assessment.evaluation))
@@ -255,6 +252,9 @@ def conclude(outcome: Outcome, config: Config, args: argparse.Namespace, console
             f"Measure them with:\n  axiscal resume {d}")
     else:
         say(f"Stopped: {outcome.message}. Record: {d}.\nContinue with:\n  axiscal resume {d}")
+    from campaign.commands.history import record_after
+
+    record_after(d, getattr(args, "command", None) or "guide")  # after the verdict is on the screen
     if args.json:
         result = {"dir": str(d), "status": outcome.status, "points": outcome.points, "planned": outcome.planned,
                   "duration_s": round(outcome.duration_s, 3)}

@@ -47,14 +47,22 @@ def with_on_fault(config: Config, args: argparse.Namespace) -> Config:
 
 
 def finish(outcome: Outcome, args: argparse.Namespace, extra: dict | None = None) -> int:
-    """Print the outcome: the ISO 230-2 summary so far, the outliers and the verdict (campaign/assess.py,
-    the same as `analyze`, `report` and the guide), and the resume hint when points are missing.
-    Exit 0 when completed (points skipped after faults included), 3 when interrupted."""
-    from campaign.assess import assess_path
+    """Print the outcome (`print_outcome`), then record the campaign into the history store: the
+    user sees the verdict first, whatever the store does. Exit 0 when completed (points skipped
+    after faults included), 3 when interrupted."""
     from campaign.commands.history import record_after
+
+    code = print_outcome(outcome, args, extra)
+    record_after(outcome.dir, getattr(args, "command", None) or "run")
+    return code
+
+
+def print_outcome(outcome: Outcome, args: argparse.Namespace, extra: dict | None = None) -> int:
+    """The ISO 230-2 summary so far, the outliers and the verdict (campaign/assess.py, the same as
+    `analyze`, `report` and the guide), and the resume hint when points are missing; the exit status."""
+    from campaign.assess import assess_path
     from campaign.views import outlier_lines, verdict_line
 
-    record_after(outcome.dir, getattr(args, "command", None) or "run")
     result = {"dir": str(outcome.dir), "status": outcome.status, "points": outcome.points,
               "planned": outcome.planned, "duration_s": round(outcome.duration_s, 3), **(extra or {})}
     a = assess_path(outcome.dir) if outcome.points else None
