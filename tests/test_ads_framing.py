@@ -2,19 +2,25 @@
 split over two TCP sends is answered, several requests in one send are each answered in order,
 a client that drops its connection leaves one log line, not a traceback, and so does a router
 command. A notification's reply and first sample come on the same stream. Raw sockets, requests
-built by hand (tests/ads_wire.py): mostly ADS Read State (command 4)."""
+built by hand (tests/ads_wire.py): mostly ADS Read State (command 4). A client that subscribes and
+then stops reading is dropped with one log line while the PLC's scans and the other clients go on."""
 
 from __future__ import annotations
 
 import logging
 import socket
 import struct
+import threading
 import time
+from itertools import pairwise
 
 import pytest
 
+from drivers.ads_axis import AdsAxis
 from drivers.factory import serve_on_free_loopback
-from drivers.sim.ads_device import GVL_OFFSET
+from drivers.sim.ads_device import GVL_OFFSET, PLC_DATA_GROUP
+from drivers.sim.ads_server import OUTGOING_LIMIT_BYTES
+from drivers.sim.clock import SimClock
 from drivers.sim.plc import SimPLC
 from protocols import plc_layout
 from tests import ads_wire as w
@@ -117,3 +123,111 @@ def test_a_router_command_is_one_warning_and_the_connection_goes_on(plc_server, 
         assert answers(sock, 1) == [4]
     (warning,) = [r.getMessage() for r in caplog.records if "router command" in r.getMessage()]
     assert "0x1000" in warning and "own AMS Net ID" in warning
+
+
+class Listener:
+    """A well-behaved raw-socket client: its thread reads all the PLC sends until the socket closes."""
+
+    def __init__(self, address: tuple[str, int]):
+        self.sock = socket.create_connection(address)
+        self.packets: list[w.Packet] = []
+        self._thread = threading.Thread(target=self._read, daemon=True)
+        self._thread.start()
+
+    def _read(self) -> None:
+        stream = b""
+        while data := self.sock.recv(65536):
+            whole, stream = w.split(stream + data)
+            self.packets += [w.parse(p) for p in whole]
+
+    def samples(self, handle: int) -> list[tuple[int, bytes]]:
+        """(FILETIME, value) of each sample of notification `handle` received so far."""
+        return [(filetime, raw) for p in list(self.packets) if p.command == w.DEVICE_NOTIFICATION
+                for filetime, items in w.stamps(p.data) for h, raw in items if h == handle]
+
+    def close(self) -> None:
+        self.sock.shutdown(socket.SHUT_RDWR)
+        self._thread.join()
+        self.sock.close()
+
+
+def wait_for(condition, what: str, timeout_s: float = 10.0) -> None:
+    """Wait (wall time, a hang guard only) until condition() holds."""
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < deadline, f"still not {what} after {timeout_s} s"
+        time.sleep(0.01)
+
+
+def test_a_client_that_stops_reading_is_dropped_and_the_move_and_the_other_clients_go_on(caplog):
+    """A raw-socket client subscribes (cyclic, 1-ms cycle: every scan) to the whole GVL four times,
+    about 67 kB a scan, and never reads; a 30-mm move then runs to the end in 1-ms scans of
+    simulated time. Before the fix the scan blocked in sendall on that client as soon as the
+    socket's buffers were full, so the move never ended (this test timed out on the worker)."""
+    caplog.set_level(logging.WARNING, logger="drivers.sim.ads_server")
+    clock = SimClock()
+    plc = SimPLC(axis=1, max_velocity=50.0, acceleration=200.0)
+    clock.attach(plc.scan)
+    server = serve_on_free_loopback(plc)
+    axis = AdsAxis(server.net_id, server.ip, axis=1, timeout_s=1.0)
+    slow = socket.socket()
+    slow.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # a small window: the server's buffers fill sooner
+    slow.connect((server.ip, server.port))
+    slow_port = slow.getsockname()[1]
+    good = Listener((server.ip, server.port))
+    gvl_bytes = plc_layout.GVL_TYPE.size
+    slow.sendall(b"".join(w.add_notification(server.net_id, PLC_DATA_GROUP, GVL_OFFSET, gvl_bytes, 3, 0.0, 0.001,
+                                             invoke_id=i) for i in range(4)))
+    position = GVL_OFFSET + plc_layout.require("GVL_Axiscal.astAxes[1].stStatus.fActPosition").offset
+    good.sock.sendall(w.add_notification(server.net_id, PLC_DATA_GROUP, position, 8, 3, 0.0, 0.001, invoke_id=5))
+    wait_for(lambda: len(plc.handler.notifications) == 5, "subscribed")
+    wait_for(lambda: any(p.command == w.ADD_NOTIFICATION for p in good.packets), "answered")
+    (reply,) = [p for p in good.packets if p.command == w.ADD_NOTIFICATION]
+    result, handle = struct.unpack("<II", reply.data)
+    assert result == 0
+    scans: list[int] = []
+    failure: list[BaseException] = []
+
+    def run_move() -> None:
+        try:
+            axis.start_move(30.0, 50.0)  # 0.85 s: 850 scans, about 57 MB for the slow client
+            clock.sleep(0.001)
+            scans.append(1)
+            while axis.status().busy:
+                clock.sleep(0.001)
+                scans.append(1)
+            for _ in range(100):  # and 0.1 s standing
+                clock.sleep(0.001)
+                scans.append(1)
+        except BaseException as exc:  # noqa: BLE001 (re-raised in the test's thread)
+            failure.append(exc)
+
+    worker = threading.Thread(target=run_move, daemon=True)
+    worker.start()
+    try:
+        worker.join(60.0)  # a hang guard, not a time limit: the move takes about a second
+        hung = worker.is_alive()
+    finally:
+        slow.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+        slow.close()  # a reset: frees a scan blocked on this client (the old code), so nothing hangs
+        worker.join(10.0)
+    try:
+        assert not hung, "the PLC's scan waited on a client that does not read"
+        assert not failure, failure
+        assert len(scans) * 4 * gvl_bytes > 20 * OUTGOING_LIMIT_BYTES  # far more than the queue holds
+        assert plc.value("GVL_Axiscal.astAxes[1].stStatus.bDone") is True
+        assert plc.value("GVL_Axiscal.astAxes[1].stStatus.fActPosition") == 30.0
+        wait_for(lambda: len(plc.handler.notifications) == 1, "the slow client's notifications deleted")
+        wait_for(lambda: len(good.samples(handle)) == len(scans) + 1, "every scan's sample at the good client")
+        samples = good.samples(handle)
+        assert [ft for ft, _ in samples] == sorted({ft for ft, _ in samples})  # in order, one per scan
+        gaps_s = {round((b - a) / w.TICKS_PER_S, 6) for (a, _), (b, _) in pairwise(samples)}
+        assert gaps_s == {0.001}  # nothing missing, before, during and after the drop
+        assert struct.unpack("<d", samples[-1][1]) == (30.0,)
+        lines = [r.getMessage() for r in caplog.records if r.name == "drivers.sim.ads_server"]
+        assert len(lines) == 1 and "\n" not in lines[0], lines
+        assert f":{slow_port} does not read" in lines[0] and "connection dropped" in lines[0]
+    finally:
+        good.close()
+        axis.close()
+        server.stop()

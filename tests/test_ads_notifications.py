@@ -14,7 +14,7 @@ import pytest
 from pyads.testserver.testserver import AdsClientConnection
 
 from drivers.sim.ads_device import GVL_OFFSET, PLC_DATA_GROUP
-from drivers.sim.ads_notifications import FILETIME_AT_UNIX_EPOCH
+from drivers.sim.ads_notifications import FILETIME_AT_UNIX_EPOCH, WAITING_LIMIT_BYTES
 from drivers.sim.plc import SimPLC
 from protocols import plc_layout
 from protocols.plc_contract import Command
@@ -137,6 +137,21 @@ def test_samples_wait_at_most_the_maximum_delay_and_go_together(plc):
     assert len(client.packets) < len(samples) / 4  # several samples, one stamp each, per packet
     stamps = [w.stamps(w.parse(p).data) for _, p in client.packets]
     assert all(len({ft for ft, _ in s}) == len(s) for s in stamps)
+
+
+def test_a_long_delay_on_a_large_range_holds_at_most_the_waiting_limit(plc):
+    """429 s (the longest delay the wire can say) sampling 4 KiB at every 10-ms scan: without a
+    bound 4 kB x 42 900 samples would wait; the samples go once they hold 64 KiB, 16 samples."""
+    client = Client()
+    _, handle = subscribe(plc, client, CYCLIC, max_delay_s=429.0, cycle_s=0.0, offset=GVL_OFFSET, length=4096)
+    run(plc, client, 1.0, 0.01)  # the first sample and 100 scans
+    per_packet = WAITING_LIMIT_BYTES // 4096  # 16
+    sent = [(at, w.stamps(w.parse(p).data)) for at, p in client.packets]
+    assert [len(stamps) for _, stamps in sent] == [per_packet] * (101 // per_packet)  # 96 sent, 5 still waiting
+    assert {(h, len(raw)) for _, stamps in sent for _, items in stamps for h, raw in items} == {(handle, 4096)}
+    assert [at for at, _ in sent] == pytest.approx([0.01 * (per_packet - 1 + per_packet * i) for i in range(6)])
+    (waiting,) = [s.waiting for s in plc.handler.notifications._subscriptions.values()]
+    assert len(waiting) == 101 % per_packet
 
 
 def test_a_packet_carries_all_of_a_clients_due_samples_and_times_are_filetimes(plc):

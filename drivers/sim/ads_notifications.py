@@ -11,7 +11,9 @@ pushes ADS Device Notification packets (command 8) to that client over its own T
 - the first sample is the value at the time of the request;
 - a sample is sent at the latest `max delay` after it was taken: samples wait while the oldest one
   waiting is younger than that, then go together, one stamp per sample time (a delay of 0 sends
-  each at the scan that took it). A client's due samples of several notifications share a packet;
+  each at the scan that took it). A notification's samples go earlier when the values waiting
+  reach WAITING_LIMIT_BYTES, so a long delay (up to 2³² × 100 ns, 429 s) on a large range holds
+  no more than that. A client's due samples of several notifications share a packet;
 - the times on the wire are in 100 ns, as pyads, ads-client and Beckhoff's AdsLib send them
   (Beckhoff's protocol page says ms; the clients, tested against real PLCs, send 100 ns);
 - the timestamp of a sample is a Windows FILETIME: the wall-clock time the PLC was created plus the
@@ -42,6 +44,9 @@ FILETIME_AT_UNIX_EPOCH = 116_444_736_000_000_000
 """100-ns intervals from 1601-01-01 (FILETIME's origin) to 1970-01-01."""
 TIME_TOLERANCE_S = 1e-9
 """Simulated times this close count as equal (scan times are sums of float steps)."""
+WAITING_LIMIT_BYTES = 64 * 1024
+"""A notification's samples go, whatever their maximum delay, once the values waiting hold this
+many bytes (at least one sample)."""
 
 
 class NotificationSink(Protocol):
@@ -69,6 +74,12 @@ class Subscription:
     last: bytes
     waiting: list[tuple[float, bytes]] = field(default_factory=list)
     """Samples taken and not sent yet: (simulated time s, value)."""
+
+    def due(self, t_s: float) -> bool:
+        """The waiting samples go at simulated time t_s: the oldest waited the maximum delay, or
+        they reached WAITING_LIMIT_BYTES."""
+        return bool(self.waiting) and (t_s - self.waiting[0][0] >= self.max_delay_s
+                                       or len(self.waiting) * self.length >= WAITING_LIMIT_BYTES)
 
 
 class Notifications:
@@ -118,7 +129,7 @@ class Notifications:
         due: dict[int, list[tuple[Subscription, float, bytes]]] = {}
         sinks: dict[int, tuple[NotificationSink, bytes]] = {}
         for s in self._subscriptions.values():
-            if s.waiting and t_s - s.waiting[0][0] >= s.max_delay_s:
+            if s.due(t_s):
                 key = id(s.sink)
                 sinks.setdefault(key, (s.sink, s.route))
                 due.setdefault(key, []).extend((s, at, value) for at, value in s.waiting)

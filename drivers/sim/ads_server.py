@@ -14,9 +14,17 @@ How pyads' AdsTestServer behaves, and what this class does about it:
   byte stream by the AMS/TCP header's length instead (each request answered, in order) and logs a
   dropped connection as one line.
 - It answers only what a handler returns, and nothing can reach a client unasked: FramedConnection
-  is also the client's notification sink (`send_notification`, serialised with the replies), and
-  after each reply it sends the notifications that became due (a new one's first sample); when it
-  ends, the client's notifications are deleted.
+  is also the client's notification sink (`send_notification`), and after each reply it sends the
+  notifications that became due (a new one's first sample); when it ends, the client's
+  notifications are deleted.
+- It sends with a blocking sendall from the thread that answers, and the PLC's scan would send
+  notifications the same way: a client that stops reading would fill its socket buffers and stop
+  the scan, and the whole simulated machine with it. FramedConnection puts what it sends, replies
+  and notifications in order, in an outgoing queue that a sender thread of its own writes to the
+  socket. A reply waits for room in the queue (a client that does not read its replies is no
+  longer read, as TCP's flow control does); a notification that finds the queue over
+  OUTGOING_LIMIT_BYTES drops the client with one warning line (its connection closed, its
+  notifications deleted), and the other clients and the PLC go on. The scan never waits on a client.
 - A packet whose AMS/TCP header is a router command (port register 0x1000 and the like, which a
   client without a local AMS Net ID sends to its own router) is not an ADS request: it gets one
   warning line saying so and no answer, as a TwinCAT PLC gives a remote client none.
@@ -27,11 +35,13 @@ How pyads' AdsTestServer behaves, and what this class does about it:
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import select
 import socket
 import struct
 import threading
+from collections import deque
 from types import TracebackType
 from typing import Self
 
@@ -46,31 +56,42 @@ ADS_TCP_PORT = 48898
 AMS_TCP_HEADER_BYTES = 6
 """Two reserved bytes, then the length of the AMS packet that follows (uint32, little-endian)."""
 AMS_HEADER_BYTES = 32
+OUTGOING_LIMIT_BYTES = 1 << 20
+"""A client whose outgoing queue holds more than this many bytes when a notification is due is
+dropped (the queue grows only once the socket's own buffers, sized by the kernel, are full)."""
+CLOSE_DRAIN_S = 1.0
+"""How long a connection that ends waits for its queued replies to go out, s (wall time)."""
 
 log = logging.getLogger(__name__)
 
 
 class FramedConnection(AdsClientConnection):
     """One ADS client: the byte stream cut into AMS packets by their AMS/TCP length, each answered
-    in the order it came, whatever the TCP segments were."""
+    in the order it came, whatever the TCP segments were; what goes to the client (replies and
+    notifications, in order) through a bounded queue that a sender thread writes to its socket."""
 
     handler: AdsDevice
 
     def __init__(self, handler: AdsDevice, client: socket.socket, address: tuple[str, int], server: AdsTestServer):
         super().__init__(handler=handler, client=client, address=address, server=server)
-        self._send_lock = threading.Lock()
-        """Held while sending and while closing: replies (this thread) and notifications (the PLC's
-        scan) never interleave, and nothing is sent on a closed socket."""
+        self._outgoing: deque[bytes] = deque()
+        self._outgoing_bytes = 0
+        """Bytes in `_outgoing` (not counting the packet the sender is writing)."""
+        self._open = True
+        """False once the connection ends: nothing more is queued."""
+        self._changed = threading.Condition()
+        """Guards the three above; notified when they change."""
+        self._sender = threading.Thread(target=self._send_queued, daemon=True,
+                                        name=f"ADS sender {address[0]}:{address[1]}")
 
     def run(self) -> None:
         self._run = True
+        self._sender.start()
         try:
             self._serve()
         finally:
             self.handler.drop_notifications(self)
-            with self._send_lock:
-                self._run = False
-                self.client.close()
+            self._close()
 
     def _serve(self) -> None:
         pending = b""
@@ -81,8 +102,7 @@ class FramedConnection(AdsClientConnection):
             try:
                 data = self.client.recv(65536)
             except OSError as exc:  # ConnectionResetError: the client went away without closing
-                log.warning("ADS client %s:%s dropped the connection (%s)", *self.client_address[:2],
-                            exc.strerror or exc)
+                self._lost(f"dropped the connection ({exc.strerror or exc})")
                 return
             if not data:
                 return
@@ -109,24 +129,82 @@ class FramedConnection(AdsClientConnection):
         self.server.request_history.append(request)
         response = self.handler.handle_request(request, sink=self)
         if isinstance(response, AmsResponseData):
-            self._send(self.construct_response(response, request))
+            self._queue_reply(self.construct_response(response, request))
             for client, notification in self.handler.due_notifications():
                 client.send_notification(notification)
 
     def send_notification(self, packet: bytes) -> None:
-        """Send a notification packet to this client (from any thread)."""
-        self._send(packet)
-
-    def _send(self, data: bytes) -> None:
-        with self._send_lock:
-            if not self._run:
+        """Queue a notification packet for this client (from any thread, never waiting). When the
+        queue already holds more than OUTGOING_LIMIT_BYTES, the client is dropped instead."""
+        with self._changed:
+            if not self._open:
                 return
+            waiting = self._outgoing_bytes
+            if not self._outgoing or waiting + len(packet) <= OUTGOING_LIMIT_BYTES:
+                self._append(packet)
+                return
+        self._lost(f"does not read what the PLC sends ({waiting} bytes waiting, the limit is "
+                   f"{OUTGOING_LIMIT_BYTES}): connection dropped")
+
+    def _queue_reply(self, data: bytes) -> None:
+        """Queue a reply, waiting for room (this client's own thread waits, nobody else)."""
+        with self._changed:
+            while (self._open and self._run and self._outgoing
+                   and self._outgoing_bytes + len(data) > OUTGOING_LIMIT_BYTES):
+                self._changed.wait(0.1)
+            if self._open:
+                self._append(data)
+
+    def _append(self, data: bytes) -> None:
+        """Queue `data` (under `_changed`)."""
+        self._outgoing.append(data)
+        self._outgoing_bytes += len(data)
+        self._changed.notify_all()
+
+    def _send_queued(self) -> None:
+        """The sender thread: write what is queued, in order, until the connection ends and the
+        queue is empty (a lost connection empties it)."""
+        while True:
+            with self._changed:
+                while self._open and not self._outgoing:
+                    self._changed.wait()
+                if not self._outgoing:
+                    return
+                data = self._outgoing.popleft()
+                self._outgoing_bytes -= len(data)
+                self._changed.notify_all()
             try:
                 self.client.sendall(data)
             except OSError as exc:
-                log.warning("ADS client %s:%s dropped the connection (%s)", *self.client_address[:2],
-                            exc.strerror or exc)
-                self._run = False
+                self._lost(f"dropped the connection ({exc.strerror or exc})")
+                return
+
+    def _lost(self, why: str) -> None:
+        """End the connection now, what is queued unsent, with one warning line saying why (only the
+        first reason is said: the threads that notice next stay silent)."""
+        with self._changed:
+            if not self._open:
+                return
+            self._open = False
+            self._outgoing.clear()
+            self._outgoing_bytes = 0
+            self._changed.notify_all()
+        log.warning("ADS client %s:%s %s", *self.client_address[:2], why)
+        self._run = False
+        with contextlib.suppress(OSError):  # wakes a sendall blocked on it and the reading thread
+            self.client.shutdown(socket.SHUT_RDWR)
+
+    def _close(self) -> None:
+        """Let the sender write what is queued (at most CLOSE_DRAIN_S), then close the socket."""
+        with self._changed:
+            self._open = False
+            self._changed.notify_all()
+        self._sender.join(CLOSE_DRAIN_S)
+        if self._sender.is_alive():  # blocked on a client that does not read
+            with contextlib.suppress(OSError):
+                self.client.shutdown(socket.SHUT_RDWR)
+            self._sender.join()
+        self.client.close()
 
 
 class FramedServer(AdsTestServer):

@@ -9,8 +9,9 @@ exist and stay as written.
 There is no PLC thread: `scan(t)` is one PLC cycle at simulated time t (s); attach it to the
 simulated clock with `clock.attach(plc.scan)`. The ADS server answers requests on its own threads,
 so every scan and every request holds the same lock: a request sees the variables between two
-cycles, as on a real PLC. Each scan also samples the clients' device notifications and sends
-those due (`drivers.sim.ads_notifications`), after releasing the lock.
+cycles, as on a real PLC. Each scan also samples the clients' device notifications
+(`drivers.sim.ads_notifications`) and, after releasing the lock, hands those due to each client's
+connection, which queues them and never makes the scan wait (`drivers.sim.ads_server`).
 
 The motion is computed analytically from the start of each move: a trapezoidal velocity profile
 with the commanded velocity and the constructor's acceleration (also used to decelerate on a halt).
