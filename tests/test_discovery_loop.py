@@ -249,3 +249,43 @@ def test_a_follow_up_alone_is_read(cli, tmp_path):
     said = cli("discover", tmp_path / "p.csv")
     assert said.code == 0, said.err
     assert "backlash" in said.out
+
+
+DEMO = (DATA.parent / "campaign" / "demo.toml").read_text()
+"""The shipped demo config: its error model inline ([sim.effects.*]), the dwell capture."""
+DEMO_MODEL = {"backlash": {"b_um": 6.0}, **BOW}
+SUB_TABLES = ('[instrument.line]\ntag = ""\nseparator = ";"\nfields = ["time_s", "position", "signal_pct"]\n'
+              'position_scale = 0.001\n\n[sim.faults]\nbeam_break = { at_s = 300.0, duration_s = 3.0 }\n')
+
+
+def demo_text(extra: str = "") -> str:
+    """demo.toml with a 6 µm backlash added to its inline model, and `extra` tables at the end."""
+    return DEMO.replace("[sim.effects.linear_scale]", "[sim.effects.backlash]\nb_um = 6.0\n\n"
+                        "[sim.effects.linear_scale]") + "\n" + extra
+
+
+@pytest.mark.parametrize("extra", ["", SUB_TABLES], ids=["demo", "demo+line+faults"])
+def test_the_follow_up_of_a_config_with_sub_tables_keeps_them(cli, tmp_path, extra):
+    """demo.toml's [sim.effects.*] (and [instrument.line], [sim.faults]) broke the follow-up: its TOML
+    writer met the config's frozen tables (an internal error, exit 1, nothing printed). The follow-up
+    keeps every sub-table as the first campaign had it, and reads back as the config it was made from."""
+    _, config, out = written_follow_up(cli, tmp_path, demo_text(extra), DEMO_MODEL)
+    assert out["follow_up"] is not None and out["follow_up"]["capture"] == "dwell"
+    followed = load_config(tmp_path / "follow.toml")
+    assert followed.sim.effects == config.sim.effects and followed.sim.faults == config.sim.faults
+    assert followed.instrument.line == config.instrument.line and followed.axis == config.axis
+    assert followed.plan.length is None and followed.plan.targets == tuple(out["follow_up"]["targets"])
+    assert cli("plan", tmp_path / "follow.toml").code == 0
+
+
+def test_the_findings_are_printed_when_the_follow_up_cannot_be_written(cli, tmp_path):
+    directory = tmp_path / "first"
+    directory.mkdir()
+    (directory / "config.toml").write_text(demo_text())
+    config = load_config(directory / "config.toml")
+    write_points(directory / "points.csv", simulate_campaign(config, ErrorModel(DEMO_MODEL), seed=1))
+    said = cli("discover", directory / "points.csv", "--follow-up", "-o", tmp_path / "no" / "such" / "f.toml")
+    assert said.code == 2 and said.err.startswith("error:") and len(said.err.strip().splitlines()) == 1
+    assert "no/such/f.toml" in said.err and "gap" in said.out and "stand-in" in said.out
+    said = cli("discover", directory / "points.csv", "--follow-up", "-o", tmp_path / "no" / "f.toml", "--json")
+    assert said.code == 2 and json.loads(said.out)["follow_up_error"].startswith("-o ")

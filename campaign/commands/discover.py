@@ -473,12 +473,15 @@ def run(args: argparse.Namespace) -> int:
     kind = read_points(args.files[0]).kind
     result = discover(data, model, given)
     result.notes[:0] = incomplete + [n for o in outliers for n in outlier_notes(o, kind)]
-    follow = None
+    follow, failed = None, None
     if config is not None:
-        follow = plan_follow_up(result.unresolved, result.remaining, data, result.final, config, reversal_um(result),
-                                result.noise_um, Path(args.output), args.files)
-        if follow is not None:
-            Path(args.output).write_text(follow.text, encoding="utf-8")
+        try:  # the findings are printed even when the follow-up cannot be planned or written
+            follow = plan_follow_up(result.unresolved, result.remaining, data, result.final, config,
+                                    reversal_um(result), result.noise_um, Path(args.output), args.files)
+            if follow is not None:
+                write_follow_up(Path(args.output), follow.text)
+        except Exception as exc:  # noqa: BLE001 - raised again once the findings are out
+            failed = exc
     if plot_path:
         plot_steps(result, data.x, data.d, data.y, plot_path)
     if args.save:
@@ -487,17 +490,29 @@ def run(args: argparse.Namespace) -> int:
         extra = {"campaigns": args.files, "offsets_um": [round(o, 4) for o in result.final.offsets_um]}
         if args.follow_up:
             extra["follow_up"] = None if follow is None else {**follow.as_dict(), "file": args.output}
+            if failed is not None:
+                extra["follow_up_error"] = str(failed)
         print_json({**as_json(result), **all_outliers_json(outliers, args.files), **extra})
     else:
         print_text(result, data.time_unit, incomplete, args.verbose)
         console = make_console()
-        if args.follow_up:
+        if args.follow_up and failed is None:
             for line in follow_up_lines(follow, args.output):
                 console.print(line)
         for path, what in ((plot_path, "plot"), (args.save, "model")):
             if path:
                 console.print(f"{what} written to {path}")
+    if failed is not None:
+        raise failed
     return 0
+
+
+def write_follow_up(path: Path, text: str) -> None:
+    """Write the follow-up config; InputError (exit 2) naming the file when it cannot be written."""
+    try:
+        path.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"-o {path}: cannot write the follow-up config ({exc.strerror or exc})") from None
 
 
 def follow_up_lines(follow: FollowUp | None, path: str) -> list[str]:

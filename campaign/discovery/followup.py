@@ -22,17 +22,20 @@ import itertools
 import json
 import math
 import os
+import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from campaign.config import Config, parse_config
+from campaign.config import Config, config_with, parse_config
 from campaign.discovery.data import CampaignData
 from campaign.discovery.fit import Fit, Term, linear_fit
 from campaign.discovery.search import RIVAL_MARGIN
 from campaign.plan import build_plan, check_plan, estimate_duration_s
+from campaign.specs import plain
 
 WAITS_S = (0.5, 5.0)
 """The waits before capture of the dwell part, s: a decade (stretched upwards to include the first
@@ -174,28 +177,36 @@ def _toml_value(value: Any) -> str:
     raise TypeError(f"no TOML form for {value!r}")
 
 
-def toml_text(data: dict[str, Any], prefix: str = "") -> str:
-    """A config's tables as TOML: the keys of a table, then its sub-tables ([sim.effects.NAME])."""
+def _toml_key(name: str) -> str:
+    return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else json.dumps(name, ensure_ascii=False)
+
+
+def toml_text(data: Mapping[str, Any], prefix: str = "") -> str:
+    """A config's tables (plain or frozen) as TOML: the keys of a table, then its sub-tables
+    ([sim.effects.NAME], [sim.faults.NAME], [instrument.line]); a key whose value is None is left out."""
+    data = plain(data)
     lines: list[str] = []
-    plain = {k: v for k, v in data.items() if not isinstance(v, dict)}
+    keys = {k: v for k, v in data.items() if not isinstance(v, dict)}
     tables = {k: v for k, v in data.items() if isinstance(v, dict)}
-    if prefix and (plain or not tables):
+    if prefix and (keys or not tables):
         lines.append(f"[{prefix}]")
-    lines += [f"{k} = {_toml_value(v)}" for k, v in plain.items() if v is not None]
-    if plain:
+    lines += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in keys.items() if v is not None]
+    if keys:
         lines.append("")
     for name, table in tables.items():
-        lines.append(toml_text(table, f"{prefix}.{name}" if prefix else name))
+        lines.append(toml_text(table, f"{prefix}.{_toml_key(name)}" if prefix else _toml_key(name)))
     return "\n".join(lines)
 
 
-def _moved_paths(data: dict[str, Any], base_dir: Path, out_dir: Path) -> None:
-    """Paths in the config (the sim model, a LinuxCNC comp file) made relative to where the
-    follow-up config is written."""
-    for section, key in (("sim", "model"), ("axis_driver", "comp_file")):
-        value = data.get(section, {}).get(key)
+def _moved_paths(config: Config, out_dir: Path) -> dict[str, dict[str, Any]]:
+    """The paths in the config (the sim model, a LinuxCNC comp file) made relative to where the
+    follow-up config is written, as config changes."""
+    changes: dict[str, dict[str, Any]] = {}
+    for section, key, value in (("sim", "model", config.sim.model),
+                                ("axis_driver", "comp_file", config.controller.comp_file)):
         if value:
-            data[section][key] = os.path.relpath((base_dir / value).resolve(), out_dir.resolve())
+            changes[section] = {key: os.path.relpath((config.base_dir / value).resolve(), out_dir.resolve())}
+    return changes
 
 
 def plan_follow_up(unresolved: list[dict[str, Any]], remaining: list[Any], data: CampaignData, final: Fit,
@@ -254,17 +265,12 @@ def plan_follow_up(unresolved: list[dict[str, Any]], remaining: list[Any], data:
     targets = targets or _few(data)
     if points_needed:
         cycles = max(cycles, 2, math.ceil(points_needed / (2 * len(targets))))
-    plan.update(targets=targets, cycles=cycles)
-    raw = {section: dict(table) for section, table in config.data.items()}
-    raw.setdefault("plan", {})
-    for key in ("start", "length", "count"):
-        raw["plan"].pop(key, None)
-    raw["plan"].update(plan)
-    raw.setdefault("capture", {}).update(capture)
-    _moved_paths(raw, config.base_dir, out.parent)
+    plan.update(targets=targets, cycles=cycles, length=None, count=None)
     said = "; ".join(" or ".join(p.effects) for p in parts)
-    raw.setdefault("campaign", {})["description"] = f"follow-up of {', '.join(sources)}: to tell {said}"
-    followed = parse_config(toml_text(raw), str(out))
+    changed = config_with(config, {"plan": plan, "capture": capture, **_moved_paths(config, out.parent),
+                                   "campaign": {"description": f"follow-up of {', '.join(sources)}: to tell {said}"}})
+    body = toml_text(changed.data)
+    followed = parse_config(body, str(out))  # as it will be read from where it is written
     plan_built = build_plan(followed)
     check_plan(plan_built, followed.axis)
     duration = estimate_duration_s(plan_built, followed.axis)
@@ -275,5 +281,5 @@ def plan_follow_up(unresolved: list[dict[str, Any]], remaining: list[Any], data:
               *(f"# - {', '.join(p.effects)}: {p.why}" for p in parts),
               *(f"# - not planned: {u}" for u in unplanned),
               f"# Machine time (estimate): {duration / 60:.1f} min; the first campaign's: {first / 60:.1f} min.", ""]
-    text = "\n".join(header) + "\n" + toml_text(raw)
+    text = "\n".join(header) + "\n" + body
     return FollowUp(followed, text, parts, unplanned, duration, first)
