@@ -289,3 +289,17 @@ def test_the_findings_are_printed_when_the_follow_up_cannot_be_written(cli, tmp_
     assert "no/such/f.toml" in said.err and "gap" in said.out and "stand-in" in said.out
     said = cli("discover", directory / "points.csv", "--follow-up", "-o", tmp_path / "no" / "f.toml", "--json")
     assert said.code == 2 and json.loads(said.out)["follow_up_error"].startswith("-o ")
+
+
+def test_the_bow_is_averaged_when_a_bump_is_not_added_beside_an_unresolved_period():
+    """A 10 mm lead at 11 targets and a +3 µm bump 150 mm wide: the bump would fit, but the period
+    stays unresolved beside it, so the bump is not added. That branch returned the search's result
+    as it was: the other effects were not averaged over the candidate periods (the issue-26 fix
+    skipped; `averaged` empty with the old code)."""
+    lead = {"periodic_lead": {"amplitude_um": 1.0, "period_mm": 10.0, "phase_rad": 0.3}}
+    bump = {"amplitude_um": 3.0, "centre_mm": 300.0, "width_mm": 150.0, "direction": 0.0}
+    result = found(user_config(seed=1), {**BOW, **lead, "local_defect": bump}, 1)
+    assert result.local is None and any("would fit too" in n for n in result.notes)  # the branch
+    assert [u["effects"] for u in result.unresolved] == [["periodic_lead"]]
+    assert "linear_scale" in result.averaged and any("averaged" in n for n in result.notes)
+    assert result.params()["linear_scale"] == result.averaged["linear_scale"]

@@ -454,7 +454,7 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     if periodic and any("periodic_lead" in u["effects"] for u in again.unresolved):
         _note(result.notes, f"{found.sentence()} would fit too, but the unresolved periodic error is still there "
                             "beside it: it may be that error seen at few targets, so it is not added")
-        return result
+        return beside_unresolved_period(data, result)
     final, local = refit_local(data, again.final, found)
     if local.term.shape != found.term.shape:  # its shape beside what is named now: search once more with it
         third = search_vocabulary(data, model, given, [local.term])
