@@ -65,6 +65,10 @@ def test_a_local_bump_is_located_and_nothing_soaks_it_up(seed):
 def test_a_bump_in_one_direction_says_so():
     result = found(user_config(count=21), {**BOW, "local_defect": {**BUMP, "direction": -1.0}}, 2)
     assert result.local is not None and result.local.directions == "-"
+    assert "seen in the − direction; in the + direction below 3σ (" in result.local.sentence()
+    assert "only" not in result.local.sentence()  # what was seen, not more
+    time = result.local.time_text()
+    assert re.fullmatch(r"no change with time detected \([+-]\S+ ± \S+ µm over the campaign, F-test p = \S+\)", time)
     assert "backlash" not in result.added and "position_dependent_backlash" not in result.added
 
 
@@ -303,3 +307,18 @@ def test_the_bow_is_averaged_when_a_bump_is_not_added_beside_an_unresolved_perio
     assert [u["effects"] for u in result.unresolved] == [["periodic_lead"]]
     assert "linear_scale" in result.averaged and any("averaged" in n for n in result.notes)
     assert result.params()["linear_scale"] == result.averaged["linear_scale"]
+
+
+def test_a_thermal_time_constant_in_point_order_is_not_printed_in_seconds(cli, tmp_path):
+    """Without a time column thermal_drift's τ is fitted in points; the summary said 's' (old code)."""
+    config = parse_config(user_config().text.replace("cycles = 5", "cycles = 10"))
+    drift = {"thermal_drift": {"growth_ppm": 10.0, "tau_s": 250.0, "pivot_mm": 300.0}}
+    write_points(tmp_path / "p.csv", simulate_campaign(config, ErrorModel({**BOW, **drift}), seed=1))
+    lines = (tmp_path / "p.csv").read_text().splitlines()
+    header = next(i for i, line in enumerate(lines) if line.startswith("run,"))
+    keep = [i for i, n in enumerate(lines[header].split(",")) if n != "time_s"]
+    cut = lines[:header] + [",".join(line.split(",")[i] for i in keep) for line in lines[header:]]
+    (tmp_path / "q.csv").write_text("\n".join(cut) + "\n")
+    said = " ".join(cli("discover", tmp_path / "q.csv").out.split())
+    tau = re.search(r"named: thermal_drift .*?tau_s = \S+ (\w+)", said)
+    assert tau is not None and tau.group(1) == "points", said

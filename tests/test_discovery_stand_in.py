@@ -48,6 +48,10 @@ def test_a_rotary_table_reversal_is_a_stand_in_too(cli, tmp_path):
                       kind="rotary", targets=13, spacing=30.0)
     out = json.loads(cli("discover", table, "--json").out)
     assert out["stand_in"]["effect"] == "backlash" and out["gap_after_um"] <= 1.3 * out["noise_um"]
+    assert "arcsec" in out["stand_in"]["observable"] and "µm" not in out["stand_in"]["observable"]
+    text = " ".join(cli("discover", table).out.split())
+    assert "arcsec (backlash or settling)" in text
+    assert "µm" not in text and "arcsec RMS" in text  # the gap too (the old code said µm everywhere)
 
 
 def test_an_aliased_period_gets_no_stand_in(cli, tmp_path):

@@ -18,6 +18,7 @@ from campaign.edlen import refractive_index
 from campaign.errors import InputError, read_toml
 from campaign.model import ErrorModel, model_from_dict
 from campaign.pointtable import PointTable, read_points
+from protocols.units import UNITS, unit_label
 
 CAPTURE_COLUMNS = ("capture_wait_s", "samples")
 """Point-table columns the recorder writes that discovery uses when present."""
@@ -35,6 +36,7 @@ class CampaignData:
     campaign: which campaign each point belongs to (0, 1, ...; None: all of one campaign). Campaigns
     fitted together (`join_campaigns`) share the effects and get an offset each (a new laser datum);
     their times and runs are each their own campaign's.
+    kind: the axis kind, "linear" (mm, µm) or "rotary" (deg, arcsec): x and y are in its units.
     """
 
     x: np.ndarray
@@ -47,6 +49,17 @@ class CampaignData:
     env: dict[str, np.ndarray]
     air_index_change: np.ndarray | None = None
     campaign: np.ndarray | None = None
+    kind: str = "linear"
+
+    @property
+    def position_unit(self) -> str:
+        """The targets' unit as people read it: mm, or deg on a rotary axis."""
+        return UNITS[self.kind][0]
+
+    @property
+    def deviation_unit(self) -> str:
+        """The deviations' unit as people read it: µm, or arcsec on a rotary axis."""
+        return unit_label(UNITS[self.kind][1])
 
     def __len__(self) -> int:
         return len(self.y)
@@ -77,7 +90,7 @@ def keep_rows(data: CampaignData, keep: np.ndarray) -> CampaignData:
                         w=None if data.w is None else data.w[keep], time_source=data.time_source,
                         env={k: v[keep] for k, v in data.env.items()},
                         air_index_change=None if data.air_index_change is None else data.air_index_change[keep],
-                        campaign=None if data.campaign is None else data.campaign[keep])
+                        campaign=None if data.campaign is None else data.campaign[keep], kind=data.kind)
 
 
 def _padded(rows: list[np.ndarray]) -> np.ndarray:
@@ -113,7 +126,8 @@ def join_campaigns(parts: list[CampaignData], names: list[str]) -> CampaignData:
                         t=_padded([p.t for p in parts]), w=waits, time_source=parts[0].time_source,
                         env={k: np.concatenate([p.env[k] for p in parts]) for k in sorted(env_keys)},
                         air_index_change=air,
-                        campaign=np.concatenate([np.full(len(p), i) for i, p in enumerate(parts)]))
+                        campaign=np.concatenate([np.full(len(p), i) for i, p in enumerate(parts)]),
+                        kind=parts[0].kind)
 
 
 def campaign_data(table: PointTable, capture: dict[str, np.ndarray] | None = None,
@@ -142,7 +156,7 @@ def campaign_data(table: PointTable, capture: dict[str, np.ndarray] | None = Non
     env = {k: v for k, v in table.optional.items() if k not in ("time_s", *CAPTURE_COLUMNS)}
     return CampaignData(x=table.target.astype(float), d=table.direction.astype(float), run=table.run,
                         y=table.deviation.astype(float), t=t, w=w if wait is not None else None,
-                        time_source=source, env=env, air_index_change=air_index_change(env, n))
+                        time_source=source, env=env, air_index_change=air_index_change(env, n), kind=table.kind)
 
 
 AIR_STANDARD = {"air_temp_c": 20.0, "air_pressure_hpa": 1013.25, "humidity_pct": 50.0}

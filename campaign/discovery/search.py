@@ -604,10 +604,11 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
         # axis is used at that wait; where the waits vary they differ, and neither stands in
         without = current.rms_um(data.y)
         current = refine(data, backlash.fitted.terms)
-        b_um = current.params()["backlash"]["b_um"]
+        b_um = current.params()["backlash"]["b_um"]  # in the deviation unit (µm, arcsec)
+        dev = data.deviation_unit
         kept = {"effect": "backlash", "rivals": list(group["effects"]),
-                "observable": f"a reversal of {abs(b_um):.1f} µm between the directions (x̄↑ − x̄↓ = "
-                              f"{-b_um:+.1f} µm): backlash, or settling not died out; cannot tell which",
+                "observable": f"a reversal of {abs(b_um):.1f} {dev} between the directions (x̄↑ − x̄↓ = "
+                              f"{-b_um:+.1f} {dev}): backlash, or settling not died out; cannot tell which",
                 "params": current.params()["backlash"], "gap_without_um": without}
     all_errors = standard_errors(data, current)
     for name in all_errors:
