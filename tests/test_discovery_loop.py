@@ -322,3 +322,15 @@ def test_a_thermal_time_constant_in_point_order_is_not_printed_in_seconds(cli, t
     said = " ".join(cli("discover", tmp_path / "q.csv").out.split())
     tau = re.search(r"named: thermal_drift .*?tau_s = \S+ (\w+)", said)
     assert tau is not None and tau.group(1) == "points", said
+
+
+def test_tables_of_different_axis_kinds_are_refused(cli, tmp_path):
+    """A linear table (mm, µm) and a rotary one (deg, arcsec) fitted together mixed their units
+    silently with the old code (exit 0)."""
+    table = simulate_campaign(user_config(), ErrorModel(BOW), seed=1)
+    write_points(tmp_path / "a.csv", table)
+    text = (tmp_path / "a.csv").read_text().replace("target_mm", "target_deg").replace("deviation_um", "deviation_arcsec")
+    (tmp_path / "r.csv").write_text(text)
+    said = cli("discover", tmp_path / "a.csv", tmp_path / "r.csv")
+    assert said.code == 2 and said.err.startswith("error:") and len(said.err.strip().splitlines()) == 1
+    assert "a.csv" in said.err and "r.csv" in said.err and "arcsec" in said.err and said.out == ""

@@ -435,8 +435,8 @@ def read_tables(files: list[str]) -> tuple[CampaignData, list[Outliers], list[st
     the notes on an incomplete campaign (named by its file when there are several)."""
     parts, found, incomplete = [], [], []
     for name in files:
-        data = read_campaign(name)
         table = read_points(name)
+        data = read_campaign(name, table)
         outliers = find_outliers(table)
         if outliers.found:
             data = keep_rows(data, ~outliers.mask(table))
@@ -481,7 +481,7 @@ def run(args: argparse.Namespace) -> int:
     model, given = read_start_model(args.model)
     if len(data) < 4:
         raise InputError(f"{args.files[0]}: {len(data)} points are too few to fit a model")
-    kind = read_points(args.files[0]).kind
+    kind = data.kind
     result = discover(data, model, given)
     result.notes[:0] = incomplete + [n for o in outliers for n in outlier_notes(o, kind)]
     follow, failed = None, None

@@ -104,9 +104,16 @@ def join_campaigns(parts: list[CampaignData], names: list[str]) -> CampaignData:
     `campaign` saying whose; runs numbered on (the second campaign's run 1 follows the first's
     last run), each campaign's times its own (time since its own start: a thermal drift starts
     again with each campaign). A wait or an air log is used only when every campaign has it.
-    InputError when some have a time column and others not (`names`: the files, for the message)."""
+    InputError when some have a time column and others not, or when the tables are of different axis
+    kinds (and so units: mm and µm, deg and arcsec) (`names`: the files, for the message)."""
     if len(parts) == 1:
         return parts[0]
+    other = next((i for i, p in enumerate(parts) if p.kind != parts[0].kind), None)
+    if other is not None:
+        first, then = parts[0], parts[other]
+        raise InputError(f"{names[other]}: a {then.kind} axis's table ({then.position_unit}, {then.deviation_unit}), "
+                         f"but {names[0]} is a {first.kind} axis's ({first.position_unit}, {first.deviation_unit}): "
+                         "campaigns fitted together must be of one axis, in one unit")
     sources = {p.time_source for p in parts}
     if len(sources) > 1:
         with_time = [n for n, p in zip(names, parts) if p.time_source == "time_s"]
@@ -174,11 +181,12 @@ def air_index_change(env: dict[str, np.ndarray], n: int) -> np.ndarray | None:
     return index / index[0] - 1
 
 
-def read_campaign(path: str | Path) -> CampaignData:
-    """Read a point table for discovery: the table itself, its capture columns, and the sample
-    period from the campaign's config.toml next to it (1/instrument.rate_hz) when there is one."""
+def read_campaign(path: str | Path, table: PointTable | None = None) -> CampaignData:
+    """Read a point table for discovery: the table itself (`table` when it was read already), its
+    capture columns, and the sample period from the campaign's config.toml next to it
+    (1/instrument.rate_hz) when there is one."""
     path = Path(path)
-    table = read_points(path)
+    table = read_points(path) if table is None else table
     capture = {name: table.extra[name] for name in CAPTURE_COLUMNS if name in table.extra}
     period = None
     config = path.parent / "config.toml"
