@@ -110,9 +110,9 @@ def join_campaigns(parts: list[CampaignData], names: list[str]) -> CampaignData:
         return parts[0]
     other = next((i for i, p in enumerate(parts) if p.kind != parts[0].kind), None)
     if other is not None:
-        first, then = parts[0], parts[other]
+        one, then = parts[0], parts[other]
         raise InputError(f"{names[other]}: a {then.kind} axis's table ({then.position_unit}, {then.deviation_unit}), "
-                         f"but {names[0]} is a {first.kind} axis's ({first.position_unit}, {first.deviation_unit}): "
+                         f"but {names[0]} is a {one.kind} axis's ({one.position_unit}, {one.deviation_unit}): "
                          "campaigns fitted together must be of one axis, in one unit")
     sources = {p.time_source for p in parts}
     if len(sources) > 1:
