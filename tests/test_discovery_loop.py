@@ -334,3 +334,54 @@ def test_tables_of_different_axis_kinds_are_refused(cli, tmp_path):
     said = cli("discover", tmp_path / "a.csv", tmp_path / "r.csv")
     assert said.code == 2 and said.err.startswith("error:") and len(said.err.strip().splitlines()) == 1
     assert "a.csv" in said.err and "r.csv" in said.err and "arcsec" in said.err and said.out == ""
+
+
+def planned_follow_up(tmp_path, groups: list[dict]):
+    """The follow-up planned for `groups` after a first campaign of the shipped config (the bow only,
+    fast simulator): the follow-up and the first campaign's targets."""
+    from campaign.discovery.followup import plan_follow_up
+
+    config = user_config()
+    data = campaign_data(simulate_campaign(config, ErrorModel(BOW), seed=1))
+    result = discover(data, ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
+    follow = plan_follow_up(groups, [], data, result.final, config, None, result.noise_um, tmp_path / "f.toml",
+                            ["p.csv"])
+    assert follow is not None
+    return follow, sorted(set(np.round(data.x, 3)))
+
+
+def test_the_thermal_part_spans_the_travel_with_twice_the_runs_and_says_it_is_longer(tmp_path):
+    """Scale against thermal drift: a slope is seen over the travel and a drift over time. The old
+    plan took 5 targets within 10 % of the travel and said 'over a longer time' at a shorter one."""
+    from campaign.plan import build_plan
+
+    follow, first = planned_follow_up(tmp_path, [{"effects": ["linear_scale", "thermal_drift"], "how_to_tell": ""}])
+    targets = build_plan(follow.config).targets  # the first's, offset again by the plan's golden offsets
+    assert len(targets) == len(first) and np.ptp(targets) >= 0.9 * np.ptp(first)
+    assert follow.config.plan.cycles == 2 * user_config().plan.cycles
+    assert follow.duration_s > follow.first_duration_s and follow.longer is not None
+    assert "Warning: it takes longer than the first campaign" in follow.text
+    assert "whole travel" in follow.parts[0].why and "over a longer time" not in follow.parts[0].why
+
+
+def test_the_growing_backlash_part_spans_the_travel(tmp_path):
+    from campaign.plan import build_plan
+
+    groups = [{"effects": ["backlash", "position_dependent_backlash"], "how_to_tell": ""}]
+    follow, first = planned_follow_up(tmp_path, groups)
+    targets = build_plan(follow.config).targets
+    assert len(targets) == len(first) and np.ptp(targets) >= 0.9 * np.ptp(first) and follow.longer is None
+    assert follow.duration_s <= follow.first_duration_s and "whole travel" in follow.parts[0].why
+
+
+def test_a_cluster_is_bounded_and_says_so():
+    """Candidates 0.5 mm and about 20 mm: a quarter of the shortest apart over three of the longest
+    would be over 600 targets."""
+    from campaign.discovery.followup import MAX_CLUSTER_TARGETS, _cluster
+
+    config = user_config()
+    data = campaign_data(simulate_campaign(config, ErrorModel(BOW), seed=1))
+    result = discover(data, ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
+    targets, why = _cluster(data, result.final, [0.5, 20.0, 20.5], [], result.noise_um)
+    assert len(targets) == MAX_CLUSTER_TARGETS and f"bounded to {MAX_CLUSTER_TARGETS} targets" in why
+    assert max(np.diff(targets)) <= 0.5 / 4 + 1e-9

@@ -533,6 +533,8 @@ def follow_up_lines(follow: FollowUp | None, path: str) -> list[str]:
     lines = [(f"follow-up written to {path}: {len(build_plan(follow.config).points)} points, "
              f"{follow.duration_s / 60:.1f} min of machine time (the first campaign: {follow.first_duration_s / 60:.1f} "
              "min); measure it, then discover both tables together")]
+    if follow.longer:
+        lines.append(f"  [yellow]warning:[/] {follow.longer}")
     lines += [f"  for {' or '.join(p.effects)}: {p.why}" for p in follow.parts]
     lines += [f"  [yellow]not planned:[/] {u}" for u in follow.unplanned]
     return lines
