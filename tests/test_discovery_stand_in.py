@@ -11,6 +11,8 @@ import json
 import numpy as np
 import pytest
 
+from tests.conftest import sweep
+
 
 def iso_table(path, deviation, kind="linear", runs=5, targets=11, spacing=60.0, seed=3):
     """A fixed-dwell table without capture_wait_s: `deviation(x, d, rng)` per point, targets with
@@ -64,7 +66,7 @@ def test_an_aliased_period_gets_no_stand_in(cli, tmp_path):
     assert out["gap_after_um"] == out["gap_before_um"]  # nothing added for it
 
 
-@pytest.mark.parametrize("seed, beside", [(1, "backlash"), (2, "settling")])
+@pytest.mark.parametrize("seed, beside", sweep((2, "settling"), (1, "backlash")))
 def test_no_stand_in_where_the_waits_vary(seed, beside):
     """Waits varying by ±10 % about 4 s and a slow settling (τ 8 s): backlash and settling are rivals
     (the rivals path, not the constant-wait one). The old code put a stand-in in the model on seed 1
