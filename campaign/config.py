@@ -176,13 +176,13 @@ def config_from_sections(sections: Mapping[str, Any], source: str) -> Config:
 
 def config_with(config: Config, changes: Mapping[str, Mapping[str, Any]]) -> Config:
     """A copy of `config` with the keys in `changes` (`{section: {key: value}}`) replaced and
-    validated again, as if the file had said so (a sub-table given as {} is removed). The text
-    and the source stay those of the file."""
+    validated again, as if the file had said so (a sub-table given as {} is removed, a key given
+    as None too: as if the file had not given it). The text and the source stay those of the file."""
     data = plain(config.data)
     for section, values in changes.items():
         table = data.setdefault(section, {})
         for name, value in values.items():
-            if (section, name) in TABLES and not value:
+            if value is None or (section, name) in TABLES and not value:
                 table.pop(name, None)
             else:
                 table[name] = plain(value)

@@ -97,6 +97,10 @@ def test_specs_are_frozen_and_a_changed_copy_is_validated_again():
         config_with(config, {"axis": {"max_velocity": -1.0}})
     with pytest.raises(InputError, match=r"base.toml: key 'axis.soft_limit_max': must be above"):
         config_with(config, {"axis": {"soft_limit_min": 500.0}})
+    spaced = config_with(config, {"plan": {"targets": None, "length": 100.0, "count": 3}})  # None: as if not given
+    assert spaced.plan.targets is None and spaced.plan.length == 100.0
+    listed = config_with(spaced, {"plan": {"targets": [0.0, 50.0], "length": None, "count": None}})
+    assert listed.plan.targets == (0.0, 50.0) and listed.plan.length is None
 
 
 def test_every_key_has_one_owning_spec_field_with_its_meaning():

@@ -65,6 +65,10 @@ def test_a_local_bump_is_located_and_nothing_soaks_it_up(seed):
 def test_a_bump_in_one_direction_says_so():
     result = found(user_config(count=21), {**BOW, "local_defect": {**BUMP, "direction": -1.0}}, 2)
     assert result.local is not None and result.local.directions == "-"
+    assert "seen in the − direction; in the + direction below 3σ (" in result.local.sentence()
+    assert "only" not in result.local.sentence()  # what was seen, not more
+    time = result.local.time_text()
+    assert re.fullmatch(r"no change with time detected \([+-]\S+ ± \S+ µm over the campaign, F-test p = \S+\)", time)
     assert "backlash" not in result.added and "position_dependent_backlash" not in result.added
 
 
@@ -249,3 +253,135 @@ def test_a_follow_up_alone_is_read(cli, tmp_path):
     said = cli("discover", tmp_path / "p.csv")
     assert said.code == 0, said.err
     assert "backlash" in said.out
+
+
+DEMO = (DATA.parent / "campaign" / "demo.toml").read_text()
+"""The shipped demo config: its error model inline ([sim.effects.*]), the dwell capture."""
+DEMO_MODEL = {"backlash": {"b_um": 6.0}, **BOW}
+SUB_TABLES = ('[instrument.line]\ntag = ""\nseparator = ";"\nfields = ["time_s", "position", "signal_pct"]\n'
+              'position_scale = 0.001\n\n[sim.faults]\nbeam_break = { at_s = 300.0, duration_s = 3.0 }\n')
+
+
+def demo_text(extra: str = "") -> str:
+    """demo.toml with a 6 µm backlash added to its inline model, and `extra` tables at the end."""
+    return DEMO.replace("[sim.effects.linear_scale]", "[sim.effects.backlash]\nb_um = 6.0\n\n"
+                        "[sim.effects.linear_scale]") + "\n" + extra
+
+
+@pytest.mark.parametrize("extra", ["", SUB_TABLES], ids=["demo", "demo+line+faults"])
+def test_the_follow_up_of_a_config_with_sub_tables_keeps_them(cli, tmp_path, extra):
+    """demo.toml's [sim.effects.*] (and [instrument.line], [sim.faults]) broke the follow-up: its TOML
+    writer met the config's frozen tables (an internal error, exit 1, nothing printed). The follow-up
+    keeps every sub-table as the first campaign had it, and reads back as the config it was made from."""
+    _, config, out = written_follow_up(cli, tmp_path, demo_text(extra), DEMO_MODEL)
+    assert out["follow_up"] is not None and out["follow_up"]["capture"] == "dwell"
+    followed = load_config(tmp_path / "follow.toml")
+    assert followed.sim.effects == config.sim.effects and followed.sim.faults == config.sim.faults
+    assert followed.instrument.line == config.instrument.line and followed.axis == config.axis
+    assert followed.plan.length is None and followed.plan.targets == tuple(out["follow_up"]["targets"])
+    assert cli("plan", tmp_path / "follow.toml").code == 0
+
+
+def test_the_findings_are_printed_when_the_follow_up_cannot_be_written(cli, tmp_path):
+    directory = tmp_path / "first"
+    directory.mkdir()
+    (directory / "config.toml").write_text(demo_text())
+    config = load_config(directory / "config.toml")
+    write_points(directory / "points.csv", simulate_campaign(config, ErrorModel(DEMO_MODEL), seed=1))
+    said = cli("discover", directory / "points.csv", "--follow-up", "-o", tmp_path / "no" / "such" / "f.toml")
+    assert said.code == 2 and said.err.startswith("error:") and len(said.err.strip().splitlines()) == 1
+    assert "no/such/f.toml" in said.err and "gap" in said.out and "stand-in" in said.out
+    said = cli("discover", directory / "points.csv", "--follow-up", "-o", tmp_path / "no" / "f.toml", "--json")
+    assert said.code == 2 and json.loads(said.out)["follow_up_error"].startswith("-o ")
+
+
+def test_the_bow_is_averaged_when_a_bump_is_not_added_beside_an_unresolved_period():
+    """A 10 mm lead at 11 targets and a +3 µm bump 150 mm wide: the bump would fit, but the period
+    stays unresolved beside it, so the bump is not added. That branch returned the search's result
+    as it was: the other effects were not averaged over the candidate periods (the issue-26 fix
+    skipped; `averaged` empty with the old code)."""
+    lead = {"periodic_lead": {"amplitude_um": 1.0, "period_mm": 10.0, "phase_rad": 0.3}}
+    bump = {"amplitude_um": 3.0, "centre_mm": 300.0, "width_mm": 150.0, "direction": 0.0}
+    result = found(user_config(seed=1), {**BOW, **lead, "local_defect": bump}, 1)
+    assert result.local is None and any("would fit too" in n for n in result.notes)  # the branch
+    assert [u["effects"] for u in result.unresolved] == [["periodic_lead"]]
+    assert "linear_scale" in result.averaged and any("averaged" in n for n in result.notes)
+    assert result.params()["linear_scale"] == result.averaged["linear_scale"]
+
+
+def test_a_thermal_time_constant_in_point_order_is_not_printed_in_seconds(cli, tmp_path):
+    """Without a time column thermal_drift's τ is fitted in points; the summary said 's' (old code)."""
+    config = parse_config(user_config().text.replace("cycles = 5", "cycles = 10"))
+    drift = {"thermal_drift": {"growth_ppm": 10.0, "tau_s": 250.0, "pivot_mm": 300.0}}
+    write_points(tmp_path / "p.csv", simulate_campaign(config, ErrorModel({**BOW, **drift}), seed=1))
+    lines = (tmp_path / "p.csv").read_text().splitlines()
+    header = next(i for i, line in enumerate(lines) if line.startswith("run,"))
+    keep = [i for i, n in enumerate(lines[header].split(",")) if n != "time_s"]
+    cut = lines[:header] + [",".join(line.split(",")[i] for i in keep) for line in lines[header:]]
+    (tmp_path / "q.csv").write_text("\n".join(cut) + "\n")
+    said = " ".join(cli("discover", tmp_path / "q.csv").out.split())
+    tau = re.search(r"named: thermal_drift .*?tau_s = \S+ (\w+)", said)
+    assert tau is not None and tau.group(1) == "points", said
+
+
+def test_tables_of_different_axis_kinds_are_refused(cli, tmp_path):
+    """A linear table (mm, µm) and a rotary one (deg, arcsec) fitted together mixed their units
+    silently with the old code (exit 0)."""
+    table = simulate_campaign(user_config(), ErrorModel(BOW), seed=1)
+    write_points(tmp_path / "a.csv", table)
+    text = (tmp_path / "a.csv").read_text().replace("target_mm", "target_deg").replace("deviation_um", "deviation_arcsec")
+    (tmp_path / "r.csv").write_text(text)
+    said = cli("discover", tmp_path / "a.csv", tmp_path / "r.csv")
+    assert said.code == 2 and said.err.startswith("error:") and len(said.err.strip().splitlines()) == 1
+    assert "a.csv" in said.err and "r.csv" in said.err and "arcsec" in said.err and said.out == ""
+
+
+def planned_follow_up(tmp_path, groups: list[dict]):
+    """The follow-up planned for `groups` after a first campaign of the shipped config (the bow only,
+    fast simulator): the follow-up and the first campaign's targets."""
+    from campaign.discovery.followup import plan_follow_up
+
+    config = user_config()
+    data = campaign_data(simulate_campaign(config, ErrorModel(BOW), seed=1))
+    result = discover(data, ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
+    follow = plan_follow_up(groups, [], data, result.final, config, None, result.noise_um, tmp_path / "f.toml",
+                            ["p.csv"])
+    assert follow is not None
+    return follow, sorted(set(np.round(data.x, 3)))
+
+
+def test_the_thermal_part_spans_the_travel_with_twice_the_runs_and_says_it_is_longer(tmp_path):
+    """Scale against thermal drift: a slope is seen over the travel and a drift over time. The old
+    plan took 5 targets within 10 % of the travel and said 'over a longer time' at a shorter one."""
+    from campaign.plan import build_plan
+
+    follow, first = planned_follow_up(tmp_path, [{"effects": ["linear_scale", "thermal_drift"], "how_to_tell": ""}])
+    targets = build_plan(follow.config).targets  # the first's, offset again by the plan's golden offsets
+    assert len(targets) == len(first) and np.ptp(targets) >= 0.9 * np.ptp(first)
+    assert follow.config.plan.cycles == 2 * user_config().plan.cycles
+    assert follow.duration_s > follow.first_duration_s and follow.longer is not None
+    assert "Warning: it takes longer than the first campaign" in follow.text
+    assert "whole travel" in follow.parts[0].why and "over a longer time" not in follow.parts[0].why
+
+
+def test_the_growing_backlash_part_spans_the_travel(tmp_path):
+    from campaign.plan import build_plan
+
+    groups = [{"effects": ["backlash", "position_dependent_backlash"], "how_to_tell": ""}]
+    follow, first = planned_follow_up(tmp_path, groups)
+    targets = build_plan(follow.config).targets
+    assert len(targets) == len(first) and np.ptp(targets) >= 0.9 * np.ptp(first) and follow.longer is None
+    assert follow.duration_s <= follow.first_duration_s and "whole travel" in follow.parts[0].why
+
+
+def test_a_cluster_is_bounded_and_says_so():
+    """Candidates 0.5 mm and about 20 mm: a quarter of the shortest apart over three of the longest
+    would be over 600 targets."""
+    from campaign.discovery.followup import MAX_CLUSTER_TARGETS, _cluster
+
+    config = user_config()
+    data = campaign_data(simulate_campaign(config, ErrorModel(BOW), seed=1))
+    result = discover(data, ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
+    targets, why = _cluster(data, result.final, [0.5, 20.0, 20.5], [], result.noise_um)
+    assert len(targets) == MAX_CLUSTER_TARGETS and f"bounded to {MAX_CLUSTER_TARGETS} targets" in why
+    assert max(np.diff(targets)) <= 0.5 / 4 + 1e-9

@@ -11,6 +11,8 @@ import json
 import numpy as np
 import pytest
 
+from tests.conftest import sweep
+
 
 def iso_table(path, deviation, kind="linear", runs=5, targets=11, spacing=60.0, seed=3):
     """A fixed-dwell table without capture_wait_s: `deviation(x, d, rng)` per point, targets with
@@ -48,6 +50,10 @@ def test_a_rotary_table_reversal_is_a_stand_in_too(cli, tmp_path):
                       kind="rotary", targets=13, spacing=30.0)
     out = json.loads(cli("discover", table, "--json").out)
     assert out["stand_in"]["effect"] == "backlash" and out["gap_after_um"] <= 1.3 * out["noise_um"]
+    assert "arcsec" in out["stand_in"]["observable"] and "µm" not in out["stand_in"]["observable"]
+    text = " ".join(cli("discover", table).out.split())
+    assert "arcsec (backlash or settling)" in text
+    assert "µm" not in text and "arcsec RMS" in text  # the gap too (the old code said µm everywhere)
 
 
 def test_an_aliased_period_gets_no_stand_in(cli, tmp_path):
@@ -58,3 +64,40 @@ def test_an_aliased_period_gets_no_stand_in(cli, tmp_path):
     assert [u["effects"] for u in out["unresolved"]] == [["periodic_lead"]]  # there, but not pinned down
     assert out["stand_in"] is None and "periodic_lead" not in out["model"]
     assert out["gap_after_um"] == out["gap_before_um"]  # nothing added for it
+
+
+@pytest.mark.parametrize("seed", sweep(2, 1))
+def test_no_stand_in_where_the_waits_vary(seed):
+    """Waits varying by ±10 % about 4 s and a slow settling (τ 8 s): backlash and settling are rivals
+    (the rivals path, not the constant-wait one). The old code put a stand-in in the model on seed 1
+    (backlash) and on seed 2, where settling explains a little more and was tried beside the others,
+    raised KeyError 'b_um'. Where the waits vary the two predict different deviations, so neither
+    stands in; the pair stays unresolved."""
+    from campaign.discovery.data import campaign_data
+    from campaign.discovery.search import discover
+    from campaign.discovery.simulate import simulate_campaign
+    from campaign.model import ErrorModel
+    from tests.test_discovery_loop import BOW, user_config
+
+    machine = {**BOW, "settling": {"e0_um": 4.0, "tau_s": 8.0}}
+    table = simulate_campaign(user_config(), ErrorModel(machine), seed=seed, dwell_jitter=0.1)
+    result = discover(campaign_data(table), ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
+    assert any(set(u["effects"]) == {"backlash", "settling"} for u in result.unresolved)
+    assert result.remaining_beside == {1: "backlash", 2: "settling"}[seed]
+    assert result.stand_in is None and "backlash" not in result.params() and "settling" not in result.params()
+
+
+def test_the_stand_in_is_the_backlash_even_when_settling_is_tried_beside():
+    """A wait column that does not vary (the fixed dwell, recorded): the stand-in is the backlash."""
+    from campaign.discovery.data import campaign_data
+    from campaign.discovery.search import discover, waits_vary
+    from campaign.discovery.simulate import simulate_campaign
+    from campaign.model import ErrorModel
+    from tests.test_discovery_loop import BOW, user_config
+
+    table = simulate_campaign(user_config(), ErrorModel({**BOW, "backlash": {"b_um": 3.0}}), seed=1)
+    data = campaign_data(table)
+    assert data.w is not None and not waits_vary(data)
+    result = discover(data, ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
+    assert result.stand_in is not None and result.stand_in["effect"] == "backlash"
+    assert abs(result.stand_in["params"]["b_um"]) == pytest.approx(3.0, abs=0.5)

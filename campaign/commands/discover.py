@@ -60,12 +60,19 @@ ENVIRONMENT_PARAMS = {"air_factor": "share of the air log's refractive-index cha
 not a parameter of the axis model)."""
 
 
-def unit_of(effect: str, key: str, time_unit: str) -> str:
-    """The unit of a model parameter, from its description in EFFECT_PARAMS."""
+ROTARY_UNITS = {"µm": "arcsec", "mm": "deg"}
+"""A parameter's unit on a rotary axis (the model's keys say µm and mm: they are arcsec and deg there)."""
+
+
+def unit_of(effect: str, key: str, time_unit: str, kind: str = "linear") -> str:
+    """The unit of a model parameter, from its description in EFFECT_PARAMS (on a rotary axis µm
+    is arcsec and mm is deg; without a time column a thermal time constant is in points)."""
     if key == "tau_s" and effect == "thermal_drift" and time_unit != "s":
         return time_unit
     described = ENVIRONMENT_PARAMS if effect == "environment" else EFFECT_PARAMS[effect]
     unit = described[key].rsplit(", ", 1)[-1].split(" (")[0]
+    if kind == "rotary":
+        unit = ROTARY_UNITS.get(unit, unit)
     return "" if unit == "1" else unit
 
 
@@ -83,10 +90,10 @@ SPAN_KEYS = ("start_mm", "end_mm")
 
 
 def param_text(effect: str, key: str, value: float, errors: dict[str, float], given: Collection[str],
-               time_unit: str) -> str:
+               time_unit: str, kind: str = "linear") -> str:
     """One parameter, once, with its unit and its error; a parameter that is not fitted says why
     it has none: given in the model, or the bow's span (the targets' range)."""
-    unit = unit_of(effect, key, time_unit)
+    unit = unit_of(effect, key, time_unit, kind)
     if key in errors:
         return f"{key} = {with_error(value, errors[key], unit)}"
     why = "given" if key in given else "the targets' span, not fitted" if key in SPAN_KEYS else "no error: too few points"
@@ -94,8 +101,8 @@ def param_text(effect: str, key: str, value: float, errors: dict[str, float], gi
 
 
 def params_text(effect: str, params: dict[str, float], errors: dict[str, float], given: Collection[str],
-                time_unit: str) -> str:
-    text = ", ".join(param_text(effect, k, v, errors, given, time_unit) for k, v in params.items())
+                time_unit: str, kind: str = "linear") -> str:
+    text = ", ".join(param_text(effect, k, v, errors, given, time_unit, kind) for k, v in params.items())
     if effect == "thermal_drift" and time_unit == "s" and "tau_s" in params:
         rate = drift_rate(effect, params)["initial_rate_ppm_per_h"]
         text += f"; initially {with_error(rate, errors.get('initial_rate_ppm_per_h'), 'µm/m per hour')}"
@@ -265,23 +272,25 @@ def first_clause(text: str, most: int = 70) -> str:
 
 
 def local_said(result: Discovery) -> str:
-    """The local error in words, with the error of its size and place."""
+    """The local error in words, with the error of its size and place (the axis's units)."""
     local = result.local
     assert local is not None
     e = local.errors
     size = "amplitude_um" if "amplitude_um" in e else None
-    errs = ", ".join(f"{k.split('_')[0]} ± {e[k]:.2g} {'µm' if k.endswith('um') else 'mm'}"
+    errs = ", ".join(f"{k.split('_')[0]} ± {e[k]:.2g} "
+                     f"{local.deviation_unit if k.endswith('um') else local.position_unit}"
                      for k in (size, "centre_mm", "width_mm") if k and k in e)
     return f"{local.sentence()} ({errs})" if errs else local.sentence()
 
 
-def summary_lines(result: Discovery, incomplete: list[str]) -> list[str]:
+def summary_lines(result: Discovery, incomplete: list[str], time_unit: str = "s", kind: str = "linear") -> list[str]:
     """What a technician reads first, one short line each: an incomplete campaign, what was named
     with its size and error, the stand-in, what is unresolved and the one thing to do about it,
-    the gap against the noise."""
+    the gap against the noise (in the axis's deviation unit; times in `time_unit`)."""
+    dev = unit_label(UNITS[kind][1])
     lines = [f"[yellow]incomplete campaign:[/] {note.split(': ', 1)[1].split('. ', 1)[0]}" for note in incomplete]
     for step in result.steps:
-        sizes = ", ".join(param_text(step.effect, k, v, step.errors, (), "s").split(" (")[0]
+        sizes = ", ".join(param_text(step.effect, k, v, step.errors, (), time_unit, kind).split(" (")[0]
                           for k, v in list(step.params.items())[:2])
         lines.append(f"named: [bold]{step.effect}[/] {sizes}")
     if not result.steps:
@@ -291,35 +300,37 @@ def summary_lines(result: Discovery, incomplete: list[str]) -> list[str]:
         lines.append(f"found outside the model: [bold]{local_said(result)}[/]; no effect of the model has this shape")
     if result.stand_in is not None:
         b = abs(result.stand_in["params"]["b_um"])
-        lines.append(f"in the model as a stand-in: a reversal of {b:.1f} µm (backlash or settling)")
+        lines.append(f"in the model as a stand-in: a reversal of {b:.1f} {dev} (backlash or settling)")
     for entry in result.unresolved:
         lines.append(f"[yellow]unresolved:[/] {' or '.join(entry['effects'])}; to tell: "
                      f"{first_clause(entry['how_to_tell'])}")
     verdict = noise_verdict(result.gap_after_um, result.noise_um)
-    lines.append(f"gap {result.gap_before_um:.2f} -> {result.gap_after_um:.2f} µm RMS, noise "
-                 f"{result.noise_um:.2f} µm: what is left is {verdict}")
+    lines.append(f"gap {result.gap_before_um:.2f} -> {result.gap_after_um:.2f} {dev} RMS, noise "
+                 f"{result.noise_um:.2f} {dev}: what is left is {verdict}")
     return lines
 
 
-def print_text(result: Discovery, time_unit: str, incomplete: list[str], verbose: bool) -> None:
+def print_text(result: Discovery, time_unit: str, incomplete: list[str], verbose: bool, kind: str = "linear") -> None:
     console = make_console()
-    for line in summary_lines(result, incomplete):
+    dev = unit_label(UNITS[kind][1])
+    slope = "µm/m" if kind == "linear" else "arcsec per 1000 deg"  # the slope's x is taken in units of 1000
+    for line in summary_lines(result, incomplete, time_unit, kind):
         console.print(line)
     if not verbose:
         console.print("[dim](--verbose: every candidate with ΔBIC, p and CV, how to tell in full, the notes)[/]")
         return
     console.print()
     before = result.disagreement_before
-    console.print(f"start: gap {result.gap_before_um:.3f} µm RMS (measured - simulated), of which by position "
-                  f"{before['by_position_rms_um']:.3f} µm RMS, by direction "
-                  + ", ".join(f"{k} {v:+.3f}" for k, v in before["by_direction_um"].items()) + " µm, by run "
-                  + ", ".join(f"{r}: {v['mean_um']:+.3f} µm, {v['slope_ppm']:+.2f} µm/m"
+    console.print(f"start: gap {result.gap_before_um:.3f} {dev} RMS (measured - simulated), of which by position "
+                  f"{before['by_position_rms_um']:.3f} {dev} RMS, by direction "
+                  + ", ".join(f"{k} {v:+.3f}" for k, v in before["by_direction_um"].items()) + f" {dev}, by run "
+                  + ", ".join(f"{r}: {v['mean_um']:+.3f} {dev}, {v['slope_ppm']:+.2f} {slope}"
                               for r, v in before["by_run"].items()))
     if not result.steps:
         console.print(nothing_named(result))
     for i, step in enumerate(result.steps, 1):
-        params = params_text(step.effect, step.params, step.errors, (), time_unit)
-        gap = f"gap {step.gap_before_um:.3f} -> {step.gap_after_um:.3f} µm"
+        params = params_text(step.effect, step.params, step.errors, (), time_unit, kind)
+        gap = f"gap {step.gap_before_um:.3f} -> {step.gap_after_um:.3f} {dev}"
         console.print(f"step {i}: add [bold]{step.effect}[/] ({params}); {gap}")
         for line in ranking_lines(step.ranking):
             console.print(line)
@@ -337,19 +348,19 @@ def print_text(result: Discovery, time_unit: str, incomplete: list[str], verbose
         console.print(f"[yellow]unresolved:[/] {entry['why']}. To tell: {entry['how_to_tell']}.")
     if result.stand_in is not None:
         console.print(f"[yellow]in the model as a stand-in:[/] {result.stand_in['observable']}; the model holds it "
-                      f"as {result.stand_in['effect']} (gap {result.stand_in['gap_without_um']:.3f} µm without it)")
+                      f"as {result.stand_in['effect']} (gap {result.stand_in['gap_without_um']:.3f} {dev} without it)")
     if result.local is not None:
         local = result.local
         console.print(f"[yellow]found outside the model:[/] {local_said(result)}; no effect of the model has this "
                       f"shape; {local.time_text()}. It explains {local.explained_pct:.1f} % of the residual (ΔBIC "
                       f"{local.delta_bic:.1f} with its search's look-elsewhere, p {local.p_value:.2g}, CV "
-                      f"{local.cv_before_um:.3f} -> {local.cv_after_um:.3f} µm); the model holds it as a smooth local "
-                      f"term (gap {local.gap_without_um:.3f} µm without it), not as an effect, and does not save it")
+                      f"{local.cv_before_um:.3f} -> {local.cv_after_um:.3f} {dev}); the model holds it as a smooth local "
+                      f"term (gap {local.gap_without_um:.3f} {dev} without it), not as an effect, and does not save it")
     if len(result.final.offsets_um) > 1:
         console.print("campaigns fitted together, each with its own datum offset: "
-                      + ", ".join(f"{o:+.3f} µm" for o in result.final.offsets_um))
+                      + ", ".join(f"{o:+.3f} {dev}" for o in result.final.offsets_um))
     verdict = noise_verdict(result.gap_after_um, result.noise_um)
-    line = (f"final gap {result.gap_after_um:.3f} µm RMS against a noise estimate of {result.noise_um:.3f} µm "
+    line = (f"final gap {result.gap_after_um:.3f} {dev} RMS against a noise estimate of {result.noise_um:.3f} {dev} "
             f"(run-to-run scatter): what is left is {verdict}")
     console.print(line)
     for note in result.notes:
@@ -424,8 +435,8 @@ def read_tables(files: list[str]) -> tuple[CampaignData, list[Outliers], list[st
     the notes on an incomplete campaign (named by its file when there are several)."""
     parts, found, incomplete = [], [], []
     for name in files:
-        data = read_campaign(name)
         table = read_points(name)
+        data = read_campaign(name, table)
         outliers = find_outliers(table)
         if outliers.found:
             data = keep_rows(data, ~outliers.mask(table))
@@ -470,15 +481,18 @@ def run(args: argparse.Namespace) -> int:
     model, given = read_start_model(args.model)
     if len(data) < 4:
         raise InputError(f"{args.files[0]}: {len(data)} points are too few to fit a model")
-    kind = read_points(args.files[0]).kind
+    kind = data.kind
     result = discover(data, model, given)
     result.notes[:0] = incomplete + [n for o in outliers for n in outlier_notes(o, kind)]
-    follow = None
+    follow, failed = None, None
     if config is not None:
-        follow = plan_follow_up(result.unresolved, result.remaining, data, result.final, config, reversal_um(result),
-                                result.noise_um, Path(args.output), args.files)
-        if follow is not None:
-            Path(args.output).write_text(follow.text, encoding="utf-8")
+        try:  # the findings are printed even when the follow-up cannot be planned or written
+            follow = plan_follow_up(result.unresolved, result.remaining, data, result.final, config,
+                                    reversal_um(result), result.noise_um, Path(args.output), args.files)
+            if follow is not None:
+                write_follow_up(Path(args.output), follow.text)
+        except Exception as exc:  # noqa: BLE001 - raised again once the findings are out
+            failed = exc
     if plot_path:
         plot_steps(result, data.x, data.d, data.y, plot_path)
     if args.save:
@@ -487,17 +501,29 @@ def run(args: argparse.Namespace) -> int:
         extra = {"campaigns": args.files, "offsets_um": [round(o, 4) for o in result.final.offsets_um]}
         if args.follow_up:
             extra["follow_up"] = None if follow is None else {**follow.as_dict(), "file": args.output}
+            if failed is not None:
+                extra["follow_up_error"] = str(failed)
         print_json({**as_json(result), **all_outliers_json(outliers, args.files), **extra})
     else:
-        print_text(result, data.time_unit, incomplete, args.verbose)
+        print_text(result, data.time_unit, incomplete, args.verbose, data.kind)
         console = make_console()
-        if args.follow_up:
+        if args.follow_up and failed is None:
             for line in follow_up_lines(follow, args.output):
                 console.print(line)
         for path, what in ((plot_path, "plot"), (args.save, "model")):
             if path:
                 console.print(f"{what} written to {path}")
+    if failed is not None:
+        raise failed
     return 0
+
+
+def write_follow_up(path: Path, text: str) -> None:
+    """Write the follow-up config; InputError (exit 2) naming the file when it cannot be written."""
+    try:
+        path.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"-o {path}: cannot write the follow-up config ({exc.strerror or exc})") from None
 
 
 def follow_up_lines(follow: FollowUp | None, path: str) -> list[str]:
@@ -507,6 +533,8 @@ def follow_up_lines(follow: FollowUp | None, path: str) -> list[str]:
     lines = [(f"follow-up written to {path}: {len(build_plan(follow.config).points)} points, "
              f"{follow.duration_s / 60:.1f} min of machine time (the first campaign: {follow.first_duration_s / 60:.1f} "
              "min); measure it, then discover both tables together")]
+    if follow.longer:
+        lines.append(f"  [yellow]warning:[/] {follow.longer}")
     lines += [f"  for {' or '.join(p.effects)}: {p.why}" for p in follow.parts]
     lines += [f"  [yellow]not planned:[/] {u}" for u in follow.unplanned]
     return lines

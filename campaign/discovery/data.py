@@ -18,6 +18,7 @@ from campaign.edlen import refractive_index
 from campaign.errors import InputError, read_toml
 from campaign.model import ErrorModel, model_from_dict
 from campaign.pointtable import PointTable, read_points
+from protocols.units import UNITS, unit_label
 
 CAPTURE_COLUMNS = ("capture_wait_s", "samples")
 """Point-table columns the recorder writes that discovery uses when present."""
@@ -35,6 +36,7 @@ class CampaignData:
     campaign: which campaign each point belongs to (0, 1, ...; None: all of one campaign). Campaigns
     fitted together (`join_campaigns`) share the effects and get an offset each (a new laser datum);
     their times and runs are each their own campaign's.
+    kind: the axis kind, "linear" (mm, µm) or "rotary" (deg, arcsec): x and y are in its units.
     """
 
     x: np.ndarray
@@ -47,6 +49,17 @@ class CampaignData:
     env: dict[str, np.ndarray]
     air_index_change: np.ndarray | None = None
     campaign: np.ndarray | None = None
+    kind: str = "linear"
+
+    @property
+    def position_unit(self) -> str:
+        """The targets' unit as people read it: mm, or deg on a rotary axis."""
+        return UNITS[self.kind][0]
+
+    @property
+    def deviation_unit(self) -> str:
+        """The deviations' unit as people read it: µm, or arcsec on a rotary axis."""
+        return unit_label(UNITS[self.kind][1])
 
     def __len__(self) -> int:
         return len(self.y)
@@ -77,7 +90,7 @@ def keep_rows(data: CampaignData, keep: np.ndarray) -> CampaignData:
                         w=None if data.w is None else data.w[keep], time_source=data.time_source,
                         env={k: v[keep] for k, v in data.env.items()},
                         air_index_change=None if data.air_index_change is None else data.air_index_change[keep],
-                        campaign=None if data.campaign is None else data.campaign[keep])
+                        campaign=None if data.campaign is None else data.campaign[keep], kind=data.kind)
 
 
 def _padded(rows: list[np.ndarray]) -> np.ndarray:
@@ -91,9 +104,16 @@ def join_campaigns(parts: list[CampaignData], names: list[str]) -> CampaignData:
     `campaign` saying whose; runs numbered on (the second campaign's run 1 follows the first's
     last run), each campaign's times its own (time since its own start: a thermal drift starts
     again with each campaign). A wait or an air log is used only when every campaign has it.
-    InputError when some have a time column and others not (`names`: the files, for the message)."""
+    InputError when some have a time column and others not, or when the tables are of different axis
+    kinds (and so units: mm and µm, deg and arcsec) (`names`: the files, for the message)."""
     if len(parts) == 1:
         return parts[0]
+    other = next((i for i, p in enumerate(parts) if p.kind != parts[0].kind), None)
+    if other is not None:
+        one, then = parts[0], parts[other]
+        raise InputError(f"{names[other]}: a {then.kind} axis's table ({then.position_unit}, {then.deviation_unit}), "
+                         f"but {names[0]} is a {one.kind} axis's ({one.position_unit}, {one.deviation_unit}): "
+                         "campaigns fitted together must be of one axis, in one unit")
     sources = {p.time_source for p in parts}
     if len(sources) > 1:
         with_time = [n for n, p in zip(names, parts) if p.time_source == "time_s"]
@@ -113,7 +133,8 @@ def join_campaigns(parts: list[CampaignData], names: list[str]) -> CampaignData:
                         t=_padded([p.t for p in parts]), w=waits, time_source=parts[0].time_source,
                         env={k: np.concatenate([p.env[k] for p in parts]) for k in sorted(env_keys)},
                         air_index_change=air,
-                        campaign=np.concatenate([np.full(len(p), i) for i, p in enumerate(parts)]))
+                        campaign=np.concatenate([np.full(len(p), i) for i, p in enumerate(parts)]),
+                        kind=parts[0].kind)
 
 
 def campaign_data(table: PointTable, capture: dict[str, np.ndarray] | None = None,
@@ -142,7 +163,7 @@ def campaign_data(table: PointTable, capture: dict[str, np.ndarray] | None = Non
     env = {k: v for k, v in table.optional.items() if k not in ("time_s", *CAPTURE_COLUMNS)}
     return CampaignData(x=table.target.astype(float), d=table.direction.astype(float), run=table.run,
                         y=table.deviation.astype(float), t=t, w=w if wait is not None else None,
-                        time_source=source, env=env, air_index_change=air_index_change(env, n))
+                        time_source=source, env=env, air_index_change=air_index_change(env, n), kind=table.kind)
 
 
 AIR_STANDARD = {"air_temp_c": 20.0, "air_pressure_hpa": 1013.25, "humidity_pct": 50.0}
@@ -160,11 +181,12 @@ def air_index_change(env: dict[str, np.ndarray], n: int) -> np.ndarray | None:
     return index / index[0] - 1
 
 
-def read_campaign(path: str | Path) -> CampaignData:
-    """Read a point table for discovery: the table itself, its capture columns, and the sample
-    period from the campaign's config.toml next to it (1/instrument.rate_hz) when there is one."""
+def read_campaign(path: str | Path, table: PointTable | None = None) -> CampaignData:
+    """Read a point table for discovery: the table itself (`table` when it was read already), its
+    capture columns, and the sample period from the campaign's config.toml next to it
+    (1/instrument.rate_hz) when there is one."""
     path = Path(path)
-    table = read_points(path)
+    table = read_points(path) if table is None else table
     capture = {name: table.extra[name] for name in CAPTURE_COLUMNS if name in table.extra}
     period = None
     config = path.parent / "config.toml"

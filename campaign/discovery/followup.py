@@ -9,8 +9,11 @@ campaign (its targets, capture and cycles):
 - a periodic error whose period is not identifiable (or that rivals the bow): a cluster of targets
   at most a quarter of the shortest candidate period apart, over a few of the longest candidate
   periods, in the middle of the travel measured;
-- thermal drift against linear scale (or the environment): more runs than the first campaign;
+- thermal drift against linear scale (or the environment): twice the first campaign's runs at its
+  targets over the whole travel (a slope is seen over the travel), so about twice its time;
 - a growing against a constant reversal: both directions at targets over the whole travel.
+Parts that ask for different targets get the union of them. A follow-up longer than the first
+campaign says so (`longer`).
 A group none of these fits is said, not planned.
 
 Units: positions in the axis unit (mm or deg), times s, deviations µm.
@@ -22,17 +25,20 @@ import itertools
 import json
 import math
 import os
+import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from campaign.config import Config, parse_config
+from campaign.config import Config, config_with, parse_config
 from campaign.discovery.data import CampaignData
 from campaign.discovery.fit import Fit, Term, linear_fit
 from campaign.discovery.search import RIVAL_MARGIN
 from campaign.plan import build_plan, check_plan, estimate_duration_s
+from campaign.specs import plain
 
 WAITS_S = (0.5, 5.0)
 """The waits before capture of the dwell part, s: a decade (stretched upwards to include the first
@@ -43,9 +49,11 @@ FEW_TARGETS = 5
 FEW_SPACING = 0.025
 """Targets (and their spacing, a fraction of the travel) when no cluster is asked for."""
 SEPARATION = 5.0
-"""How clearly (in standard errors) a part should tell its rivals apart: settling from backlash
-(sets the dwell part's points from the reversal and the noise), the closest candidate periods
-(sets the cluster's length from the wave's amplitude and the noise)."""
+"""How clearly (in standard errors) a part should tell its rivals apart: the closest candidate
+periods (sets the cluster's length from the wave's amplitude and the noise, computed); settling
+from backlash (sets the dwell part's points by a rule of thumb, `_dwell_points`)."""
+MAX_CLUSTER_TARGETS = 121
+"""The most targets a cluster gets: a longer span than that allows is cut, and the why says so."""
 
 CLUSTER_LEADS = 3.0
 """The cluster spans at least this many of the longest plausible candidate periods."""
@@ -75,10 +83,13 @@ class FollowUp:
     unplanned: list[str] = field(default_factory=list)
     duration_s: float = 0.0
     first_duration_s: float = 0.0
+    longer: str | None = None
+    """A warning when the follow-up takes longer than the first campaign (None: it does not)."""
 
     def as_dict(self) -> dict[str, Any]:
         return {"parts": [{"effects": p.effects, "why": p.why} for p in self.parts], "unplanned": self.unplanned,
                 "duration_s": round(self.duration_s, 1), "first_duration_s": round(self.first_duration_s, 1),
+                "longer_warning": self.longer,
                 "targets": list(build_plan(self.config).targets), "cycles": self.config.plan.cycles,
                 "capture": self.config.capture.method}
 
@@ -128,6 +139,9 @@ def _cluster(data: CampaignData, final: Fit, periods: list[float], delta_bic: li
     while frequency_error(span, step, amplitude, noise_um) * SEPARATION > closest and span < travel:
         span *= 1.25
     span = min(span, travel)
+    bounded = math.floor(span / step) + 1 > MAX_CLUSTER_TARGETS
+    if bounded:
+        span = step * (MAX_CLUSTER_TARGETS - 1)
     count = math.floor(span / step) + 1
     middle = float(np.median(t))
     first = min(max(middle - span / 2, float(t[0])), float(t[-1]) - span)
@@ -139,16 +153,23 @@ def _cluster(data: CampaignData, final: Fit, periods: list[float], delta_bic: li
            f"than a quarter of the shortest candidate, {shortest:.3g} mm, apart) over {span:.4g} mm "
            f"({span / longest:.2g} × the longest plausible candidate): no candidate aliases there, and a "
            f"{amplitude:.2g} µm wave at a noise of {noise_um:.2g} µm gives its frequency to ±{sigma:.2g} per mm, "
-           f"{closest / sigma:.0f} times closer than the two closest candidates")
+           f"{closest / sigma:.0f} times closer than the two closest candidates"
+           + (f" (the cluster is bounded to {MAX_CLUSTER_TARGETS} targets)" if bounded else ""))
     return targets, why
 
 
 def _dwell_points(reversal_um: float, noise_um: float) -> int:
-    """Points the dwell part needs so that settling and backlash differ by SEPARATION standard
-    errors: a settling that explains the reversal at the first campaign's wait differs from a
-    constant reversal by about a quarter of it between the shortest and longest waits."""
+    """Points the dwell part needs, a rule of thumb (not a computed separation): a settling that
+    explains the reversal at the first campaign's wait is taken to differ from a constant reversal
+    by about a quarter of it between the shortest and longest waits, and that quarter should be
+    SEPARATION times the noise over the square root of the points."""
     signal = max(abs(reversal_um), 1e-6) / 4
     return math.ceil((SEPARATION * max(noise_um, 1e-3) / signal) ** 2)
+
+
+def _with_travel(targets: list[float] | None, data: CampaignData) -> list[float]:
+    """The first campaign's targets over the whole travel, with those another part asked for."""
+    return sorted({*(targets or []), *(round(float(v), 3) for v in _targets(data))})
 
 
 def _periods_of(group: dict[str, Any], remaining: list[Any]) -> list[float]:
@@ -174,28 +195,36 @@ def _toml_value(value: Any) -> str:
     raise TypeError(f"no TOML form for {value!r}")
 
 
-def toml_text(data: dict[str, Any], prefix: str = "") -> str:
-    """A config's tables as TOML: the keys of a table, then its sub-tables ([sim.effects.NAME])."""
+def _toml_key(name: str) -> str:
+    return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else json.dumps(name, ensure_ascii=False)
+
+
+def toml_text(data: Mapping[str, Any], prefix: str = "") -> str:
+    """A config's tables (plain or frozen) as TOML: the keys of a table, then its sub-tables
+    ([sim.effects.NAME], [sim.faults.NAME], [instrument.line]); a key whose value is None is left out."""
+    data = plain(data)
     lines: list[str] = []
-    plain = {k: v for k, v in data.items() if not isinstance(v, dict)}
+    keys = {k: v for k, v in data.items() if not isinstance(v, dict)}
     tables = {k: v for k, v in data.items() if isinstance(v, dict)}
-    if prefix and (plain or not tables):
+    if prefix and (keys or not tables):
         lines.append(f"[{prefix}]")
-    lines += [f"{k} = {_toml_value(v)}" for k, v in plain.items() if v is not None]
-    if plain:
+    lines += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in keys.items() if v is not None]
+    if keys:
         lines.append("")
     for name, table in tables.items():
-        lines.append(toml_text(table, f"{prefix}.{name}" if prefix else name))
+        lines.append(toml_text(table, f"{prefix}.{_toml_key(name)}" if prefix else _toml_key(name)))
     return "\n".join(lines)
 
 
-def _moved_paths(data: dict[str, Any], base_dir: Path, out_dir: Path) -> None:
-    """Paths in the config (the sim model, a LinuxCNC comp file) made relative to where the
-    follow-up config is written."""
-    for section, key in (("sim", "model"), ("axis_driver", "comp_file")):
-        value = data.get(section, {}).get(key)
+def _moved_paths(config: Config, out_dir: Path) -> dict[str, dict[str, Any]]:
+    """The paths in the config (the sim model, a LinuxCNC comp file) made relative to where the
+    follow-up config is written, as config changes."""
+    changes: dict[str, dict[str, Any]] = {}
+    for section, key, value in (("sim", "model", config.sim.model),
+                                ("axis_driver", "comp_file", config.controller.comp_file)):
         if value:
-            data[section][key] = os.path.relpath((base_dir / value).resolve(), out_dir.resolve())
+            changes[section] = {key: os.path.relpath((config.base_dir / value).resolve(), out_dir.resolve())}
+    return changes
 
 
 def plan_follow_up(unresolved: list[dict[str, Any]], remaining: list[Any], data: CampaignData, final: Fit,
@@ -228,8 +257,8 @@ def plan_follow_up(unresolved: list[dict[str, Any]], remaining: list[Any], data:
                 f"a reversal{'' if reversal_um is None else f' of {abs(reversal_um):.2g} µm'} that backlash and "
                 f"settling explain alike: waits before capture from {low:.2g} to {high:.2g} s (a decade, the dwell "
                 f"method with a {DWELL_WINDOW_S:g} s window): settling fades with the wait, backlash does not; at "
-                f"least {points_needed} points tell them apart by {SEPARATION:g} standard errors at a noise of "
-                f"{noise_um:.2g} µm")))
+                f"least {points_needed} points (a rule of thumb: a quarter of the reversal {SEPARATION:g} times the "
+                f"noise of {noise_um:.2g} µm over √points)")))
         elif "periodic_lead" in names:
             periods = _periods_of(group, remaining)
             if not periods:
@@ -240,11 +269,13 @@ def plan_follow_up(unresolved: list[dict[str, Any]], remaining: list[Any], data:
             parts.append(Part(sorted(names), why))
         elif names & {"thermal_drift", "environment"}:
             cycles = max(cycles, 2 * first_cycles)
+            targets = _with_travel(targets, data)
             parts.append(Part(sorted(names), (
                 f"a slope that changes from run to run or not at all: {2 * first_cycles} runs (the first campaign "
-                f"had {first_cycles}) over a longer time; a drift changes from run to run, a scale does not")))
+                f"had {first_cycles}) at its targets over the whole travel, so about twice its time; a drift changes "
+                "the slope from run to run, a scale does not")))
         elif names <= {"backlash", "position_dependent_backlash"}:
-            targets = targets or [round(float(v), 3) for v in _targets(data)]
+            targets = _with_travel(targets, data)
             parts.append(Part(sorted(names), "a reversal that may grow along the travel: both directions at "
                                              "targets over the whole travel"))
         else:
@@ -254,26 +285,24 @@ def plan_follow_up(unresolved: list[dict[str, Any]], remaining: list[Any], data:
     targets = targets or _few(data)
     if points_needed:
         cycles = max(cycles, 2, math.ceil(points_needed / (2 * len(targets))))
-    plan.update(targets=targets, cycles=cycles)
-    raw = {section: dict(table) for section, table in config.data.items()}
-    raw.setdefault("plan", {})
-    for key in ("start", "length", "count"):
-        raw["plan"].pop(key, None)
-    raw["plan"].update(plan)
-    raw.setdefault("capture", {}).update(capture)
-    _moved_paths(raw, config.base_dir, out.parent)
+    plan.update(targets=targets, cycles=cycles, length=None, count=None)
     said = "; ".join(" or ".join(p.effects) for p in parts)
-    raw.setdefault("campaign", {})["description"] = f"follow-up of {', '.join(sources)}: to tell {said}"
-    followed = parse_config(toml_text(raw), str(out))
+    changed = config_with(config, {"plan": plan, "capture": capture, **_moved_paths(config, out.parent),
+                                   "campaign": {"description": f"follow-up of {', '.join(sources)}: to tell {said}"}})
+    body = toml_text(changed.data)
+    followed = parse_config(body, str(out))  # as it will be read from where it is written
     plan_built = build_plan(followed)
     check_plan(plan_built, followed.axis)
     duration = estimate_duration_s(plan_built, followed.axis)
     first = estimate_duration_s(build_plan(config), config.axis)
+    longer = (f"it takes longer than the first campaign ({duration / 60:.1f} min against {first / 60:.1f} min)"
+              if duration > first else None)
     header = [f"# Follow-up campaign written by `axiscal discover {' '.join(sources)} --follow-up`.",
               "# It would separate what the first campaign left unresolved; measure it on the same axis, then",
               f"# fit both together: axiscal discover {' '.join(sources)} NEW/points.csv",
               *(f"# - {', '.join(p.effects)}: {p.why}" for p in parts),
               *(f"# - not planned: {u}" for u in unplanned),
-              f"# Machine time (estimate): {duration / 60:.1f} min; the first campaign's: {first / 60:.1f} min.", ""]
-    text = "\n".join(header) + "\n" + toml_text(raw)
-    return FollowUp(followed, text, parts, unplanned, duration, first)
+              f"# Machine time (estimate): {duration / 60:.1f} min; the first campaign's: {first / 60:.1f} min.",
+              *([f"# Warning: {longer}."] if longer else []), ""]
+    text = "\n".join(header) + "\n" + body
+    return FollowUp(followed, text, parts, unplanned, duration, first, longer)

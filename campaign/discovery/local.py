@@ -42,9 +42,11 @@ fewer cannot tell its size from its width, nor a bump from one target's odd read
 @dataclass
 class LocalError:
     """A local error found: its term (in the final model), parameters (amplitude_um, or plus_um and
-    minus_um per direction; centre_mm; width_mm, at half height), their 1-σ errors, which
-    directions show it ("both", "+", "-"), whether it changes with time (time_p: F-test p of a
-    linear growth in time), the tests it passed, and the gap without it, µm."""
+    minus_um per direction; centre_mm; width_mm, at half height; in the axis's units whatever the
+    keys say: deg and arcsec on a rotary axis), their 1-σ errors, which directions show it ("both",
+    "+", "-"), whether it changes with time (time_p: F-test p of a linear growth in time; the change
+    that growth makes over the campaign and its 1-σ error), the tests it passed, and the gap
+    without it (deviation unit)."""
 
     term: Term
     params: dict[str, float]
@@ -58,6 +60,9 @@ class LocalError:
     cv_before_um: float
     cv_after_um: float
     gap_without_um: float = 0.0
+    time_change_error_um: float = 0.0
+    position_unit: str = "mm"
+    deviation_unit: str = "µm"
 
     @property
     def size_um(self) -> float:
@@ -66,26 +71,40 @@ class LocalError:
             return self.params["amplitude_um"]
         return max(self.params["plus_um"], self.params["minus_um"], key=abs)
 
-    def sentence(self, unit: str = "mm", dev: str = "µm") -> str:
-        """'a local error of +2.4 µm at 214 mm, width 18 mm, both directions'."""
-        p = self.params
-        sides = {"both": "both directions", "+": "the + direction only", "-": "the − direction only"}[self.directions]
-        if self.directions == "both" and "plus_um" in p:
-            sides = f"both directions ({p['plus_um']:+.2g} {dev} in +, {p['minus_um']:+.2g} {dev} in −)"
-        return (f"a local error of {self.size_um:+.2g} {dev} at {p['centre_mm']:.4g} {unit}, width "
-                f"{p['width_mm']:.3g} {unit}, {sides}")
+    def _sides(self) -> str:
+        """Which directions show it, in words: what was seen in each."""
+        p, e, dev = self.params, self.errors, self.deviation_unit
+        if "plus_um" not in p:
+            return "both directions"
+        if self.directions == "both":
+            return f"both directions ({p['plus_um']:+.2g} {dev} in +, {p['minus_um']:+.2g} {dev} in −)"
+        seen, other = ("+", "−") if self.directions == "+" else ("−", "+")
+        key = "minus_um" if self.directions == "+" else "plus_um"
+        return (f"seen in the {seen} direction; in the {other} direction below 3σ ({p[key]:+.2g} ± "
+                f"{e.get(key, math.nan):.2g} {dev})")
+
+    def sentence(self) -> str:
+        """'a local error of +2.4 µm at 214 mm, width 18 mm, both directions' (the axis's units)."""
+        p, unit = self.params, self.position_unit
+        return (f"a local error of {self.size_um:+.2g} {self.deviation_unit} at {p['centre_mm']:.4g} {unit}, width "
+                f"{p['width_mm']:.3g} {unit}, {self._sides()}")
 
     def time_text(self) -> str:
+        change = (f"{self.time_change_um:+.2g} ± {self.time_change_error_um:.2g} {self.deviation_unit} over the "
+                  f"campaign, F-test p = {self.time_p:.2g}")
         if self.time_p < ALPHA:
-            return f"it changes with time ({self.time_change_um:+.2g} µm over the campaign, F-test p = {self.time_p:.2g})"
-        return f"it does not change with time (F-test p = {self.time_p:.2g})"
+            return f"it changes with time ({change})"
+        return f"no change with time detected ({change})"
 
     def as_dict(self) -> dict:
         return {"sentence": self.sentence(), "effect": self.term.name,
                 "params": {k: round(v, 4) for k, v in self.params.items()},
                 "standard_errors": {k: float(f"{v:.3g}") for k, v in self.errors.items()},
                 "directions": self.directions, "time_p_value": float(f"{self.time_p:.3g}"),
-                "changes_with_time": bool(self.time_p < ALPHA), "explained_pct": round(self.explained_pct, 2),
+                "changes_with_time": bool(self.time_p < ALPHA),
+                "time_change_um": round(self.time_change_um, 4),
+                "time_change_error_um": round(self.time_change_error_um, 4),
+                "explained_pct": round(self.explained_pct, 2),
                 "delta_bic": round(self.delta_bic, 2), "p_value": float(f"{self.p_value:.3g}"),
                 "cv_before_um": round(self.cv_before_um, 4), "cv_after_um": round(self.cv_after_um, 4),
                 "gap_without_um": round(self.gap_without_um, 4)}
@@ -183,9 +202,9 @@ def _errors(data: CampaignData, fit: Fit, step: float = 1e-3) -> dict[str, float
     return out
 
 
-def _time_test(data: CampaignData, fit: Fit) -> tuple[float, float]:
-    """F-test p of the local error growing linearly in time beside `fit` (its shape held), and the
-    change that growth would have over the campaign, µm."""
+def _time_test(data: CampaignData, fit: Fit) -> tuple[float, float, float]:
+    """F-test p of the local error growing linearly in time beside `fit` (its shape held), the
+    change that growth would have over the campaign and its 1-σ error (deviation unit)."""
     term = next(t for t in fit.terms if t.name.startswith("local_error"))
     tm = np.nanmean(data.t, axis=1)
     span = float(np.ptp(tm)) or 1.0
@@ -196,7 +215,9 @@ def _time_test(data: CampaignData, fit: Fit) -> tuple[float, float]:
     prediction = base + full @ beta
     grown = replace(fit, prediction=prediction, rss=float(np.sum((data.y - prediction) ** 2)),
                     n_params=fit.n_params + 1)
-    return f_test_p(fit, grown, len(data)), float(beta[-1])
+    n, p = full.shape
+    cov = np.linalg.pinv(full.T @ full) * grown.rss / max(n - p, 1)
+    return f_test_p(fit, grown, len(data)), float(beta[-1]), float(math.sqrt(max(cov[-1, -1], 0.0)))
 
 
 def find_local(data: CampaignData, fit: Fit) -> LocalError | None:
@@ -252,8 +273,9 @@ def describe(data: CampaignData, fit: Fit, **tests: float) -> LocalError:
                                                                                           ("-", "minus_um"))}
         if shows["+"] != shows["-"]:
             directions = "+" if shows["+"] else "-"
-    time_p, change = _time_test(data, fit)
-    return LocalError(term, params, errors, directions, time_p, change, **tests)
+    time_p, change, change_error = _time_test(data, fit)
+    return LocalError(term, params, errors, directions, time_p, change, **tests, time_change_error_um=change_error,
+                      position_unit=data.position_unit, deviation_unit=data.deviation_unit)
 
 
 def refit_local(data: CampaignData, fit: Fit, found: LocalError) -> tuple[Fit, LocalError]:

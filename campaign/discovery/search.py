@@ -113,7 +113,9 @@ class Step:
 
 STAND_IN_RIVALS = frozenset({"backlash", "settling"})
 """An unresolved group made only of these predicts one constant offset per direction at a constant
-wait, wherever the axis is used: its size is known and is added (as backlash), its cause is not.
+wait, wherever the axis is used: its size is known and is added (as backlash), its cause is not;
+only when the waits do not vary (or are not recorded): where they vary, the two predict different
+deviations at other waits, and neither stands in.
 Rivals that predict differently between the measured points (aliased periods) get no stand-in."""
 
 
@@ -452,7 +454,7 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     if periodic and any("periodic_lead" in u["effects"] for u in again.unresolved):
         _note(result.notes, f"{found.sentence()} would fit too, but the unresolved periodic error is still there "
                             "beside it: it may be that error seen at few targets, so it is not added")
-        return result
+        return beside_unresolved_period(data, result)
     final, local = refit_local(data, again.final, found)
     if local.term.shape != found.term.shape:  # its shape beside what is named now: search once more with it
         third = search_vocabulary(data, model, given, [local.term])
@@ -594,16 +596,20 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
                           ranking, data.y - current.prediction, data.y - after.prediction, errors))
         current = after
     kept: dict[str, Any] | None = None
-    group = next((u for u in unresolved if remaining_beside in u["effects"]), None)
-    if remaining_beside is not None and group is not None and set(group["effects"]) <= STAND_IN_RIVALS:
-        held_fit = next(c for c in remaining if c.name == remaining_beside).fitted
+    group = next((u for u in unresolved if "backlash" in u["effects"] and set(u["effects"]) <= STAND_IN_RIVALS),
+                 None)
+    backlash = next((c for c in remaining if c.name == "backlash" and c.fit is not None), None)
+    if remaining_beside is not None and group is not None and backlash is not None and not waits_vary(data):
+        # only at a constant wait do backlash and settling predict the same deviation wherever the
+        # axis is used at that wait; where the waits vary they differ, and neither stands in
         without = current.rms_um(data.y)
-        current = refine(data, held_fit.terms)
-        b_um = current.params()[remaining_beside]["b_um"]
-        kept = {"effect": remaining_beside, "rivals": list(group["effects"]),
-                "observable": f"a reversal of {abs(b_um):.1f} µm between the directions (x̄↑ − x̄↓ = "
-                              f"{-b_um:+.1f} µm): backlash, or settling not died out; cannot tell which",
-                "params": current.params()[remaining_beside], "gap_without_um": without}
+        current = refine(data, backlash.fitted.terms)
+        b_um = current.params()["backlash"]["b_um"]  # in the deviation unit (µm, arcsec)
+        dev = data.deviation_unit
+        kept = {"effect": "backlash", "rivals": list(group["effects"]),
+                "observable": f"a reversal of {abs(b_um):.1f} {dev} between the directions (x̄↑ − x̄↓ = "
+                              f"{-b_um:+.1f} {dev}): backlash, or settling not died out; cannot tell which",
+                "params": current.params()["backlash"], "gap_without_um": without}
     all_errors = standard_errors(data, current)
     for name in all_errors:
         add_period_spread(all_errors[name], name, spreads)
