@@ -329,3 +329,49 @@ def test_report_shows_the_axis_history(cli, db, tmp_path, monkeypatch):
     monkeypatch.setenv("AXISCAL_DB", "none")
     assert cli("report", last, "-o", tmp_path / "r2.html").code == 0
     assert "History of this axis" not in (tmp_path / "r2.html").read_text()
+
+
+def dated_tables(tmp_path, dates: list[str], machine: str = "m1") -> list:
+    """Point tables of the paper's axis, one per date (`# date:`), each a little different (so
+    each counts: a copy of one measurement would count once)."""
+    rows = (PAPER / "horizontal_before.csv").read_text().splitlines()
+    tables = []
+    for i, day in enumerate(dates):
+        header, first, *rest = rows
+        run, direction, target, deviation = first.split(",")
+        changed = f"{run},{direction},{target},{float(deviation) - 0.01 * i:.2f}"
+        path = tmp_path / f"t{i}.csv"
+        path.write_text("\n".join([f"# date: {day}", f"# machine: {machine}", "# axis: X", header, changed, *rest]) + "\n")
+        tables.append(path)
+    return tables
+
+
+def test_campaigns_sharing_one_time_give_no_drift(cli, db, tmp_path):
+    """Three campaigns dated alike: the drift is not determined (the campaigns span no time) and
+    the crossing not predictable, in the trend and in the report (an internal error before)."""
+    tables = dated_tables(tmp_path, ["2025-03-01"] * 3)
+    assert cli("history", "import", *tables).code == 0
+    result = cli("history", "trend", "m1", "X", "--tolerance", "30", "--json")
+    assert result.code == 0, result.err
+    trend = json.loads(result.out)
+    assert len(trend["campaigns"]) == 3
+    for parameter in "AEBR":
+        drift = trend["drift"][parameter]
+        assert drift["rate_per_year"] is None and drift["reason"].startswith("the campaigns span no time"), drift
+    assert trend["crossing"]["state"] == "not predictable" and "span no time" in trend["crossing"]["reason"]
+    shown = cli("history", "trend", "m1", "X", "--plot", tmp_path / "t.png")
+    assert shown.code == 0 and "A: drift not determined (the campaigns span no time" in shown.out, shown.err
+    assert cli("report", tables[0], "-o", tmp_path / "r.html").code == 0
+    assert "drift not determined (the campaigns span no time" in (tmp_path / "r.html").read_text()
+
+
+def test_a_segment_spanning_no_time_gives_no_drift():
+    """Two campaigns on one day, a jump, two more on another day: the step and the drift cannot be
+    told apart; said so, no singular matrix."""
+    day1, day2 = dt.datetime(2025, 1, 1), dt.datetime(2025, 6, 1)
+    obs = [Observation(when, f"c{i}", v, 0.5) for i, (when, v) in
+           enumerate([(day1, 1.0), (day1, 1.1), (day2, 5.0), (day2, 5.1)])]
+    fits, jumps = analyse({"A": obs})
+    assert [(j.before.label, j.after.label) for j in jumps] == [("c1", "c2")]
+    assert fits["A"].rate is None and "between the jumps set apart span no time" in fits["A"].reason
+    assert crossing(fits["A"], 10.0).state == "not predictable"

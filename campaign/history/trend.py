@@ -164,16 +164,29 @@ def _years(observations: list[Observation]) -> np.ndarray:
     return np.array([(o.when - last).total_seconds() / YEAR_S for o in observations])
 
 
-def _solve(t: np.ndarray, y: np.ndarray, u: np.ndarray, steps: list[int]) -> tuple[np.ndarray, np.ndarray, float, int]:
-    """Weighted least squares: (coefficients, covariance, χ², ν)."""
+def _solve(t: np.ndarray, y: np.ndarray, u: np.ndarray,
+           steps: list[int]) -> tuple[np.ndarray, np.ndarray, float, int] | None:
+    """Weighted least squares: (coefficients, covariance, χ², ν); None when the design cannot
+    separate its coefficients (rank-deficient: the campaigns span no time, or a segment between
+    jumps has no two campaigns apart in time)."""
     columns = [np.ones_like(t), t] + [(np.arange(len(t)) >= i).astype(float) for i in steps]
     x = np.column_stack(columns)
     w = 1.0 / u ** 2
+    if np.linalg.matrix_rank(x * np.sqrt(w)[:, None]) < x.shape[1]:
+        return None
     normal = x.T @ (w[:, None] * x)
     cov = np.linalg.inv(normal)
     coef = cov @ (x.T @ (w * y))
     residual = y - x @ coef
     return coef, cov, float(np.sum(w * residual ** 2)), len(t) - x.shape[1]
+
+
+def _undetermined(obs: list[Observation], t: np.ndarray) -> str:
+    """Why a rank-deficient design gives no drift."""
+    if float(np.ptp(t)) == 0.0:
+        return (f"the campaigns span no time: all {len(obs)} are dated "
+                f"{obs[0].when.isoformat(sep=' ', timespec='minutes')} UTC")
+    return "the campaigns between the jumps set apart span no time: the drift cannot be told from the jumps"
 
 
 def _step_indices(obs: list[Observation], after: list[dt.datetime]) -> list[int]:
@@ -201,8 +214,9 @@ def detect(parameter: str, observations: list[Observation]) -> list[ChangePoint]
     steps: list[int] = []
     for _ in range(MAX_ROUNDS):
         found = [i + 1 for i in range(n - 1) if abs(jumps[i] - rate * dt_years[i]) > combined[i]]
-        if n - 2 - len(found) >= 1:
-            rate = float(_solve(t, y, u, found)[0][1])
+        solved = _solve(t, y, u, found) if n - 2 - len(found) >= 1 else None
+        if solved is not None:
+            rate = float(solved[0][1])
         if found == steps:
             break
         steps = found
@@ -227,7 +241,11 @@ def fit(parameter: str, observations: list[Observation], jumps: list[ChangePoint
         return result
     t, y = _years(obs), np.array([o.value for o in obs])
     u = np.array([o.weight_u for o in obs])
-    coef, cov, chi2, dof = _solve(t, y, u, steps)
+    solved = _solve(t, y, u, steps)
+    if solved is None:
+        result.reason = _undetermined(obs, t)
+        return result
+    coef, cov, chi2, dof = solved
     from scipy.stats import t as student
 
     birge_sq = chi2 / dof
