@@ -262,12 +262,64 @@ def test_credentials_never_shown(cli, db, tmp_path):
     assert "-wrong" not in refused.err
 
 
+def test_credentials_with_a_slash_or_in_the_query_never_shown(cli, db, tmp_path):
+    """A password holding '/' (SQLAlchemy reads 'bob:pa/ss@host' as password 'pa/ss') and a
+    password given as a query item (?password=...): both connect, and neither shows in what the
+    commands print (both printed it before)."""
+    if not db.startswith("postgresql"):
+        pytest.skip("a SQLite file has no credentials")
+    import uuid
+
+    import psycopg
+    from sqlalchemy.engine import make_url
+
+    from campaign.history.simulated import simulate_history
+
+    simulate_history(tmp_path / "h", campaigns=2)
+    given = make_url(db)
+    role, secret = f"slash_{uuid.uuid4().hex[:8]}", "pa/ss-Slash-27"
+    with psycopg.connect(host=given.host, port=given.port, user=given.username, password=given.password,
+                         dbname=given.database, autocommit=True) as conn:
+        conn.execute(f"CREATE ROLE {role} LOGIN SUPERUSER PASSWORD '{secret}'")
+    base = f"postgresql://{{}}@{given.host}:{given.port}/{given.database}"
+    for url, hidden in ((base.format(f"{role}:{secret}"), secret),
+                        (base.format(given.username) + f"?password={PASSWORD}&connect_timeout=5", PASSWORD)):
+        for args in (("history", "import", tmp_path / "h", "--db", url), ("history", "store", "--db", url),
+                     ("history", "store", "--db", url, "--json")):
+            result = cli(*args)
+            assert result.code == 0, result.err
+            assert hidden not in result.out + result.err and "ss-Slash" not in result.out + result.err, result.out
+            assert f"@{given.host}:{given.port}/{given.database}" in result.out + result.err
+
+
+@pytest.mark.parametrize("url, secret", [("postgresql://bob:pa/ss@127.0.0.1:1/x", "pa/ss"),
+                                         ("postgresql://bob@127.0.0.1:1/x?password=hunter2", "hunter2")])
+def test_an_unreachable_store_never_shows_its_password(cli, tmp_path, monkeypatch, url, secret):
+    """Nothing listens on port 1: the error of a history command and the line after a campaign
+    name the store without the password (both printed it before)."""
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "xdg"))
+    refused = cli("history", "store", "--db", url)
+    assert_one_line_error(refused, "unreachable", "bob")
+    assert secret not in refused.err and "ss@" not in refused.err, refused.err
+    monkeypatch.setenv("AXISCAL_DB", url)
+    converted = cli("convert", PAPER / "horizontal_before.csv", "-o", tmp_path / "out.rtl")
+    assert converted.code == 0, converted.err
+    told = [line for line in converted.err.splitlines() if line.startswith("history:")]
+    assert len(told) == 1 and "queued" in told[0] and "127.0.0.1" in told[0], converted.err
+    assert secret not in converted.err + converted.out and "ss@" not in converted.err, converted.err
+    assert secret not in (tmp_path / "xdg" / "axiscal" / "pending.jsonl").read_text()
+
+
 # --- the pieces, without a store ----------------------------------------------------------------
 
 def test_location_masks_credentials(monkeypatch, tmp_path):
     url = "postgresql://plant:s3cr%40t@db.example:5432/axiscal"
     assert display_url(url) == "postgresql://plant:***@db.example:5432/axiscal"
     assert "s3cr" not in scrub(f"connection to {url} failed: password=s3cr@t rejected", url)
+    slash = "postgresql://bob:pa/ss@db/x?sslpassword=k3y&password=hunter2&sslmode=require"
+    assert display_url(slash) == "postgresql://bob:***@db/x?sslmode=require"
+    message = scrub(f"{slash} failed: pa/ss, k3y, hunter2 or pa%2Fss", slash)
+    assert not any(s in message for s in ("pa/ss", "k3y", "hunter2", "pa%2Fss")), message
     assert store_url(url).startswith("postgresql+psycopg://plant:s3cr%40t@")
     assert store_url(str(tmp_path / "h.sqlite")) == f"sqlite:///{tmp_path / 'h.sqlite'}"
     monkeypatch.setenv("AXISCAL_DB", "none")

@@ -17,7 +17,7 @@ from typing import Any
 
 from campaign.assess import campaign_dir_of
 from campaign.history.entry import directory_key, directory_state, path_entry, utc
-from campaign.history.location import display_url, store_url
+from campaign.history.location import chosen, display_url, scrub, store_url
 from campaign.history.store import Store, StoreUnavailable, open_store
 
 
@@ -78,13 +78,18 @@ def drain_queue(store: Store) -> tuple[int, list[str]]:
 def record_now(item: dict[str, Any], option: str | None = None) -> str:
     """The hook at the end of a command: record `item` into the store (first what waits in the
     queue for it). Never raises: returns the one line to tell the user ("" when the store is
-    turned off). An unreachable store queues the item."""
+    turned off), its credentials masked whatever the message says. An unreachable store queues
+    the item."""
     try:
         url = store_url(option)
     except Exception as exc:  # noqa: BLE001 - a bad --db/AXISCAL_DB never stops a campaign
-        return f"history: not recorded ({exc})"
+        return scrub(f"history: not recorded ({exc})", chosen(option) or "")
     if url is None:
         return ""
+    return scrub(_record_or_queue(url, item), url)
+
+
+def _record_or_queue(url: str, item: dict[str, Any]) -> str:
     try:
         store = open_store(url)
     except StoreUnavailable as exc:
