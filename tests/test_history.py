@@ -427,3 +427,36 @@ def test_a_segment_spanning_no_time_gives_no_drift():
     assert [(j.before.label, j.after.label) for j in jumps] == [("c1", "c2")]
     assert fits["A"].rate is None and "between the jumps set apart span no time" in fits["A"].reason
     assert crossing(fits["A"], 10.0).state == "not predictable"
+
+
+def started_campaign(directory, machine: str = "m0"):
+    """A campaign directory as a campaign killed before its first point leaves it: its config,
+    plan, meta and start record, no point."""
+    from campaign.config import recorded_sections
+    from campaign.history.simulated import demo_text, recheck_config
+    from campaign.plan import build_plan, plan_records
+    from campaign.record import Recorder
+
+    config = recheck_config(demo_text(), -7.0, 0.0, 1, machine)
+    plan, sections = build_plan(config), recorded_sections(config)
+    meta = {"machine": machine, "axis": "X", "kind": "linear", "points_planned": len(plan.points),
+            "created": "2025-01-01T00:00:00+00:00"}
+    recorder = Recorder.create(directory, config.text, sections, plan_records(plan, sections), meta, "linear")
+    recorder.start(0.0, 0, len(plan.points))
+    recorder.close()
+    return directory
+
+
+def test_compare_with_a_campaign_of_no_point_is_one_error(cli, db, tmp_path):
+    """A campaign killed before its first point is recorded (0 points); comparing it is one
+    error line, exit 2 (a ValueError from max() before)."""
+    from campaign.history.simulated import simulate_history
+
+    empty = started_campaign(tmp_path / "empty", "m0")
+    _, dirs = simulate_history(tmp_path / "h", campaigns=1, machine="m0")
+    imported = json.loads(cli("history", "import", empty, dirs[0], "--json").out)
+    assert imported["added"] == 2 and imported["failed"] == []
+    for pair in ((empty, dirs[0]), (dirs[0], empty)):
+        assert_one_line_error(cli("history", "compare", *pair), "has no point recorded", "empty")
+    trend = json.loads(cli("history", "trend", "m0", "X", "--json").out)
+    assert [r["reason"] for r in trend["left_out"]] == ["running campaign"]
