@@ -460,3 +460,162 @@ def test_compare_with_a_campaign_of_no_point_is_one_error(cli, db, tmp_path):
         assert_one_line_error(cli("history", "compare", *pair), "has no point recorded", "empty")
     trend = json.loads(cli("history", "trend", "m0", "X", "--json").out)
     assert [r["reason"] for r in trend["left_out"]] == ["running campaign"]
+
+
+def test_readers_never_wait_for_the_writer(cli, tmp_path, monkeypatch):
+    """Another process holds SQLite's write lock (a long import, say): opening the store and
+    reading it go on at once; a write waits its turn. Before, every transaction took BEGIN
+    IMMEDIATE and a reader waited (here, with a 0.3 s busy timeout, it failed)."""
+    from campaign.history import store as store_module
+    from campaign.history.simulated import simulate_history
+    from campaign.history.store import StoreUnavailable, open_store
+
+    path = tmp_path / "h.sqlite"
+    monkeypatch.setenv("AXISCAL_DB", str(path))
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "xdg"))
+    _, dirs = simulate_history(tmp_path / "h", campaigns=2)
+    assert cli("history", "import", dirs[0]).code == 0
+    monkeypatch.setattr(store_module, "BUSY_TIMEOUT_MS", 300)
+    writer = sqlite3.connect(path, isolation_level=None)
+    writer.execute("BEGIN IMMEDIATE")  # the write lock, held
+    try:
+        with open_store(f"sqlite:///{path}") as store:
+            assert [r["label"] for r in store.campaigns()] == [dirs[0].name]
+            with pytest.raises(StoreUnavailable, match="locked"):
+                store.put(__import__("campaign.history.entry", fromlist=["path_entry"]).path_entry(dirs[1]))
+        listed = cli("history", "list", "--json")
+        assert listed.code == 0 and len(json.loads(listed.out)["campaigns"]) == 1, listed.err
+    finally:
+        writer.execute("ROLLBACK")
+        writer.close()
+
+
+def test_the_queue_is_not_locked_while_recording(tmp_path, monkeypatch):
+    """Draining the queue records each waiting item without holding the queue's lock (a campaign
+    ending meanwhile in another process queues at once, and its line stays); an item whose
+    source is gone leaves the queue and is told (one sentence each)."""
+    import fcntl
+    import os
+
+    from campaign.history.pending import drain, enqueue, queue_path
+
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path))
+    url, other = "sqlite:///one.sqlite", "sqlite:///other.sqlite"
+    for store, path in ((url, "a"), (other, "b"), (url, "gone")):
+        enqueue(store, {"kind": "campaign", "path": path})
+
+    def record(item):
+        fd = os.open(queue_path().with_suffix(".lock"), os.O_RDWR)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # BlockingIOError while the queue is locked
+        finally:
+            os.close(fd)
+        enqueue(url, {"kind": "campaign", "path": f"ended-during-{item['path']}"})
+        if item["path"] == "gone":
+            raise LookupError("gone: it was waiting to be recorded and is not")
+
+    done, problems = drain(url, record)
+    assert (done, problems) == (1, ["dropped from the queue: gone: it was waiting to be recorded and is not"])
+    left = [json.loads(line)["path"] for line in queue_path().read_text().splitlines()]
+    assert left == ["b", "ended-during-a", "ended-during-gone"]
+
+
+def test_a_dropped_queue_item_is_told(cli, tmp_path, monkeypatch):
+    """A campaign waits in the queue, then its directory moves: the next campaign's end records
+    its own and says, in one more line, that the moved one was dropped from the queue."""
+    from campaign.history.simulated import simulate_history
+
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "xdg"))
+    _, dirs = simulate_history(tmp_path / "h", campaigns=2)
+    (tmp_path / "in-the-way").write_text("")
+    monkeypatch.setenv("AXISCAL_DB", str(tmp_path / "in-the-way" / "history.sqlite"))
+    assert "queued" in cli("convert", dirs[0] / "points.csv", "-o", tmp_path / "a.rtl").err
+    (tmp_path / "in-the-way").unlink()
+    dirs[0].rename(tmp_path / "moved")
+    converted = cli("convert", dirs[1] / "points.csv", "-o", tmp_path / "b.rtl")
+    assert converted.code == 0, converted.err
+    told = [line for line in converted.err.splitlines() if line.startswith("history:")]
+    assert told[0].startswith("history: added in sqlite:///") and len(told) == 2, converted.err
+    assert told[1].startswith("history: warning: dropped from the queue: ") and dirs[0].name in told[1]
+
+
+def test_a_stalled_postgresql_store_never_hangs_a_campaign(cli, db, tmp_path, monkeypatch):
+    """Another session holds a lock on the campaigns table: with the store's lock timeout (1 s
+    here) a campaign's end queues its campaign and `history import` is one error line, instead of
+    waiting as long as the lock is held (released after 20 s: before, both waited and then
+    recorded). Sessions carry the statement and lock timeouts."""
+    if not db.startswith("postgresql"):
+        pytest.skip("SQLite's busy timeout is tested above")
+    import threading
+
+    import psycopg
+
+    from campaign.history import store as store_module
+    from campaign.history.simulated import simulate_history
+    from campaign.history.store import open_store
+
+    _, dirs = simulate_history(tmp_path / "h", campaigns=1)
+    with open_store(store_url()) as store:  # made and migrated
+        with store.engine.connect() as conn:
+            shown = {name: conn.exec_driver_sql(f"SHOW {name}").scalar() for name in ("statement_timeout", "lock_timeout")}
+        assert shown == {"statement_timeout": "1min", "lock_timeout": "30s"}, shown
+    monkeypatch.setattr(store_module, "LOCK_TIMEOUT_S", 1)
+    holder = psycopg.connect(db)
+    holder.execute("LOCK TABLE campaigns IN ACCESS EXCLUSIVE MODE")
+    release = threading.Timer(20.0, holder.rollback)
+    release.start()
+    try:
+        converted = cli("convert", dirs[0] / "points.csv", "-o", tmp_path / "a.rtl")
+        told = [line for line in converted.err.splitlines() if line.startswith("history:")]
+        assert converted.code == 0 and len(told) == 1 and "queued" in told[0] and "lock timeout" in told[0], told
+        assert_one_line_error(cli("history", "import", dirs[0]), "unreachable", "lock timeout")
+    finally:
+        release.cancel()
+        holder.rollback()
+        holder.close()
+
+
+def test_one_verification_linked_by_two_processes_at_once(cli, db, tmp_path):
+    """Two imports of the same verification at once: one has written its link and not yet
+    committed when the other writes it; the second waits and then updates the row (an upsert).
+    Before (delete, then insert), the second failed with a unique-key violation, an internal error."""
+    if not db.startswith("postgresql"):
+        pytest.skip("SQLite writers take turns at BEGIN IMMEDIATE: they cannot interleave")
+    import threading
+    import time
+
+    import psycopg
+
+    from campaign.history.entry import path_entry
+    from campaign.history.simulated import simulate_history
+    from campaign.history.store import open_store
+
+    _, dirs = simulate_history(tmp_path / "h", campaigns=1)
+    with open_store(store_url()) as store:
+        campaign_id, _ = store.put(path_entry(dirs[0]))
+        other = psycopg.connect(db)  # the other import, in the middle of its transaction
+        other.execute("INSERT INTO verifications (campaign_id, before_id, before_location, compensation) "
+                      "VALUES (%s, NULL, 'first', '{}')", (campaign_id,))
+        failed: list[BaseException] = []
+
+        def link() -> None:
+            try:
+                store.link_verification(campaign_id, None, "second", {"table": "t"})
+            except BaseException as exc:  # noqa: BLE001 - reported below
+                failed.append(exc)
+
+        thread = threading.Thread(target=link)
+        thread.start()
+        with psycopg.connect(db, autocommit=True) as watcher:  # until the second waits on the first's row
+            for _ in range(600):
+                if watcher.execute("SELECT count(*) FROM pg_locks WHERE NOT granted").fetchone()[0]:
+                    break
+                time.sleep(0.05)
+            else:
+                raise AssertionError("the second writer never waited for the first")
+        other.commit()
+        other.close()
+        thread.join(timeout=60)
+        assert not thread.is_alive() and failed == [], failed
+        row = store.verification_of(campaign_id)
+        assert row is not None and row["before_location"] == "second" and row["compensation"] == {"table": "t"}
