@@ -10,6 +10,7 @@ from __future__ import annotations
 import datetime as dt
 import functools
 import json
+import math
 import sqlite3
 
 import numpy as np
@@ -619,3 +620,21 @@ def test_one_verification_linked_by_two_processes_at_once(cli, db, tmp_path):
         assert not thread.is_alive() and failed == [], failed
         row = store.verification_of(campaign_id)
         assert row is not None and row["before_location"] == "second" and row["compensation"] == {"table": "t"}
+
+
+def test_drift_uncertainty_never_shrinks_below_the_campaigns_u():
+    """Four campaigns on an exact line, U = 0.5: the rate's U is what their U give (k = 2, not
+    scaled by χ²/ν ≈ 0), not ± 0.00 with a one-day crossing interval; campaigns scattering more
+    than their U say widen it (Student's t for ν)."""
+    from scipy.stats import t as student
+
+    exact = series([5.0 + 0.37 * i * 120 / 365.25 for i in range(4)], [0.5] * 4, days=120)
+    fit = analyse({"A": exact})[0]["A"]
+    years = np.array([i * 120 / 365.25 for i in range(4)])
+    stated = 2 * 0.25 / math.sqrt(np.sum((years - years.mean()) ** 2))
+    assert fit.k == 2.0 and fit.U_rate == pytest.approx(stated, rel=1e-9), fit.sentence("µm")
+    assert fit.rate == pytest.approx(0.37)
+    assert crossing(fit, 10.0).state == "not predictable"  # +0.37 ± 0.68: not significant
+    scattered = series([5.0, 6.1, 5.0, 6.1, 5.0, 6.1], [1.0] * 6, days=120)
+    fit = analyse({"A": scattered})[0]["A"]
+    assert fit.birge > 1 and fit.k == pytest.approx(float(student.ppf(0.975, 4)))

@@ -10,12 +10,16 @@ the two, √(U_i² + U_j²). The detection and the fit are iterated until they a
 rounds): a jump found becomes a step in the fit, which then says what drift to expect.
 
 **Drift rate.** A weighted least-squares line over time, y = a + r·t + Σ c_j·[t ≥ t_j] (one step
-c_j per change point), with weights 1/u_i², u_i = U_i/2: a campaign with a larger U counts less.
-The rate's standard uncertainty comes from the fit's covariance scaled by χ²/ν (ν = n − p, the
-Birge ratio squared): the weights set how much each campaign counts relative to the others, and
-the campaigns' own scatter about the line sets the scale (a budget's U is often larger than the
-scatter between campaigns, and a stated U can be too small). The coverage factor is Student's t
-at 95 % for ν. The rate is significant when |r| > U(r). A rate needs ν ≥ 1: at least three campaigns, one more per change point.
+c_j per change point), with weights 1/u_i², u_i the campaign's random standard uncertainty (its
+budget's statistics and resolution terms, `Observation.u_random`) when known, else U_i/2: a
+campaign with a larger u_i counts less.
+The rate's standard uncertainty comes from the fit's covariance (the weights' u_i) scaled by
+max(1, χ²/ν) (ν = n − p; χ²/ν is the Birge ratio squared): when the campaigns scatter about the
+line more than their u_i say, the scatter sets the scale (a type A evaluation), and the coverage
+factor is Student's t at 95 % for ν; otherwise the covariance is left as the u_i make it (never
+shrunk below what the campaigns' uncertainties allow) and the coverage factor is k = 2. The rate
+is significant when |r| > U(r). A rate needs ν ≥ 1: at least three campaigns, one more per
+change point, and campaigns apart in time (a design of full rank).
 
 **Crossing.** For A with a tolerance T: the date at which the fitted A plus the U of the last
 campaign reaches T, continuing the line from the last campaign (every step in place). Its
@@ -249,8 +253,11 @@ def fit(parameter: str, observations: list[Observation], jumps: list[ChangePoint
     from scipy.stats import t as student
 
     birge_sq = chi2 / dof
-    cov = cov * birge_sq  # the scale from the campaigns' own scatter about the line (type A)
-    k = float(student.ppf(0.975, dof))
+    if birge_sq > 1.0:  # the campaigns scatter more than their U says: the scatter sets the scale
+        cov = cov * birge_sq
+        k = float(student.ppf(0.975, dof))
+    else:  # no more than their U allows: the stated U sets it, never shrunk below
+        k = 2.0
     result.coef, result.cov, result.dof, result.k = coef, cov, dof, k
     result.birge = math.sqrt(birge_sq)
     result.rate = float(coef[1])
