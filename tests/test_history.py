@@ -638,3 +638,18 @@ def test_drift_uncertainty_never_shrinks_below_the_campaigns_u():
     scattered = series([5.0, 6.1, 5.0, 6.1, 5.0, 6.1], [1.0] * 6, days=120)
     fit = analyse({"A": scattered})[0]["A"]
     assert fit.birge > 1 and fit.k == pytest.approx(float(student.ppf(0.975, 4)))
+
+
+def test_a_jump_steps_only_the_parameters_it_moves():
+    """A jump of R alone does not put a step into A's line (which then keeps all its campaigns for
+    one drift); a jump of B steps A and E, which contain the reversal, and not R."""
+    days = 60
+    steady = [1.0 + 0.5 * i * days / 365.25 for i in range(8)]
+    r_jumps = [1.0] * 4 + [4.0] * 4
+    fits, jumps = analyse({"A": series(steady, [0.6] * 8), "R": series(r_jumps, [0.6] * 8)})
+    assert [(j.parameter, j.after.label) for j in jumps] == [("R", "c4")]
+    assert fits["A"].step_at == [] and fits["A"].dof == 6 and fits["R"].step_at == [4]
+    fits, jumps = analyse({"A": series(steady, [0.6] * 8), "B": series(r_jumps, [0.6] * 8),
+                           "E": series(steady, [0.6] * 8), "R": series([1.0] * 8, [0.6] * 8)})
+    assert [(j.parameter, j.after.label) for j in jumps] == [("B", "c4")]
+    assert fits["A"].step_at == fits["E"].step_at == fits["B"].step_at == [4] and fits["R"].step_at == []

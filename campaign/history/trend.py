@@ -10,7 +10,8 @@ the two, √(U_i² + U_j²). The detection and the fit are iterated until they a
 rounds): a jump found becomes a step in the fit, which then says what drift to expect.
 
 **Drift rate.** A weighted least-squares line over time, y = a + r·t + Σ c_j·[t ≥ t_j] (one step
-c_j per change point), with weights 1/u_i², u_i the campaign's random standard uncertainty (its
+c_j per change point of the parameter itself, and for A and E, which contain the reversal, per
+change point of B too), with weights 1/u_i², u_i the campaign's random standard uncertainty (its
 budget's statistics and resolution terms, `Observation.u_random`) when known, else U_i/2: a
 campaign with a larger u_i counts less.
 The rate's standard uncertainty comes from the fit's covariance (the weights' u_i) scaled by
@@ -230,7 +231,7 @@ def detect(parameter: str, observations: list[Observation]) -> list[ChangePoint]
 
 def fit(parameter: str, observations: list[Observation], jumps: list[ChangePoint] | None = None) -> Fit:
     """The drift of one parameter over its campaigns, with a step at each change point in `jumps`
-    (found in this parameter or another: one event of the axis may move several)."""
+    (its own, or a jump of a parameter it contains: a reversal jump moves A and E)."""
     obs = sorted(observations, key=lambda o: o.when)
     result = Fit(parameter, obs)
     n = len(obs)
@@ -265,11 +266,19 @@ def fit(parameter: str, observations: list[Observation], jumps: list[ChangePoint
     return result
 
 
+STEPS_FROM = {"A": ("A", "B"), "E": ("E", "B")}
+"""Whose jumps put a step into a parameter's fit: its own, and for A and E (which contain the
+reversal) a reversal jump too; a jump of R does not move A's line."""
+
+
 def analyse(series: dict[str, list[Observation]]) -> tuple[dict[str, Fit], list[ChangePoint]]:
-    """Every parameter's change points, then its drift with a step wherever any parameter jumped."""
+    """Every parameter's change points, then its drift with a step at its own jumps (and, for A
+    and E, at the reversal's: STEPS_FROM)."""
     jumps = [j for parameter, obs in series.items() for j in detect(parameter, obs)]
     jumps.sort(key=lambda j: (j.after.when, j.parameter))
-    return {parameter: fit(parameter, obs, jumps) for parameter, obs in series.items()}, jumps
+    fits = {parameter: fit(parameter, obs, [j for j in jumps if j.parameter in STEPS_FROM.get(parameter, (parameter,))])
+            for parameter, obs in series.items()}
+    return fits, jumps
 
 
 @dataclass
