@@ -653,3 +653,19 @@ def test_a_jump_steps_only_the_parameters_it_moves():
                            "E": series(steady, [0.6] * 8), "R": series([1.0] * 8, [0.6] * 8)})
     assert [(j.parameter, j.after.label) for j in jumps] == [("B", "c4")]
     assert fits["A"].step_at == fits["E"].step_at == fits["B"].step_at == [4] and fits["R"].step_at == []
+
+
+def test_simulated_history_records_its_truth_in_each_recheck(tmp_path):
+    """Each re-check's meta.json holds the history's truth as the demo reports it: the travel
+    measured (600 mm on the demo axis) and the lead error's growth over it (3 µm/m a year: 1.8 µm
+    a year); both were recorded as 0.0."""
+    from campaign.history.simulated import simulate_history
+    from campaign.record import META_FILE
+
+    truth, dirs = simulate_history(tmp_path / "h", campaigns=3)
+    assert truth.span_mm == 600.0 and truth.lead_growth_um_per_year == pytest.approx(1.8)
+    for number, directory in enumerate(dirs, start=1):
+        recorded = json.loads((directory / META_FILE).read_text())["simulated_history"]
+        assert recorded == {**truth.as_json(), "recheck": number, "lead_ppm": recorded["lead_ppm"],
+                            "backlash_um": 2.5 if number > truth.jump_after else 0.0}
+        assert recorded["span_mm"] == 600.0 and recorded["lead_growth_um_per_year"] == pytest.approx(1.8)
