@@ -49,7 +49,6 @@ YEAR_S = 365.25 * 86400.0
 HORIZON_YEARS = 50.0
 """How far ahead a crossing is looked for, years."""
 MAX_ROUNDS = 5
-NAMES = {"A": "A", "E": "E", "B": "B", "R": "R"}
 
 
 @dataclass(frozen=True)
@@ -102,11 +101,11 @@ def _obs_json(o: Observation) -> dict:
 @dataclass
 class Fit:
     """The drift of one parameter. rate and U_rate in unit per year (None when not determined,
-    with `reason`); k the coverage factor used; `steps` the change points in the fit."""
+    with `reason`); k the coverage factor used; `step_at` the index of the first campaign after
+    each step in the fit."""
 
     parameter: str
     observations: list[Observation]
-    steps: list[ChangePoint] = field(default_factory=list)
     step_at: list[int] = field(default_factory=list)
     rate: float | None = None
     U_rate: float | None = None
@@ -235,9 +234,7 @@ def fit(parameter: str, observations: list[Observation], jumps: list[ChangePoint
     obs = sorted(observations, key=lambda o: o.when)
     result = Fit(parameter, obs)
     n = len(obs)
-    own = [j for j in (jumps or []) if j.parameter == parameter]
     steps = _step_indices(obs, [j.after.when for j in (jumps or [])])
-    result.steps = own
     result.step_at = steps
     if n - 2 - len(steps) < 1:
         need = 3 + len(steps)
