@@ -671,3 +671,23 @@ def test_simulated_history_records_its_truth_in_each_recheck(tmp_path):
         assert recorded == {**truth.as_json(), "recheck": number, "lead_ppm": recorded["lead_ppm"],
                             "backlash_um": 2.5 if number > truth.jump_after else 0.0}
         assert recorded["span_mm"] == 600.0 and recorded["lead_growth_um_per_year"] == pytest.approx(1.8)
+
+
+def test_the_report_never_creates_or_migrates_a_store(cli, db, tmp_path):
+    """The report of a campaign with a store named that does not exist yet (a SQLite file) or
+    holds nothing (a new PostgreSQL database): no history section, and no store made, no table
+    created (on PostgreSQL the report migrated the empty database before)."""
+    from campaign.history.simulated import simulate_history
+
+    _, dirs = simulate_history(tmp_path / "h", campaigns=1)
+    assert cli("report", dirs[0], "-o", tmp_path / "r.html").code == 0
+    assert "History of this axis" not in (tmp_path / "r.html").read_text()
+    if db.startswith("postgresql"):
+        import psycopg
+
+        with psycopg.connect(db) as conn:
+            tables = conn.execute("SELECT table_name FROM information_schema.tables "
+                                  "WHERE table_schema = 'public'").fetchall()
+        assert tables == []
+    else:
+        assert not (tmp_path / "store").exists()

@@ -99,21 +99,34 @@ def writing(engine: Engine) -> Iterator[Connection]:
             yield conn
 
 
-def _migrate(engine: Engine) -> None:
-    """Bring the store to the newest revision (nothing to do when it is there)."""
-    from alembic import command
+def _alembic() -> Any:
     from alembic.config import Config
-    from alembic.runtime.migration import MigrationContext
-    from alembic.script import ScriptDirectory
 
     config = Config()
     config.set_main_option("script_location", str(MIGRATIONS))
+    return config
+
+
+def _revisions(engine: Engine, config: Any) -> tuple[str | None, str | None]:
+    """(the store's revision, None when it holds no store yet; the newest revision)."""
+    from alembic.runtime.migration import MigrationContext
+    from alembic.script import ScriptDirectory
+
     head = ScriptDirectory.from_config(config).get_current_head()
     with engine.connect() as conn:
-        if MigrationContext.configure(conn).get_current_revision() == head:
-            conn.rollback()
-            return
+        current = MigrationContext.configure(conn).get_current_revision()
         conn.rollback()
+    return current, head
+
+
+def _migrate(engine: Engine) -> None:
+    """Bring the store to the newest revision (nothing to do when it is there)."""
+    from alembic import command
+
+    config = _alembic()
+    current, head = _revisions(engine, config)
+    if current == head:
+        return
     with writing(engine) as conn:
         if engine.dialect.name == "postgresql":
             conn.execute(sa.text("SELECT pg_advisory_xact_lock(:key)"), {"key": ADVISORY_LOCK})
@@ -124,12 +137,16 @@ def _migrate(engine: Engine) -> None:
 class Store:
     """An open store. `url`: its SQLAlchemy URL (never shown as is: `display`)."""
 
-    def __init__(self, url: str):
+    def __init__(self, url: str, migrate: bool = True):
+        """Open the store; `migrate`: bring it to the newest revision (False: read it as it is;
+        `revision` says what it is, None when it holds no store)."""
         self.url = url
         self.display = display_url(url)
         self.engine = _engine(url)
         with self._reaching():
-            _migrate(self.engine)
+            if migrate:
+                _migrate(self.engine)
+            self.revision, self.head = _revisions(self.engine, _alembic())
 
     @contextmanager
     def _reaching(self) -> Iterator[None]:
@@ -326,4 +343,27 @@ def open_store(url: str) -> Store:
         raise StoreUnavailable(scrub(f"{display_url(url)}: {exc}", url)) from None
 
 
-__all__ = ["Store", "StoreUnavailable", "now_utc", "open_store"]
+def open_reader(url: str) -> Store | None:
+    """Open the store at `url` to read it only: never created (an embedded file that does not
+    exist is no store), never migrated. None when there is no store there; StoreUnavailable when
+    it cannot be reached, or is at another revision than this axiscal's (any `axiscal history`
+    command brings it there)."""
+    if url.startswith("sqlite"):
+        database = sa.engine.make_url(url).database
+        if not database or database == ":memory:" or not Path(database).is_file():
+            return None
+    try:
+        store = Store(url, migrate=False)
+    except sa.exc.ArgumentError as exc:
+        raise StoreUnavailable(scrub(f"{display_url(url)}: {exc}", url)) from None
+    if store.revision is None:
+        store.close()
+        return None
+    if store.revision != store.head:
+        store.close()
+        raise StoreUnavailable(f"{store.display} is at schema revision {store.revision}, this axiscal reads "
+                               f"{store.head} (any axiscal history command brings it there)")
+    return store
+
+
+__all__ = ["Store", "StoreUnavailable", "now_utc", "open_reader", "open_store"]
