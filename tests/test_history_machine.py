@@ -25,13 +25,73 @@ def axiscal(*args: object, env: dict | None = None) -> subprocess.Popen:
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
+def hold_write_lock(store: str):
+    """Hold the store's write lock from here (SQLite: BEGIN IMMEDIATE; PostgreSQL: an EXCLUSIVE
+    lock on campaigns, which lets readers through): (release, waiting(pids) -> whether both
+    writers are inside the store and cannot have written yet)."""
+    from campaign.history.location import store_url
+    from campaign.history.store import open_store
+
+    url = store_url(store)
+    open_store(url).close()  # made and migrated before the writers start
+    if store.startswith("postgresql"):
+        import psycopg
+
+        holder = psycopg.connect(store)
+        holder.execute("LOCK TABLE campaigns IN EXCLUSIVE MODE")
+        watcher = psycopg.connect(store, autocommit=True)
+
+        def waiting(pids: list[int]) -> bool:  # both blocked on the lock held
+            return watcher.execute("SELECT count(*) FROM pg_locks WHERE NOT granted").fetchone()[0] >= len(pids)
+
+        def release() -> None:
+            holder.commit()
+            holder.close()
+            watcher.close()
+        return release, waiting
+    import sqlite3
+    from pathlib import Path
+
+    path = Path(url.removeprefix("sqlite:///"))
+    holder = sqlite3.connect(path, isolation_level=None)
+    holder.execute("BEGIN IMMEDIATE")
+
+    def opened(pid: int) -> bool:
+        try:
+            return any(os.readlink(fd) == str(path) for fd in Path(f"/proc/{pid}/fd").iterdir())
+        except OSError:
+            return False
+
+    def sqlite_release() -> None:
+        holder.execute("ROLLBACK")
+        holder.close()
+    return sqlite_release, lambda pids: all(opened(pid) for pid in pids)
+
+
 def test_two_writers_at_once_lose_nothing(db, tmp_path):  # noqa: F811
+    """Two `history import` processes, 4 campaigns in common: both are inside the store while the
+    test holds its write lock (so both started before either wrote anything, let alone finished),
+    then write at once; every campaign is recorded once."""
+    import time
+
     from campaign.history.simulated import simulate_history
 
     _, dirs = simulate_history(tmp_path / "h", campaigns=12)
     env = {**os.environ, "AXISCAL_DB": db}
-    first = axiscal("history", "import", *dirs[:8], "--json", env=env)  # 4 in common with the second
-    second = axiscal("history", "import", *dirs[4:], "--json", env=env)
+    release, waiting = hold_write_lock(db)
+    try:
+        first = axiscal("history", "import", *dirs[:8], "--json", env=env)  # 4 in common with the second
+        second = axiscal("history", "import", *dirs[4:], "--json", env=env)
+        for _ in range(1200):
+            if waiting([first.pid, second.pid]):
+                break
+            assert first.poll() is None and second.poll() is None, "a writer ended while the store was locked"
+            time.sleep(0.05)
+        else:
+            raise AssertionError("the two writers never both reached the store")
+        assert first.poll() is None and second.poll() is None
+    finally:
+        release()
     results = []
     for proc in (first, second):
         out, err = proc.communicate(timeout=120)

@@ -329,7 +329,12 @@ def run_compare(args: argparse.Namespace) -> int:
             raise InputError(f"history compare: {exc.args[0]}") from None
         if first["axis_kind"] != second["axis_kind"]:
             raise InputError(f"history compare: a {first['axis_kind']} and a {second['axis_kind']} axis")
-        result = compare(first, store.points(first["id"]), second, store.points(second["id"]))
+        points = [store.points(row["id"]) for row in (first, second)]
+        for row, recorded in zip((first, second), points):
+            if not recorded:
+                raise InputError(f"history compare: campaign {row['id']} ({row['label']}) has no point recorded "
+                                 f"(status {row['status']}): nothing to compare")
+        result = compare(first, points[0], second, points[1])
     if args.plot:
         from campaign.history.plots import draw_compare, save
 

@@ -21,9 +21,15 @@ from typing import Any
 
 from campaign import __version__
 from campaign.assess import Assessment, assess, assess_path, campaign_dir_of
-from campaign.errors import InputError
 from campaign.pointtable import PointTable
-from campaign.record import CONFIG_FILE, META_FILE, open_campaign
+from campaign.record import (
+    CONFIG_FILE,
+    META_FILE,
+    POINTS_FILE,
+    RUNS_FILE,
+    open_campaign,
+    recorded_point_indices,
+)
 
 PARAMETERS = ("A", "E", "M", "B", "B_mean", "R")
 """The ISO 230-2 parameters recorded (each bidirectional, and A, E, R per direction too)."""
@@ -66,13 +72,13 @@ def _read(path: Path) -> bytes:
 
 def directory_key(directory: Path) -> str:
     """The campaign's identity (see the module's docstring)."""
-    runs = _read(directory / "runs.jsonl")
+    runs = _read(directory / RUNS_FILE)
     return _hash(_read(directory / META_FILE), runs.split(b"\n", 1)[0])
 
 
 def directory_state(directory: Path) -> str:
     """What a campaign directory holds now (changes when the campaign goes on)."""
-    return _hash(*(_read(directory / name) for name in ("runs.jsonl", "points.csv", CONFIG_FILE)))
+    return _hash(*(_read(directory / name) for name in (RUNS_FILE, POINTS_FILE, CONFIG_FILE)))
 
 
 def fingerprint(table: PointTable) -> str:
@@ -169,12 +175,9 @@ def directory_entry(directory: str | Path, command: str = "import") -> Entry:
     key, state = directory_key(path), directory_state(path)
     when = utc(meta.get("created"))
     planned = meta.get("points_planned")
-    try:
-        a = assess_path(path)
-    except InputError as exc:
-        if "no point recorded" not in str(exc):
-            raise
+    if not recorded_point_indices(path):  # stopped (or killed) before its first point
         return Entry(_empty(campaign.meta, key, state, command, path, when, campaign.status, planned))
+    a = assess_path(path)
     values = _common(a, key, state, "directory", command, path, when, meta)
     values.update(status=campaign.status, points_planned=int(planned) if planned else None,
                   with_compensation=bool(meta.get("compensation")))

@@ -16,6 +16,7 @@ from __future__ import annotations
 import os
 import re
 from pathlib import Path
+from typing import Any
 
 from campaign.errors import InputError
 
@@ -64,32 +65,67 @@ def store_url(option: str | None = None) -> str | None:
     return DRIVERS.get(scheme.lower(), scheme) + "://" + rest
 
 
-_CREDENTIALS = re.compile(r"(?P<scheme>[a-z][a-z0-9+.-]*://)(?P<user>[^:/@\s]*)(?::(?P<password>[^@/\s]*))?@",
+_CREDENTIALS = re.compile(r"(?P<scheme>[a-z][a-z0-9+.-]*://)(?P<user>[^:/@\s]*)(?::(?P<password>[^@\s]*))?@",
                           re.IGNORECASE)
-_PASSWORD_ITEM = re.compile(r"(password\s*=\s*)('[^']*'|\S+)", re.IGNORECASE)
+"""A URL's user and password inside a message (the password may hold '/': the last '@' ends it)."""
+_SECRET_KEY = re.compile(r"pass|pwd|secret|token", re.IGNORECASE)
+"""Query keys whose value is a secret (password=, sslpassword=, ...)."""
+_PASSWORD_ITEM = re.compile(r"((?:pass\w*|pwd|secret|token)\s*=\s*)('[^']*'|[^&\s]+)", re.IGNORECASE)
+"""A `password=...` item in a message (a query string, a libpq connection string)."""
+
+
+def _parsed(url: str) -> Any:
+    """The URL as SQLAlchemy reads it (sqlalchemy.engine.URL), or None when it is not one."""
+    from sqlalchemy.engine import make_url
+
+    try:
+        return make_url(url)
+    except Exception:  # noqa: BLE001 - not a URL SQLAlchemy reads: masked by pattern instead
+        return None
 
 
 def display_url(url: str) -> str:
-    """The URL as it may be shown: the password (if any) replaced by ***."""
+    """The URL as it may be shown: the password replaced by ***, password-like query items
+    (password=, sslpassword=, ...) left out. Read by SQLAlchemy's own parser (a password may hold
+    '/' or '@'); what it cannot read is masked by pattern."""
+    parsed = _parsed(url) if "://" in url else None
+    if parsed is None:
+        return _PASSWORD_ITEM.sub(r"\1***", _mask_urls(url))
+    secret_keys = [key for key in parsed.query if _SECRET_KEY.search(key)]
+    if secret_keys:
+        parsed = parsed.difference_update_query(secret_keys)
+    return str(parsed.render_as_string(hide_password=True))
+
+
+def _mask_urls(text: str) -> str:
     def mask(m: re.Match[str]) -> str:
         hidden = ":***" if m.group("password") is not None else ""
         return f"{m.group('scheme')}{m.group('user')}{hidden}@"
 
-    return _CREDENTIALS.sub(mask, url)
+    return _CREDENTIALS.sub(mask, text)
 
 
 def passwords(url: str) -> list[str]:
-    """The secrets a URL carries (to be scrubbed from any message that might repeat them)."""
-    found = [m.group("password") for m in _CREDENTIALS.finditer(url) if m.group("password")]
-    from urllib.parse import unquote
+    """The secrets a URL carries (to be scrubbed from any message that might repeat them): its
+    password and its password-like query values, as given and URL-encoded."""
+    from urllib.parse import quote, unquote
 
-    return [p for secret in found for p in {secret, unquote(secret)} if p]
+    found = [m.group("password") for m in _CREDENTIALS.finditer(url) if m.group("password")]
+    parsed = _parsed(url) if "://" in url else None
+    if parsed is not None:
+        if parsed.password:
+            found.append(str(parsed.password))
+        for key, value in parsed.query.items():
+            if _SECRET_KEY.search(key):
+                found += [value] if isinstance(value, str) else list(value)
+    secrets = {variant for secret in found for variant in (secret, unquote(secret), quote(secret, safe=""))}
+    return sorted((s for s in secrets if s), key=len, reverse=True)  # the longest first: none left half-masked
 
 
 def scrub(message: str, url: str) -> str:
     """A message (a driver's error, say) with the URL's credentials masked, one line."""
-    text = display_url(message)
+    text = message
     for secret in passwords(url):
         text = text.replace(secret, "***")
-    text = _PASSWORD_ITEM.sub(r"\1***", text)
+    text = _PASSWORD_ITEM.sub(r"\1***", _mask_urls(text))
     return " ".join(text.split())

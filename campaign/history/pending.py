@@ -8,8 +8,9 @@ line. The next time any axiscal command reaches that store (a campaign's end, `a
 ...`), the queue is recorded first and emptied. The campaign directory stays the source of truth:
 `axiscal history import DIR` records a campaign whatever the queue says.
 
-Every change of the queue holds an exclusive lock (flock on pending.lock beside it), so that two processes never
-lose each other's lines.
+Every read and change of the queue holds an exclusive lock (flock on pending.lock beside it), so
+that two processes never lose each other's lines; recording what waits is done without it (a
+campaign ending meanwhile queues at once), and only the lines recorded are then taken out.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import fcntl
 import hashlib
 import json
 import os
+from collections import Counter
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -79,31 +81,54 @@ def _lines(path: Path) -> list[dict[str, Any]]:
     return items
 
 
-def drain(url: str, record: Callable[[dict[str, Any]], object]) -> tuple[int, list[str]]:
+def drain(url: str, record: Callable[[dict[str, Any]], object],
+          fatal: tuple[type[Exception], ...] = ()) -> tuple[int, list[str]]:
     """Record every line waiting for the store at `url` with `record(item)`; the lines recorded
-    (or whose source is gone, said in the problems) leave the queue, a line whose recording
-    fails stays. Returns (lines recorded, problems)."""
+    (or whose source is gone, said in the problems: one sentence each, for the user) leave the
+    queue, a line whose recording fails stays. An exception of a `fatal` type (the store became
+    unreachable) stops the draining and is raised, what was recorded having left the queue. The
+    lock is held only to read the queue and to take the lines out, never while recording: another
+    process's campaign can queue meanwhile (its line stays). Returns (lines recorded, problems)."""
     path = queue_path()
     if not path.is_file() or path.stat().st_size == 0:
         return 0, []
     sid = store_id(url)
-    done, problems = 0, []
     with _locked():
-        items = _lines(path)
-        keep = []
-        for item in items:
-            if item.get("store") != sid:
-                keep.append(item)
-                continue
+        mine = [item for item in _lines(path) if item.get("store") == sid]
+    done, problems = 0, []
+    finished: Counter[str] = Counter()
+    try:
+        for item in mine:
             try:
                 record(item)
                 done += 1
+            except fatal:
+                raise
             except LookupError as exc:  # its source is gone: nothing to keep waiting for
-                problems.append(str(exc))
+                problems.append(f"dropped from the queue: {exc}")
             except Exception as exc:  # noqa: BLE001 - one bad line never blocks the others
-                problems.append(f"{item.get('path', '?')}: {exc}")
+                problems.append(f"{item.get('path', '?')}: not recorded, it stays in the queue ({exc})")
+                continue
+            finished[_line(item)] += 1
+    finally:
+        if finished:
+            _take_out(path, finished)
+    return done, problems
+
+
+def _take_out(path: Path, finished: Counter[str]) -> None:
+    """Remove the lines `finished` from the queue as it is now (lines queued meanwhile stay)."""
+    with _locked():
+        keep = []
+        for item in _lines(path):
+            if finished[_line(item)] > 0:
+                finished[_line(item)] -= 1
+            else:
                 keep.append(item)
         tmp = path.with_suffix(".tmp")
-        tmp.write_text("".join(json.dumps(i, default=str) + "\n" for i in keep), encoding="utf-8")
+        tmp.write_text("".join(_line(i) for i in keep), encoding="utf-8")
         os.replace(tmp, path)
-    return done, problems
+
+
+def _line(item: dict[str, Any]) -> str:
+    return json.dumps(item, default=str) + "\n"

@@ -17,7 +17,7 @@ from typing import Any
 
 from campaign.assess import campaign_dir_of
 from campaign.history.entry import directory_key, directory_state, path_entry, utc
-from campaign.history.location import display_url, store_url
+from campaign.history.location import chosen, display_url, scrub, store_url
 from campaign.history.store import Store, StoreUnavailable, open_store
 
 
@@ -72,28 +72,34 @@ def drain_queue(store: Store) -> tuple[int, list[str]]:
     """Record what waits in the queue for this store (see campaign/history/pending.py)."""
     from campaign.history.pending import drain
 
-    return drain(store.url, lambda item: record_item(store, item))
+    return drain(store.url, lambda item: record_item(store, item), fatal=(StoreUnavailable,))
 
 
 def record_now(item: dict[str, Any], option: str | None = None) -> str:
     """The hook at the end of a command: record `item` into the store (first what waits in the
     queue for it). Never raises: returns the one line to tell the user ("" when the store is
-    turned off). An unreachable store queues the item."""
+    turned off; then one warning line per queued item that was dropped or failed), its
+    credentials masked whatever the message says. An unreachable store queues the item."""
     try:
         url = store_url(option)
     except Exception as exc:  # noqa: BLE001 - a bad --db/AXISCAL_DB never stops a campaign
-        return f"history: not recorded ({exc})"
+        return scrub(f"history: not recorded ({exc})", chosen(option) or "")
     if url is None:
         return ""
+    return "\n".join(scrub(line, url) for line in _record_or_queue(url, item).splitlines())
+
+
+def _record_or_queue(url: str, item: dict[str, Any]) -> str:
     try:
         store = open_store(url)
     except StoreUnavailable as exc:
         return _queue(url, item, str(exc))
     try:
-        drained, _ = drain_queue(store)
+        drained, problems = drain_queue(store)
         what = record_item(store, item)
         more = f"; {drained} waiting from before also recorded" if drained else ""
-        return f"history: {what} in {store.display}{more}"
+        return "\n".join([f"history: {what} in {store.display}{more}",
+                          *(f"history: warning: {problem}" for problem in problems)])
     except StoreUnavailable as exc:
         return _queue(url, item, str(exc))
     except Exception as exc:  # noqa: BLE001 - the campaign is recorded in its directory whatever happens here

@@ -142,7 +142,9 @@ def simulate_history(out: str | Path, campaigns: int = 12, years: float = 2.0, l
     end = end or dt.datetime.now(dt.UTC).replace(microsecond=0, tzinfo=None)
     base = demo_text()
     jump_after = round(0.6 * campaigns) if campaigns >= 3 else 0
-    truth = HistoryTruth(campaigns, years, lead_ppm_end, growth_ppm_per_year, backlash_um, jump_after, 0.0, seed)
+    targets = build_plan(recheck_config(base, lead_ppm_end, 0.0, seed, machine)).targets  # the same in every re-check
+    span = float(max(targets) - min(targets))
+    truth = HistoryTruth(campaigns, years, lead_ppm_end, growth_ppm_per_year, backlash_um, jump_after, span, seed)
     dates = recheck_dates(campaigns, years, end, rng)
     root = Path(out)
     written = []
@@ -154,6 +156,4 @@ def simulate_history(out: str | Path, campaigns: int = 12, years: float = 2.0, l
         this = {**truth.as_json(), "recheck": number, "lead_ppm": round(lead, 6), "backlash_um": reversal}
         directory = root / f"recheck-{number:02d}-{when.date().isoformat()}"
         written.append(write_campaign(directory, config, when.replace(tzinfo=dt.UTC), this, seed + number))
-    span = float(max(build_plan(config).targets) - min(build_plan(config).targets))
-    truth = HistoryTruth(campaigns, years, lead_ppm_end, growth_ppm_per_year, backlash_um, jump_after, span, seed)
     return truth, written

@@ -1,8 +1,10 @@
 """The campaign store: one database of every campaign of every axis (SQLAlchemy Core).
 
-The same code runs on the embedded SQLite file (WAL mode: readers never wait for the writer,
-writers take turns through `BEGIN IMMEDIATE` and a busy timeout) and on a plant's shared
-PostgreSQL server (by URL). A store is brought to the newest schema revision by its migrations
+The same code runs on the embedded SQLite file (WAL mode: readers never wait for the writer, a
+read is a deferred transaction; writers take turns through `BEGIN IMMEDIATE`, taken only by write
+transactions, and a busy timeout) and on a plant's shared PostgreSQL server (by URL; a connect
+timeout, a statement timeout and a lock timeout, so that a stalled server cannot hang a campaign's
+end: it is queued instead). A store is brought to the newest schema revision by its migrations
 (Alembic, `migrations/`) when it is opened; two processes opening a new store at once migrate it
 once (the migration holds the write lock: SQLite's, or a PostgreSQL advisory lock).
 
@@ -36,6 +38,12 @@ BUSY_TIMEOUT_MS = 60_000
 """SQLite: how long a writer waits for another's transaction to end, ms."""
 CONNECT_TIMEOUT_S = 5
 """PostgreSQL: how long to wait for the server to answer, s."""
+STATEMENT_TIMEOUT_S = 60
+"""PostgreSQL: the longest a statement may run (the server cancels it), s."""
+LOCK_TIMEOUT_S = 30
+"""PostgreSQL: the longest a statement waits for a lock another session holds, s."""
+WRITE = "axiscal_write"
+"""The execution option that marks a write transaction (SQLite takes its write lock at BEGIN)."""
 
 
 class StoreUnavailable(Exception):
@@ -63,7 +71,10 @@ def _sqlite_engine(url: str) -> Engine:
 
     @sa.event.listens_for(engine, "begin")
     def on_begin(conn: Connection) -> None:
-        conn.exec_driver_sql("BEGIN IMMEDIATE")  # one writer at a time, waiting its turn
+        if conn.get_execution_options().get(WRITE):
+            conn.exec_driver_sql("BEGIN IMMEDIATE")  # one writer at a time, waiting its turn
+        else:
+            conn.exec_driver_sql("BEGIN")  # a reader: a snapshot, never waiting for the writer
 
     return engine
 
@@ -71,25 +82,52 @@ def _sqlite_engine(url: str) -> Engine:
 def _engine(url: str) -> Engine:
     if url.startswith("sqlite"):
         return _sqlite_engine(url)
-    return sa.create_engine(url, pool_pre_ping=True, connect_args={"connect_timeout": CONNECT_TIMEOUT_S})
+    given = sa.engine.make_url(url).query  # what the URL sets itself stays as it is
+    args: dict[str, Any] = {"connect_timeout": CONNECT_TIMEOUT_S}
+    if "options" not in given:
+        args["options"] = (f"-c statement_timeout={STATEMENT_TIMEOUT_S * 1000} "
+                           f"-c lock_timeout={LOCK_TIMEOUT_S * 1000}")
+    return sa.create_engine(url, pool_pre_ping=True, connect_args={k: v for k, v in args.items() if k not in given})
+
+
+@contextmanager
+def writing(engine: Engine) -> Iterator[Connection]:
+    """A write transaction (SQLite: BEGIN IMMEDIATE); committed at the end, rolled back on error."""
+    with engine.connect() as conn:
+        conn.execution_options(**{WRITE: True})
+        with conn.begin():
+            yield conn
+
+
+def _alembic() -> Any:
+    from alembic.config import Config
+
+    config = Config()
+    config.set_main_option("script_location", str(MIGRATIONS))
+    return config
+
+
+def _revisions(engine: Engine, config: Any) -> tuple[str | None, str | None]:
+    """(the store's revision, None when it holds no store yet; the newest revision)."""
+    from alembic.runtime.migration import MigrationContext
+    from alembic.script import ScriptDirectory
+
+    head = ScriptDirectory.from_config(config).get_current_head()
+    with engine.connect() as conn:
+        current = MigrationContext.configure(conn).get_current_revision()
+        conn.rollback()
+    return current, head
 
 
 def _migrate(engine: Engine) -> None:
     """Bring the store to the newest revision (nothing to do when it is there)."""
     from alembic import command
-    from alembic.config import Config
-    from alembic.runtime.migration import MigrationContext
-    from alembic.script import ScriptDirectory
 
-    config = Config()
-    config.set_main_option("script_location", str(MIGRATIONS))
-    head = ScriptDirectory.from_config(config).get_current_head()
-    with engine.connect() as conn:
-        if MigrationContext.configure(conn).get_current_revision() == head:
-            conn.rollback()
-            return
-        conn.rollback()
-    with engine.begin() as conn:
+    config = _alembic()
+    current, head = _revisions(engine, config)
+    if current == head:
+        return
+    with writing(engine) as conn:
         if engine.dialect.name == "postgresql":
             conn.execute(sa.text("SELECT pg_advisory_xact_lock(:key)"), {"key": ADVISORY_LOCK})
         config.attributes["connection"] = conn
@@ -99,12 +137,16 @@ def _migrate(engine: Engine) -> None:
 class Store:
     """An open store. `url`: its SQLAlchemy URL (never shown as is: `display`)."""
 
-    def __init__(self, url: str):
+    def __init__(self, url: str, migrate: bool = True):
+        """Open the store; `migrate`: bring it to the newest revision (False: read it as it is;
+        `revision` says what it is, None when it holds no store)."""
         self.url = url
         self.display = display_url(url)
         self.engine = _engine(url)
         with self._reaching():
-            _migrate(self.engine)
+            if migrate:
+                _migrate(self.engine)
+            self.revision, self.head = _revisions(self.engine, _alembic())
 
     @contextmanager
     def _reaching(self) -> Iterator[None]:
@@ -133,7 +175,7 @@ class Store:
         """Record one campaign or table: (its id, "added", "updated" or "unchanged")."""
         for attempt in (1, 2):
             try:
-                with self._reaching(), self.engine.begin() as conn:
+                with self._reaching(), writing(self.engine) as conn:
                     return self._put(conn, entry)
             except sa.exc.IntegrityError:
                 if attempt == 2:  # the same campaign, recorded by another process a moment ago: twice
@@ -168,19 +210,23 @@ class Store:
 
     def link_verification(self, after_id: int, before_id: int | None, before_location: str | None,
                           compensation: dict[str, Any]) -> None:
-        """Record that campaign `after_id` verified a compensation against `before_id`."""
+        """Record that campaign `after_id` verified a compensation against `before_id` (an upsert:
+        two processes recording the same verification at once both succeed)."""
         v = schema.verifications
-        with self._reaching(), self.engine.begin() as conn:
-            conn.execute(v.delete().where(v.c.campaign_id == after_id))
-            conn.execute(v.insert().values(campaign_id=after_id, before_id=before_id,
-                                           before_location=before_location, compensation=compensation))
+        from sqlalchemy.dialects import postgresql, sqlite
+
+        row = {"before_id": before_id, "before_location": before_location, "compensation": compensation}
+        dialect = postgresql if self.engine.dialect.name == "postgresql" else sqlite
+        statement = dialect.insert(v).values(campaign_id=after_id, **row)
+        with self._reaching(), writing(self.engine) as conn:
+            conn.execute(statement.on_conflict_do_update(index_elements=[v.c.campaign_id], set_=row))
 
     def put_comp_table(self, key: str, values: dict[str, Any]) -> str:
         """Record a compensation table written: "added" or "unchanged"."""
         t = schema.comp_tables
         for attempt in (1, 2):
             try:
-                with self._reaching(), self.engine.begin() as conn:
+                with self._reaching(), writing(self.engine) as conn:
                     if conn.execute(sa.select(t.c.id).where(t.c.key == key)).first() is not None:
                         return "unchanged"
                     conn.execute(t.insert().values(key=key, **values))
@@ -297,4 +343,27 @@ def open_store(url: str) -> Store:
         raise StoreUnavailable(scrub(f"{display_url(url)}: {exc}", url)) from None
 
 
-__all__ = ["Store", "StoreUnavailable", "now_utc", "open_store"]
+def open_reader(url: str) -> Store | None:
+    """Open the store at `url` to read it only: never created (an embedded file that does not
+    exist is no store), never migrated. None when there is no store there; StoreUnavailable when
+    it cannot be reached, or is at another revision than this axiscal's (any `axiscal history`
+    command brings it there)."""
+    if url.startswith("sqlite"):
+        database = sa.engine.make_url(url).database
+        if not database or database == ":memory:" or not Path(database).is_file():
+            return None
+    try:
+        store = Store(url, migrate=False)
+    except sa.exc.ArgumentError as exc:
+        raise StoreUnavailable(scrub(f"{display_url(url)}: {exc}", url)) from None
+    if store.revision is None:
+        store.close()
+        return None
+    if store.revision != store.head:
+        store.close()
+        raise StoreUnavailable(f"{store.display} is at schema revision {store.revision}, this axiscal reads "
+                               f"{store.head} (any axiscal history command brings it there)")
+    return store
+
+
+__all__ = ["Store", "StoreUnavailable", "now_utc", "open_reader", "open_store"]

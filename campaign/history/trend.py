@@ -10,12 +10,17 @@ the two, √(U_i² + U_j²). The detection and the fit are iterated until they a
 rounds): a jump found becomes a step in the fit, which then says what drift to expect.
 
 **Drift rate.** A weighted least-squares line over time, y = a + r·t + Σ c_j·[t ≥ t_j] (one step
-c_j per change point), with weights 1/u_i², u_i = U_i/2: a campaign with a larger U counts less.
-The rate's standard uncertainty comes from the fit's covariance scaled by χ²/ν (ν = n − p, the
-Birge ratio squared): the weights set how much each campaign counts relative to the others, and
-the campaigns' own scatter about the line sets the scale (a budget's U is often larger than the
-scatter between campaigns, and a stated U can be too small). The coverage factor is Student's t
-at 95 % for ν. The rate is significant when |r| > U(r). A rate needs ν ≥ 1: at least three campaigns, one more per change point.
+c_j per change point of the parameter itself, and for A and E, which contain the reversal, per
+change point of B too), with weights 1/u_i², u_i the campaign's random standard uncertainty (its
+budget's statistics and resolution terms, `Observation.u_random`) when known, else U_i/2: a
+campaign with a larger u_i counts less.
+The rate's standard uncertainty comes from the fit's covariance (the weights' u_i) scaled by
+max(1, χ²/ν) (ν = n − p; χ²/ν is the Birge ratio squared): when the campaigns scatter about the
+line more than their u_i say, the scatter sets the scale (a type A evaluation), and the coverage
+factor is Student's t at 95 % for ν; otherwise the covariance is left as the u_i make it (never
+shrunk below what the campaigns' uncertainties allow) and the coverage factor is k = 2. The rate
+is significant when |r| > U(r). A rate needs ν ≥ 1: at least three campaigns, one more per
+change point, and campaigns apart in time (a design of full rank).
 
 **Crossing.** For A with a tolerance T: the date at which the fitted A plus the U of the last
 campaign reaches T, continuing the line from the last campaign (every step in place). Its
@@ -44,7 +49,6 @@ YEAR_S = 365.25 * 86400.0
 HORIZON_YEARS = 50.0
 """How far ahead a crossing is looked for, years."""
 MAX_ROUNDS = 5
-NAMES = {"A": "A", "E": "E", "B": "B", "R": "R"}
 
 
 @dataclass(frozen=True)
@@ -97,11 +101,11 @@ def _obs_json(o: Observation) -> dict:
 @dataclass
 class Fit:
     """The drift of one parameter. rate and U_rate in unit per year (None when not determined,
-    with `reason`); k the coverage factor used; `steps` the change points in the fit."""
+    with `reason`); k the coverage factor used; `step_at` the index of the first campaign after
+    each step in the fit."""
 
     parameter: str
     observations: list[Observation]
-    steps: list[ChangePoint] = field(default_factory=list)
     step_at: list[int] = field(default_factory=list)
     rate: float | None = None
     U_rate: float | None = None
@@ -164,16 +168,29 @@ def _years(observations: list[Observation]) -> np.ndarray:
     return np.array([(o.when - last).total_seconds() / YEAR_S for o in observations])
 
 
-def _solve(t: np.ndarray, y: np.ndarray, u: np.ndarray, steps: list[int]) -> tuple[np.ndarray, np.ndarray, float, int]:
-    """Weighted least squares: (coefficients, covariance, χ², ν)."""
+def _solve(t: np.ndarray, y: np.ndarray, u: np.ndarray,
+           steps: list[int]) -> tuple[np.ndarray, np.ndarray, float, int] | None:
+    """Weighted least squares: (coefficients, covariance, χ², ν); None when the design cannot
+    separate its coefficients (rank-deficient: the campaigns span no time, or a segment between
+    jumps has no two campaigns apart in time)."""
     columns = [np.ones_like(t), t] + [(np.arange(len(t)) >= i).astype(float) for i in steps]
     x = np.column_stack(columns)
     w = 1.0 / u ** 2
+    if np.linalg.matrix_rank(x * np.sqrt(w)[:, None]) < x.shape[1]:
+        return None
     normal = x.T @ (w[:, None] * x)
     cov = np.linalg.inv(normal)
     coef = cov @ (x.T @ (w * y))
     residual = y - x @ coef
     return coef, cov, float(np.sum(w * residual ** 2)), len(t) - x.shape[1]
+
+
+def _undetermined(obs: list[Observation], t: np.ndarray) -> str:
+    """Why a rank-deficient design gives no drift."""
+    if float(np.ptp(t)) == 0.0:
+        return (f"the campaigns span no time: all {len(obs)} are dated "
+                f"{obs[0].when.isoformat(sep=' ', timespec='minutes')} UTC")
+    return "the campaigns between the jumps set apart span no time: the drift cannot be told from the jumps"
 
 
 def _step_indices(obs: list[Observation], after: list[dt.datetime]) -> list[int]:
@@ -201,8 +218,9 @@ def detect(parameter: str, observations: list[Observation]) -> list[ChangePoint]
     steps: list[int] = []
     for _ in range(MAX_ROUNDS):
         found = [i + 1 for i in range(n - 1) if abs(jumps[i] - rate * dt_years[i]) > combined[i]]
-        if n - 2 - len(found) >= 1:
-            rate = float(_solve(t, y, u, found)[0][1])
+        solved = _solve(t, y, u, found) if n - 2 - len(found) >= 1 else None
+        if solved is not None:
+            rate = float(solved[0][1])
         if found == steps:
             break
         steps = found
@@ -212,13 +230,11 @@ def detect(parameter: str, observations: list[Observation]) -> list[ChangePoint]
 
 def fit(parameter: str, observations: list[Observation], jumps: list[ChangePoint] | None = None) -> Fit:
     """The drift of one parameter over its campaigns, with a step at each change point in `jumps`
-    (found in this parameter or another: one event of the axis may move several)."""
+    (its own, or a jump of a parameter it contains: a reversal jump moves A and E)."""
     obs = sorted(observations, key=lambda o: o.when)
     result = Fit(parameter, obs)
     n = len(obs)
-    own = [j for j in (jumps or []) if j.parameter == parameter]
     steps = _step_indices(obs, [j.after.when for j in (jumps or [])])
-    result.steps = own
     result.step_at = steps
     if n - 2 - len(steps) < 1:
         need = 3 + len(steps)
@@ -227,12 +243,19 @@ def fit(parameter: str, observations: list[Observation], jumps: list[ChangePoint
         return result
     t, y = _years(obs), np.array([o.value for o in obs])
     u = np.array([o.weight_u for o in obs])
-    coef, cov, chi2, dof = _solve(t, y, u, steps)
+    solved = _solve(t, y, u, steps)
+    if solved is None:
+        result.reason = _undetermined(obs, t)
+        return result
+    coef, cov, chi2, dof = solved
     from scipy.stats import t as student
 
     birge_sq = chi2 / dof
-    cov = cov * birge_sq  # the scale from the campaigns' own scatter about the line (type A)
-    k = float(student.ppf(0.975, dof))
+    if birge_sq > 1.0:  # the campaigns scatter more than their U says: the scatter sets the scale
+        cov = cov * birge_sq
+        k = float(student.ppf(0.975, dof))
+    else:  # no more than their U allows: the stated U sets it, never shrunk below
+        k = 2.0
     result.coef, result.cov, result.dof, result.k = coef, cov, dof, k
     result.birge = math.sqrt(birge_sq)
     result.rate = float(coef[1])
@@ -240,11 +263,19 @@ def fit(parameter: str, observations: list[Observation], jumps: list[ChangePoint
     return result
 
 
+STEPS_FROM = {"A": ("A", "B"), "E": ("E", "B")}
+"""Whose jumps put a step into a parameter's fit: its own, and for A and E (which contain the
+reversal) a reversal jump too; a jump of R does not move A's line."""
+
+
 def analyse(series: dict[str, list[Observation]]) -> tuple[dict[str, Fit], list[ChangePoint]]:
-    """Every parameter's change points, then its drift with a step wherever any parameter jumped."""
+    """Every parameter's change points, then its drift with a step at its own jumps (and, for A
+    and E, at the reversal's: STEPS_FROM)."""
     jumps = [j for parameter, obs in series.items() for j in detect(parameter, obs)]
     jumps.sort(key=lambda j: (j.after.when, j.parameter))
-    return {parameter: fit(parameter, obs, jumps) for parameter, obs in series.items()}, jumps
+    fits = {parameter: fit(parameter, obs, [j for j in jumps if j.parameter in STEPS_FROM.get(parameter, (parameter,))])
+            for parameter, obs in series.items()}
+    return fits, jumps
 
 
 @dataclass

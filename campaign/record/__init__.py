@@ -7,6 +7,8 @@ from campaign.record.directory import (
     CONFIG_FILE,
     META_FILE,
     PLAN_FILE,
+    POINTS_FILE,
+    RUNS_FILE,
     CampaignDir,
     last_raw_state,
     last_reading_offset,
@@ -19,6 +21,6 @@ from campaign.record.directory import (
 from campaign.record.events import Event
 from campaign.record.recorder import Recorder, RecordingError
 
-__all__ = ["COMP_FILE", "CONFIG_FILE", "META_FILE", "PLAN_FILE", "CampaignDir", "Event", "Recorder",
-           "RecordingError", "last_raw_state", "last_reading_offset", "load_raw", "open_campaign", "read_events",
+__all__ = ["COMP_FILE", "CONFIG_FILE", "META_FILE", "PLAN_FILE", "POINTS_FILE", "RUNS_FILE", "CampaignDir", "Event",
+           "Recorder", "RecordingError", "last_raw_state", "last_reading_offset", "load_raw", "open_campaign", "read_events",
            "read_json_lines", "recorded_point_indices"]

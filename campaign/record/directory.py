@@ -38,6 +38,8 @@ FORMAT_VERSION = 2
 """The campaign directory layout this software writes."""
 
 CONFIG_FILE, META_FILE, PLAN_FILE, RUNS_FILE = "config.toml", "meta.json", "plan.jsonl", "runs.jsonl"
+POINTS_FILE = "points.csv"
+"""The campaign's point table (campaign.pointtable's format), appended point by point."""
 
 COMP_FILE = "plc-compensation.json"
 """The table written to the PLC (axis units) for a campaign measured with compensation; resume

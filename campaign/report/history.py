@@ -2,7 +2,8 @@
 campaigns of the same machine and axis, the trend plot, the drift, the jumps, the crossing date
 and the last campaigns. Nothing when the store is turned off or holds no other campaign; one
 sentence (the store named without its credentials) when it cannot be reached. The report never
-creates a store: an embedded store file that does not exist is no store."""
+creates or migrates a store (store.open_reader): an embedded store file that does not exist, or a
+database without the store's tables, is no store."""
 
 from __future__ import annotations
 
@@ -21,25 +22,20 @@ LAST = 10
 def _store_rows(machine: str, axis: str) -> tuple[list[dict[str, Any]], str] | None:
     """(the axis's rows, the store's name), or None without a store; RuntimeError with a sentence
     when the store cannot be reached."""
-    from pathlib import Path
-
-    from sqlalchemy.engine import make_url
-
     from campaign.history.location import display_url, store_url
-    from campaign.history.store import StoreUnavailable, open_store
+    from campaign.history.store import StoreUnavailable, open_reader
 
     url = store_url(None)
     if url is None:
         return None
-    if url.startswith("sqlite"):
-        database = make_url(url).database
-        if not database or not Path(database).is_file():
-            return None
     try:
-        with open_store(url) as store:
+        store = open_reader(url)
+        if store is None:
+            return None
+        with store:
             return store.campaigns(machine, axis), store.display
     except StoreUnavailable as exc:
-        raise RuntimeError(f"The history store could not be reached ({exc}); the axis's history is not shown.") from None
+        raise RuntimeError(f"The history store could not be used ({exc}); the axis's history is not shown.") from None
     except Exception as exc:  # noqa: BLE001 - the report is made whatever the store says
         raise RuntimeError(f"The history store {display_url(url)} could not be read ({type(exc).__name__}); "
                            "the axis's history is not shown.") from None
