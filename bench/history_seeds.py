@@ -5,7 +5,7 @@ trend checked against the truth as tests/test_history.py checks it (the same tru
 - drift: the rate of A and of E within its stated U of the true rate (covered) and significant
   (both: drift_ok);
 - jump: B's only change point between re-checks 7 and 8, and no other parameter's elsewhere;
-- crossing: predicted, and its interval containing the day the expected A + U reaches 10 µm.
+- crossing: predicted, and its interval containing the day the expected A + U reaches the history's tolerance (15 µm).
 
 Prints each seed's numbers and the coverage of each criterion out of N; writes nothing else.
 
@@ -53,7 +53,7 @@ def one(seed: int, root: Path) -> dict:
     out["jumps"] = pairs
     out["jump_ok"] = b_jumps == [(labels[6], labels[7])] and all((a, b) == (labels[6], labels[7]) for _, a, b in pairs)
     c = trend["crossing"]
-    true_day = true_crossing(t, dates[-1], 10.0)
+    true_day = true_crossing(t, dates[-1], t["tolerance_um"])
     out["crossing"] = f"{c['state']} {c['earliest']}..{c['latest']} (true {true_day})"
     if c["state"] == "predicted":
         latest = dt.date.fromisoformat(c["latest"]) if c["latest"] else dt.date.max

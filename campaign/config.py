@@ -11,6 +11,7 @@ import copy
 import itertools
 import json
 import math
+import re
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
@@ -312,3 +313,37 @@ def schema_markdown() -> str:
 
 if __name__ == "__main__":
     print(schema_markdown(), end="")
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    raise TypeError(f"no TOML form for {value!r}")
+
+
+def _toml_key(name: str) -> str:
+    return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else json.dumps(name, ensure_ascii=False)
+
+
+def config_toml(data: Mapping[str, Any], prefix: str = "") -> str:
+    """A config's tables (plain or frozen, e.g. `config.data` of a changed copy) as TOML that
+    `parse_config` reads back: the keys of a table, then its sub-tables
+    ([sim.effects.NAME], [sim.faults.NAME], [instrument.line]); a key whose value is None is left out."""
+    data = plain(data)
+    lines: list[str] = []
+    keys = {k: v for k, v in data.items() if not isinstance(v, dict)}
+    tables = {k: v for k, v in data.items() if isinstance(v, dict)}
+    if prefix and (keys or not tables):
+        lines.append(f"[{prefix}]")
+    lines += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in keys.items() if v is not None]
+    if keys:
+        lines.append("")
+    for name, table in tables.items():
+        lines.append(config_toml(table, f"{prefix}.{_toml_key(name)}" if prefix else _toml_key(name)))
+    return "\n".join(lines)

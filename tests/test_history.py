@@ -48,10 +48,10 @@ def expected(lead_ppm: float, backlash_um: float, seeds: int = 30) -> tuple[floa
     simulated campaigns (the fast simulator, new noise each), µm."""
     from campaign.assess import assess
     from campaign.discovery.simulate import simulate_campaign
-    from campaign.history.simulated import demo_text, recheck_config
+    from campaign.history.simulated import demo_config, recheck_config
     from campaign.model import sim_model
 
-    config = recheck_config(demo_text(), lead_ppm, backlash_um, 7)
+    config = recheck_config(demo_config(), lead_ppm, backlash_um, 7)
     a, u, e = [], [], []
     for seed in range(seeds):
         result = assess(simulate_campaign(config, sim_model(config.sim), seed=5000 + seed), config)
@@ -116,10 +116,14 @@ def test_simulated_history_trend_finds_the_truth(cli, db, tmp_path):
     assert abs(jump["jump"] - truth["backlash_um_after_jump"]) <= jump["U"]
     assert jump["sentence"].startswith(f"B rose {jump['jump']:.1f} ± {jump['U']:.1f} µm between {dates[6]} and {dates[7]}")
     assert all((j["before"]["label"], j["after"]["label"]) == (labels[6], labels[7]) for j in trend["change_points"])
+    # R holds the reversal too (ISO 230-2's R_i contains |B_i|): its fit steps at B's jump, and the
+    # simulated R does not drift (its fit read the jump as a drift, +1.6 ± 0.7 µm/year, before)
+    step = [[dates[6].isoformat(), dates[7].isoformat()]]
+    assert trend["drift"]["R"]["steps_between"] == step and not trend["drift"]["R"]["significant"], trend["drift"]["R"]
 
     c = trend["crossing"]
-    assert c["state"] == "predicted" and c["tolerance"] == 10.0, c
-    true_day = true_crossing(truth, dates[-1], 10.0)
+    assert c["state"] == "predicted" and c["tolerance"] == truth["tolerance_um"] == 15.0, c
+    true_day = true_crossing(truth, dates[-1], truth["tolerance_um"])
     earliest = dt.date.fromisoformat(c["earliest"])
     latest = dt.date.fromisoformat(c["latest"]) if c["latest"] else dt.date.max
     assert earliest <= true_day <= latest, (c, true_day)
@@ -436,11 +440,11 @@ def started_campaign(directory, machine: str = "m0"):
     """A campaign directory as a campaign killed before its first point leaves it: its config,
     plan, meta and start record, no point."""
     from campaign.config import recorded_sections
-    from campaign.history.simulated import demo_text, recheck_config
+    from campaign.history.simulated import demo_config, recheck_config
     from campaign.plan import build_plan, plan_records
     from campaign.record import Recorder
 
-    config = recheck_config(demo_text(), -7.0, 0.0, 1, machine)
+    config = recheck_config(demo_config(), -7.0, 0.0, 1, machine)
     plan, sections = build_plan(config), recorded_sections(config)
     meta = {"machine": machine, "axis": "X", "kind": "linear", "points_planned": len(plan.points),
             "created": "2025-01-01T00:00:00+00:00"}
@@ -644,7 +648,7 @@ def test_drift_uncertainty_never_shrinks_below_the_campaigns_u():
 
 def test_a_jump_steps_only_the_parameters_it_moves():
     """A jump of R alone does not put a step into A's line (which then keeps all its campaigns for
-    one drift); a jump of B steps A and E, which contain the reversal, and not R."""
+    one drift); a jump of B steps A, E and R, which contain the reversal."""
     days = 60
     steady = [1.0 + 0.5 * i * days / 365.25 for i in range(8)]
     r_jumps = [1.0] * 4 + [4.0] * 4
@@ -654,23 +658,24 @@ def test_a_jump_steps_only_the_parameters_it_moves():
     fits, jumps = analyse({"A": series(steady, [0.6] * 8), "B": series(r_jumps, [0.6] * 8),
                            "E": series(steady, [0.6] * 8), "R": series([1.0] * 8, [0.6] * 8)})
     assert [(j.parameter, j.after.label) for j in jumps] == [("B", "c4")]
-    assert fits["A"].step_at == fits["E"].step_at == fits["B"].step_at == [4] and fits["R"].step_at == []
+    assert fits["A"].step_at == fits["E"].step_at == fits["B"].step_at == fits["R"].step_at == [4]
 
 
 def test_simulated_history_records_its_truth_in_each_recheck(tmp_path):
     """Each re-check's meta.json holds the history's truth as the demo reports it: the travel
-    measured (600 mm on the demo axis) and the lead error's growth over it (3 µm/m a year: 1.8 µm
-    a year); both were recorded as 0.0."""
+    measured (600 mm on the demo axis) and the lead error's growth over it (5 µm/m a year: 3.0 µm
+    a year) and the tolerance its re-checks state; the first two were recorded as 0.0."""
     from campaign.history.simulated import simulate_history
     from campaign.record import META_FILE
 
     truth, dirs = simulate_history(tmp_path / "h", campaigns=3)
-    assert truth.span_mm == 600.0 and truth.lead_growth_um_per_year == pytest.approx(1.8)
+    assert truth.span_mm == 600.0 and truth.lead_growth_um_per_year == pytest.approx(3.0)
     for number, directory in enumerate(dirs, start=1):
         recorded = json.loads((directory / META_FILE).read_text())["simulated_history"]
         assert recorded == {**truth.as_json(), "recheck": number, "lead_ppm": recorded["lead_ppm"],
                             "backlash_um": 2.5 if number > truth.jump_after else 0.0}
-        assert recorded["span_mm"] == 600.0 and recorded["lead_growth_um_per_year"] == pytest.approx(1.8)
+        assert recorded["span_mm"] == 600.0 and recorded["lead_growth_um_per_year"] == pytest.approx(3.0)
+        assert recorded["tolerance_um"] == 15.0 and "tolerance = 15.0" in (directory / "config.toml").read_text()
 
 
 def test_the_report_never_creates_or_migrates_a_store(cli, db, tmp_path):

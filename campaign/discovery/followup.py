@@ -22,23 +22,19 @@ Units: positions in the axis unit (mm or deg), times s, deviations µm.
 from __future__ import annotations
 
 import itertools
-import json
 import math
 import os
-import re
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from campaign.config import Config, config_with, parse_config
+from campaign.config import Config, config_toml, config_with, parse_config
 from campaign.discovery.data import CampaignData
 from campaign.discovery.fit import Fit, Term, linear_fit
 from campaign.discovery.search import RIVAL_MARGIN
 from campaign.plan import build_plan, check_plan, estimate_duration_s
-from campaign.specs import plain
 
 WAITS_S = (0.5, 5.0)
 """The waits before capture of the dwell part, s: a decade (stretched upwards to include the first
@@ -183,39 +179,6 @@ def _periods_of(group: dict[str, Any], remaining: list[Any]) -> list[float]:
     return []
 
 
-def _toml_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, (int, float)):
-        return repr(value)
-    if isinstance(value, str):
-        return json.dumps(value, ensure_ascii=False)
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    raise TypeError(f"no TOML form for {value!r}")
-
-
-def _toml_key(name: str) -> str:
-    return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else json.dumps(name, ensure_ascii=False)
-
-
-def toml_text(data: Mapping[str, Any], prefix: str = "") -> str:
-    """A config's tables (plain or frozen) as TOML: the keys of a table, then its sub-tables
-    ([sim.effects.NAME], [sim.faults.NAME], [instrument.line]); a key whose value is None is left out."""
-    data = plain(data)
-    lines: list[str] = []
-    keys = {k: v for k, v in data.items() if not isinstance(v, dict)}
-    tables = {k: v for k, v in data.items() if isinstance(v, dict)}
-    if prefix and (keys or not tables):
-        lines.append(f"[{prefix}]")
-    lines += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in keys.items() if v is not None]
-    if keys:
-        lines.append("")
-    for name, table in tables.items():
-        lines.append(toml_text(table, f"{prefix}.{_toml_key(name)}" if prefix else _toml_key(name)))
-    return "\n".join(lines)
-
-
 def _moved_paths(config: Config, out_dir: Path) -> dict[str, dict[str, Any]]:
     """The paths in the config (the sim model, a LinuxCNC comp file) made relative to where the
     follow-up config is written, as config changes."""
@@ -289,7 +252,7 @@ def plan_follow_up(unresolved: list[dict[str, Any]], remaining: list[Any], data:
     said = "; ".join(" or ".join(p.effects) for p in parts)
     changed = config_with(config, {"plan": plan, "capture": capture, **_moved_paths(config, out.parent),
                                    "campaign": {"description": f"follow-up of {', '.join(sources)}: to tell {said}"}})
-    body = toml_text(changed.data)
+    body = config_toml(changed.data)
     followed = parse_config(body, str(out))  # as it will be read from where it is written
     plan_built = build_plan(followed)
     check_plan(plan_built, followed.axis)

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from campaign.config import Config, parse_config, recorded_sections
+from campaign.config import Config, config_toml, config_with, parse_config, plain, recorded_sections
 from campaign.discovery.simulate import simulate_campaign
 from campaign.model import sim_model
 from campaign.plan import build_plan, plan_records
@@ -31,6 +31,10 @@ from campaign.record import Event, Recorder
 
 SIMULATOR = "fast simulator (campaign/discovery/simulate.py): the simulated machine's error model and noise, no ADS or pty"
 DAY = dt.timedelta(days=1)
+TOLERANCE_UM = 15.0
+"""The tolerance on A the simulated re-checks state, µm. With the lead error growing from −1 to
+−11 µm/m over two years (5 µm/m a year over 600 mm: A grows about 2 µm a year), A + U is about
+11.5 µm at the last re-check and reaches 15 µm about a year and a half later."""
 ROOM: dict[str, float | None] = {"air_temp_c": 20.0, "air_pressure_hpa": 1013.25, "humidity_pct": 50.0,
                                  "material_temp_c": 20.0}
 """The environment each simulated point records: the simulated machine's room at its set values
@@ -44,7 +48,8 @@ class HistoryTruth:
     """What the simulated axis really did. lead_ppm_end: the linear lead error at the last
     re-check, µm/m; growth_ppm_per_year: how fast its magnitude grows, µm/m per year;
     backlash_um: the reversal after the jump (0 before); jump_after: the re-check (1-based) after
-    which it jumped (0: no jump); span_mm: the travel measured."""
+    which it jumped (0: no jump); span_mm: the travel measured; tolerance_um: the tolerance on A
+    the re-checks' config states."""
 
     campaigns: int
     years: float
@@ -54,6 +59,7 @@ class HistoryTruth:
     jump_after: int
     span_mm: float
     seed: int
+    tolerance_um: float
 
     @property
     def lead_growth_um_per_year(self) -> float:
@@ -69,25 +75,30 @@ class HistoryTruth:
                 "growth_ppm_per_year": self.growth_ppm_per_year,
                 "lead_growth_um_per_year": round(self.lead_growth_um_per_year, 6),
                 "backlash_um_after_jump": self.backlash_um, "jump_after_campaign": self.jump_after,
-                "span_mm": self.span_mm, "seed": self.seed}
+                "span_mm": self.span_mm, "seed": self.seed, "tolerance_um": self.tolerance_um}
 
 
 def demo_text() -> str:
     return resources.files("campaign").joinpath("demo.toml").read_text(encoding="utf-8")
 
 
-def recheck_config(base: str, lead_ppm: float, backlash_um: float, seed: int, machine: str = "") -> Config:
-    """The demo's config with the lead error, the reversal and the noise seed of one re-check (and
-    another machine name, when given)."""
-    if "ppm = -12.4" not in base:
-        raise AssertionError("the demo config changed: its linear_scale is not -12.4")
-    text = base.replace("ppm = -12.4", f"ppm = {lead_ppm!r}")
-    text = text.replace("[sim]\nseed = 1", f"[sim]\nseed = {seed}")
-    if machine:
-        text = text.replace('machine = "sim-press"', f"machine = {machine!r}")
+def demo_config() -> Config:
+    """The demo's config (campaign/demo.toml), which every re-check changes (recheck_config)."""
+    return parse_config(demo_text(), "demo.toml (simulated history)")
+
+
+def recheck_config(base: Config, lead_ppm: float, backlash_um: float, seed: int, machine: str = "",
+                   tolerance_um: float = TOLERANCE_UM) -> Config:
+    """The demo's config with the lead error (µm/m), the reversal (µm), the noise seed and the
+    tolerance on A (µm) of one re-check, and another machine name when given (validated again)."""
+    effects = plain(base.sim.effects or {})
+    effects["linear_scale"] = {**effects.get("linear_scale", {}), "ppm": lead_ppm}
     if backlash_um:
-        text += f"\n[sim.effects.backlash]\nb_um = {backlash_um!r}\n"
-    return parse_config(text, "demo.toml (simulated history)")
+        effects["backlash"] = {"b_um": backlash_um}
+    campaign: dict[str, object] = {"tolerance": tolerance_um}
+    if machine:
+        campaign["machine"] = machine
+    return config_with(base, {"campaign": campaign, "sim": {"seed": seed, "effects": effects}})
 
 
 def recheck_dates(count: int, years: float, end: dt.datetime, rng: np.random.Generator) -> list[dt.datetime]:
@@ -112,7 +123,7 @@ def write_campaign(directory: Path, config: Config, created: dt.datetime, truth:
             "simulated": True, "simulator": SIMULATOR, "simulated_history": truth,
             "created": created.isoformat(timespec="seconds"),
             "written": dt.datetime.now(dt.UTC).isoformat(timespec="seconds")}
-    recorder = Recorder.create(directory, config.text, sections, plan_records(plan, sections), meta, a.kind)
+    recorder = Recorder.create(directory, config_toml(config.data), sections, plan_records(plan, sections), meta, a.kind)
     try:
         recorder.start(0.0, 0, len(plan.points))
         times = table.optional["time_s"]
@@ -131,20 +142,22 @@ def write_campaign(directory: Path, config: Config, created: dt.datetime, truth:
     return directory
 
 
-def simulate_history(out: str | Path, campaigns: int = 12, years: float = 2.0, lead_ppm_end: float = -7.0,
-                     growth_ppm_per_year: float = 3.0, backlash_um: float = 2.5, seed: int = 1,
-                     end: dt.datetime | None = None, machine: str = "") -> tuple[HistoryTruth, list[Path]]:
+def simulate_history(out: str | Path, campaigns: int = 12, years: float = 2.0, lead_ppm_end: float = -11.0,
+                     growth_ppm_per_year: float = 5.0, backlash_um: float = 2.5, seed: int = 1,
+                     end: dt.datetime | None = None, machine: str = "",
+                     tolerance_um: float = TOLERANCE_UM) -> tuple[HistoryTruth, list[Path]]:
     """Write `campaigns` re-checks of the demo axis into `out`/recheck-NN-DATE, the last at `end`
     (default now, UTC): the lead error's magnitude grows by `growth_ppm_per_year` and reaches
     `lead_ppm_end` at the last; the reversal jumps from 0 to `backlash_um` after re-check
     round(0.6·N) (none for fewer than 3). Each re-check has its own noise (seed + its number)."""
     rng = np.random.default_rng(seed)
     end = end or dt.datetime.now(dt.UTC).replace(microsecond=0, tzinfo=None)
-    base = demo_text()
+    base = demo_config()
     jump_after = round(0.6 * campaigns) if campaigns >= 3 else 0
-    targets = build_plan(recheck_config(base, lead_ppm_end, 0.0, seed, machine)).targets  # the same in every re-check
+    targets = build_plan(base).targets  # the same in every re-check
     span = float(max(targets) - min(targets))
-    truth = HistoryTruth(campaigns, years, lead_ppm_end, growth_ppm_per_year, backlash_um, jump_after, span, seed)
+    truth = HistoryTruth(campaigns, years, lead_ppm_end, growth_ppm_per_year, backlash_um, jump_after, span, seed,
+                         tolerance_um)
     dates = recheck_dates(campaigns, years, end, rng)
     root = Path(out)
     written = []
@@ -152,7 +165,7 @@ def simulate_history(out: str | Path, campaigns: int = 12, years: float = 2.0, l
         before_end = (end - when).total_seconds() / (365.25 * 86400)
         lead = truth.lead_ppm(before_end)
         reversal = backlash_um if jump_after and number > jump_after else 0.0
-        config = recheck_config(base, round(lead, 6), reversal, seed + number, machine)
+        config = recheck_config(base, round(lead, 6), reversal, seed + number, machine, tolerance_um)
         this = {**truth.as_json(), "recheck": number, "lead_ppm": round(lead, 6), "backlash_um": reversal}
         directory = root / f"recheck-{number:02d}-{when.date().isoformat()}"
         written.append(write_campaign(directory, config, when.replace(tzinfo=dt.UTC), this, seed + number))

@@ -263,14 +263,14 @@ def fit(parameter: str, observations: list[Observation], jumps: list[ChangePoint
     return result
 
 
-STEPS_FROM = {"A": ("A", "B"), "E": ("E", "B")}
-"""Whose jumps put a step into a parameter's fit: its own, and for A and E (which contain the
-reversal) a reversal jump too; a jump of R does not move A's line."""
+STEPS_FROM = {"A": ("A", "B"), "E": ("E", "B"), "R": ("R", "B")}
+"""Whose jumps put a step into a parameter's fit: its own, and for A, E and R (each contains the
+reversal: R_i of ISO 230-2 holds |B_i|) a reversal jump too; a jump of R does not move A's line."""
 
 
 def analyse(series: dict[str, list[Observation]]) -> tuple[dict[str, Fit], list[ChangePoint]]:
-    """Every parameter's change points, then its drift with a step at its own jumps (and, for A
-    and E, at the reversal's: STEPS_FROM)."""
+    """Every parameter's change points, then its drift with a step at its own jumps (and, for A,
+    E and R, at the reversal's: STEPS_FROM)."""
     jumps = [j for parameter, obs in series.items() for j in detect(parameter, obs)]
     jumps.sort(key=lambda j: (j.after.when, j.parameter))
     fits = {parameter: fit(parameter, obs, [j for j in jumps if j.parameter in STEPS_FROM.get(parameter, (parameter,))])
