@@ -67,6 +67,7 @@ limits_strategy = st.builds(
 )
 
 
+@pytest.mark.machine  # a sweep of 300 generated cases, about 3 s: make test runs it, the fast tier keeps the hand-worked ones
 @settings(max_examples=300, deadline=None)
 @given(limits=limits_strategy, ratio=st.floats(1e-2, 1e6), sign=st.sampled_from([1.0, -1.0]))
 def test_constant_target_bounds_no_overshoot_and_time(limits, ratio, sign):
@@ -86,6 +87,7 @@ def test_constant_target_bounds_no_overshoot_and_time(limits, ratio, sign):
     assert after.value == target and after.step == 0.0  # no chattering
 
 
+@pytest.mark.machine  # a sweep of 100 generated target sequences, about 3 s (as above)
 @settings(max_examples=100, deadline=None)
 @given(limits=limits_strategy,
        targets=st.lists(st.tuples(st.floats(-1e4, 1e4), st.integers(1, 300)), min_size=1, max_size=8))
