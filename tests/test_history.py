@@ -466,7 +466,8 @@ def test_compare_with_a_campaign_of_no_point_is_one_error(cli, db, tmp_path):
     for pair in ((empty, dirs[0]), (dirs[0], empty)):
         assert_one_line_error(cli("history", "compare", *pair), "has no point recorded", "empty")
     trend = json.loads(cli("history", "trend", "m0", "X", "--json").out)
-    assert [r["reason"] for r in trend["left_out"]] == ["running campaign"]
+    [reason] = [r["reason"] for r in trend["left_out"]]
+    assert reason.startswith("not finished (0 of 110 points; no stop recorded") and "axiscal resume" in reason
 
 
 def test_readers_never_wait_for_the_writer(cli, tmp_path, monkeypatch):
@@ -696,3 +697,15 @@ def test_the_report_never_creates_or_migrates_a_store(cli, db, tmp_path):
         assert tables == []
     else:
         assert not (tmp_path / "store").exists()
+
+
+def test_an_axis_whose_only_campaign_was_killed_says_so(cli, db, tmp_path):
+    """The trend of an axis whose one campaign never finished says the campaign does not count and
+    why, and the crossing says there is no campaign to judge from, not that no tolerance is
+    recorded (the demo config has one: it said 'no tolerance on A is recorded' before)."""
+    killed = started_campaign(tmp_path / "killed", "m9")
+    assert cli("history", "import", killed).code == 0
+    trend = json.loads(cli("history", "trend", "m9", "X", "--json").out)
+    assert trend["campaigns"] == [] and len(trend["left_out"]) == 1
+    assert trend["crossing"]["state"] == "not predictable"
+    assert "no campaign that counts" in trend["crossing"]["reason"], trend["crossing"]

@@ -205,8 +205,8 @@ def run_list(args: argparse.Namespace) -> int:
     console = make_console()
     table = Table(title=f"{len(rows)} campaign(s) in {store.display}")
     heads = ["id", "date", "machine", "axis", "command", "status", "points", "A ± U", "verdict", "where"]
-    if console.width < WIDE_LIST:  # a narrow terminal: what identifies a campaign and its result (--json: all)
-        heads = ["id", "date", "machine", "axis", "A ± U", "verdict"]
+    if console.width < WIDE_LIST:  # a narrow terminal: what identifies a campaign, its state and result (--json: all)
+        heads = ["id", "date", "machine", "axis", "status", "A ± U", "verdict"]
     for head in heads:
         # what identifies a campaign stays on one line; the path folds
         table.add_column(head, justify="right" if head in ("id", "points", "A ± U") else "left",
@@ -222,7 +222,7 @@ def run_list(args: argparse.Namespace) -> int:
 
 
 WIDE_LIST = 110
-"""Columns below which `history list` shows id, date, machine, axis, A ± U and verdict only."""
+"""Columns below which `history list` shows id, date, machine, axis, status, A ± U and verdict only."""
 
 
 def _shown_path(location: str) -> str:

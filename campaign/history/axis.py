@@ -36,7 +36,10 @@ def why_left_out(row: dict[str, Any], unit: str) -> str:
     if row["with_compensation"]:
         return "measured with a compensation table written for it (a verification), not as found"
     if row["source"] == "directory" and row["status"] != "completed":
-        return f"{row['status']} campaign"
+        done = f"{row['points']} of {row['points_planned']} points" if row["points_planned"] else f"{row['points']} points"
+        if row["status"] == "running":  # no stop record: its process was killed, or still measures
+            return f"not finished ({done}; no stop recorded: killed, or still running; `axiscal resume` continues it)"
+        return f"{row['status']} campaign ({done}; `axiscal resume` continues it)"
     if row["points_planned"] and row["points"] < row["points_planned"]:
         return f"incomplete: {row['points']} of {row['points_planned']} points"
     if row["measured_utc"] is None:

@@ -336,11 +336,11 @@ def _first_reach(func: Callable[[float], float], target: float, horizon: float) 
 
 def crossing(a_fit: Fit, tolerance: float | None) -> Crossing:
     """When A + U reaches `tolerance` (see the module's docstring)."""
+    if not a_fit.observations:  # first: with no campaign that counts, no tolerance is known either
+        return Crossing("not predictable", tolerance, "no campaign that counts for the trend (see those left out)")
     if not tolerance:
         return Crossing("not predictable", None, "no tolerance on A is recorded (set [campaign] tolerance, or give "
                                                  "--tolerance)")
-    if not a_fit.observations:
-        return Crossing("not predictable", tolerance, "no campaign with A and its U")
     last = a_fit.last
     u_future = last.U
     if last.value + u_future >= tolerance:
