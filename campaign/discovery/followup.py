@@ -202,7 +202,8 @@ def plan_follow_up(unresolved: list[dict[str, Any]], remaining: list[Any], data:
     unplanned: list[str] = []
     targets: list[float] | None = None
     capture: dict[str, Any] = {}
-    plan: dict[str, Any] = {}
+    plan: dict[str, Any] = {"offsets": "none"}  # the targets written are where to measure (the first
+    # campaign's measured targets already hold its offsets); a cluster sets its own below
     cycles = 1
     points_needed = 0
     first_cycles = config.plan.cycles
