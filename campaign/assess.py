@@ -71,7 +71,8 @@ def assess(table: PointTable, config: Config | None = None, planned: Planned | N
         tolerances["A"] = tolerance
     outliers = find_outliers(table)
     unc = budget(table, ev, config)
-    verdict = judge(table, ev, tolerances, unc, outliers, planned)
+    purpose, follows = (config.campaign.purpose, config.campaign.follows) if config is not None else ("acceptance", "")
+    verdict = judge(table, ev, tolerances, unc, outliers, planned, purpose, follows)
     simulated = is_simulated(table, config, meta)
     return Assessment(source or table.source, table, ev, outliers, unc, verdict, tolerances, config, planned,
                       directory, meta, simulated)

@@ -69,6 +69,12 @@ def plain(value: Any) -> Any:
     return value
 
 
+PURPOSES = ("acceptance", "verification", "follow-up", "diagnostic")
+"""What a campaign is for ([campaign] purpose): only acceptance and verification campaigns are judged
+pass/fail and enter an axis's trend; a follow-up and a diagnostic are recorded and listed only."""
+JUDGED_PURPOSES = ("acceptance", "verification")
+
+
 @dataclass(frozen=True, kw_only=True)
 class CampaignSpec:
     """What the campaign is and the tolerances its verdict uses ([campaign])."""
@@ -84,6 +90,14 @@ class CampaignSpec:
         "tolerance on the reversal value B, deviation unit; 0 = none", min=0, resume=True)
     tolerance_r: float = key(float, 0.0,
         "tolerance on the repeatability R, deviation unit; 0 = none", min=0, resume=True)
+    purpose: str = key(str, "acceptance",
+        "what the campaign is for: acceptance (an ISO 230-2 test with a verdict), verification (a "
+        "re-measurement after a compensation), follow-up (written by discover --follow-up) or diagnostic "
+        "(any other measurement); a follow-up or a diagnostic gets no pass/fail and is never trended",
+        choices=PURPOSES)
+    follows: str = key(str, "",
+        "the campaign this one follows up or verifies (its directory or campaign id); empty = none",
+        resume=True)
 
 
 @dataclass(frozen=True, kw_only=True)

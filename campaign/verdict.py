@@ -10,6 +10,7 @@ otherwise. A table measured in one direction only is judged on its unidirectiona
 as such (A↑, not A).
 
 Not judged, with the reason, when:
+- the campaign is not an acceptance test ([campaign] purpose: a follow-up or a diagnostic);
 - the campaign is incomplete: points missing against its plan, fewer runs than planned, or (for a
   table without a plan) targets and directions not measured the same number of times;
 - a direction lacks data where the campaign measured both;
@@ -27,6 +28,7 @@ from dataclasses import dataclass, field
 from campaign.iso230 import Evaluation
 from campaign.outliers import Outliers
 from campaign.pointtable import PointTable
+from campaign.specs import JUDGED_PURPOSES
 from campaign.uncertainty import Budget
 from protocols.units import unit_label
 
@@ -88,13 +90,25 @@ def completeness(table: PointTable, plan: Planned | None) -> list[str]:
     return problems
 
 
+def purpose_reason(purpose: str, follows: str = "") -> str | None:
+    """Why a campaign of this `purpose` ([campaign] purpose) gets no pass/fail; None when it is judged."""
+    if purpose in JUDGED_PURPOSES:
+        return None
+    of = f" of {follows}" if follows else ""
+    return f"not an acceptance test: a {purpose}{of} ([campaign] purpose = \"{purpose}\")"
+
+
 def judge(table: PointTable, ev: Evaluation, tolerances: dict[str, float], uncertainty: Budget,
-          outliers: Outliers | None = None, plan: Planned | None = None) -> Verdict:
+          outliers: Outliers | None = None, plan: Planned | None = None, purpose: str = "acceptance",
+          follows: str = "") -> Verdict:
     """The verdict on `ev` (the evaluation of `table`). tolerances: parameter (A, E, B, R) -> T in
-    the deviation unit; 0 or absent: not set. plan: what the campaign planned, when known."""
+    the deviation unit; 0 or absent: not set. plan: what the campaign planned, when known. purpose,
+    follows: the campaign's [campaign] purpose and follows; a follow-up or a diagnostic is not judged."""
     unit = unit_label(ev.unit)
     reasons: list[str] = []
     notes: list[str] = []
+    if (not_acceptance := purpose_reason(purpose, follows)) is not None:
+        reasons.append(not_acceptance)
     if outliers is not None and outliers.found:
         notes.append(f"{len(outliers.found)} outlier(s) at {100 * outliers.alpha:g} % significance, "
                      "included in the result (see outliers)")

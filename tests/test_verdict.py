@@ -262,3 +262,15 @@ def test_a_single_run_states_no_uncertainty_rather_than_a_smaller_one(cli, tmp_p
     assert said.code == 0, said.err
     out = json.loads(said.out)
     assert "U_A_um" not in json.dumps(out) and "not judged" in json.dumps(out)
+
+
+@pytest.mark.parametrize("purpose", ["follow-up", "diagnostic"])
+def test_a_follow_up_or_diagnostic_gets_no_pass_or_fail(purpose: str) -> None:
+    """[campaign] purpose: only acceptance and verification campaigns are judged."""
+    t = table()
+    ev = evaluate(t)
+    unc = budget(t, ev)
+    assert judge(t, ev, {"A": 1000.0}, unc, purpose="acceptance").verdict == "pass"
+    v = judge(t, ev, {"A": 1000.0}, unc, purpose=purpose, follows="runs/first")
+    assert v.verdict == "not judged"
+    assert v.reasons[0] == f'not an acceptance test: a {purpose} of runs/first ([campaign] purpose = "{purpose}")'
