@@ -11,6 +11,9 @@ Set in a config as `[sim.faults]` (one inline table per fault) or rehearsed with
 | fault | parameters (defaults) | what happens |
 |---|---|---|
 | ads_lost | at_s, duration_s (5) | the PLC's ADS server stops, and starts again after duration_s |
+| ca_lost | at_s, duration_s (5) | EPICS: the simulated IOC's Channel Access server stops, and starts again after duration_s |
+| limit_switch | at_s | EPICS: the limit switch ahead trips during the first move at or after at_s (clears when the axis moves away) |
+| stall | at_s | EPICS: the motor stalls during the first move at or after at_s (DMOV stays 0; the controller reports it after 1 s) |
 | axis_error | at_s, error_id (0x4550) | the drive faults during the first move at or after at_s |
 | beam_break | at_s, duration_s (3) | the interferometer's signal drops to 0 % |
 | serial_garbage | at_s, lines (5) | garbage lines appear on the serial line |
@@ -37,6 +40,9 @@ DEFAULTS: dict[str, dict[str, float]] = {
     "env_stuck": {},
     "env_out_of_range": {"duration_s": 60.0},
     "disk_full": {},
+    "ca_lost": {"duration_s": 5.0},
+    "limit_switch": {},
+    "stall": {},
 }
 DEFAULT_AT_S = 120.0
 

@@ -162,8 +162,12 @@ class ControllerSpec:
     """The connection to the axis controller ([axis_driver])."""
 
     type: str = key(str, "sim",
-        "sim (simulated machine over loopback ADS), ads (a real PLC) or linuxcnc (a headless LinuxCNC with "
-        "a simulated laser, docs/linuxcnc.md)", choices=("sim", "ads", "linuxcnc"), resume=True)
+        "sim (simulated machine over loopback ADS), ads (a real PLC), linuxcnc (a headless LinuxCNC with "
+        "a simulated laser, docs/linuxcnc.md) or epics (an EPICS motor record over Channel Access; with "
+        "instrument.type sim, the simulated IOC on loopback, docs/epics.md)",
+        choices=("sim", "ads", "linuxcnc", "epics"), resume=True)
+    pv: str = key(str, "SIM:M1", "epics: the motor record's name (prefix of its fields .VAL, .RBV, ...)",
+                  resume=True)
     comp_file: str = key(str, "",
         "linuxcnc: the COMP_FILE (type 0) LinuxCNC loads at start; empty: none", resume=True)
     ams_net_id: str = key(str, "127.0.0.1.1.1", "the PLC's AMS net id", resume=True)

@@ -97,6 +97,13 @@ def _open(spec: DriverSpec, speed: float | None, model: ErrorModel | None, start
         return Hardware(axis, interferometer, RealClock(), [axis.close, interferometer.close]), None
     if drv.type == "linuxcnc":
         return _open_linuxcnc(spec, model)
+    if drv.type == "epics":
+        try:
+            from drivers.epics.machine import open_epics
+        except ImportError as exc:
+            raise InputError(f"{spec.source}: axis_driver.type = epics needs caproto: pip install "
+                             f"'axiscal[epics]' ({exc})") from None
+        return open_epics(spec, speed, model, start_position, start_time, compensated)
     return _open_sim(spec, speed, model, start_position, start_time, compensated)
 
 

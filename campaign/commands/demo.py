@@ -1,5 +1,5 @@
 """`axiscal demo [--out DIR] [--speed N] [--capture dwell|stable] [--json] [--plot OUT]
-[--controller sim|linuxcnc [--verify]] [--cycles N]`.
+[--controller sim|linuxcnc|epics [--verify]] [--cycles N]`.
 
 The main job: a complete campaign on the simulated machine (the horizontal axis of Li et al. 2022) through
 the real ADS client against the loopback test server and the real serial stack over a pty,
@@ -31,12 +31,14 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                        description="Run the horizontal-axis campaign of Li et al. 2022 on the simulated machine.")
     add_run_options(p)
     p.add_argument("--capture", choices=("dwell", "stable"), help="capture method (default dwell)")
-    p.add_argument("--controller", choices=("sim", "linuxcnc"), default="sim",
+    p.add_argument("--controller", choices=("sim", "linuxcnc", "epics"), default="sim",
                    help="sim (default): the simulated PLC over ADS; linuxcnc: a headless LinuxCNC (real time) "
-                        "with a simulated laser on its joint (docs/linuxcnc.md)")
+                        "with a simulated laser on its joint (docs/linuxcnc.md); epics: the simulated axis as an "
+                        "EPICS motor record over Channel Access on loopback (docs/epics.md)")
     p.add_argument("--verify", action="store_true",
                    help="with --controller linuxcnc: compensate (--format linuxcnc), restart LinuxCNC with the "
-                        "COMP_FILE and measure again")
+                        "COMP_FILE and measure again; with --controller epics: write the table through Channel "
+                        "Access and measure again")
     p.add_argument("--cycles", type=positive_integer, help="runs of the campaign (default 5)")
     p.add_argument("--inject", metavar="NAME[@S],...",
                    help="rehearse faults at simulated times, e.g. beam_break@300,ads_lost@500 "
@@ -63,9 +65,15 @@ def run(args: argparse.Namespace) -> int:
         from campaign.commands.linuxcnc_demo import linuxcnc_demo
 
         return linuxcnc_demo(text, args)
+    if args.controller == "epics":
+        from campaign.commands.epics_demo import epics_demo
+
+        if args.capture:
+            text = text.replace('method = "dwell"', f'method = "{args.capture}"')
+        return epics_demo(text, args)
     if args.verify:
         raise InputError("--verify: the simulated PLC's closed loop is `axiscal verify`; --verify goes with "
-                         "--controller linuxcnc")
+                         "--controller linuxcnc or epics")
     if args.capture:
         text = text.replace('method = "dwell"', f'method = "{args.capture}"')
     if not args.inject:
