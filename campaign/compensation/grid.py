@@ -16,10 +16,11 @@ from protocols.compensator import table_lookup
 from protocols.plc_contract import CompTable
 
 POINT_LIMITS = {"linuxcnc": 256, "pmac": 256, "twincat_cnc": 1500, "siemens": 1000, "fanuc": 128,
-                "heidenhain": 256, "csv": 1024, "json": 1024}
+                "heidenhain": 256, "csv": 1024, "json": 1024, "ecmc": 1024}
 """Format -> largest number of points the controller takes (TwinCAT CNC: kw.ssfk.max_points default;
 Fanuc: about 128 between the extremes,
-reference.md §3; Siemens: MD38000 sets it, 1000 is a common limit; csv/json: our own cap)."""
+reference.md §3; Siemens: MD38000 sets it, 1000 is a common limit; csv/json/ecmc: our own cap, ecmc's
+lookup table sets none)."""
 
 
 @dataclass(frozen=True)

@@ -121,8 +121,9 @@ class EpicsAxis:
                           homed=bool(msta & MSTA_HOMED))
 
     def start_move(self, position: float, velocity: float) -> None:
-        """VELO, then VAL. AxisError (nothing written) when the record is in error, the target lies
-        outside its HLM/LLM of the moment, or when it refuses the move (LVIO)."""
+        """VELO, then VAL. AxisError (nothing written) when the record is in error (except on a limit
+        switch, for a move away from it), the target lies outside its HLM/LLM of the moment, or when
+        it refuses the move (LVIO)."""
         if not (math.isfinite(position) and math.isfinite(velocity)):
             raise ValueError(f"position and velocity must be finite, got {position}, {velocity}")
         self._refuse_writes("a move")
@@ -131,7 +132,7 @@ class EpicsAxis:
             raise AxisError(f"motor record {self.prefix}: {position:g} lies outside its soft limits "
                             f"[{low:g}, {high:g}]; not moved", REFUSED)
         status = self.status()
-        if status.error:
+        if status.error and not self._away_from_switch(status, position):
             raise AxisError(f"motor record {self.prefix} is in error {status.error_id:#x}; reset it first",
                             status.error_id)
         self._write("VELO", velocity, notify=True)
@@ -142,6 +143,17 @@ class EpicsAxis:
                 raise AxisError(f"motor record {self.prefix} refused the move to {position:g} (LVIO)", REFUSED)
             if not self._read("DMOV") or time.monotonic() > deadline:
                 return
+
+    def _away_from_switch(self, status: AxisStatus, position: float) -> bool:
+        """The record shows only a limit switch, and `position` lies on the side away from it (the
+        one move a motor record lets an axis make off a switch)."""
+        if status.error_id != LIMIT_SWITCH:
+            return False
+        msta = int(self._read("MSTA"))
+        plus = bool(self._read("HLS")) or bool(msta & MSTA_PLUS_LS)
+        minus = bool(self._read("LLS")) or bool(msta & MSTA_MINUS_LS)
+        return (plus and not minus and position < status.actual_position) or \
+            (minus and not plus and position > status.actual_position)
 
     def halt(self) -> None:
         self._refuse_writes("STOP")

@@ -30,8 +30,8 @@ reports it). Positions in the axis unit, times in s.
 from __future__ import annotations
 
 import asyncio
-import concurrent.futures
 import contextlib
+import logging
 import math
 import os
 import socket
@@ -77,6 +77,16 @@ SPMG_STOP, SPMG_PAUSE, SPMG_MOVE, SPMG_GO = 0, 1, 2, 3
 _FORMATS = {"BOOL": "?", "INT": "h", "UINT": "H", "UDINT": "I", "LREAL": "d"}
 
 _ENV_LOCK = threading.Lock()
+
+
+def _not_a_beacon_failure(record: logging.LogRecord) -> bool:
+    """Nobody listens for beacons on loopback (no CA repeater runs here): caproto's server logs every
+    beacon that finds no listener as an error; those lines say nothing about the IOC."""
+    return not record.getMessage().startswith("Failed to send beacon")
+
+
+logging.getLogger("caproto.ctx").addFilter(_not_a_beacon_failure)
+logging.getLogger("caproto").addHandler(logging.NullHandler())  # a command's output keeps its own lines
 
 
 def loopback_environment(port: int) -> dict[str, str]:
@@ -170,10 +180,9 @@ class SimMotorIoc:
         self._low, self._high, self._velocity = low, high, velocity
         self.group = _MotorGroup(prefix=prefix, ioc=self)
         self.fields: Any = self.group.motor.field_inst
-        self.loop = asyncio.new_event_loop()
-        self._thread = threading.Thread(target=self.loop.run_forever, daemon=True, name=f"ioc {prefix}")
-        self._thread.start()
-        self._server: concurrent.futures.Future[None] | None = None
+        self._new_loop()
+        self._server: asyncio.Task[None] | None = None
+        self._context: Any = None
         self._t = plc.handler.time_s
         self._limit_switch = 0  # +1 / -1: the switch of that side is active
         self._stalled_at: float | None = None  # simulated time the motor stalled
@@ -183,6 +192,9 @@ class SimMotorIoc:
         self._published: dict[str, Any] = {}
         self._free: threading.Thread | None = None
         self._free_stop = threading.Event()
+        self.requests: list[tuple[float, float, str]] = []
+        """Every VAL a client wrote: (simulated time s, target, what the record did: "moved" or
+        "refused: ..."), for the tests' check that nothing unsafe was asked for."""
         self._call(self._setup())
         self.start()
 
@@ -194,15 +206,18 @@ class SimMotorIoc:
             return
         async def serve() -> None:
             with environment(self.environment):
-                context = Context(self.group.pvdb, interfaces=[LOOPBACK])
+                context = self._context = Context(self.group.pvdb, interfaces=[LOOPBACK])
             context.ca_server_port = self.port
             await context.run()
 
-        server = self._server = asyncio.run_coroutine_threadsafe(serve(), self.loop)
+        async def spawn() -> asyncio.Task[None]:
+            return asyncio.get_running_loop().create_task(serve())
+
+        server = self._server = self._call(spawn())
         deadline = time.monotonic() + 5.0
         while not self._listening():
             if server.done():
-                server.result()  # raises the server's error
+                self._call(self._wait_for(server))  # raises the server's error
             if time.monotonic() > deadline:
                 raise OSError(f"the simulated IOC did not start on {LOOPBACK}:{self.port}")
             time.sleep(0.005)
@@ -214,22 +229,45 @@ class SimMotorIoc:
 
     def stop(self) -> None:
         """The IOC goes off the network: the server closes its circuits and sockets (the record and
-        the PLC go on)."""
+        the PLC go on). The event loop goes with it: caproto's server closes its listening socket
+        under asyncio's feet, and a server started again on the same loop would never accept."""
         server, self._server = self._server, None
         if server is not None:
-            self.loop.call_soon_threadsafe(server.cancel)
-            with contextlib.suppress(BaseException):
-                server.result(timeout=5.0)
-            # the circuits' sockets go with their tasks; wait until the port no longer answers
-            deadline = time.monotonic() + 5.0
-            while self._listening() and time.monotonic() < deadline:
-                time.sleep(0.005)
+            server_task = server
+
+            context = self._context
+
+            async def cancel() -> None:
+                for circuit in list(context.circuits):  # the clients see their circuits close
+                    circuit.client.writer.transport.abort()
+                server_task.cancel()
+                with contextlib.suppress(asyncio.CancelledError):
+                    await server_task
+                await asyncio.sleep(0.05)  # asyncio closes the sockets in callbacks of its own
+
+            self._call(cancel())
+            self._end_loop()
+            self._new_loop()
 
     def close(self) -> None:
         self.stop_free()
         self.stop()
+        self._end_loop()
+
+    @staticmethod
+    async def _wait_for(task: asyncio.Task[None]) -> None:
+        await task
+
+    def _new_loop(self) -> None:
+        self.loop = asyncio.new_event_loop()
+        self._thread = threading.Thread(target=self.loop.run_forever, daemon=True, name=f"ioc {self.prefix}")
+        self._thread.start()
+
+    def _end_loop(self) -> None:
         self.loop.call_soon_threadsafe(self.loop.stop)
         self._thread.join(timeout=5.0)
+        if not self._thread.is_alive():
+            self.loop.close()
 
     def _call(self, coroutine: Any) -> Any:
         return asyncio.run_coroutine_threadsafe(coroutine, self.loop).result(timeout=10.0)
@@ -301,6 +339,10 @@ class SimMotorIoc:
             getattr(self.group, attr).putter = self._comp_putter(member)
         position = self._status()["fActPosition"]
         await self.group.motor.write(position, verify_value=False)
+        # as the motor record: VAL's control and display limits are the soft limits (ophyd reads them)
+        await self.group.motor.write_metadata(lower_ctrl_limit=self._low, upper_ctrl_limit=self._high,
+                                              lower_disp_limit=self._low, upper_disp_limit=self._high,
+                                              units=self.unit)
         await f.user_high_limit.write(self._high)
         await f.user_low_limit.write(self._low)
         await f.dial_high_limit.write(self._high)
@@ -361,12 +403,15 @@ class SimMotorIoc:
         position = float(self._status()["fActPosition"])
         if not (math.isfinite(target) and f.user_low_limit.value <= target <= f.user_high_limit.value):
             await f.limit_violation.write(1, verify_value=False)
+            self.requests.append((self._t, target, "refused: outside the soft limits (LVIO)"))
             return current
         await f.limit_violation.write(0, verify_value=False)
         if f.stop_pause_move_go.value not in ("Go", SPMG_GO):
+            self.requests.append((self._t, target, "refused: SPMG is not Go"))
             return current
         direction = 1 if target > position else -1 if target < position else 0
         if self._limit_switch and direction == self._limit_switch:
+            self.requests.append((self._t, target, "refused: into the active limit switch"))
             return current  # the record does not drive further into an active limit switch
         if direction and direction != self._limit_switch:
             self._limit_switch = 0
@@ -375,6 +420,7 @@ class SimMotorIoc:
         self._write_plc({"fPosition": target, "fVelocity": velocity, "eCommand": int(Command.MOVE_ABSOLUTE),
                          "bExecute": True})
         self._pending = True
+        self.requests.append((self._t, target, "moved"))
         self._published.pop("done_moving_to_value", None)
         await f.done_moving_to_value.write(0, verify_value=False)
         self._published["done_moving_to_value"] = 0

@@ -46,7 +46,7 @@ class CorrectionTable(Protocol):
     def unit_factor(self) -> float: ...
 
 
-FORMATS = ("linuxcnc", "pmac", "twincat_cnc", "siemens", "fanuc", "heidenhain", "csv", "json")
+FORMATS = ("linuxcnc", "pmac", "twincat_cnc", "siemens", "fanuc", "heidenhain", "csv", "json", "ecmc")
 
 
 @dataclass(frozen=True)
@@ -97,7 +97,7 @@ class TableRead:
 
 
 SIGNATURES = (("%_N_AX_EEC_INI", "siemens"), ("kw.ssfk.", "twincat_cnc"), ("DEFINE COMP", "pmac"),
-              ("pitch[", "fanuc"), ("BEGIN ", "heidenhain"), ("position_", "csv"))
+              ("pitch[", "fanuc"), ("BEGIN ", "heidenhain"), ("position_", "csv"), ("\nPREC=", "ecmc"))
 """Text that only one format's files hold near their start, in the order tried."""
 
 
