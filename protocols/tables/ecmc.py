@@ -17,6 +17,8 @@ so the nominal positions are written. One table for both directions: uni mode on
 
 from __future__ import annotations
 
+import itertools
+
 from protocols.errors import FormatError
 from protocols.tables import (
     CorrectionTable,
@@ -72,7 +74,7 @@ def parse(text: str, path: str, options: FormatOptions) -> TableRead:
     if len(rows) < MIN_ROWS:
         raise FormatError(f"{path}: ecmc needs at least {MIN_ROWS} rows, the file has {len(rows)}")
     positions = [p for p, _ in rows]
-    if any(b < a for a, b in zip(positions, positions[1:])):
+    if any(b < a for a, b in itertools.pairwise(positions)):
         raise FormatError(f"{path}: the positions are not in increasing order (ecmc refuses the table)")
     start, spacing = equidistant(positions, path)
     correction = tuple(-v for _, v in rows)
