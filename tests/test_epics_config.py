@@ -1,0 +1,41 @@
+"""`[axis_driver] type = "epics"` and the EPICS faults, as the config and the command line read them
+(fast tier: nothing is opened)."""
+
+from __future__ import annotations
+
+import pytest
+
+from campaign.commands.demo import demo_config_text
+from campaign.commands.epics_demo import epics_config
+from campaign.config import parse_config
+from campaign.errors import InputError
+from campaign.faults import parse_faults, parse_inject
+
+
+def test_the_epics_demo_config_names_the_motor_record():
+    config = epics_config(demo_config_text())
+    assert (config.controller.type, config.controller.pv) == ("epics", "SIM:M1")
+    assert config.simulated  # instrument.type sim: the simulated IOC
+
+
+def test_a_real_motor_record_needs_a_real_laser_port():
+    text = demo_config_text().replace('[axis_driver]\ntype = "sim"', '[axis_driver]\ntype = "epics"\npv = "BL01:MOT1"')
+    text = text.replace('[instrument]\ntype = "sim"', '[instrument]\ntype = "serial"')
+    with pytest.raises(InputError, match="instrument.port"):
+        parse_config(text, "real.toml")
+    config = parse_config(text.replace('type = "serial"', 'type = "serial"\nport = "/dev/ttyUSB0"'), "real.toml")
+    assert config.controller.pv == "BL01:MOT1" and not config.simulated
+
+
+def test_an_unknown_controller_type_is_refused_naming_epics_among_the_choices():
+    text = demo_config_text().replace('[axis_driver]\ntype = "sim"', '[axis_driver]\ntype = "pva"')
+    with pytest.raises(InputError, match="epics"):
+        parse_config(text, "x.toml")
+
+
+def test_the_epics_faults_are_known_with_their_defaults():
+    assert parse_inject("ca_lost@200,limit_switch@400,stall@600") == {
+        "ca_lost": {"at_s": 200.0}, "limit_switch": {"at_s": 400.0}, "stall": {"at_s": 600.0}}
+    faults = parse_faults({"ca_lost": {"at_s": 5.0}, "stall": {}}, "x.toml")
+    assert [(f.name, f.at_s, f.params) for f in faults] == [("ca_lost", 5.0, {"duration_s": 5.0}),
+                                                           ("stall", 120.0, {})]
