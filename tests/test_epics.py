@@ -267,3 +267,66 @@ def test_an_ecmc_table_round_trips_through_verify_over_epics(tmp_path):
     assert written["enabled"] and written["start"] == 0.0 and written["spacing"] == 60.0
     assert np.allclose(written["forward"], common / 1000.0, atol=1e-9)  # mm, as the file said
     assert np.allclose(written["reverse"], written["forward"])
+
+
+def test_a_bluesky_run_of_the_campaign_plan_becomes_a_campaign_directory(tmp_path):
+    """The campaign's plan run by bluesky's RunEngine over ophyd devices (EpicsMotor on the IOC's
+    record, the IOC's simulated laser as an EpicsSignalRO); its documents written as a campaign
+    directory that analyze and report read, with the deviations the simulated axis has."""
+    import numpy as np
+
+    from campaign.commands.bluesky_plan import campaign_from_documents
+    from campaign.commands.demo import demo_config_text
+    from campaign.commands.epics_demo import EPICS_DRIVER
+    from campaign.model import sim_model
+    from campaign.pointtable import read_points
+    from drivers.sim.epics_ioc import SimMotorIoc
+    from drivers.sim.machine import SimAxisPhysics
+
+    text = demo_config_text().replace('[axis_driver]\ntype = "sim"', EPICS_DRIVER.replace("SIM:M1", "SIM:B1"))
+    for old, new in (("count = 11", "count = 3"), ("cycles = 5", "cycles = 1"), ("dwell_s = 4.0", "dwell_s = 0.5"),
+                     ("average_s = 1.0", "average_s = 0.2")):
+        assert old in text
+        text = text.replace(old, new)
+    config = parse_config(text, "bluesky.toml")
+    (tmp_path / "bluesky.toml").write_text(text)
+    plc = SimPLC(1, config.axis.max_velocity, config.axis.max_acceleration, position=0.0)
+    physics = SimAxisPhysics(plc, sim_model(config.sim), "mm", config.sim.seed)
+    ioc = SimMotorIoc(plc, "SIM:B1", low=config.axis.soft_limit_min, high=config.axis.soft_limit_max,
+                      velocity=8.0, measure=physics.measure)
+    try:
+        ioc.run_free(speed=20.0)
+        run_client(rf'''
+import json
+from bluesky import RunEngine
+from ophyd import EpicsMotor, EpicsSignalRO
+from campaign.commands.bluesky_plan import DocumentLog, axiscal_plan
+from campaign.config import load_config
+motor = EpicsMotor("SIM:B1", name="motor")
+laser = EpicsSignalRO("SIM:B1:Laser", name="laser")
+motor.wait_for_connection(timeout=20)
+laser.wait_for_connection(timeout=20)
+log = DocumentLog()
+RE = RunEngine({{}})
+RE(axiscal_plan(motor, laser, load_config({str(tmp_path / "bluesky.toml")!r})), log)
+with open({str(tmp_path / "docs.jsonl")!r}, "w") as f:
+    for name, doc in log.documents:
+        f.write(json.dumps([name, doc], default=float) + "\n")
+''', ioc, timeout=300)
+    finally:
+        ioc.close()
+    documents = [tuple(json.loads(line)) for line in (tmp_path / "docs.jsonl").read_text().splitlines()]
+    directory = campaign_from_documents(documents, tmp_path / "run")
+    table = read_points(directory / "points.csv")
+    assert len(table.target) == 6 and sorted(set(table.target)) == [0.0, 300.0, 600.0]
+    settled = [physics.model.deviation_um(x, d, 0.0, 1e3) for x, d in zip(table.target, table.direction)]
+    assert np.max(np.abs(np.array(table.deviation) - settled)) < 1.5  # the scatter is 0.34 µm (σ)
+    assert min(settled) < -5.0  # the table is not all zeros: the axis's scale error shows at 600 mm
+    analyzed = subprocess.run([sys.executable, "-m", "campaign", "analyze", str(directory / "points.csv"), "--json"],
+                              capture_output=True, text=True, cwd=ROOT, check=False, timeout=120)
+    assert analyzed.returncode == 0, analyzed.stderr
+    report = subprocess.run([sys.executable, "-m", "campaign", "report", str(directory), "-o",
+                             str(tmp_path / "r.html")], capture_output=True, text=True, cwd=ROOT, check=False,
+                            timeout=300)
+    assert report.returncode == 0, report.stderr[-2000:]
+    assert (tmp_path / "r.html").stat().st_size > 10_000

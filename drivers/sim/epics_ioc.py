@@ -8,6 +8,9 @@ the physics, the interferometer and the error model are the ones of the ADS mach
 Served under the prefix P (e.g. "SIM:M1"):
 - the motor record P: VAL (writing it moves), RBV, DRBV, DMOV, MOVN, TDIR, HLM/LLM, DHLM/DLLM,
   LVIO, HLS/LLS, VELO, VMAX, ACCL, BDST, RDBD, STOP, SPMG, MSTA, EGU, and the record's alarm (SEVR);
+- with `measure` (the simulated interferometer's reading at a time: `SimAxisPhysics.measure`), the
+  laser's position as P:Laser (axis unit), posted at every scan (for a beamline's own plans; an
+  axiscal campaign reads its laser on the serial line);
 - axiscal's compensation table, P:Comp:Forward, P:Comp:Reverse (waveforms of
   `plc_contract.MAX_COMP_POINTS`), P:Comp:Start, P:Comp:Spacing, P:Comp:Points, P:Comp:Overrun,
   P:Comp:MaxRate, P:Comp:MaxAccel, P:Comp:Enable: the table of `protocols.plc_contract`, applied
@@ -149,6 +152,7 @@ class _MotorGroup(PVGroup):
     comp_max_rate = pvproperty(value=0.0, name=":Comp:MaxRate", precision=6)
     comp_max_accel = pvproperty(value=0.0, name=":Comp:MaxAccel", precision=6)
     comp_enable = pvproperty(value=0, name=":Comp:Enable", dtype=ChannelType.LONG)
+    laser = pvproperty(value=0.0, name=":Laser", precision=7, read_only=True)
 
     def __init__(self, *args: Any, ioc: SimMotorIoc, **kwargs: Any) -> None:
         self.ioc = ioc
@@ -173,8 +177,9 @@ class SimMotorIoc:
     """
 
     def __init__(self, plc: SimPLC, prefix: str, *, low: float, high: float, velocity: float,
-                 unit: str = "mm", port: int = 0):
+                 unit: str = "mm", port: int = 0, measure: Callable[[float], dict] | None = None):
         self.plc, self.prefix, self.unit = plc, prefix, unit
+        self.measure = measure
         self.port = port or free_loopback_port()
         self.environment = loopback_environment(self.port)
         self._low, self._high, self._velocity = low, high, velocity
@@ -376,6 +381,8 @@ class SimMotorIoc:
         msta |= MSTA_PLUS_LS if self._limit_switch > 0 else 0
         msta |= MSTA_MINUS_LS if self._limit_switch < 0 else 0
         position = float(s["fActPosition"])
+        if self.measure is not None:
+            await self.group.laser.write(float(self.measure(self._t)["position"]), verify_value=False)
         values = {"user_readback_value": position, "dial_readback_value": position,
                   "done_moving_to_value": int(done), "motor_is_moving": int(busy),
                   "direction_of_travel": int(self.plc.last_direction > 0), "motor_status": msta,
