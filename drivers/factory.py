@@ -178,6 +178,10 @@ def _open_sim(spec: DriverSpec, speed: float | None, model: ErrorModel | None, s
     from drivers.sim.plc import SimPLC
 
     axis_spec, drv, inst = spec.axis, spec.controller, spec.instrument
+    faults = parse_faults(plain(spec.sim.faults), spec.source)
+    if epics_only := sorted({f.name for f in faults} & {"ca_lost", "limit_switch", "stall"}):
+        raise InputError(f"{spec.source}: sim.faults: {', '.join(epics_only)} rehearse the EPICS axis "
+                         "(axis_driver.type = \"epics\"); the simulated PLC over ADS has no such fault")
     clock = make_clock(speed if speed is not None else spec.sim.speed, start_time)
     start = spec.start_position if start_position is None else start_position
     plc = SimPLC(drv.axis_index, axis_spec.max_velocity, axis_spec.max_acceleration, position=start,
@@ -202,7 +206,7 @@ def _open_sim(spec: DriverSpec, speed: float | None, model: ErrorModel | None, s
         _close(closers)
         raise
     hw = Hardware(axis, interferometer, clock, closers)
-    scheduler = FaultScheduler(parse_faults(plain(spec.sim.faults), spec.source), plc, server,
+    scheduler = FaultScheduler(faults, plc, server,
                                instrument, physics)
     clock.attach(scheduler.tick)
     return hw, SimParts(clock, plc, server, instrument, physics, scheduler)

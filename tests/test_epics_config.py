@@ -39,3 +39,11 @@ def test_the_epics_faults_are_known_with_their_defaults():
     faults = parse_faults({"ca_lost": {"at_s": 5.0}, "stall": {}}, "x.toml")
     assert [(f.name, f.at_s, f.params) for f in faults] == [("ca_lost", 5.0, {"duration_s": 5.0}),
                                                            ("stall", 120.0, {})]
+
+
+def test_the_epics_faults_are_refused_on_the_ads_machine_before_anything_opens():
+    from drivers.factory import open_hardware
+
+    config = parse_config(demo_config_text() + "\n[sim.faults]\nlimit_switch = { at_s = 10.0 }\n", "demo.toml")
+    with pytest.raises(InputError, match='limit_switch rehearse the EPICS axis'):
+        open_hardware(config.driver)
