@@ -159,6 +159,24 @@ def test_limits_beyond_the_record_and_a_backlash_take_out_are_refused_before_any
     assert ioc.requests == []  # nothing was asked of the record
 
 
+def test_a_record_without_soft_limits_leaves_the_configs_limits_in_charge(ioc):
+    """HLM = LLM switches a motor record's soft limits off: the driver does not refuse every move
+    then (it did before), and the executor's check of the config's limits is the one that holds."""
+    from drivers.epics.axis import EpicsAxis
+
+    clock = stepped(ioc)
+    ioc._call(ioc.fields.user_high_limit.write(0.0))
+    ioc._call(ioc.fields.user_low_limit.write(0.0))
+    axis = EpicsAxis("SIM:T1", limits=(-5.0, 90.0))
+    try:
+        axis.start_move(10.0, 5.0)
+        while not axis.status().done:
+            clock.sleep(0.1)
+        assert axis.status().actual_position == 10.0
+    finally:
+        axis.close()
+
+
 def test_a_record_that_does_not_answer_is_an_axis_error_of_a_lost_connection():
     from drivers.epics.axis import EpicsAxis
     from drivers.sim.epics_ioc import free_loopback_port, loopback_environment

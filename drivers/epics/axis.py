@@ -10,7 +10,9 @@ The motor record's own fields do everything (reference: docs/epics.md):
   simulated IOC the controller's error);
 - the soft limits HLM/LLM are read when the axis is opened, the config's limits must lie inside
   them (else InputError, before anything moves), and every target is checked against the record's
-  limits of the moment before VAL is written; BDST (the record's own backlash take-out) must be 0,
+  limits of the moment before VAL is written (a record with HLM = LLM has its soft limits switched
+  off, as the motor record has it: then the config's limits, checked before every move, are the
+  only ones); BDST (the record's own backlash take-out) must be 0,
   since a bidirectional ISO 230-2 test measures the reversal the record would hide.
 
 Faults, mapped onto the executor's one fault policy as the ADS axis maps its own:
@@ -128,7 +130,7 @@ class EpicsAxis:
             raise ValueError(f"position and velocity must be finite, got {position}, {velocity}")
         self._refuse_writes("a move")
         low, high = self._read("LLM"), self._read("HLM")
-        if not low <= position <= high:
+        if high > low and not low <= position <= high:  # HLM = LLM: the record has no soft limits
             raise AxisError(f"motor record {self.prefix}: {position:g} lies outside its soft limits "
                             f"[{low:g}, {high:g}]; not moved", REFUSED)
         status = self.status()

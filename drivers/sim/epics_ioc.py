@@ -408,7 +408,8 @@ class SimMotorIoc:
         f = self.fields
         current = float(self.group.motor.value)
         position = float(self._status()["fActPosition"])
-        if not (math.isfinite(target) and f.user_low_limit.value <= target <= f.user_high_limit.value):
+        low, high = f.user_low_limit.value, f.user_high_limit.value
+        if not math.isfinite(target) or (high > low and not low <= target <= high):  # HLM = LLM: no limits
             await f.limit_violation.write(1, verify_value=False)
             self.requests.append((self._t, target, "refused: outside the soft limits (LVIO)"))
             return current
