@@ -42,6 +42,8 @@ How pyads' AdsTestServer behaves, and what this class does about it:
 - It listens with a backlog of 5, so of 200 clients connecting at once most waited for the
   kernel's SYN retries (seconds to tens of seconds). `start()` listens with LISTEN_BACKLOG (the
   kernel caps it at net.core.somaxconn).
+- It keeps every connection in `clients` after it ended. FramedServer lets the ended ones go at
+  each accept, and closes a connection beyond CLIENT_LIMIT at once.
 - Its stop() joins the client threads but not its own thread and closes the listening socket under
   it: `stop()` ends the accept loop and joins that thread first, then lets the server close the
   client threads (joined) and the socket. No thread is left behind.
@@ -85,6 +87,9 @@ PACKET_TIMEOUT_S = 5.0
 sends part of one and then nothing is closed after it."""
 LISTEN_BACKLOG = 1024
 """Connections the kernel holds while the accept loop catches up (hundreds of clients at once)."""
+CLIENT_LIMIT = 1000
+"""Clients connected at once (two threads each); one more is closed at once, with one warning line
+while the PLC is full."""
 ROUTER_COMMANDS = range(0x1000, 0x1100)
 """AMS/TCP header commands of the AMS router (port register 0x1000, close, connect, notification,
 get local Net ID); any other non-zero value there is not ADS."""
@@ -267,7 +272,10 @@ class FramedServer(AdsTestServer):
     """pyads' test server with FramedConnection for every client. `packet_timeout_s`: how long a
     packet may take to arrive whole after its first byte (PACKET_TIMEOUT_S unless set)."""
 
+    clients: list[AdsClientConnection]
     packet_timeout_s = PACKET_TIMEOUT_S
+    _full = False
+    """CLIENT_LIMIT was reached and said (one warning line until a client leaves)."""
 
     def run(self) -> None:
         self._run = True
@@ -279,6 +287,15 @@ class FramedServer(AdsTestServer):
                 client, address = self.server.accept()
             except OSError:
                 continue
+            self.clients = [c for c in self.clients if c.is_alive()]  # the ended ones are let go
+            if len(self.clients) >= CLIENT_LIMIT:
+                client.close()
+                if not self._full:
+                    self._full = True
+                    log.warning("ADS client %s:%s refused: %d clients connected, the most the PLC serves (the next "
+                                "refused stay silent until one leaves)", *address[:2], CLIENT_LIMIT)
+                continue
+            self._full = False
             client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             connection = FramedConnection(handler=self.handler, client=client, address=address, server=self)
             connection.daemon = True
