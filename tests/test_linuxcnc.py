@@ -207,23 +207,33 @@ def free_port() -> int:
 def test_after_kill_9_of_the_demo_the_next_run_stops_the_linuxcnc_it_left_and_completes(tmp_path):
     """Issue 32's done-when: `kill -9` of `axiscal demo --controller linuxcnc` leaves its LinuxCNC
     running (the demo cannot stop it); the next run without --yes and without a terminal is
-    refused, saying what runs and how to stop it; with --yes it stops it and completes. A LinuxCNC
-    with no record of axiscal's is refused even with --yes, and left running."""
+    refused, saying what runs and how to stop it; with --yes it stops it and completes. The same
+    through `axiscal resume DIR --yes` of the killed campaign. A LinuxCNC with no record of
+    axiscal's is refused even with --yes, and left running."""
     from tests.test_crash_safety import data_rows
     from tests.test_demo_e2e import AXISCAL, ROOT
+
+    def killed_when_measuring(command: list[str], table: Path, proc: subprocess.Popen | None = None) -> int:
+        """Start `command` (or take `proc`), SIGKILL it once its point table has two points (it is
+        measuring on LinuxCNC's axis: no cleanup of its own runs); its pid."""
+        proc = proc or subprocess.Popen(command, cwd=ROOT, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                        stderr=subprocess.DEVNULL)
+        try:
+            deadline = time.monotonic() + 180
+            while not (table.exists() and data_rows(table) >= 2):
+                assert proc.poll() is None and time.monotonic() < deadline, "the demo did not measure"
+                time.sleep(0.5)
+        finally:
+            proc.kill()
+            proc.wait()
+        return proc.pid
 
     first = subprocess.Popen([*AXISCAL, "demo", "--controller", "linuxcnc", "--cycles", "1", "--out",
                               str(tmp_path / "first")], cwd=ROOT, stdin=subprocess.DEVNULL,
                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    table = tmp_path / "first" / "points.csv"
     leftover = None
     try:
-        deadline = time.monotonic() + 180
-        while not (table.exists() and data_rows(table) >= 2):  # measuring on LinuxCNC's axis
-            assert first.poll() is None and time.monotonic() < deadline, "the first demo did not measure"
-            time.sleep(0.5)
-        first.kill()  # SIGKILL: no cleanup of its own runs
-        first.wait()
+        killed_when_measuring([], tmp_path / "first" / "points.csv", first)
         leftover = process.find_leftover()
         assert leftover is not None and leftover.record.axiscal_pid == first.pid
         socket.create_connection(("127.0.0.1", process.PORT), timeout=2).close()  # LinuxCNC still answers
@@ -243,6 +253,18 @@ def test_after_kill_9_of_the_demo_the_next_run_stops_the_linuxcnc_it_left_and_co
         assert result["status"] == "completed" and result["points"] == result["planned"] == 22
         assert process._group(leftover.record.pgid) == [] and not Path(leftover.record.dir).exists()
         assert process.find_leftover() is None and not process.RECORD_FILE.exists()
+
+        # the same after `axiscal run` killed: `axiscal resume DIR --yes` stops its LinuxCNC and finishes
+        third = killed_when_measuring([*AXISCAL, "demo", "--controller", "linuxcnc", "--cycles", "1", "--out",
+                                       str(tmp_path / "third")], tmp_path / "third" / "points.csv")
+        leftover = process.find_leftover()
+        assert leftover is not None and leftover.record.axiscal_pid == third
+        resumed = axiscal("resume", tmp_path / "third", "--yes", "--json", timeout=600)
+        assert resumed.returncode == 0, resumed.stderr[-2000:]
+        assert f"stopping a LinuxCNC that axiscal started at {leftover.record.started}" in resumed.stderr
+        result = json.loads(resumed.stdout)
+        assert result["status"] == "completed" and result["points"] == result["planned"] == 22
+        assert process._group(leftover.record.pgid) == [] and process.find_leftover() is None
     finally:
         if first.poll() is None:
             first.kill()
