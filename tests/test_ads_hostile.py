@@ -1,7 +1,7 @@
 """The simulated PLC bounds what any ADS client can make it spend (issue 32 item 1). Each probe the
 issue found on loopback, against a server of its own in a subprocess (its RSS is then the
 server's alone): a sum read asking for 100 MiB and for 4 GiB, AMS/TCP lengths of 2³¹ and
-0xFFFFFFFF, an HTTP request, half a frame then silence, a notification in a client-side
+0xFFFFFFFF and of 4 bytes, an HTTP request, half a frame then silence, a notification in a client-side
 transmission mode, more notifications than a connection may hold, 100,000 pipelined requests and
 200 clients opening at once. Each gets a refusal or a close; a normal client (the product's
 AdsAxis over pyads) is then served within 1 s, and the server's RSS ends at most 50 MB above its
@@ -189,7 +189,7 @@ def test_every_hostile_probe_is_refused_or_closed_and_a_normal_client_is_served_
             codes.append(struct.unpack_from("<I", reply.data)[0])
         assert codes == [0] * NOTIFICATIONS_PER_CLIENT + [0x716, 0x716]
     for probe in (struct.pack("<HI", 0, 1 << 31) + b"\0" * 1000, struct.pack("<HI", 0, 0xFFFF_FFFF) + b"\0" * 1000,
-                  struct.pack("<HI", 0, PACKET_LIMIT_BYTES + 1),
+                  struct.pack("<HI", 0, PACKET_LIMIT_BYTES + 1), struct.pack("<HI", 0, 4) + b"\xff" * 4,
                   b"GET / HTTP/1.1\r\nHost: plc\r\n\r\n"):
         with socket.create_connection((ip, 48898)) as sock:
             sock.sendall(probe)
@@ -220,3 +220,4 @@ def test_every_hostile_probe_is_refused_or_closed_and_a_normal_client_is_served_
     assert sum("more than the 1048576 the PLC takes: connection closed" in line for line in lines) == 3, log
     assert sum("that is not ADS (starting b'GET / '): connection closed" in line for line in lines) == 1, log
     assert sum(f"not the rest within {PACKET_TIMEOUT_S:g} s" in line for line in lines) == 1, log
+    assert sum("of 4 bytes, too short for an AMS header (32): connection closed" in line for line in lines) == 1, log

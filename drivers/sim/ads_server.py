@@ -30,8 +30,9 @@ How pyads' AdsTestServer behaves, and what this class does about it:
   warning line saying so (the first on a connection; the next go unanswered silently) and no
   answer, as a TwinCAT PLC gives a remote client none.
 - It bounds nothing a client sends. FramedConnection bounds what one client can make the PLC
-  spend: an AMS/TCP header announcing more than PACKET_LIMIT_BYTES, or whose first two bytes are
-  neither 0 (an AMS packet) nor a router command (0x10xx: `GET / HTTP/1.1` is neither), is refused
+  spend: an AMS/TCP header announcing more than PACKET_LIMIT_BYTES or less than an AMS header, or
+  whose first two bytes are neither 0 (an AMS packet) nor a router command (0x10xx: `GET /
+  HTTP/1.1` is neither), is refused
   before anything more is read: one warning line, the connection closed. A packet that has not
   arrived whole PACKET_TIMEOUT_S after its first byte (half a frame, then silence) closes the
   connection the same way. What a request may ask for is bounded by the device
@@ -172,10 +173,6 @@ class FramedConnection(AdsClientConnection):
                         "client: give the client its own AMS Net ID and port", *self.client_address[:2],
                         router_command)
             return
-        if len(packet) < AMS_TCP_HEADER_BYTES + AMS_HEADER_BYTES:
-            log.warning("ADS client %s:%s sent a packet too short for an AMS header (%d bytes): ignored",
-                        *self.client_address[:2], len(packet))
-            return
         request = self.construct_request(packet)  # kept nowhere: pyads' request_history stays empty
         response = self.handler.handle_request(request, sink=self)
         if isinstance(response, AmsResponseData):
@@ -259,12 +256,15 @@ class FramedConnection(AdsClientConnection):
 
 def _refusal(pending: bytearray) -> str:
     """Why the AMS/TCP header at the start of `pending` is refused ("" when it is not): a length
-    beyond PACKET_LIMIT_BYTES, or a first field that is neither an AMS packet nor a router command."""
+    beyond PACKET_LIMIT_BYTES, an AMS packet too short for its header, or a first field that is
+    neither an AMS packet nor a router command."""
     command, length = struct.unpack_from("<HI", pending)
     if command and command not in ROUTER_COMMANDS:
         return f"sent an AMS/TCP header that is not ADS (starting {bytes(pending[:6])!r})"
     if length > PACKET_LIMIT_BYTES:
         return f"announced an AMS packet of {length} bytes, more than the {PACKET_LIMIT_BYTES} the PLC takes"
+    if not command and length < AMS_HEADER_BYTES:
+        return f"announced an AMS packet of {length} bytes, too short for an AMS header ({AMS_HEADER_BYTES})"
     return ""
 
 
