@@ -195,6 +195,19 @@ def test_a_linuxcnc_axiscal_did_not_start_is_refused_even_with_yes(files):
     assert asked == []  # nothing was offered to stop
 
 
+def test_the_record_is_never_written_through_a_link(tmp_path):
+    """The record lives in the shared temporary directory: a link put where axiscal writes it first
+    is replaced, not followed (axiscal runs LinuxCNC as root)."""
+    record_file, precious = tmp_path / "record.json", tmp_path / "precious"
+    precious.write_text("keep")
+    (tmp_path / f".record.json.{os.getpid()}").symlink_to(precious)
+    process._write_record(os.getpid(), tmp_path, record_file)
+    assert precious.read_text() == "keep" and process._read_record(record_file).axiscal_pid == os.getpid()
+    record_file.unlink()
+    record_file.symlink_to(precious)  # and a record that is a link is not read
+    assert process._read_record(record_file) is None
+
+
 def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

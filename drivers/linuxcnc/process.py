@@ -305,7 +305,11 @@ def _write_record(pgid: int, directory: Path, record_file: Path = RECORD_FILE) -
     record = Record(pgid, _start_ticks(pgid) or 0, _boot_id(), str(directory), os.getpid(),
                     time.strftime("%Y-%m-%d %H:%M:%S"))
     temporary = record_file.with_name(f".{record_file.name}.{os.getpid()}")
-    temporary.write_text(json.dumps(record.__dict__) + "\n")
+    with contextlib.suppress(FileNotFoundError):
+        temporary.unlink()  # a stale one, or a link someone put there: never written through
+    fd = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o644)
+    with os.fdopen(fd, "w") as f:
+        f.write(json.dumps(record.__dict__) + "\n")
     os.replace(temporary, record_file)
     return record
 
