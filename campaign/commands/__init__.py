@@ -116,8 +116,8 @@ def stop_leftover_controller(spec: "DriverSpec", yes: bool) -> None:
     if not yes:
         if not sys.stdin.isatty():
             return
-        answer = input(f"{what[0].upper()}{what[1:]} is still running. Stop it? [y/N] ")
-        if answer.strip().lower() not in ("y", "yes"):
+        print(f"{what[0].upper()}{what[1:]} is still running. Stop it? [y/N] ", end="", file=sys.stderr, flush=True)
+        if sys.stdin.readline().strip().lower() not in ("y", "yes"):  # on stderr: --json keeps stdout
             return
     print(f"stopping {what}", file=sys.stderr, flush=True)
     stop()
