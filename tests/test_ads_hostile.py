@@ -9,8 +9,8 @@ start. Before the fix: the sum read answered 0 with 100 MiB of zeros (RSS +264 M
 lengths and the garbage were held open waiting, 100,000 requests stayed in pyads' request history
 (+75 MB) and of 200 clients about 20 were accepted within 40 s (listen backlog 5).
 
-In the fast tier, as the issue asks: the server alone (no campaign, no simulated time), about ten
-seconds; the subprocess holds nothing but the simulated PLC and its ADS server."""
+In the fast tier, as the issue asks: the server alone (no campaign, no simulated time), 4 to 6 s
+here; the subprocess holds nothing but the simulated PLC and its ADS server."""
 
 from __future__ import annotations
 
