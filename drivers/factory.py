@@ -210,3 +210,15 @@ def _open_sim(spec: DriverSpec, speed: float | None, model: ErrorModel | None, s
                                instrument, physics)
     clock.attach(scheduler.tick)
     return hw, SimParts(clock, plc, server, instrument, physics, scheduler)
+
+
+def leftover_controller(spec: DriverSpec) -> tuple[str, Callable[[], None]] | None:
+    """A controller an earlier axiscal started for a driver of this kind and left running (a
+    LinuxCNC whose axiscal was killed): what it is and how to stop it; None when there is none
+    (always for the other drivers: axiscal starts no other controller)."""
+    if spec.controller.type != "linuxcnc":
+        return None
+    from drivers.linuxcnc.process import find_leftover
+
+    leftover = find_leftover()
+    return None if leftover is None else (leftover.describe(), leftover.stop)

@@ -183,5 +183,18 @@ def test_ads_async_connects_reads_and_subscribes(machine):
 
         _, refused = client.ask(client.circuit.add_notification_by_index(0x1234, 0, 4))
         assert (refused.result, refused.handle) == (constants.AdsError.DEVICE_INVALIDGRP, 0)
+        # issue 32: Beckhoff's code for a transmission mode the PLC does not serve, as ads-async names it
+        _, client_side = client.ask(client.circuit.add_notification_by_index(
+            PLC_DATA_GROUP, offset, 8, constants.AdsTransmissionMode.CLIENTCYCLE))
+        assert (client_side.result, client_side.handle) == (constants.AdsError.DEVICE_TRANSMODENOTSUPP, 0)
+        # and a sum read asking for 100 MiB is refused as a plain read of it is (it was answered 0
+        # with 100 MiB of zeros); the connection goes on
+        entry = struct.pack("<III", PLC_DATA_GROUP, offset, 100 << 20)
+        sum_read = structs.AdsReadWriteRequest(constants.AdsIndexGroup.SUMUP_READ, 1, 4 + (100 << 20), len(entry))
+        sum_read.data = entry
+        _, too_much = client.ask(sum_read)
+        assert (too_much.result, too_much.data) == (constants.AdsError.DEVICE_INVALIDSIZE, b"")
+        _, again = client.ask(structs.AdsReadRequest(PLC_DATA_GROUP, offset, 8))
+        assert again.result == 0 and struct.unpack("<d", again.data) == (20.0,)
     finally:
         client.sock.close()

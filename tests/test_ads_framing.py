@@ -231,3 +231,34 @@ def test_a_client_that_stops_reading_is_dropped_and_the_move_and_the_other_clien
         good.close()
         axis.close()
         server.stop()
+
+
+def test_beyond_the_client_limit_a_connection_is_closed_at_once_and_ended_ones_are_let_go(monkeypatch, caplog):
+    """Issue 32: pyads' test server kept every connection it ever had in `clients` (a client that
+    reconnects all day grew it without end) and took any number of them (two threads each)."""
+    from drivers.sim import ads_server
+
+    monkeypatch.setattr(ads_server, "CLIENT_LIMIT", 5)
+    caplog.set_level(logging.WARNING, logger="drivers.sim.ads_server")
+    server = serve_on_free_loopback(SimPLC(axis=1, max_velocity=50.0, acceleration=200.0))
+    try:
+        clients = [socket.create_connection((server.ip, server.port)) for _ in range(5)]
+        for i, sock in enumerate(clients, start=1):
+            sock.sendall(read_state(server.net_id, i))
+            assert answers(sock, 1) == [i]
+        for _ in range(3):  # the sixth, seventh and eighth: closed at once, one line for the three
+            with socket.create_connection((server.ip, server.port)) as extra:
+                extra.settimeout(3.0)
+                assert extra.recv(100) == b""
+        full = [r.getMessage() for r in caplog.records if "the most the PLC serves" in r.getMessage()]
+        assert len(full) == 1 and "5 clients connected" in full[0]
+        clients.pop().close()
+        time.sleep(0.3)  # its thread ends
+        with socket.create_connection((server.ip, server.port)) as again:  # room again
+            again.sendall(read_state(server.net_id, 9))
+            assert answers(again, 1) == [9]
+            assert len(server._server.clients) == 5  # the ended connection let go
+        for sock in clients:
+            sock.close()
+    finally:
+        server.stop()

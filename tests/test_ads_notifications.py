@@ -193,7 +193,7 @@ def test_a_clients_notifications_end_with_its_connection(plc):
     (0x1234, 0, 4, ON_CHANGE, 0x702),  # no such index group
     (PLC_DATA_GROUP, 0, 8, ON_CHANGE, 0x703),  # below the GVL
     (PLC_DATA_GROUP, POSITION, 0xFFFF_FFFF, ON_CHANGE, 0x705),  # beyond it
-    (PLC_DATA_GROUP, POSITION, 8, 1, 0x70B),  # a client-side transmission mode
+    (PLC_DATA_GROUP, POSITION, 8, 1, 0x713),  # a client-side transmission mode: not supported
 ])
 def test_a_refused_notification_is_result_and_handle_0(plc, group, offset, length, mode, code):
     client = Client()

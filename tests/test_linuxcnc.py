@@ -5,7 +5,13 @@ the compensation can only come from LinuxCNC."""
 
 import configparser
 import json
+import os
 import shutil
+import signal
+import socket
+import subprocess
+import time
+from pathlib import Path
 
 import pytest
 
@@ -14,7 +20,9 @@ from campaign.commands.linuxcnc_demo import linuxcnc_config
 from campaign.config import parse_config
 from campaign.plan import check_plan, make_plan
 from campaign.specs import AxisSpec
+from drivers.linuxcnc import process
 from drivers.linuxcnc.process import ini_text
+from protocols.hardware import AxisError
 from tests.conftest import assert_one_line_error
 from tests.test_demo_e2e import axiscal
 
@@ -91,3 +99,204 @@ def test_the_generated_ini_takes_a_configs_own_limits_and_comp_file(tmp_path):
     ini.read_string(ini_text(linuxcnc_config(text).axis, tmp_path / "comp.txt"))
     assert (ini["JOINT_0"]["MIN_LIMIT"], ini["AXIS_X"]["MAX_ACCELERATION"]) == ("-2.5", "150.0")
     assert (ini["JOINT_0"]["COMP_FILE"], ini["JOINT_0"]["COMP_FILE_TYPE"]) == (str(tmp_path / "comp.txt"), "0")
+
+
+# --- the LinuxCNC axiscal starts, axiscal can find (issue 32 item 6) -----------------------------
+# The fast tests below run the record and the leftover logic on real processes (`sleep` in a
+# session of its own, as the linuxcnc script runs) with a record, lock and port of their own, so
+# they never touch a LinuxCNC running on this machine; the machine-tier test at the end kills a
+# real `axiscal demo --controller linuxcnc`.
+
+
+@pytest.fixture
+def files(tmp_path):
+    """A record file and a lock file of the test's own."""
+    return tmp_path / "record.json", tmp_path / "lock"
+
+
+@pytest.fixture
+def group(tmp_path):
+    """A process leading a group of its own, as the linuxcnc script does; ended after the test."""
+    directory = tmp_path / "axiscal-linuxcnc-test"
+    directory.mkdir()
+    proc = subprocess.Popen(["sleep", "60"], cwd=directory, start_new_session=True)
+    yield proc, directory
+    proc.kill()
+    proc.wait()
+
+
+def test_a_recorded_group_still_running_is_a_leftover_and_stopping_it_ends_it_and_its_record(files, group):
+    record_file, lock_file = files
+    proc, directory = group
+    record = process._write_record(proc.pid, directory, record_file)
+    assert (record.pgid, record.axiscal_pid, record.dir) == (proc.pid, os.getpid(), str(directory))
+    leftover = process.find_leftover(record_file, lock_file)
+    assert leftover is not None and leftover.pids == (proc.pid,)
+    assert f"process group {proc.pid}, 1 processes" in leftover.describe()
+    leftover.stop()
+    assert proc.wait(5) == -signal.SIGINT  # SIGINT first: the linuxcnc script cleans up on it
+    assert not record_file.exists() and process.find_leftover(record_file, lock_file) is None
+
+
+def test_a_record_of_a_group_that_ended_or_of_another_process_is_not_a_leftover(files, group):
+    record_file, lock_file = files
+    proc, directory = group
+    record = process._write_record(proc.pid, directory, record_file)
+    # the pid now another process (another start time): not axiscal's, the stale record removed
+    record_file.write_text(json.dumps({**record.__dict__, "start_ticks": record.start_ticks + 1}))
+    assert process.find_leftover(record_file, lock_file) is None and not record_file.exists()
+    if os.geteuid() == 0:  # a record another user wrote is not trusted (as root the test can make one)
+        process._write_record(proc.pid, directory, record_file)
+        os.chown(record_file, 65534, -1)
+        assert process.find_leftover(record_file, lock_file) is None
+        record_file.unlink()
+    process._write_record(proc.pid, directory, record_file)
+    proc.kill()
+    proc.wait()
+    assert process.find_leftover(record_file, lock_file) is None and not record_file.exists()
+
+
+def test_while_an_axiscal_holds_the_lock_its_linuxcnc_is_not_a_leftover(files, group):
+    record_file, lock_file = files
+    proc, directory = group
+    process._write_record(proc.pid, directory, record_file)
+    with process._held(lock_file) as held:
+        assert held is not None
+        assert process.find_leftover(record_file, lock_file) is None
+    assert record_file.exists() and process.find_leftover(record_file, lock_file) is not None
+
+
+def test_a_leftover_is_refused_unless_confirmed_then_stopped(files, group):
+    record_file, lock_file = files
+    proc, directory = group
+    process._write_record(proc.pid, directory, record_file)
+    port = free_port()
+    asked: list[str] = []
+    with pytest.raises(AxisError) as refused:
+        process._one_instance(lambda what: asked.append(what) or False, lock_file, record_file, port)
+    message = str(refused.value)
+    assert message.startswith("a LinuxCNC that axiscal started at") and "is still running" in message
+    assert "--yes" in message and f"kill -INT -{proc.pid}" in message and len(asked) == 1
+    assert proc.poll() is None  # not stopped without a yes
+    lock = process._one_instance(lambda what: True, lock_file, record_file, port)
+    lock.close()
+    assert proc.wait(5) == -signal.SIGINT and not record_file.exists()
+
+
+def test_a_linuxcnc_axiscal_did_not_start_is_refused_even_with_yes(files):
+    """Something answers on linuxcncrsh's port and no record of axiscal's says it is its own."""
+    record_file, lock_file = files
+    with socket.create_server(("127.0.0.1", 0)) as listener:
+        port = listener.getsockname()[1]
+        asked: list[str] = []
+        with pytest.raises(AxisError) as refused:
+            process._one_instance(lambda what: asked.append(what) or True, lock_file, record_file, port)
+    assert str(refused.value).startswith("a LinuxCNC that axiscal did not start is running here")
+    assert asked == []  # nothing was offered to stop
+
+
+def test_the_record_is_never_written_through_a_link(tmp_path):
+    """The record lives in the shared temporary directory: a link put where axiscal writes it first
+    is replaced, not followed (axiscal runs LinuxCNC as root)."""
+    record_file, precious = tmp_path / "record.json", tmp_path / "precious"
+    precious.write_text("keep")
+    (tmp_path / f".record.json.{os.getpid()}").symlink_to(precious)
+    process._write_record(os.getpid(), tmp_path, record_file)
+    assert precious.read_text() == "keep" and process._read_record(record_file).axiscal_pid == os.getpid()
+    record_file.unlink()
+    record_file.symlink_to(precious)  # and a record that is a link is not read
+    assert process._read_record(record_file) is None
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.mark.machine
+@pytest.mark.skipif(not INSTALLED, reason="LinuxCNC is not installed (tests/setup_system.sh installs "
+                                          "linuxcnc-uspace where apt is available)")
+def test_after_kill_9_of_the_demo_the_next_run_stops_the_linuxcnc_it_left_and_completes(tmp_path):
+    """Issue 32's done-when: `kill -9` of `axiscal demo --controller linuxcnc` leaves its LinuxCNC
+    running (the demo cannot stop it); the next run without --yes and without a terminal is
+    refused, saying what runs and how to stop it; with --yes it stops it and completes. The same
+    through `axiscal resume DIR --yes` of the killed campaign. A LinuxCNC with no record of
+    axiscal's is refused even with --yes, and left running."""
+    from tests.test_crash_safety import data_rows
+    from tests.test_demo_e2e import AXISCAL, ROOT
+
+    def killed_when_measuring(command: list[str], table: Path, proc: subprocess.Popen | None = None) -> int:
+        """Start `command` (or take `proc`), SIGKILL it once its point table has two points (it is
+        measuring on LinuxCNC's axis: no cleanup of its own runs); its pid."""
+        proc = proc or subprocess.Popen(command, cwd=ROOT, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                        stderr=subprocess.DEVNULL)
+        try:
+            deadline = time.monotonic() + 180
+            while not (table.exists() and data_rows(table) >= 2):
+                assert proc.poll() is None and time.monotonic() < deadline, "the demo did not measure"
+                time.sleep(0.5)
+        finally:
+            proc.kill()
+            proc.wait()
+        return proc.pid
+
+    first = subprocess.Popen([*AXISCAL, "demo", "--controller", "linuxcnc", "--cycles", "1", "--out",
+                              str(tmp_path / "first")], cwd=ROOT, stdin=subprocess.DEVNULL,
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    leftover = None
+    try:
+        killed_when_measuring([], tmp_path / "first" / "points.csv", first)
+        leftover = process.find_leftover()
+        assert leftover is not None and leftover.record.axiscal_pid == first.pid
+        socket.create_connection(("127.0.0.1", process.PORT), timeout=2).close()  # LinuxCNC still answers
+
+        refused = axiscal("demo", "--controller", "linuxcnc", "--cycles", "1", "--out", tmp_path / "refused",
+                          timeout=120)
+        assert refused.returncode == 3, refused.stderr[-2000:]
+        assert refused.stderr.startswith(f"error: a LinuxCNC that axiscal started at {leftover.record.started} "
+                                         f"(axiscal pid {first.pid}"), refused.stderr
+        assert "--yes" in refused.stderr and process._group(leftover.record.pgid)  # still running, untouched
+
+        done = axiscal("demo", "--controller", "linuxcnc", "--cycles", "1", "--yes", "--json", "--out",
+                       tmp_path / "second", timeout=600)
+        assert done.returncode == 0, done.stderr[-2000:]
+        assert f"stopping a LinuxCNC that axiscal started at {leftover.record.started}" in done.stderr
+        result = json.loads(done.stdout)
+        assert result["status"] == "completed" and result["points"] == result["planned"] == 22
+        assert process._group(leftover.record.pgid) == [] and not Path(leftover.record.dir).exists()
+        assert process.find_leftover() is None and not process.RECORD_FILE.exists()
+
+        # the same after `axiscal run` killed: `axiscal resume DIR --yes` stops its LinuxCNC and finishes
+        third = killed_when_measuring([*AXISCAL, "demo", "--controller", "linuxcnc", "--cycles", "1", "--out",
+                                       str(tmp_path / "third")], tmp_path / "third" / "points.csv")
+        leftover = process.find_leftover()
+        assert leftover is not None and leftover.record.axiscal_pid == third
+        resumed = axiscal("resume", tmp_path / "third", "--yes", "--json", timeout=600)
+        assert resumed.returncode == 0, resumed.stderr[-2000:]
+        assert f"stopping a LinuxCNC that axiscal started at {leftover.record.started}" in resumed.stderr
+        result = json.loads(resumed.stdout)
+        assert result["status"] == "completed" and result["points"] == result["planned"] == 22
+        assert process._group(leftover.record.pgid) == [] and process.find_leftover() is None
+    finally:
+        if first.poll() is None:
+            first.kill()
+            first.wait()
+        if leftover is not None and process._group(leftover.record.pgid):
+            leftover.stop()
+
+    # a LinuxCNC axiscal did not start: one running with no record of axiscal's and no axiscal
+    # holding the lock (made here from axiscal's own by taking both away) is refused even with --yes
+    foreign = process.LinuxCnc(parse_config(demo_config_text(), "demo.toml").axis)
+    try:
+        process._remove_record(foreign._record)
+        assert foreign._lock is not None
+        foreign._lock.close()
+        foreign._lock = None
+        other = axiscal("demo", "--controller", "linuxcnc", "--cycles", "1", "--yes", "--out", tmp_path / "other",
+                        timeout=120)
+        assert other.returncode == 3 and other.stderr.startswith(
+            "error: a LinuxCNC that axiscal did not start is running here"), other.stderr[-2000:]
+        assert foreign.proc.poll() is None  # left running
+    finally:
+        foreign.stop()

@@ -8,10 +8,12 @@ libraries (numpy, pandas, scipy, matplotlib, pyads) are imported when the comman
 
 import argparse
 import math
+import sys
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # the session module is heavy: not imported for `axiscal --help`
     from campaign.measure import Opener
+    from campaign.specs import DriverSpec
 
 SUMMARY = {
     "analyze": "evaluate a point table to ISO 230-2 (or VDI 3441)",
@@ -94,3 +96,28 @@ def hardware_opener() -> "Opener":
     from drivers.factory import open_hardware
 
     return open_hardware
+
+
+YES_HELP = ("stop a controller an earlier axiscal started and left running (a LinuxCNC whose axiscal was "
+            "killed) without asking; one axiscal did not start is never stopped")
+
+
+def stop_leftover_controller(spec: "DriverSpec", yes: bool) -> None:
+    """Before a command starts the controller `spec` names: one an earlier axiscal started and left
+    running (a LinuxCNC whose axiscal was killed) is stopped, with `yes` or when the user answers y
+    at a terminal. Otherwise it is left alone and the opener refuses to start, saying what runs
+    and how to stop it (--yes)."""
+    from drivers.factory import leftover_controller
+
+    found = leftover_controller(spec)
+    if found is None:
+        return
+    what, stop = found
+    if not yes:
+        if not sys.stdin.isatty():
+            return
+        print(f"{what[0].upper()}{what[1:]} is still running. Stop it? [y/N] ", end="", file=sys.stderr, flush=True)
+        if sys.stdin.readline().strip().lower() not in ("y", "yes"):  # on stderr: --json keeps stdout
+            return
+    print(f"stopping {what}", file=sys.stderr, flush=True)
+    stop()

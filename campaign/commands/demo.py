@@ -12,7 +12,7 @@ import argparse
 from importlib import resources
 from typing import Any
 
-from campaign.commands import SUMMARY, hardware_opener, positive_integer
+from campaign.commands import SUMMARY, YES_HELP, hardware_opener, positive_integer
 from campaign.commands.run import add_run_options, finish, run_config, with_on_fault
 from campaign.config import Config, parse_config
 from campaign.errors import InputError
@@ -40,6 +40,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                         "COMP_FILE and measure again; with --controller epics: write the table through Channel "
                         "Access and measure again")
     p.add_argument("--cycles", type=positive_integer, help="runs of the campaign (default 5)")
+    p.add_argument("--yes", action="store_true", help=YES_HELP)
     p.add_argument("--inject", metavar="NAME[@S],...",
                    help="rehearse faults at simulated times, e.g. beam_break@300,ads_lost@500 "
                         "(names: see docs/faults.md); the campaign resumes by itself where needed")

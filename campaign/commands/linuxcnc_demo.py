@@ -11,7 +11,7 @@ import shutil
 import time
 from pathlib import Path
 
-from campaign.commands import hardware_opener
+from campaign.commands import hardware_opener, stop_leftover_controller
 from campaign.commands.run import finish, with_on_fault
 from campaign.compensation.corrections import corrections
 from campaign.compensation.grid import POINT_LIMITS, resample
@@ -62,6 +62,7 @@ def comp_file_from(points: Path, out: Path) -> Path:
 def linuxcnc_demo(text: str, args: argparse.Namespace) -> int:
     if not (shutil.which("linuxcnc") and shutil.which("linuxcncrsh") and shutil.which("halcmd")):
         raise InputError(INSTALL_HINT)
+    stop_leftover_controller(linuxcnc_config(text).driver, args.yes)
     base = Path(args.out) if args.out else Path("runs") / f"linuxcnc-demo-{time.strftime('%Y%m%d-%H%M%S')}"
     before = measure(linuxcnc_config(text), base / "before" if args.verify else base, args)
     if not args.verify or before.status != "completed":

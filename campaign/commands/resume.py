@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from campaign.commands import SUMMARY, hardware_opener, positive_number
+from campaign.commands import SUMMARY, hardware_opener, positive_number, stop_leftover_controller
 from campaign.commands.run import add_on_fault_option, finish, with_on_fault
 from campaign.measure import Resumption
 
@@ -40,6 +40,12 @@ def run(args: argparse.Namespace) -> int:
         check_plot_path(args.plot)
     r = prepare_resume(args.dir)
     r.config = with_on_fault(r.config, args)
+    if r.todo:  # a LinuxCNC the interrupted run started and left (it was killed): stopped when agreed or --yes
+        try:
+            stop_leftover_controller(r.config.driver, args.yes)
+        except BaseException:
+            r.close()
+            raise
     if not args.yes and sys.stdin.isatty() and r.todo:
         return guided(r, args)
     from campaign.measure import RichProgress

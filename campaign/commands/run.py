@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from campaign.commands import SUMMARY, hardware_opener, positive_number
+from campaign.commands import SUMMARY, YES_HELP, hardware_opener, positive_number, stop_leftover_controller
 from campaign.config import Config, config_with, load_config
 from campaign.errors import InputError
 from campaign.measure import Outcome, RichProgress, dry_run, start_campaign
@@ -21,6 +21,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--dry-run", action="store_true",
                    help="talk to the controller read-only, walk the plan, command nothing "
                         "(also when axis_driver.read_only = true)")
+    p.add_argument("--yes", action="store_true", help=YES_HELP)
     p.set_defaults(func=run)
 
 
@@ -101,6 +102,7 @@ def run_config(config: Config, args: argparse.Namespace, extra: dict | None = No
     config = with_on_fault(config, args)
     if args.plot:
         check_plot_path(args.plot)
+    stop_leftover_controller(config.driver, getattr(args, "yes", False))
     unit = config.axis.unit
     observer = RichProgress(unit)
     with observer:

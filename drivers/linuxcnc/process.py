@@ -3,11 +3,21 @@ loops back as its feedback, with the campaign config's axis limits (soft limits,
 and acceleration: the joint, the X axis and the trajectory planner all get the same), linuxcncrsh as the display (it keeps LinuxCNC up without a GUI and
 is the command interface), started as root with an unprivileged RTAPI_UID and a writable
 RTAPI_FIFO_PATH. With `comp_file` the joint gets COMP_FILE / COMP_FILE_TYPE = 0 and LinuxCNC's
-own loader and motion module apply it."""
+own loader and motion module apply it.
+
+One LinuxCNC per machine (LOCK_FILE). The LinuxCNC axiscal starts records itself in RECORD_FILE
+(its process group, the start time of its leader, the boot, its directory, the axiscal that
+started it) until axiscal stops it. An axiscal killed before it could (kill -9) leaves LinuxCNC
+running; the next run finds that leftover by its record (`find_leftover`: the lock free, so no
+axiscal runs it; the group alive, its leader the very process recorded) and stops it when the user
+agrees or says `--yes` (`Leftover.stop`). A LinuxCNC without such a record, one axiscal did not
+start, is refused as before: it is not axiscal's to stop."""
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
+import json
 import os
 import pwd
 import shutil
@@ -16,6 +26,8 @@ import socket
 import subprocess
 import tempfile
 import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Self, TextIO
 
@@ -96,7 +108,7 @@ class LinuxCnc:
         if not installed():
             raise AxisError(INSTALL_HINT)
         self._lock: TextIO | None = _one_instance()
-        self.dir = Path(tempfile.mkdtemp(prefix="axiscal-linuxcnc-"))
+        self.dir = Path(tempfile.mkdtemp(prefix=DIR_PREFIX))
         os.chmod(self.dir, 0o755)
         self.env = dict(os.environ)
         if os.geteuid() == 0:  # rtapi_app refuses root without a fallback uid
@@ -114,6 +126,7 @@ class LinuxCnc:
         self.proc = subprocess.Popen(["linuxcnc", str(self.dir / "axiscal.ini")], cwd=self.dir, env=self.env,
                                      stdin=subprocess.DEVNULL, stdout=self.log, stderr=subprocess.STDOUT,
                                      start_new_session=True)
+        self._record = _write_record(self.proc.pid, self.dir)
         self._wait_for_port()
 
     def _wait_for_port(self) -> None:
@@ -146,6 +159,7 @@ class LinuxCnc:
                 self.proc.wait(timeout=10)
         self.log.close()
         shutil.rmtree(self.dir, ignore_errors=True)
+        _remove_record(self._record)
         if self._lock is not None:
             self._lock.close()  # the next instance may start
             self._lock = None
@@ -160,12 +174,116 @@ class LinuxCnc:
 LOCK_FILE = Path(tempfile.gettempdir()) / "axiscal-linuxcnc.lock"
 """Held while axiscal runs a LinuxCNC: one machine runs one (its HAL, its shared memory and
 linuxcncrsh's port 5007 are machine-wide), and a second would take over the first one's axis."""
+RECORD_FILE = Path(tempfile.gettempdir()) / "axiscal-linuxcnc.json"
+"""The LinuxCNC axiscal started and has not stopped yet (JSON: pgid, start_ticks, boot_id, dir,
+axiscal_pid, started), written by the axiscal that holds LOCK_FILE, removed when it stops it."""
+DIR_PREFIX = "axiscal-linuxcnc-"
+"""The start of the name of each LinuxCNC's temporary directory (its INI, HAL file and log)."""
+STOP_TIMEOUT_S = 30.0
+"""How long LinuxCNC gets to clean up after SIGINT before its processes are killed, s."""
 
 
-def _one_instance() -> TextIO:
-    """The lock of the one LinuxCNC this machine may run, as an open file; AxisError when another
-    axiscal, or any LinuxCNC with linuxcncrsh, already runs here."""
-    lock = open(LOCK_FILE, "a")  # noqa: SIM115 (held until stop())
+@dataclass(frozen=True)
+class Record:
+    """What RECORD_FILE says of a LinuxCNC axiscal started: its process group (the `linuxcnc`
+    script's pid: it leads a session of its own), the script's start time in clock ticks after
+    boot (/proc/PID/stat: a pid used again by another process has another), the boot it ran in,
+    its directory, and the axiscal process that started it and when (ISO 8601, local time)."""
+
+    pgid: int
+    start_ticks: int
+    boot_id: str
+    dir: str
+    axiscal_pid: int
+    started: str
+
+
+@dataclass(frozen=True)
+class Leftover:
+    """A LinuxCNC that an axiscal started and did not stop (it was killed), still running."""
+
+    record: Record
+    pids: tuple[int, ...]
+    """Its processes now (the members of its process group)."""
+    record_file: Path = RECORD_FILE
+    lock_file: Path = LOCK_FILE
+
+    def describe(self) -> str:
+        r = self.record
+        return (f"a LinuxCNC that axiscal started at {r.started} (axiscal pid {r.axiscal_pid}, ended before it "
+                f"could stop it; LinuxCNC's process group {r.pgid}, {len(self.pids)} processes; its files in {r.dir})")
+
+    def stop(self) -> None:
+        """Stop it as axiscal stops its own: SIGINT to its process group (the linuxcnc script
+        cleans up), SIGKILL after STOP_TIMEOUT_S; then its directory and the record go. Holds
+        LOCK_FILE meanwhile; AxisError when an axiscal now holds it or the group will not end."""
+        with _held(self.lock_file) as lock:
+            if lock is None:
+                raise AxisError("another axiscal is running LinuxCNC on this machine now; wait for it to end")
+            pgid = self.record.pgid
+            for sig, wait_s in ((signal.SIGINT, STOP_TIMEOUT_S), (signal.SIGKILL, 10.0)):
+                with contextlib.suppress(ProcessLookupError):
+                    os.killpg(pgid, sig)
+                deadline = time.monotonic() + wait_s
+                while _group(pgid) and time.monotonic() < deadline:
+                    time.sleep(0.2)
+                if not _group(pgid):
+                    break
+            else:
+                raise AxisError(f"LinuxCNC's process group {pgid} did not end after SIGKILL")
+            directory = Path(self.record.dir)
+            if directory.parent == Path(tempfile.gettempdir()) and directory.name.startswith(DIR_PREFIX):
+                shutil.rmtree(directory, ignore_errors=True)
+            _remove_record(self.record, self.record_file)
+
+
+def find_leftover(record_file: Path = RECORD_FILE, lock_file: Path = LOCK_FILE) -> Leftover | None:
+    """The LinuxCNC an earlier axiscal started and left running, or None: none recorded, an
+    axiscal holds the lock (it runs its LinuxCNC and will stop it), or the recorded one has ended
+    (the stale record is removed then). Trusted only as written by this user, in this boot, its
+    process group alive and, while its leader lives, the leader the very process recorded."""
+    with _held(lock_file) as lock:
+        if lock is None:
+            return None
+        record = _read_record(record_file)
+        if record is None:
+            return None
+        pids = _group(record.pgid)
+        leader_ok = record.pgid not in pids or _start_ticks(record.pgid) == record.start_ticks
+        if record.boot_id != _boot_id() or not pids or not leader_ok:
+            _remove_record(record, record_file)
+            return None
+        return Leftover(record, tuple(pids), record_file, lock_file)
+
+
+@contextlib.contextmanager
+def _held(lock_file: Path) -> Iterator[TextIO | None]:
+    """LOCK_FILE held (the open file) for the block, or None when another process holds it."""
+    lock = open(lock_file, "a")  # noqa: SIM115
+    try:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            yield None
+            return
+        yield lock
+    finally:
+        lock.close()
+
+
+def _one_instance(confirm: Callable[[str], bool] | None = None, lock_file: Path = LOCK_FILE,
+                  record_file: Path = RECORD_FILE, port: int = PORT) -> TextIO:
+    """The lock of the one LinuxCNC this machine may run, as an open file. AxisError when another
+    axiscal runs LinuxCNC here, when a LinuxCNC an earlier axiscal left is still running and
+    `confirm(what it is)` does not say to stop it (stopped when it does), or when any other
+    LinuxCNC with linuxcncrsh on `port` runs here."""
+    leftover = find_leftover(record_file, lock_file)
+    if leftover is not None:
+        if confirm is None or not confirm(leftover.describe()):
+            raise AxisError(f"{leftover.describe()} is still running; run again with --yes to stop it, or stop it "
+                            f"yourself: kill -INT -{leftover.record.pgid}")
+        leftover.stop()
+    lock = open(lock_file, "a")  # noqa: SIM115 (held until stop())
     try:
         fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:
@@ -173,12 +291,84 @@ def _one_instance() -> TextIO:
         raise AxisError("another axiscal is running LinuxCNC on this machine (one LinuxCNC per machine: "
                         "its HAL and port 5007 are shared); wait for it to end") from None
     try:
-        socket.create_connection(("127.0.0.1", PORT), timeout=0.5).close()
+        socket.create_connection(("127.0.0.1", port), timeout=0.5).close()
     except OSError:
         return lock
     lock.close()
-    raise AxisError(f"a LinuxCNC is already running here (linuxcncrsh answers on port {PORT}); stop it first "
-                    "(axiscal would otherwise drive its axis)")
+    raise AxisError(f"a LinuxCNC that axiscal did not start is running here (linuxcncrsh answers on port {port}, "
+                    f"and {record_file} records none of axiscal's); stop it first (axiscal would otherwise drive "
+                    "its axis)")
+
+
+def _write_record(pgid: int, directory: Path, record_file: Path = RECORD_FILE) -> Record:
+    """Record the LinuxCNC just started (its `linuxcnc` script's pid leads its process group)."""
+    record = Record(pgid, _start_ticks(pgid) or 0, _boot_id(), str(directory), os.getpid(),
+                    time.strftime("%Y-%m-%d %H:%M:%S"))
+    temporary = record_file.with_name(f".{record_file.name}.{os.getpid()}")
+    with contextlib.suppress(FileNotFoundError):
+        temporary.unlink()  # a stale one, or a link someone put there: never written through
+    fd = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o644)
+    with os.fdopen(fd, "w") as f:
+        f.write(json.dumps(record.__dict__) + "\n")
+    os.replace(temporary, record_file)
+    return record
+
+
+def _read_record(record_file: Path) -> Record | None:
+    """The record in `record_file` when this user wrote it (not a link) and it reads whole."""
+    try:
+        fd = os.open(record_file, os.O_RDONLY | os.O_NOFOLLOW)
+    except OSError:
+        return None
+    with os.fdopen(fd) as f:
+        if os.fstat(f.fileno()).st_uid != os.geteuid():
+            return None
+        try:
+            fields = json.loads(f.read())
+            return Record(int(fields["pgid"]), int(fields["start_ticks"]), str(fields["boot_id"]), str(fields["dir"]),
+                          int(fields["axiscal_pid"]), str(fields["started"]))
+        except (ValueError, KeyError, TypeError):
+            return None
+
+
+def _remove_record(record: Record, record_file: Path = RECORD_FILE) -> None:
+    """Remove `record_file` when it still holds `record` (not a later LinuxCNC's)."""
+    if _read_record(record_file) == record:
+        with contextlib.suppress(FileNotFoundError):
+            record_file.unlink()
+
+
+def _stat_fields(pid: int) -> list[str] | None:
+    """/proc/PID/stat after the command name (field 3, the state, first), or None when it is gone."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    return stat[stat.rindex(")") + 2:].split()
+
+
+def _start_ticks(pid: int) -> int | None:
+    """When process `pid` started, clock ticks after boot (field 22 of /proc/PID/stat)."""
+    fields = _stat_fields(pid)
+    return int(fields[19]) if fields else None
+
+
+def _group(pgid: int) -> list[int]:
+    """The live processes of process group `pgid` (field 5 of /proc/PID/stat; zombies, which have
+    ended and wait for their parent, left out)."""
+    members = []
+    for entry in Path("/proc").iterdir():
+        if (entry.name.isdigit() and (fields := _stat_fields(int(entry.name))) and int(fields[2]) == pgid
+                and fields[0] != "Z"):
+            members.append(int(entry.name))
+    return members
+
+
+def _boot_id() -> str:
+    try:
+        return Path("/proc/sys/kernel/random/boot_id").read_text().strip()
+    except OSError:
+        return ""
 
 
 def _unprivileged_uid() -> int:

@@ -17,8 +17,12 @@ handler. What it answers as TwinCAT does:
 - an unknown name or handle gets 0x710, an unknown index group 0x702, an offset outside the
   memory 0x703, a reply longer than the read length asked for 0x705;
 - a notification on a range it cannot read gets that read's error, one in a transmission mode
-  other than cyclic (3) and on change (4) 0x70B, the deletion of an unknown notification 0x714;
-  a refused notification's reply is 8 bytes, result and handle 0, as Beckhoff's;
+  other than cyclic (3) and on change (4) 0x713 (AdsTransMode not supported), one more than
+  NOTIFICATIONS_PER_CLIENT on one connection 0x716 (no more notification handles), the deletion
+  of an unknown notification 0x714; a refused notification's reply is 8 bytes, result and handle
+  0, as Beckhoff's;
+- a sum read (0xF080) whose replies would hold more than REPLY_LIMIT_BYTES gets 0x705, as a
+  plain read beyond the memory does, and nothing of it is read;
 - a command it does not implement (write control) gets 0x701.
 
 Not modelled: RPC methods, enum values in the data type information, the TwinCAT system symbols
@@ -58,7 +62,15 @@ _DEVICE_DATA = 0xF100
 # ADS error codes
 TARGET_PORT_NOT_FOUND, TARGET_MACHINE_NOT_FOUND = 0x6, 0x7
 SERVICE_NOT_SUPPORTED, INVALID_GROUP, INVALID_OFFSET = 0x701, 0x702, 0x703
-INVALID_SIZE, INVALID_PARAMETER, SYMBOL_NOT_FOUND, INVALID_NOTIFICATION = 0x705, 0x70B, 0x710, 0x714
+INVALID_SIZE, SYMBOL_NOT_FOUND = 0x705, 0x710
+TRANS_MODE_NOT_SUPPORTED, INVALID_NOTIFICATION, NO_MORE_NOTIFICATION_HANDLES = 0x713, 0x714, 0x716
+REPLY_LIMIT_BYTES = 1 << 20
+"""The most data one reply carries (a sum read's results and values): a request asking for more
+is refused with 0x705 before anything is read. The PLC's whole memory is 16.8 kB, its symbol and
+data type uploads 2.4 kB together, so no client of the contract comes near it."""
+NOTIFICATIONS_PER_CLIENT = 256
+"""The most device notifications one connection may hold (each keeps its last value and, for a
+long maximum delay, up to 64 KiB of samples waiting); one more is refused with 0x716."""
 
 ADS_TYPE_ID = {"BOOL": 33, "INT": 2, "UINT": 18, "UDINT": 19, "LREAL": 5}
 """ADS data type id (ADST_*) of each elementary type; structures are ADST_BIGTYPE."""
@@ -201,8 +213,12 @@ class AdsDevice(AbstractHandler):
         value = self._read(group, offset, length)
         if len(value) != length:
             raise AdsError(INVALID_SIZE)
-        if mode not in (CYCLIC, ON_CHANGE) or sink is None:
-            raise AdsError(INVALID_PARAMETER if sink is not None else SERVICE_NOT_SUPPORTED)
+        if sink is None:
+            raise AdsError(SERVICE_NOT_SUPPORTED)
+        if mode not in (CYCLIC, ON_CHANGE):
+            raise AdsError(TRANS_MODE_NOT_SUPPORTED)
+        if self.notifications.count(sink) >= NOTIFICATIONS_PER_CLIENT:
+            raise AdsError(NO_MORE_NOTIFICATION_HANDLES)
         route = header.source_net_id + header.source_port + header.target_net_id + header.target_port
         handle = self.notifications.add(sink, route, group, offset, length, mode, cycle, max_delay, value,
                                         self.time_s)
@@ -318,19 +334,25 @@ class AdsDevice(AbstractHandler):
         return handle + struct.pack("<IIH", var.size, 0, len(type_name)) + type_name + b"\0"
 
     def _sum_read(self, count: int, value: bytes) -> bytes:
-        results, data = b"", b""
-        for i in range(count):
-            group, offset, length = struct.unpack_from("<III", value, 12 * i)
+        if 12 * count > len(value):
+            raise AdsError(INVALID_SIZE)
+        entries = [struct.unpack_from("<III", value, 12 * i) for i in range(count)]
+        if 4 * count + sum(length for _, _, length in entries) > REPLY_LIMIT_BYTES:
+            raise AdsError(INVALID_SIZE)
+        results, data = [], []
+        for group, offset, length in entries:
             try:
-                part, code = self._read(group, offset, length), 0
+                part, code = self._fit(self._read(group, offset, length), length), 0
             except AdsError as e:
                 part, code = b"", e.code
-            results += struct.pack("<I", code)
-            data += part.ljust(length, b"\0")
-        return results + data
+            results.append(struct.pack("<I", code))
+            data.append(part.ljust(length, b"\0"))
+        return b"".join(results + data)
 
     def _sum_write(self, count: int, value: bytes) -> bytes:
-        results, at = b"", 12 * count
+        if 12 * count > len(value):
+            raise AdsError(INVALID_SIZE)
+        results, at = [], 12 * count
         for i in range(count):
             group, offset, length = struct.unpack_from("<III", value, 12 * i)
             try:
@@ -338,9 +360,9 @@ class AdsDevice(AbstractHandler):
                 code = 0
             except AdsError as e:
                 code = e.code
-            results += struct.pack("<I", code)
+            results.append(struct.pack("<I", code))
             at += length
-        return results
+        return b"".join(results)
 
     # --- helpers -----------------------------------------------------------------------------
 

@@ -105,6 +105,10 @@ class Notifications:
             next_check_s=t_s + cycle_s, last=value, waiting=[(t_s, value)])
         return handle
 
+    def count(self, sink: NotificationSink) -> int:
+        """How many notifications the client holds."""
+        return sum(1 for s in self._subscriptions.values() if s.sink is sink)
+
     def delete(self, handle: int, sink: NotificationSink) -> bool:
         """Delete the client's notification `handle`; False when it has none of that handle."""
         subscription = self._subscriptions.get(handle)

@@ -27,7 +27,24 @@ How pyads' AdsTestServer behaves, and what this class does about it:
   notifications deleted), and the other clients and the PLC go on. The scan never waits on a client.
 - A packet whose AMS/TCP header is a router command (port register 0x1000 and the like, which a
   client without a local AMS Net ID sends to its own router) is not an ADS request: it gets one
-  warning line saying so and no answer, as a TwinCAT PLC gives a remote client none.
+  warning line saying so (the first on a connection; the next go unanswered silently) and no
+  answer, as a TwinCAT PLC gives a remote client none.
+- It bounds nothing a client sends. FramedConnection bounds what one client can make the PLC
+  spend: an AMS/TCP header announcing more than PACKET_LIMIT_BYTES or less than an AMS header, or
+  whose first two bytes are neither 0 (an AMS packet) nor a router command (0x10xx: `GET /
+  HTTP/1.1` is neither), is refused
+  before anything more is read: one warning line, the connection closed. A packet that has not
+  arrived whole PACKET_TIMEOUT_S after its first byte (half a frame, then silence) closes the
+  connection the same way. What a request may ask for is bounded by the device
+  (`drivers.sim.ads_device`: REPLY_LIMIT_BYTES, NOTIFICATIONS_PER_CLIENT).
+- It keeps every request in `request_history`, for good (about 0.75 kB each: a polling client
+  grew the demo by 75 MB in 100,000 requests). FramedConnection answers without it: the history
+  stays empty.
+- It listens with a backlog of 5, so of 200 clients connecting at once most waited for the
+  kernel's SYN retries (seconds to tens of seconds). `start()` listens with LISTEN_BACKLOG (the
+  kernel caps it at net.core.somaxconn).
+- It keeps every connection in `clients` after it ended. FramedServer lets the ended ones go at
+  each accept, and closes a connection beyond CLIENT_LIMIT at once.
 - Its stop() joins the client threads but not its own thread and closes the listening socket under
   it: `stop()` ends the accept loop and joins that thread first, then lets the server close the
   client threads (joined) and the socket. No thread is left behind.
@@ -41,6 +58,7 @@ import select
 import socket
 import struct
 import threading
+import time
 from collections import deque
 from types import TracebackType
 from typing import Self
@@ -61,6 +79,21 @@ OUTGOING_LIMIT_BYTES = 1 << 20
 dropped (the queue grows only once the socket's own buffers, sized by the kernel, are full)."""
 CLOSE_DRAIN_S = 1.0
 """How long a connection that ends waits for its queued replies to go out, s (wall time)."""
+PACKET_LIMIT_BYTES = 1 << 20
+"""The largest AMS packet (after the AMS/TCP header) the PLC takes; one announcing more closes the
+connection. The PLC's memory is 16.8 kB: a write of all of it, or a sum request over it, fits
+sixty times over."""
+PACKET_TIMEOUT_S = 5.0
+"""How long a packet may take to arrive whole after its first byte, s (wall time); a client that
+sends part of one and then nothing is closed after it."""
+LISTEN_BACKLOG = 1024
+"""Connections the kernel holds while the accept loop catches up (hundreds of clients at once)."""
+CLIENT_LIMIT = 1000
+"""Clients connected at once (two threads each); one more is closed at once, with one warning line
+while the PLC is full."""
+ROUTER_COMMANDS = range(0x1000, 0x1100)
+"""AMS/TCP header commands of the AMS router (port register 0x1000, close, connect, notification,
+get local Net ID); any other non-zero value there is not ADS."""
 
 log = logging.getLogger(__name__)
 
@@ -81,6 +114,8 @@ class FramedConnection(AdsClientConnection):
         """False once the connection ends: nothing more is queued."""
         self._changed = threading.Condition()
         """Guards the three above; notified when they change."""
+        self._router_warned = False
+        """A router command was warned about (once a connection: a flood of them is one line)."""
         self._sender = threading.Thread(target=self._send_queued, daemon=True,
                                         name=f"ADS sender {address[0]}:{address[1]}")
 
@@ -94,10 +129,16 @@ class FramedConnection(AdsClientConnection):
             self._close()
 
     def _serve(self) -> None:
-        pending = b""
+        pending = bytearray()
+        started = 0.0  # time.monotonic() when the first byte of the packet in `pending` came
+        timeout_s = getattr(self.server, "packet_timeout_s", PACKET_TIMEOUT_S)
         while self._run:
             ready, _, _ = select.select([self.client], [], [], 0.1)
             if not ready:
+                if pending and time.monotonic() - started > timeout_s:
+                    self._lost(f"sent {len(pending)} bytes of a packet and not the rest within {timeout_s:g} s: "
+                               "connection closed")
+                    return
                 continue
             try:
                 data = self.client.recv(65536)
@@ -106,27 +147,33 @@ class FramedConnection(AdsClientConnection):
                 return
             if not data:
                 return
+            if not pending:
+                started = time.monotonic()
             pending += data
             while len(pending) >= AMS_TCP_HEADER_BYTES and self._run:
-                length = struct.unpack_from("<I", pending, 2)[0]
-                if len(pending) < AMS_TCP_HEADER_BYTES + length:
+                refused = _refusal(pending)
+                if refused:
+                    self._lost(f"{refused}: connection closed")
+                    return
+                end = AMS_TCP_HEADER_BYTES + struct.unpack_from("<I", pending, 2)[0]
+                if len(pending) < end:
                     break  # the rest of this packet is still on its way
-                packet, pending = pending[:AMS_TCP_HEADER_BYTES + length], pending[AMS_TCP_HEADER_BYTES + length:]
+                packet = bytes(pending[:end])
+                del pending[:end]
+                started = time.monotonic()
                 self._answer(packet)
 
     def _answer(self, packet: bytes) -> None:
         router_command = struct.unpack_from("<H", packet)[0]
         if router_command:
+            if self._router_warned:
+                return
+            self._router_warned = True
             log.warning("ADS client %s:%s sent AMS/TCP router command 0x%04x, which a PLC does not serve to a remote "
                         "client: give the client its own AMS Net ID and port", *self.client_address[:2],
                         router_command)
             return
-        if len(packet) < AMS_TCP_HEADER_BYTES + AMS_HEADER_BYTES:
-            log.warning("ADS client %s:%s sent a packet too short for an AMS header (%d bytes): ignored",
-                        *self.client_address[:2], len(packet))
-            return
-        request = self.construct_request(packet)
-        self.server.request_history.append(request)
+        request = self.construct_request(packet)  # kept nowhere: pyads' request_history stays empty
         response = self.handler.handle_request(request, sink=self)
         if isinstance(response, AmsResponseData):
             self._queue_reply(self.construct_response(response, request))
@@ -207,8 +254,28 @@ class FramedConnection(AdsClientConnection):
         self.client.close()
 
 
+def _refusal(pending: bytearray) -> str:
+    """Why the AMS/TCP header at the start of `pending` is refused ("" when it is not): a length
+    beyond PACKET_LIMIT_BYTES, an AMS packet too short for its header, or a first field that is
+    neither an AMS packet nor a router command."""
+    command, length = struct.unpack_from("<HI", pending)
+    if command and command not in ROUTER_COMMANDS:
+        return f"sent an AMS/TCP header that is not ADS (starting {bytes(pending[:6])!r})"
+    if length > PACKET_LIMIT_BYTES:
+        return f"announced an AMS packet of {length} bytes, more than the {PACKET_LIMIT_BYTES} the PLC takes"
+    if not command and length < AMS_HEADER_BYTES:
+        return f"announced an AMS packet of {length} bytes, too short for an AMS header ({AMS_HEADER_BYTES})"
+    return ""
+
+
 class FramedServer(AdsTestServer):
-    """pyads' test server with FramedConnection for every client."""
+    """pyads' test server with FramedConnection for every client. `packet_timeout_s`: how long a
+    packet may take to arrive whole after its first byte (PACKET_TIMEOUT_S unless set)."""
+
+    clients: list[AdsClientConnection]
+    packet_timeout_s = PACKET_TIMEOUT_S
+    _full = False
+    """CLIENT_LIMIT was reached and said (one warning line until a client leaves)."""
 
     def run(self) -> None:
         self._run = True
@@ -220,6 +287,15 @@ class FramedServer(AdsTestServer):
                 client, address = self.server.accept()
             except OSError:
                 continue
+            self.clients = [c for c in self.clients if c.is_alive()]  # the ended ones are let go
+            if len(self.clients) >= CLIENT_LIMIT:
+                client.close()
+                if not self._full:
+                    self._full = True
+                    log.warning("ADS client %s:%s refused: %d clients connected, the most the PLC serves (the next "
+                                "refused stay silent until one leaves)", *address[:2], CLIENT_LIMIT)
+                continue
+            self._full = False
             client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             connection = FramedConnection(handler=self.handler, client=client, address=address, server=self)
             connection.daemon = True
@@ -230,10 +306,13 @@ class FramedServer(AdsTestServer):
 class SimAdsServer:
     """The ADS server of a simulated PLC at ip:port (the port every ADS client connects to)."""
 
-    def __init__(self, plc: SimPLC, ip: str = "127.0.0.1", port: int = ADS_TCP_PORT):
+    def __init__(self, plc: SimPLC, ip: str = "127.0.0.1", port: int = ADS_TCP_PORT,
+                 packet_timeout_s: float = PACKET_TIMEOUT_S):
+        """`packet_timeout_s`: how long a packet may take to arrive whole after its first byte, s."""
         self.plc = plc
         self.ip = ip
         self.port = port
+        self.packet_timeout_s = packet_timeout_s
         self._server: AdsTestServer | None = None
 
     @property
@@ -251,8 +330,9 @@ class SimAdsServer:
             return
         self.plc.handler.net_id = self.net_id
         server = FramedServer(handler=self.plc.handler, ip_address=self.ip, port=self.port, logging=False)
+        server.packet_timeout_s = self.packet_timeout_s
         try:
-            server.server.listen(5)
+            server.server.listen(LISTEN_BACKLOG)
             server.start()
         except BaseException:
             server.server.close()
