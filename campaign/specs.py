@@ -54,9 +54,12 @@ EMPTY: Mapping[str, Any] = MappingProxyType({})
 
 
 def frozen(value: Any) -> Any:
-    """`value` with every table made read-only (lists stay lists: they are read back from JSON)."""
+    """`value` with every table made read-only and every list a tuple, at any depth (`plain` makes
+    them dicts and lists again, to merge, to validate, to write as JSON)."""
     if isinstance(value, Mapping):
         return MappingProxyType({k: frozen(v) for k, v in value.items()})
+    if isinstance(value, list | tuple):
+        return tuple(frozen(v) for v in value)
     return value
 
 
