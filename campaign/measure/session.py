@@ -85,7 +85,7 @@ def default_out_dir(config: Config) -> Path:
     return Path("runs") / f"{config.campaign.machine}-{config.axis.name}-{stamp}"
 
 
-def campaign_meta(config: Config, plan: Plan) -> dict:
+def campaign_meta(config: Config, plan: Plan) -> dict[str, Any]:
     c, a = config.campaign, config.axis
     return {"machine": c.machine, "axis": a.name, "operator": c.operator, "kind": a.kind,
             "unit": a.unit, "plan_seed": plan.seed, "points_planned": len(plan.points),
@@ -158,7 +158,7 @@ def execute(config: Config, plan: Plan, recorder: Recorder, todo: int | list[int
     return Outcome(recorder.dir, status, recorder.points_written, len(plan.points), duration, message)
 
 
-def start_campaign(config: Config, out: str | Path | None = None, meta_extra: dict | None = None,
+def start_campaign(config: Config, out: str | Path | None = None, meta_extra: dict[str, Any] | None = None,
                    on_created: Callable[[Path], None] | None = None, **kwargs: Any) -> Outcome:
     """A new campaign from `config` into `out` (a new directory); `meta_extra` goes into meta.json.
     The other keywords go to `execute` (`opener` or `opened` is required)."""
@@ -217,7 +217,7 @@ class Resumption:
         self.recorder.close()
 
 
-def prepare_resume(directory: str | Path, faults: dict | None = None) -> Resumption:
+def prepare_resume(directory: str | Path, faults: dict[str, Any] | None = None) -> Resumption:
     """Read an interrupted campaign for `continue_campaign`: the recorded plan (see
     `CampaignDir.plan_for`), checked against the limits before anything is touched, and the points
     an earlier run left out: those skipped after a fault, and those after the last one recorded.
@@ -261,7 +261,7 @@ def continue_campaign(r: Resumption, **kwargs: Any) -> Outcome:
                    **kwargs)
 
 
-def resume_campaign(directory: str | Path, faults: dict | None = None, *, opener: Opener,
+def resume_campaign(directory: str | Path, faults: dict[str, Any] | None = None, *, opener: Opener,
                     speed: float | None = None, **kwargs: Any) -> Outcome:
     """`prepare_resume`, open the hardware, `continue_campaign`: the script way of resuming."""
     r = prepare_resume(directory, faults)
@@ -287,7 +287,7 @@ def analyse_dir(directory: str | Path) -> tuple[object, Evaluation]:
     return table, evaluate(table)
 
 
-def dry_run(config: Config, opener: Opener | None = None, ticks: int = 10, opened: Opened | None = None) -> dict:
+def dry_run(config: Config, opener: Opener | None = None, ticks: int = 10, opened: Opened | None = None) -> dict[str, Any]:
     """Talk to the controller read-only and walk the plan: nothing is commanded.
 
     Reads the axis status, checks every move of the plan against the limits, and reads `ticks`
