@@ -22,7 +22,7 @@ def strict_flags() -> set[str]:
     """The flags `mypy --strict` turns on, as config keys (from this mypy's own --help)."""
     mypy = Path(sys.executable).with_name("mypy")
     text = subprocess.run([str(mypy), "--help"], capture_output=True, text=True, check=True, timeout=60).stdout
-    block = re.search(r"--strict\s+Strict mode; enables the following flags:(.*?)\n  --", text, re.S)
+    block = re.search(r"--strict\s+Strict mode; enables the following flags:(.*?)\n  --", text, re.DOTALL)
     assert block, "mypy --help no longer lists the strict flags"
     flags = re.findall(r"--([a-z-]+)", re.sub(r"-\s*\n\s*", "-", block.group(1)))
     return {f.replace("-", "_") for f in flags}
