@@ -286,6 +286,23 @@ def test_skip_policy_without_an_operator(tmp_path):
     assert [e["point"] for e in events(tmp_path / "c", "skip")] == [2]
 
 
+def test_a_resumed_campaign_publishes_each_run_from_idle_to_stopped(tmp_path):
+    """Each run of the executor in one directory starts idle and ends stopped: an aborted run, then
+    its resume that completes it; the directory's last state is stopped: completed."""
+    cfg = config_with(config(), {"campaign": {"on_fault": "abort"}})
+    start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(6))))
+    assert resume_campaign(tmp_path / "c", opener=FakeMachine()).status == "completed"
+    runs: list[list[tuple[str, str, str]]] = [[]]
+    for e in events(tmp_path / "c", "state"):
+        runs[-1].append((e["data"]["previous"], e["data"]["state"], e["data"]["reason"]))
+        if e["data"]["state"] == "stopped":
+            runs.append([])
+    first, second, rest = runs
+    assert rest == [] and first[0][0] == "idle" and second[0][0] == "idle"
+    assert first[-1][1:] == ("stopped", "interrupted: axis error 17744 (0x4550) during the move to 100")
+    assert second[-1] == ("idle", "stopped", "completed")
+
+
 def test_an_event_payload_is_checked_where_it_is_written_and_where_it_is_read(tmp_path):
     from campaign.record import Event
 

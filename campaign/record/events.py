@@ -19,6 +19,7 @@ Programs read `events.jsonl` (one JSON object a line: `utc`, `t_s`, `kind`, `mes
 
 from __future__ import annotations
 
+import functools
 import math
 import types
 from collections.abc import Mapping
@@ -187,6 +188,12 @@ def _fits(value: object, hint: Any) -> bool:
     return isinstance(hint, type) and isinstance(value, hint)
 
 
+@functools.cache
+def _fields(payload: type) -> Mapping[str, Any]:
+    """A payload TypedDict's fields and their types (resolved once: events are made per tick)."""
+    return types.MappingProxyType(get_type_hints(payload))
+
+
 def payload_problem(kind: str, data: Mapping[str, Any]) -> str | None:
     """What is wrong with `data` as the payload of an event of `kind` (None when it fits): an
     unknown kind, a missing or unknown field, a value of the wrong type."""
@@ -194,8 +201,7 @@ def payload_problem(kind: str, data: Mapping[str, Any]) -> str | None:
         return f"unknown event kind '{kind}'"
     if not isinstance(data, Mapping):
         return f"{kind} event: data is not an object"
-    payload = PAYLOADS[kind][0]
-    hints = get_type_hints(payload)
+    hints = _fields(PAYLOADS[kind][0])
     missing = sorted(set(hints) - set(data))
     unknown = sorted(set(data) - set(hints))
     if missing or unknown:
