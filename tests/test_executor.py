@@ -292,13 +292,7 @@ def test_a_resumed_campaign_publishes_each_run_from_idle_to_stopped(tmp_path):
     cfg = config_with(config(), {"campaign": {"on_fault": "abort"}})
     start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(6))))
     assert resume_campaign(tmp_path / "c", opener=FakeMachine()).status == "completed"
-    runs: list[list[tuple[str, str, str]]] = [[]]
-    for e in events(tmp_path / "c", "state"):
-        runs[-1].append((e["data"]["previous"], e["data"]["state"], e["data"]["reason"]))
-        if e["data"]["state"] == "stopped":
-            runs.append([])
-    first, second, rest = runs
-    assert rest == [] and first[0][0] == "idle" and second[0][0] == "idle"
+    first, second = runs_of_states(tmp_path / "c")
     assert first[-1][1:] == ("stopped", "interrupted: axis error 17744 (0x4550) during the move to 100")
     assert second[-1] == ("idle", "stopped", "completed")
 
@@ -357,6 +351,24 @@ def published_states(directory) -> list[tuple[str, str, str]]:
         assert after_from == before
     assert all(RunState(b) in TRANSITIONS[RunState(a)] for a, b, _ in states)
     return states
+
+
+def runs_of_states(directory) -> list[list[tuple[str, str, str]]]:
+    """The `state` events of a directory split into its runs (a resume is a new run): each run
+    starts idle, follows the state machine and ends stopped with a reason."""
+    from campaign.record import TRANSITIONS, RunState
+
+    runs: list[list[tuple[str, str, str]]] = [[]]
+    for e in events(directory, "state"):
+        runs[-1].append((e["data"]["previous"], e["data"]["state"], e["data"]["reason"]))
+        if e["data"]["state"] == "stopped":
+            runs.append([])
+    assert runs.pop() == [], "the last run did not end stopped"
+    for run in runs:
+        assert run[0][0] == "idle" and run[-1][1] == "stopped" and run[-1][2]
+        assert all(RunState(b) in TRANSITIONS[RunState(a)] for a, b, _ in run)
+        assert all(after[0] == before[1] for before, after in itertools.pairwise(run))
+    return runs
 
 
 def refuse_reset(parts):
