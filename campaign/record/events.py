@@ -220,7 +220,7 @@ class Event:
     checked here: a wrong payload is a bug (ValueError)."""
 
     t_s: float
-    kind: str
+    kind: Kind
     message: str
     point: int | None = None
     data: Mapping[str, Any] = field(default_factory=dict)
