@@ -15,7 +15,7 @@ from pathlib import Path
 HERE = Path(__file__).parent
 SCRIPTS = (("demo_wall_time.py",), ("stable_vs_dwell.py",), ("compensation.py",),
            ("compensation.py", "--smooth", "none"), ("compensation.py", "--cycles", "10"), ("import_stream.py",),
-           ("smoothing.py",), ("startup.py",), ("history.py",))
+           ("smoothing.py",), ("startup.py",), ("history.py",), ("fake_machine.py",))
 COMPENSATION = (("compensation", "5-run campaigns"),
                 ("compensation-raw-means", "5-run campaigns, table from the raw means (`--smooth none`)"),
                 ("compensation-10-runs", "10-run campaigns"))
@@ -36,7 +36,7 @@ def run_scripts() -> None:
 
 def summarise() -> int:
     r = {name: json.loads((HERE / "results" / f"{name}.json").read_text())
-         for name in ("demo_wall_time", "stable_vs_dwell", "import_stream", "startup", "history")}
+         for name in ("demo_wall_time", "stable_vs_dwell", "import_stream", "startup", "history", "fake_machine")}
     demo, stable = r["demo_wall_time"], r["stable_vs_dwell"]
     lines = ["| goal | measured | ratio (goal) |", "|---|---|---|"]
     lines.append(f"| paper campaign in `axiscal demo` ≤ 10 s wall | {demo['wall_s_median']:.2f} s "
@@ -75,6 +75,11 @@ def summarise() -> int:
                  f"| {h['import_ratio']:.1f} (seconds, not minutes) |")
     lines.append(f"| history: the trend of one axis over {h['trend_campaigns']} campaigns / reading the directories "
                  f"alone | {h['trend_s']:.2f} s vs {h['read_dirs_s']:.1f} s | {h['trend_ratio']:.2f} (seconds, not minutes) |")
+    f = r["fake_machine"]
+    lines.append(f"| paper campaign in `axiscal demo --fake` (in-process fake machine) ≤ 1 s wall | "
+                 f"{f['command_wall_s_median']:.2f} s; the campaign alone {f['campaign_alone_s_median']:.2f} s, "
+                 f"{f['per_point_ms']:.1f} ms per point (load average {f['load_average_1min']:g} on {f['cores']} cores) | "
+                 f"{f['ratio_to_goal']:.2f} (≤ 1) |")
     text = "\n".join(lines) + "\n"
     (HERE / "results" / "summary.md").write_text(text)
     print(text)

@@ -315,7 +315,7 @@ every capture record its CaptureSpec (`capture`), so the file alone describes th
 and resume run from it). Version 1 (no `version`): neither; the capture spec comes from the config."""
 
 
-def plan_records(plan: Plan, config: dict[str, Any] | None = None) -> list[dict]:
+def plan_records(plan: Plan, config: dict[str, Any] | None = None) -> list[dict[str, Any]]:
     """The plan as JSON-ready records: a header (version, targets, offsets, seed, counts and the
     campaign's config sections `config`, see campaign.config.recorded_sections), then one record per
     step in order, a capture with its spec. Floats survive a JSON round trip exactly, so the plan
@@ -340,7 +340,7 @@ def plan_records(plan: Plan, config: dict[str, Any] | None = None) -> list[dict]
     return records
 
 
-def plan_header(records: list[dict], where: str) -> dict[str, Any]:
+def plan_header(records: list[dict[str, Any]], where: str) -> dict[str, Any]:
     """The header record of a recorded plan; InputError naming `where` when there is none."""
     if not records or not isinstance(records[0], dict) or records[0].get("format") != PLAN_FORMAT:
         raise InputError(f"{where}: not a recorded axiscal plan (no '{PLAN_FORMAT}' header)")
@@ -350,7 +350,7 @@ def plan_header(records: list[dict], where: str) -> dict[str, Any]:
     return records[0]
 
 
-def plan_from_records(records: list[dict], where: str, capture: CaptureSpec | None = None) -> Plan:
+def plan_from_records(records: list[dict[str, Any]], where: str, capture: CaptureSpec | None = None) -> Plan:
     """The plan `plan_records` wrote; InputError naming `where` and the record when it is not one.
     `capture`: the capture spec of a version 1 plan, whose records do not hold it (required then)."""
     header, number = plan_header(records, where), 1

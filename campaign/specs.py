@@ -16,7 +16,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any
+from typing import Any, Literal, get_args
 
 from protocols import plc_contract
 from protocols.serial_line import LineFormat
@@ -35,14 +35,14 @@ class Key:
     doc: str
     min: float | None = None
     max: float | None = None
-    choices: tuple = ()
+    choices: tuple[Any, ...] = ()
     resume: bool = False
     """True when the key may change between a campaign's start and its resume (a connection, a
     limit, a name); any other change would mix two measurements in one table."""
 
 
 def key(type_: type, default: Any, doc: str, *, min: float | None = None,
-        max: float | None = None, choices: tuple = (), resume: bool = False) -> Any:
+        max: float | None = None, choices: tuple[Any, ...] = (), resume: bool = False) -> Any:
     """A spec field that is a config key (see `Key`)."""
     meta = {"key": Key(type_, default, doc, min, max, choices, resume)}
     if default is REQUIRED:
@@ -54,9 +54,12 @@ EMPTY: Mapping[str, Any] = MappingProxyType({})
 
 
 def frozen(value: Any) -> Any:
-    """`value` with every table made read-only (lists stay lists: they are read back from JSON)."""
+    """`value` with every table made read-only and every list a tuple, at any depth (`plain` makes
+    them dicts and lists again, to merge, to validate, to write as JSON)."""
     if isinstance(value, Mapping):
         return MappingProxyType({k: frozen(v) for k, v in value.items()})
+    if isinstance(value, list | tuple):
+        return tuple(frozen(v) for v in value)
     return value
 
 
@@ -69,10 +72,24 @@ def plain(value: Any) -> Any:
     return value
 
 
-PURPOSES = ("acceptance", "verification", "follow-up", "diagnostic")
+Purpose = Literal["acceptance", "verification", "follow-up", "diagnostic"]
+PURPOSES: tuple[Purpose, ...] = get_args(Purpose)
 """What a campaign is for ([campaign] purpose): only acceptance and verification campaigns are judged
 pass/fail and enter an axis's trend; a follow-up and a diagnostic are recorded and listed only."""
-JUDGED_PURPOSES = ("acceptance", "verification")
+JUDGED_PURPOSES: tuple[Purpose, ...] = ("acceptance", "verification")
+
+# The choices of the config's keys, each a Literal: the spec's field has the type, and the key's
+# `choices` (validation, docs/config.md) are its arguments.
+OnFault = Literal["retry", "skip", "abort"]
+AxisKind = Literal["linear", "rotary"]
+AxisUnit = Literal["mm", "deg"]
+Cycle = Literal["linear", "pilgrim"]
+Offsets = Literal["none", "random", "golden"]
+ControllerType = Literal["sim", "ads", "linuxcnc", "epics"]
+InstrumentType = Literal["sim", "serial"]
+InstrumentMode = Literal["stream", "query"]
+AirCorrection = Literal["none", "edlen"]
+CaptureMethod = Literal["dwell", "stable"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -90,7 +107,7 @@ class CampaignSpec:
         "tolerance on the reversal value B, deviation unit; 0 = none", min=0, resume=True)
     tolerance_r: float = key(float, 0.0,
         "tolerance on the repeatability R, deviation unit; 0 = none", min=0, resume=True)
-    purpose: str = key(str, "acceptance",
+    purpose: Purpose = key(str, "acceptance",
         "what the campaign is for: acceptance (an ISO 230-2 test with a verdict), verification (a "
         "re-measurement after a compensation), follow-up (written by discover --follow-up) or diagnostic "
         "(any other measurement); a follow-up or a diagnostic gets no pass/fail and is never trended",
@@ -104,9 +121,9 @@ class CampaignSpec:
 class FaultPolicy:
     """What the executor does after a fault when no operator answers ([campaign])."""
 
-    on_fault: str = key(str, "retry",
+    on_fault: OnFault = key(str, "retry",
         "without an operator: retry a point after a fault (up to fault_retries times), skip it (resume "
-        "measures it later), or abort at once", choices=("retry", "skip", "abort"), resume=True)
+        "measures it later), or abort at once", choices=get_args(OnFault), resume=True)
     fault_retries: int = key(int, 3,
         "faults retried at one point before the campaign stops", min=0, max=20, resume=True)
 
@@ -116,8 +133,8 @@ class AxisSpec:
     """The axis and its limits ([axis]): every motion is checked against them."""
 
     name: str = key(str, "X", "axis name")
-    kind: str = key(str, "linear", "linear or rotary", choices=("linear", "rotary"))
-    unit: str = key(str, "mm", "position unit: mm (linear) or deg (rotary)", choices=("mm", "deg"))
+    kind: AxisKind = key(str, "linear", "linear or rotary", choices=get_args(AxisKind))
+    unit: AxisUnit = key(str, "mm", "position unit: mm (linear) or deg (rotary)", choices=get_args(AxisUnit))
     soft_limit_min: float = key(float, REQUIRED,
         "lowest position any motion may command, axis unit", resume=True)
     soft_limit_max: float = key(float, REQUIRED,
@@ -147,11 +164,11 @@ class PlanSpec:
         "vary each point's dwell by up to this fraction (seeded): settling is only told from backlash when "
         "the dwell varies", min=0, max=0.9)
     velocity: float = key(float, REQUIRED, "positioning velocity, axis unit/s", min=1e-09)
-    cycle: str = key(str, "linear",
-        "linear (ISO 230-2) or pilgrim (step cycle, annex)", choices=("linear", "pilgrim"))
-    offsets: str = key(str, "none",
+    cycle: Cycle = key(str, "linear",
+        "linear (ISO 230-2) or pilgrim (step cycle, annex)", choices=get_args(Cycle))
+    offsets: Offsets = key(str, "none",
         "per-target offsets to sample periodic errors: none, random, golden",
-        choices=("none", "random", "golden"))
+        choices=get_args(Offsets))
     offset_fraction: float = key(float, 0.1,
         "largest offset as a fraction of the target spacing", min=0, max=0.45)
     seed: int = key(int, 1, "seed of the random offsets (recorded)", min=0)
@@ -161,11 +178,11 @@ class PlanSpec:
 class ControllerSpec:
     """The connection to the axis controller ([axis_driver])."""
 
-    type: str = key(str, "sim",
+    type: ControllerType = key(str, "sim",
         "sim (simulated machine over loopback ADS), ads (a real PLC), linuxcnc (a headless LinuxCNC with "
         "a simulated laser, docs/linuxcnc.md) or epics (an EPICS motor record over Channel Access; with "
         "instrument.type sim, the simulated IOC on loopback, docs/epics.md)",
-        choices=("sim", "ads", "linuxcnc", "epics"), resume=True)
+        choices=get_args(ControllerType), resume=True)
     pv: str = key(str, "SIM:M1", "epics: the motor record's name (prefix of its fields .VAL, .RBV, ...)",
                   resume=True)
     comp_file: str = key(str, "",
@@ -186,12 +203,12 @@ class ControllerSpec:
 class InstrumentSpec:
     """The laser interferometer: its connection, its rate and its traceability ([instrument])."""
 
-    type: str = key(str, "sim",
-        "sim (simulated interferometer over a pty) or serial", choices=("sim", "serial"))
+    type: InstrumentType = key(str, "sim",
+        "sim (simulated interferometer over a pty) or serial", choices=get_args(InstrumentType))
     port: str = key(str, "", "serial port, e.g. /dev/ttyUSB0", resume=True)
     baudrate: int = key(int, 115200, "serial baud rate", min=50, max=4000000, resume=True)
-    mode: str = key(str, "stream",
-        "stream (instrument sends continuously) or query", choices=("stream", "query"))
+    mode: InstrumentMode = key(str, "stream",
+        "stream (instrument sends continuously) or query", choices=get_args(InstrumentMode))
     rate_hz: float = key(float, 10.0,
         "how often axiscal takes the readings (its tick), Hz; set the instrument to stream at least this "
         "fast; the simulated instrument streams at this rate", min=0.1, max=1000)
@@ -223,9 +240,9 @@ class InstrumentSpec:
 class EnvironmentSpec:
     """Air and material corrections and the sensors' uncertainties ([environment])."""
 
-    air_correction: str = key(str, "none",
+    air_correction: AirCorrection = key(str, "none",
         "none (instrument corrects for air) or edlen (axiscal corrects vacuum readings with the updated "
-        "Edlén equation)", choices=("none", "edlen"))
+        "Edlén equation)", choices=get_args(AirCorrection))
     wavelength_nm: float = key(float, 633.0, "laser vacuum wavelength, nm", min=100, max=2000)
     co2_ppm: float = key(float, 450.0, "CO2 content of the air, ppm", min=0, max=10000)
     air_temp_c: float | None = key(float, None,
@@ -253,9 +270,9 @@ class EnvironmentSpec:
 class CaptureSpec:
     """How a point is captured at its target ([capture]); each capture step of a plan carries it."""
 
-    method: str = key(str, "dwell",
+    method: CaptureMethod = key(str, "dwell",
         "dwell (average the end of a fixed dwell) or stable (capture when the reading is stable)",
-        choices=("dwell", "stable"))
+        choices=get_args(CaptureMethod))
     average_s: float = key(float, 1.0, "dwell method: averaging window at the end of the dwell, s", min=0.01)
     stable_tolerance: float = key(float, 0.5,
         "stable method: band the reading must stay in, deviation unit", min=0)

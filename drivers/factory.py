@@ -24,8 +24,12 @@ from protocols.hardware import Hardware, InstrumentError
 from protocols.plc_contract import CompTable
 
 if TYPE_CHECKING:
+    from drivers.fake import FakeMachine
     from drivers.sim.ads_server import SimAdsServer
+    from drivers.sim.clock import SimClock
+    from drivers.sim.epics_ioc import SimMotorIoc
     from drivers.sim.faults import FaultScheduler
+    from drivers.sim.interferometer import SimInterferometer
     from drivers.sim.machine import SimAxisPhysics
     from drivers.sim.plc import SimPLC
 
@@ -41,10 +45,11 @@ class SimParts:
     session (campaign.measure.session.MachineParts): the files to keep in the campaign directory,
     and the recorder's disk-full hook for the disk_full fault."""
 
-    clock: object
-    plc: object
-    server: object
-    instrument: object
+    clock: SimClock
+    plc: SimPLC
+    server: SimAdsServer | SimMotorIoc
+    """What serves the PLC: the ADS server, or the motor record IOC of the EPICS machine."""
+    instrument: SimInterferometer
     physics: SimAxisPhysics
     faults: FaultScheduler | None = None
 
@@ -54,6 +59,14 @@ class SimParts:
     def bind_recorder(self, inject_disk_full: Callable[[], None]) -> None:
         if self.faults is not None:
             self.faults.on_disk_full = inject_disk_full
+
+
+def fake_opener() -> FakeMachine:
+    """The fake machine (drivers/fake.py: in-process, no socket, no pty) with the campaign's own
+    error model, imported only when asked (`axiscal demo --fake`)."""
+    from drivers.fake import FakeMachine
+
+    return FakeMachine(error_um=None)
 
 
 COMP_SEED_OFFSET = 1000

@@ -112,3 +112,20 @@ def test_every_key_has_one_owning_spec_field_with_its_meaning():
               for f in fields(spec) if "key" in f.metadata]
     assert len(owners) == len(set(owners)) == sum(len(keys) for keys in SCHEMA.values())
     assert all(key.doc for keys in SCHEMA.values() for key in keys.values())
+
+
+def test_the_config_sections_are_frozen_to_the_last_list():
+    """Nothing writes into a config: not a section, not a key, not a list inside one (the targets
+    appended to once reached meta.json)."""
+    from campaign.config import parse_config, recorded_sections
+
+    config = parse_config('[campaign]\nmachine = "m"\n[axis]\nsoft_limit_min = -5.0\nsoft_limit_max = 105.0\n'
+                          'max_velocity = 50.0\n[plan]\ntargets = [0.0, 50.0, 100.0]\nvelocity = 10.0\n', "c.toml")
+    with pytest.raises(AttributeError):
+        config.sections["plan"]["targets"].append(999.0)
+    with pytest.raises(TypeError):
+        config.sections["plan"]["cycles"] = 9
+    with pytest.raises(AttributeError):
+        config.data["plan"]["targets"].append(999.0)
+    assert config.sections["plan"]["targets"] == (0.0, 50.0, 100.0)
+    assert recorded_sections(config)["plan"]["targets"] == [0.0, 50.0, 100.0]  # JSON lists again

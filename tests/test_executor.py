@@ -5,6 +5,7 @@ directory)."""
 
 import itertools
 import json
+from dataclasses import replace
 
 import pytest
 
@@ -40,8 +41,11 @@ def test_a_campaign_records_every_point_and_one_event_stream(tmp_path):
     outcome = start_campaign(cfg, tmp_path / "c", opener=machine)
     assert (outcome.status, outcome.points, outcome.planned) == ("completed", 12, 12)
     assert rows(tmp_path / "c") == expected_rows(cfg)
-    kinds = [e["kind"] for e in events(tmp_path / "c")]
+    kinds = [e["kind"] for e in events(tmp_path / "c") if e["kind"] != "state"]
     assert kinds == ["start"] + ["point"] * 12 + ["stop"]
+    states = [e["data"]["state"] for e in events(tmp_path / "c", "state")]
+    assert states == ["moving", "settling", "capturing"] * 12 + ["moving", "idle", "stopped"]  # the closing move
+    assert events(tmp_path / "c")[-2]["data"] == {"state": "stopped", "previous": "idle", "reason": "completed"}
     point = events(tmp_path / "c", "point")[4]
     assert point["point"] == 4 and point["data"]["deviation"] == round(linear_error_um(50.0, -1), 4)
     assert set(point) >= {"t_s", "kind", "message", "point", "utc", "data"}
@@ -49,7 +53,7 @@ def test_a_campaign_records_every_point_and_one_event_stream(tmp_path):
     assert campaign.status == "completed" and [r["record"] for r in campaign.runs] == ["start", "stop"]
     assert campaign.recorded_plan() == build_plan(cfg)
     assert campaign.meta["format_version"] == 2 and campaign.meta["software"].startswith("axiscal ")
-    log = (tmp_path / "c" / "events.log").read_text().splitlines()
+    log = [ln for ln in (tmp_path / "c" / "events.log").read_text().splitlines() if " state: " not in ln]
     assert len(log) == 14 and "point 1: run 1 +, target 0 mm" in log[1]
 
 
@@ -157,15 +161,7 @@ def test_beam_loss_retries_the_capture_and_never_averages_a_bad_reading(tmp_path
 
 
 def test_a_full_disk_stops_the_campaign_and_resume_completes_it(tmp_path):
-    def full_disk_later(hardware, parts, executor):
-        def at(t):
-            if t >= 12.0 and not executor.rec.fail_next_point_write and not parts.opened:
-                parts.opened.append(t)
-                executor.rec.inject_disk_full()
-
-        parts.clock.listeners.append(at)
-
-    outcome = start_campaign(config(), tmp_path / "c", opener=FakeMachine(), on_open=full_disk_later)
+    outcome = start_campaign(config(), tmp_path / "c", opener=FakeMachine(disk_full_at_s=12.0))
     assert outcome.status == "interrupted" and "recording failed" in outcome.message
     assert 0 < outcome.points < 12
     again = resume_campaign(tmp_path / "c", opener=FakeMachine())
@@ -173,13 +169,6 @@ def test_a_full_disk_stops_the_campaign_and_resume_completes_it(tmp_path):
 
 
 def test_ctrl_c_halts_and_marks_the_directory_interrupted(tmp_path):
-    def ctrl_c_after_three_points(hardware, parts, executor):
-        def at(t):
-            if executor.rec.points_written == 3:
-                raise KeyboardInterrupt
-
-        parts.clock.listeners.append(at)
-
     with pytest.raises(KeyboardInterrupt):
         start_campaign(config(), tmp_path / "c", opener=FakeMachine(), on_open=ctrl_c_after_three_points)
     assert open_campaign(tmp_path / "c").status == "interrupted"
@@ -297,6 +286,39 @@ def test_skip_policy_without_an_operator(tmp_path):
     assert [e["point"] for e in events(tmp_path / "c", "skip")] == [2]
 
 
+def test_a_resumed_campaign_publishes_each_run_from_idle_to_stopped(tmp_path):
+    """Each run of the executor in one directory starts idle and ends stopped: an aborted run, then
+    its resume that completes it; the directory's last state is stopped: completed."""
+    cfg = config_with(config(), {"campaign": {"on_fault": "abort"}})
+    start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(6))))
+    assert resume_campaign(tmp_path / "c", opener=FakeMachine()).status == "completed"
+    first, second = runs_of_states(tmp_path / "c")
+    assert first[-1][1:] == ("stopped", "interrupted: axis error 17744 (0x4550) during the move to 100")
+    assert second[-1] == ("idle", "stopped", "completed")
+
+
+def test_an_event_payload_is_checked_where_it_is_written_and_where_it_is_read(tmp_path):
+    from campaign.record import Event
+
+    with pytest.raises(ValueError, match="point event: data missing deviation"):
+        Event(1.0, "point", "a point", 0, {"run": 1, "direction": 1, "target": 0.0})
+    with pytest.raises(ValueError, match="data.ok = 'yes' is not bool"):
+        Event(1.0, "beam", "beam lost", 0, {"ok": "yes", "signal_pct": None})
+    with pytest.raises(ValueError, match="unknown event kind"):
+        Event(1.0, "teleport", "beamed up")
+    start_campaign(config(), tmp_path / "c", opener=FakeMachine())
+    path = tmp_path / "c" / "events.jsonl"
+    lines = path.read_text().splitlines()
+    record = json.loads(lines[5])
+    record["data"]["state"] = "dancing"
+    lines[5] = json.dumps(record)
+    path.write_text("\n".join(lines) + "\n")
+    from campaign.record import read_events
+
+    with pytest.raises(InputError, match=r"events.jsonl:6: not an axiscal event: state event: data.state = 'dancing'"):
+        read_events(tmp_path / "c")
+
+
 @pytest.mark.parametrize("shift_mm, ok", [(0.0, True), (0.5, False)])
 def test_the_resume_checklist_sees_a_re_zeroed_laser(tmp_path, shift_mm, ok):
     from campaign.guide.checklist import datum_item
@@ -318,26 +340,87 @@ def test_the_resume_checklist_sees_a_re_zeroed_laser(tmp_path, shift_mm, ok):
     assert item.ok is ok, item.value
 
 
-def test_one_run_state_machine_from_idle_to_idle_or_stopped(tmp_path, monkeypatch):
-    from campaign.measure.executor import TRANSITIONS, Executor
+def published_states(directory) -> list[tuple[str, str, str]]:
+    """(previous, state, reason) of every `state` event in events.jsonl, checked against the one
+    state machine: each event starts where the one before it ended, along a listed transition."""
+    from campaign.record import TRANSITIONS, RunState
 
-    seen: list[str] = []
-    enter = Executor._enter
+    states = [(e["data"]["previous"], e["data"]["state"], e["data"]["reason"]) for e in events(directory, "state")]
+    assert states and states[0][0] == "idle"
+    for (_, before, _), (after_from, _, _) in itertools.pairwise(states):
+        assert after_from == before
+    assert all(RunState(b) in TRANSITIONS[RunState(a)] for a, b, _ in states)
+    return states
 
-    def spy(self, state):
-        seen.append(state)
-        enter(self, state)
 
-    monkeypatch.setattr(Executor, "_enter", spy)
-    start_campaign(config(), tmp_path / "a", opener=FakeMachine())
-    assert seen[0] == "moving" and seen[-1] == "idle"
-    assert {"moving", "settling", "capturing"} <= set(seen)
-    path = ["idle", *seen]
-    assert all(b == a or b in TRANSITIONS[a] for a, b in itertools.pairwise(path))
-    seen.clear()
-    machine = FakeMachine(setup=lambda parts: parts.axis.faults.append(AxisFault(move=4)))
-    outcome = start_campaign(config(), tmp_path / "b", opener=machine, control=operator_answers("abort"))
-    assert outcome.status == "interrupted" and seen[-2:] == ["faulted", "stopped"]
+def runs_of_states(directory) -> list[list[tuple[str, str, str]]]:
+    """The `state` events of a directory split into its runs (a resume is a new run): each run
+    starts idle, follows the state machine and ends stopped with a reason."""
+    from campaign.record import TRANSITIONS, RunState
+
+    runs: list[list[tuple[str, str, str]]] = [[]]
+    for e in events(directory, "state"):
+        runs[-1].append((e["data"]["previous"], e["data"]["state"], e["data"]["reason"]))
+        if e["data"]["state"] == "stopped":
+            runs.append([])
+    assert runs.pop() == [], "the last run did not end stopped"
+    for run in runs:
+        assert run[0][0] == "idle" and run[-1][1] == "stopped" and run[-1][2]
+        assert all(RunState(b) in TRANSITIONS[RunState(a)] for a, b, _ in run)
+        assert all(after[0] == before[1] for before, after in itertools.pairwise(run))
+    return runs
+
+
+def refuse_reset(parts):
+    """An axis fault at the 4th move whose error the drive then refuses to clear."""
+    from protocols.hardware import AxisError
+
+    def reset():
+        raise AxisError("reset refused (fake)", 0x4551)
+
+    parts.axis.faults.append(AxisFault(move=4))
+    parts.axis.reset = reset
+
+
+def ctrl_c_after_three_points(hardware, parts, executor):
+    def at(t):
+        if executor.rec.points_written == 3:
+            raise KeyboardInterrupt
+
+    parts.clock.listeners.append(at)
+
+
+@pytest.mark.parametrize("case", ["completed", "abort", "recovery_failed", "ctrl_c", "disk_full", "refused_motion"])
+def test_every_run_publishes_its_states_and_ends_stopped_with_the_reason(tmp_path, case):
+    """Every transition is a `state` event in events.jsonl and every exit ends in `stopped`, with
+    the reason, also a run whose recovery after a fault failed (it ended in `faulted` before)."""
+    cfg, kwargs, expected = config(), {}, "completed"
+    machine = FakeMachine()
+    if case == "abort":
+        machine = FakeMachine(setup=lambda parts: parts.axis.faults.append(AxisFault(move=4)))
+        kwargs["control"], expected = operator_answers("abort"), "interrupted: axis error 17744"
+    elif case == "recovery_failed":
+        machine = FakeMachine(setup=refuse_reset)
+        expected = "interrupted: axis not ready after the fault: reset refused"
+    elif case == "ctrl_c":
+        kwargs["on_open"], expected = ctrl_c_after_three_points, "interrupted (Ctrl-C)"
+    elif case == "disk_full":
+        kwargs["on_open"], expected = lambda hw, parts, ex: ex.rec.inject_disk_full(), "interrupted: recording failed: "
+    elif case == "refused_motion":  # a plan step beyond the limits, as a corrupted recorded plan would have
+        kwargs["on_open"] = lambda hw, parts, ex: setattr(ex, "axis", replace(ex.axis, soft_limit_max=101.0))
+        expected = "interrupted: motion to 102 mm is outside the soft limits"
+    try:
+        start_campaign(cfg, tmp_path / "c", opener=machine, **kwargs)
+    except KeyboardInterrupt:
+        assert case == "ctrl_c"
+    except SafetyError:
+        assert case == "refused_motion"
+    states = published_states(tmp_path / "c")
+    previous, last, reason = states[-1]
+    assert last == "stopped" and reason.startswith(expected), states[-3:]
+    if case == "recovery_failed":
+        assert previous == "faulted"
+    assert [e["kind"] for e in events(tmp_path / "c")][-1] == "stop"
 
 
 def test_the_operator_answers_through_the_control_channel_and_nothing_else_decides(tmp_path):

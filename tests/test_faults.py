@@ -9,6 +9,7 @@ import pytest
 from campaign.pointtable import read_points
 from tests.conftest import assert_one_line_error, events
 from tests.test_demo_e2e import axiscal
+from tests.test_executor import runs_of_states
 from tests.test_resume import point_keys
 
 # fault -> (event that must be logged: kind and data items, resumes needed, whether a halt must be logged)
@@ -55,6 +56,10 @@ def test_fault_is_survived(tmp_path, fault_free, fault):
     assert abs(table.deviation).max() < 20.0
     assert all(10 <= t <= 35 for t in table.optional["air_temp_c"])
     assert point_keys(out / "points.csv") == fault_free
+    # every run of the executor (the first and each resume) published its states and ended stopped
+    runs = runs_of_states(out)
+    assert len(runs) == resumes + 1 and runs[-1][-1][1:] == ("stopped", "completed")
+    assert all(run[-1][2].startswith("interrupted") for run in runs[:-1])
 
 
 @pytest.mark.machine

@@ -212,7 +212,7 @@ def keep_reading_until(child, condition, timeout=30.0) -> bool:
 def confirm_and_wait_for_points(child, out, n):
     child.expect("Start the motion")
     child.sendline("y")
-    child.expect("RUNNING")
+    child.expect("MOVING")
     assert keep_reading_until(child, lambda: count_points(out) >= n)
 
 
@@ -352,7 +352,7 @@ def test_resume_on_a_terminal_is_guided_and_finishes_the_campaign(tmp_path, smal
         child.expect("Start the motion")
         assert count_points(out) == stopped_at  # nothing moved or recorded before the confirmation
         child.sendline("y")
-        child.expect("RUNNING")
+        child.expect("MOVING")
         child.expect(pexpect.EOF, timeout=120)
     finally:
         child.close(force=True)

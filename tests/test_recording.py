@@ -84,7 +84,7 @@ def test_full_disk_is_a_recording_error(tmp_path, where):
             write_points(rec, 1, first=1)
         elif where == "events":
             rec._events.flush = full
-            rec.emit(Event(1.0, "beam", "beam lost"))
+            rec.emit(Event(1.0, "beam", "beam lost", None, {"ok": False, "signal_pct": 0.0}))
         else:
             rec.inject_disk_full()
             write_points(rec, 1, first=1)

@@ -90,12 +90,13 @@ def non_negative_integer(text: str) -> int:
     return value
 
 
-def hardware_opener() -> "Opener":
+def hardware_opener(fake: bool = False) -> "Opener":
     """The drivers' hardware factory (campaign.measure.session.Opener), imported when a command
-    needs hardware: the commands are the one place where the domain meets the drivers."""
-    from drivers.factory import open_hardware
+    needs hardware: the commands are the one place where the domain meets the drivers. `fake`:
+    the in-process fake machine instead (drivers/fake.py), imported only then."""
+    from drivers.factory import fake_opener, open_hardware
 
-    return open_hardware
+    return fake_opener() if fake else open_hardware
 
 
 YES_HELP = ("stop a controller an earlier axiscal started and left running (a LinuxCNC whose axiscal was "

@@ -1,9 +1,10 @@
 """`axiscal demo [--out DIR] [--speed N] [--capture dwell|stable] [--json] [--plot OUT]
-[--controller sim|linuxcnc|epics [--verify]] [--cycles N]`.
+[--controller sim|linuxcnc|epics [--verify]] [--fake] [--cycles N]`.
 
 The main job: a complete campaign on the simulated machine (the horizontal axis of Li et al. 2022) through
 the real ADS client against the loopback test server and the real serial stack over a pty,
-followed by the ISO 230-2 analysis.
+followed by the ISO 230-2 analysis. `--fake`: the same campaign on the in-process fake machine
+(drivers/fake.py), in about a second.
 """
 
 from __future__ import annotations
@@ -39,6 +40,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="with --controller linuxcnc: compensate (--format linuxcnc), restart LinuxCNC with the "
                         "COMP_FILE and measure again; with --controller epics: write the table through Channel "
                         "Access and measure again")
+    p.add_argument("--fake", action="store_true",
+                   help="run on the in-process fake machine instead (drivers/fake.py: no PLC, no socket, no pty; "
+                        "the demo's error model without noise), in about a second")
     p.add_argument("--cycles", type=positive_integer, help="runs of the campaign (default 5)")
     p.add_argument("--yes", action="store_true", help=YES_HELP)
     p.add_argument("--inject", metavar="NAME[@S],...",
@@ -62,6 +66,8 @@ def run(args: argparse.Namespace) -> int:
     text = demo_config_text()
     if args.cycles:
         text = text.replace("cycles = 5", f"cycles = {args.cycles}")
+    if args.fake:
+        return fake_demo(text, args)
     if args.controller == "linuxcnc":
         from campaign.commands.linuxcnc_demo import linuxcnc_demo
 
@@ -82,6 +88,23 @@ def run(args: argparse.Namespace) -> int:
     faults = parse_inject(args.inject)
     text += "\n[sim.faults]\n" + "".join(f"{name} = {{ at_s = {p['at_s']!r} }}\n" for name, p in faults.items())
     return rehearse(parse_config(text, "demo.toml"), faults, args)
+
+
+def fake_demo(text: str, args: argparse.Namespace) -> int:
+    """The demo campaign on the fake machine (drivers/fake.py): the same plan, executor, recording
+    and analysis, on an in-process axis and laser that follow the demo's error model without noise.
+    Recorded as machine "fake-press" with driver "fake" in meta.json."""
+    for option, given in (("--controller linuxcnc", args.controller != "sim"), ("--verify", args.verify),
+                          ("--inject", bool(args.inject)), ("--speed", args.speed is not None)):
+        if given:
+            raise InputError(f"--fake: {option} needs the simulated machine; the fake machine has no PLC to fault "
+                             "and takes no wall time")
+    if args.capture:
+        text = text.replace('method = "dwell"', f'method = "{args.capture}"')
+    text = text.replace('machine = "sim-press"', 'machine = "fake-press"').replace(
+        "on the simulated machine", "on the in-process fake machine")
+    return run_config(parse_config(text, "demo.toml"), args, opener=hardware_opener(fake=True),
+                      meta_extra={"driver": "fake"})
 
 
 def rehearse(config: Config, faults: dict, args: argparse.Namespace) -> int:

@@ -7,7 +7,7 @@ import argparse
 from campaign.commands import SUMMARY, YES_HELP, hardware_opener, positive_number, stop_leftover_controller
 from campaign.config import Config, config_with, load_config
 from campaign.errors import InputError
-from campaign.measure import Outcome, RichProgress, dry_run, start_campaign
+from campaign.measure import Opener, Outcome, RichProgress, dry_run, start_campaign
 from campaign.plot import check_plot_path, plot_evaluation
 from campaign.views import make_console, print_evaluation, print_json
 from protocols.hardware import AxisError, InstrumentError
@@ -98,7 +98,10 @@ def print_outcome(outcome: Outcome, args: argparse.Namespace, extra: dict | None
     return 0 if outcome.status == "completed" else 3
 
 
-def run_config(config: Config, args: argparse.Namespace, extra: dict | None = None) -> int:
+def run_config(config: Config, args: argparse.Namespace, extra: dict | None = None, opener: Opener | None = None,
+               meta_extra: dict | None = None) -> int:
+    """Run `config` on the machine `opener` opens (default: the one its [axis_driver] names),
+    with `meta_extra` in meta.json; print the outcome."""
     config = with_on_fault(config, args)
     if args.plot:
         check_plot_path(args.plot)
@@ -106,7 +109,8 @@ def run_config(config: Config, args: argparse.Namespace, extra: dict | None = No
     unit = config.axis.unit
     observer = RichProgress(unit)
     with observer:
-        outcome = start_campaign(config, args.out, opener=hardware_opener(), speed=args.speed, observer=observer)
+        outcome = start_campaign(config, args.out, meta_extra, opener=opener or hardware_opener(), speed=args.speed,
+                                 observer=observer)
     return finish(outcome, args, extra)
 
 

@@ -20,15 +20,22 @@ from rich.table import Table
 
 from campaign.config import Config
 from campaign.guide.keys import Keys
-from campaign.measure import BeamLost, Control, NotStable, Observer, live_text
+from campaign.measure import BeamLost, Control, FaultAnswer, NotStable, Observer, live_text
 from campaign.plan import Plan, Point
-from campaign.record import Event
+from campaign.record import Event, RunState
 from protocols.hardware import AxisError, Hardware, InstrumentError, Reading
 from protocols.units import deviation_label
 
 BLOCKS = "▁▂▃▄▅▆▇█"
-QUIET_KINDS = ("start", "point", "interrupt", "fault", "halt", "stop", "skip", "retry")
+QUIET_KINDS = ("start", "point", "interrupt", "fault", "halt", "stop", "skip", "retry", "state")
 """Events the dashboard shows its own way (progress, the fault prompt, abort()) or not at all."""
+
+WORKING = (RunState.MOVING, RunState.SETTLING, RunState.CAPTURING)
+"""The run states in which the axis works through the plan (a pause may be asked for)."""
+
+STATE_COLOUR = {RunState.IDLE: "white", RunState.MOVING: "green", RunState.SETTLING: "green",
+                RunState.CAPTURING: "green", RunState.PAUSED: "yellow", RunState.FAULTED: "red",
+                RunState.STOPPED: "red"}
 
 KEY_HELP = "keys: p pause after this point · r resume · a abort · Ctrl-C abort (twice: halt at once)"
 
@@ -94,7 +101,11 @@ class Dashboard(Observer):
         self.dev_unit = deviation_label(self.unit)
         self.runs = config.plan.cycles
         self.per_run = len(plan.points) // self.runs
-        self.state = "starting"
+        self.state: RunState | None = None
+        """The executor's run state as published (its `state` events); None before the run starts."""
+        self.state_reason = ""
+        self.request: str | None = None
+        """The operator's request the executor has not acted on yet: "pause requested", "aborting"."""
         self.abort_reason: str | None = None
         self.prompt: str | None = None
         self.warnings: deque[str] = deque(maxlen=4)
@@ -143,14 +154,9 @@ class Dashboard(Observer):
         grid = Table.grid(padding=(0, 2))
         grid.add_column(style="bold")
         grid.add_column()
-        colour = {"RUNNING": "green", "PAUSED": "yellow", "FAULT": "red", "ABORTING": "red",
-                  "COMPLETED": "green", "INTERRUPTED": "red", "FAILED": "red"}
-        state = self.state
-        if state == "PAUSED" and self.pause_began is not None:
-            state += f" for {clock_text(self.t_s - self.pause_began)} (r resumes, a aborts)"
-        grid.add_row("state", f"[bold {colour.get(self.state, 'white')}]{state}[/]")
+        grid.add_row("state", self.state_text())
         index = self.current()
-        if index is not None and self.state not in ("COMPLETED", "INTERRUPTED", "FAILED"):
+        if index is not None and self.state is not RunState.STOPPED:
             p = self.plan.points[index]
             arrow = "+ (up ↑)" if p.direction > 0 else "- (down ↓)"
             grid.add_row("point", f"{index + 1} of {len(self.plan.points)}: run {p.run} of {self.runs}, "
@@ -178,6 +184,21 @@ class Dashboard(Observer):
                                 f"[dim](the level of 0 {self.dev_unit})[/]")
         return grid
 
+    def state_text(self) -> str:
+        """The published run state as the operator sees it, with the operator's pending request
+        and, once stopped, the reason."""
+        if self.state is None:
+            return "[bold]STARTING[/]"
+        text, colour = self.state.upper(), STATE_COLOUR[self.state]
+        if self.state is RunState.PAUSED and self.pause_began is not None:
+            text += f" for {clock_text(self.t_s - self.pause_began)} (r resumes, a aborts)"
+        if self.state is RunState.STOPPED:
+            colour = "green" if self.state_reason == "completed" else "red"
+            text += f": {self.state_reason}" if self.state_reason else ""
+        elif self.request:
+            text += f" · {self.request}"
+        return f"[bold {colour}]{text}[/]"
+
     def say(self, message: str, warning: bool = True) -> None:
         """A warning on the dashboard (one line in a script)."""
         if warning:
@@ -190,25 +211,26 @@ class Dashboard(Observer):
     def on_key(self, key: str) -> None:
         if self.prompt is not None and key in ("r", "s", "a"):  # the answer to the fault prompt
             self.prompt = None
-            self.control.answer({"r": "retry", "s": "skip", "a": "abort"}[key])
+            answers: dict[str, FaultAnswer] = {"r": "retry", "s": "skip", "a": "abort"}
+            self.control.answer(answers[key])
             if key == "a":
-                self.state = "ABORTING"
+                self.request = "aborting"
             return
-        if key == "p" and self.state == "RUNNING":
+        if key == "p" and self.state in WORKING and not self.control.pause_requested():
             self.control.request_pause()
-            self.state = "PAUSE REQUESTED"
+            self.request = "pause requested"
             self.say("pause requested: the axis stops after this point", warning=False)
         elif key == "r" and self.control.pause_requested():
             self.control.request_resume()
-            if self.state == "PAUSE REQUESTED":
-                self.state = "RUNNING"
+            if self.request == "pause requested":
+                self.request = None
         elif key == "a" and not self.control.abort_requested():
             self.abort("a pressed")
 
     def abort(self, why: str) -> None:
         self.abort_reason = f"aborted by the operator ({why})"
         self.control.request_abort(self.abort_reason)
-        self.state = "ABORTING"
+        self.request = "aborting"
         self.say(f"{why}: aborting, the axis halts and the recording is flushed")
 
     # -- Observer (a display sink of the event stream) ---------------------------------------------
@@ -216,7 +238,6 @@ class Dashboard(Observer):
     def started(self, plan: Plan, todo: list[int]) -> None:
         self.todo = list(todo)
         self.done = {p.index for p in plan.points} - set(todo)
-        self.state = "RUNNING" if not self.control.abort_requested() else self.state
         self._update_bars()
 
     def reading(self, t_s: float, reading: Reading, target: float | None) -> None:
@@ -261,16 +282,18 @@ class Dashboard(Observer):
 
     def emit(self, event: Event) -> None:
         kind = event.kind
-        if kind == "start":
+        if kind == "state":
+            self._state(event)
+        elif kind == "start":
             self.started_s = event.t_s
         elif kind == "point" and event.point is not None:
             self.point_done(self.plan.points[event.point], event.data["deviation"], event.t_s)
         elif kind == "pause":
-            self.state, self.pause_began = "PAUSED", event.t_s
+            self.pause_began = event.t_s
             self.say("PAUSED: press r to resume, a to abort", warning=False)
         elif kind == "unpause":
             self.paused_s += event.t_s - (self.pause_began if self.pause_began is not None else event.t_s)
-            self.state, self.pause_began = "RUNNING", None
+            self.pause_began = None
             self.say("resumed", warning=False)
         elif kind == "fault":
             self._fault(event)
@@ -280,9 +303,18 @@ class Dashboard(Observer):
             self.say(event.message, warning=False)
         elif kind == "stop":
             self.prompt = None
-            self.state = str(event.data.get("status", "stopped")).upper()
         elif kind not in QUIET_KINDS or (kind == "halt" and not event.data.get("ok")):
             self.say(f"{kind}: {event.message}")
+
+    def _state(self, event: Event) -> None:
+        """The executor's run state changed: show it (the one state, never derived here)."""
+        self.state, self.state_reason = RunState(event.data["state"]), str(event.data["reason"])
+        if self.state is RunState.PAUSED or self.state is RunState.STOPPED:
+            self.request = None if self.request == "pause requested" else self.request
+        if self.state is RunState.STOPPED:
+            self.request = None
+        if self.live is None and self.state is RunState.STOPPED:
+            self.console.print(f"state: {self.state}" + (f" ({self.state_reason})" if self.state_reason else ""))
 
     def _fault(self, event: Event) -> None:
         """A fault event: the axis is halted. When the operator answers faults (`on_fault` "ask"),
@@ -291,7 +323,6 @@ class Dashboard(Observer):
         detail = event.message.split(": ", 2)[-1]
         text = (f"point {point + 1}: {describe_fault(str(event.data.get('error', '')), int(event.data.get('error_id', 0)), detail)}. "
                 "The axis is halted.")
-        self.state = "FAULT"
         self.say(text)
         if self.on_fault == "ask" and self.control.asks_operator:
             self.prompt = f"{text}\nPress r to retry the point, s to skip it (resume measures it later), a to abort."
@@ -304,4 +335,3 @@ class Dashboard(Observer):
         if event.kind == "skip":
             self.skipped.add(point)
             self._update_bars()
-        self.state = "RUNNING"

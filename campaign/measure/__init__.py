@@ -5,7 +5,15 @@ verification, the progress display. Code outside this room imports these names f
 from campaign.measure.capture import BeamLost, Captured, NotStable, capture_point
 from campaign.measure.deviation import point_deviation
 from campaign.measure.env_guard import EnvironmentGuard
-from campaign.measure.executor import CampaignStopped, Control, Executor, Observer, move_and_wait
+from campaign.measure.executor import (
+    FAULT_ANSWERS,
+    CampaignStopped,
+    Control,
+    Executor,
+    FaultAnswer,
+    Observer,
+    move_and_wait,
+)
 from campaign.measure.live import live_text
 from campaign.measure.progress import RichProgress
 from campaign.measure.replay import ReplayedPoint
@@ -35,10 +43,40 @@ from campaign.measure.verify import (
 )
 
 __all__ = [
-    "SUMMARY_KEYS", "BeamLost", "CampaignStopped", "Captured", "Control", "EnvironmentGuard",
-    "Executor", "MachineParts", "NotStable", "Observer", "Opened", "Opener", "Outcome", "ReplayedPoint",
-    "Resumption", "RichProgress", "baseline_points", "capture_point", "continue_campaign",
-    "correction_limits", "default_out_dir", "dry_run", "execute", "live_text", "move_and_wait",
-    "open_with_comp", "point_deviation", "prepare_resume", "replay_campaign", "resume_campaign",
-    "run_verification", "start_campaign", "table_fits", "write_report",
+    "FAULT_ANSWERS",
+    "SUMMARY_KEYS",
+    "BeamLost",
+    "CampaignStopped",
+    "Captured",
+    "Control",
+    "EnvironmentGuard",
+    "Executor",
+    "FaultAnswer",
+    "MachineParts",
+    "NotStable",
+    "Observer",
+    "Opened",
+    "Opener",
+    "Outcome",
+    "ReplayedPoint",
+    "Resumption",
+    "RichProgress",
+    "baseline_points",
+    "capture_point",
+    "continue_campaign",
+    "correction_limits",
+    "default_out_dir",
+    "dry_run",
+    "execute",
+    "live_text",
+    "move_and_wait",
+    "open_with_comp",
+    "point_deviation",
+    "prepare_resume",
+    "replay_campaign",
+    "resume_campaign",
+    "run_verification",
+    "start_campaign",
+    "table_fits",
+    "write_report",
 ]

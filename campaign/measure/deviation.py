@@ -12,7 +12,7 @@ from protocols.hardware import InstrumentError
 from protocols.units import DEVIATION_SCALE
 
 
-def corrections_um(spec: EnvironmentSpec, position: float, env: dict) -> tuple[float, float]:
+def corrections_um(spec: EnvironmentSpec, position: float, env: dict[str, float | None]) -> tuple[float, float]:
     """(air correction, material normalisation to 20 °C) in µm for a reading at `position` (mm),
     from the environment `env` (instrument values first, the spec's fixed values otherwise)."""
     air = material = 0.0
@@ -25,9 +25,10 @@ def corrections_um(spec: EnvironmentSpec, position: float, env: dict) -> tuple[f
         factor = air_correction_factor(t, p * 100.0, h, 1.0, spec.wavelength_nm, spec.co2_ppm)
         air = air_correction_um(position, factor)
     if spec.normalise_to_20c:
-        if env.get("material_temp_c") is None:
+        material_temp_c = env.get("material_temp_c")
+        if material_temp_c is None:
             raise InstrumentError("normalisation to 20 °C needs the material temperature")
-        material = thermal_normalisation_um(position, env["material_temp_c"], spec.expansion_ppm_per_k)
+        material = thermal_normalisation_um(position, material_temp_c, spec.expansion_ppm_per_k)
     return air, material
 
 

@@ -8,8 +8,13 @@ seconds of campaign time is reported once as stuck.
 
 from __future__ import annotations
 
+from typing import Literal
+
 PLAUSIBLE = {"air_temp_c": (10.0, 35.0), "air_pressure_hpa": (800.0, 1100.0), "humidity_pct": (5.0, 95.0),
              "material_temp_c": (10.0, 35.0)}
+
+
+EnvProblem = Literal["out_of_range", "stuck"]
 
 
 class EnvironmentGuard:
@@ -22,10 +27,11 @@ class EnvironmentGuard:
         self.reported_stuck: set[str] = set()
 
     def check(self, env: dict[str, float | None], t_s: float,
-              ) -> tuple[dict[str, float | None], list[tuple[str, str, str]]]:
+              ) -> tuple[dict[str, float | None], list[tuple[str, EnvProblem, str]]]:
         """(the environment to record, (field, problem, message) for each event to log; problem
         is out_of_range or stuck)."""
-        clean, messages = dict(env), []
+        clean = dict(env)
+        messages: list[tuple[str, EnvProblem, str]] = []
         for name, value in env.items():
             if value is None or name not in PLAUSIBLE:
                 continue

@@ -15,14 +15,34 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from dataclasses import replace
-from typing import Any
+from typing import Literal
 
 from campaign.config import Config
+from campaign.errors import InputError
 from campaign.measure.capture import BeamLost, Captured, NotStable, capture_point
 from campaign.measure.deviation import point_deviation
 from campaign.measure.env_guard import EnvironmentGuard
 from campaign.plan import Capture, Checkpoint, Move, Plan, Settle, Step, check_motion
-from campaign.record import Event, Recorder, RecordingError
+from campaign.record import (
+    TRANSITIONS,
+    BeamData,
+    DisplayData,
+    EnvironmentData,
+    Event,
+    EventData,
+    FaultData,
+    HaltData,
+    InterruptData,
+    Kind,
+    NoData,
+    PointData,
+    Recorder,
+    RecordingError,
+    RunState,
+    SerialData,
+    StartData,
+    StateData,
+)
 from campaign.specs import AxisSpec
 from protocols.hardware import Axis, AxisError, AxisStatus, Clock, Hardware, InstrumentError, Reading
 from protocols.units import DEVIATION_SCALE, deviation_label
@@ -72,23 +92,8 @@ class Observer:
     def emit(self, event: Event) -> None: ...
 
 
-RUN_STATES = ("idle", "moving", "settling", "capturing", "paused", "faulted", "stopped")
-"""The executor's run states, in `Executor.state`."""
-
-TRANSITIONS: dict[str, frozenset[str]] = {
-    "idle": frozenset({"moving", "stopped"}),
-    "moving": frozenset({"moving", "settling", "capturing", "faulted", "stopped", "idle"}),
-    "settling": frozenset({"capturing", "faulted", "stopped"}),
-    "capturing": frozenset({"moving", "paused", "faulted", "stopped", "idle"}),
-    "paused": frozenset({"moving", "idle", "stopped"}),
-    "faulted": frozenset({"moving", "idle", "stopped"}),
-    "stopped": frozenset(),
-}
-"""Where each run state may go: the one state machine of a run (a point is captured after a move,
-with a settle between when the plan has one; a pause and a fault hold between points; stopped is
-the end)."""
-
-FAULT_ANSWERS = ("retry", "skip", "abort")
+FaultAnswer = Literal["retry", "skip", "abort"]
+FAULT_ANSWERS: tuple[FaultAnswer, ...] = ("retry", "skip", "abort")
 
 
 class Control:
@@ -103,18 +108,18 @@ class Control:
         self._pause = threading.Event()
         self._abort = threading.Event()
         self._wake = threading.Event()
-        self._answers: queue.Queue[str] = queue.Queue()
+        self._answers: queue.Queue[FaultAnswer] = queue.Queue()
         self.asks_operator = asks_operator
         self.abort_reason = ""
 
-    def answer(self, decision: str) -> None:
+    def answer(self, decision: FaultAnswer) -> None:
         """The operator's answer to the fault the executor waits on: retry, skip or abort."""
         if decision not in FAULT_ANSWERS:
             raise ValueError(f"a fault is answered with {', '.join(FAULT_ANSWERS)}, not {decision!r}")
         self._answers.put(decision)
         self._wake.set()
 
-    def await_answer(self) -> str:
+    def await_answer(self) -> FaultAnswer:
         """Wait (real time) for the operator's answer; "abort" when an abort is requested meanwhile."""
         import queue
 
@@ -204,24 +209,43 @@ class Executor:
         self.target: float | None = None
         self.arrival_s = 0.0
         self.readings: list[Reading] = []
-        self.captured: Captured | None = None
         self.halted = False
-        self.state = "idle"
+        self.state = RunState.IDLE
+        self.stop_reason = ""
         self._display_failed = False
 
-    def _enter(self, state: str) -> None:
-        """Go to run state `state` (RUN_STATES); a transition the state machine does not have is a bug."""
-        if state != self.state and state not in TRANSITIONS[self.state]:
+    def _enter(self, state: RunState, reason: str = "") -> None:
+        """Go to run state `state` and publish the transition (a `state` event); staying in a state
+        publishes nothing. A transition the state machine (TRANSITIONS) does not have is a bug.
+        The event is recorded like any other (RecordingError propagates) except on the way to
+        `stopped`, which nothing may keep from being reached."""
+        if state == self.state:
+            return
+        if state not in TRANSITIONS[self.state]:
             raise RuntimeError(f"run state {self.state} cannot go to {state}")
-        self.state = state
+        previous, self.state = self.state, state
+        data = StateData(state=state, previous=previous, reason=reason)
+        message = f"{previous} -> {state}" + (f": {reason}" if reason else "")
+        if state is RunState.STOPPED:
+            self.stop_reason = reason
+            self._emit_safely("state", message, self.point_index, data)
+        else:
+            self.emit("state", message, self.point_index, data)
+
+    def stop(self, reason: str) -> None:
+        """End the run in `stopped` with `reason` (completed, or why not), once: every run ends
+        there, whatever stopped it. The session calls it when it closes the run."""
+        if self.state is not RunState.STOPPED:
+            self._enter(RunState.STOPPED, reason or "stopped")
 
     def now(self) -> float:
         """Seconds since campaign start."""
         return self.hw.clock.now() - self.t0
 
-    def emit(self, kind: str, message: str, point: int | None = None, **data: Any) -> None:
-        """Emit one fact now: recorded first (RecordingError propagates), then shown."""
-        self.publish(Event(self.now(), kind, message, point, data))
+    def emit(self, kind: Kind, message: str, point: int | None = None, data: EventData | None = None) -> None:
+        """Emit one fact now: recorded first (RecordingError propagates), then shown. `data`: the
+        kind's payload (campaign.record.PAYLOADS), none for the kinds without one."""
+        self.publish(Event(self.now(), kind, message, point, data if data is not None else NoData()))
 
     def publish(self, event: Event) -> None:
         """The one emitter of a run's events (the executor's own, and the session's resume and stop):
@@ -239,7 +263,7 @@ class Executor:
                     self._display_failed = True
                     try:
                         self.rec.emit(Event(self.now(), "display", f"a display failed: {type(exc).__name__}: "
-                                                                   f"{exc}", None, {"error": type(exc).__name__}))
+                                                                   f"{exc}", None, DisplayData(error=type(exc).__name__)))
                     except RecordingError:
                         pass
 
@@ -247,28 +271,39 @@ class Executor:
         """Measure the points `todo` (plan indices; an int n means n to the end) in plan order. On a
         fault the fault policy decides (`_decide`): retry the point, skip it, or abort
         (CampaignStopped, after halting). Ctrl-C or an abort request halts, flushes and re-raises
-        KeyboardInterrupt. The run state ends idle (done) or stopped."""
+        KeyboardInterrupt. The run state ends idle (done: the session then stops it, `stop`) or
+        stopped with the reason, however the run ended (a failed recovery, an unexpected error)."""
         total = len(self.plan.points)
         points = list(range(todo, total)) if isinstance(todo, int) else sorted(set(todo))
         self._show(lambda obs: obs.started(self.plan, points))
         todo = points
-        if todo:
-            self.emit("start", f"measuring {len(todo)} of {total} points, from point {todo[0] + 1}", todo[0],
-                      first_point=todo[0], points=len(todo), planned=total)
         try:
+            if todo:
+                self.emit("start", f"measuring {len(todo)} of {total} points, from point {todo[0] + 1}", todo[0],
+                          StartData(first_point=todo[0], points=len(todo), planned=total))
             while todo:
                 todo = self._run_points(todo)
-            self._enter("idle")
+            self._enter(RunState.IDLE, "every point to measure is done")
         except KeyboardInterrupt:
-            self._enter("stopped")
             by = self.control.abort_reason or "Ctrl-C"
-            self._emit_safely("interrupt", f"interrupted ({by}); recording flushed", self.next_point, by=by)
+            self._emit_safely("interrupt", f"interrupted ({by}); recording flushed", self.next_point,
+                              InterruptData(by=by))
             self._halt("interrupted")
+            self.stop(f"interrupted ({by})")
             raise
         except RecordingError as exc:  # an event between steps (retry, skip, pause) could not be written
-            self._enter("stopped")
             self._halt("recording failed")
+            self.stop(f"interrupted: recording failed: {exc}")
             raise CampaignStopped(f"recording failed: {exc}") from exc
+        except CampaignStopped as exc:  # an abort after a fault, a failed recovery, a recording error
+            self.stop(f"interrupted: {exc}")
+            raise
+        except InputError as exc:  # a motion refused before it was sent (SafetyError)
+            self.stop(f"interrupted: {exc}")
+            raise
+        except BaseException as exc:  # a bug, or an error no fault policy covers: stopped all the same
+            self.stop(f"failed: {type(exc).__name__}: {exc}")
+            raise
 
     def _run_points(self, todo: list[int]) -> list[int]:
         """Measure `todo`, one stretch of consecutive points at a time; returns the points still to
@@ -276,15 +311,16 @@ class Executor:
         total = len(self.plan.points)
         for first, last in stretches(todo):
             self.next_point = first
+            captured: Captured | None = None  # handed from a capture step to its checkpoint
             for index, step in stretch_steps(self.plan, first, last, self.overrun):
                 self.step_index = index
                 try:
-                    self._do(step)
+                    captured = self._do(step, captured)
                 except RecordingError as exc:
-                    self._enter("stopped")
                     self._emit_safely("fault", f"point {self.next_point + 1}: recording failed: {exc}",
-                                      self.next_point, error="RecordingError", error_id=0)
+                                      self.next_point, FaultData(error="RecordingError", error_id=0))
                     self._halt("recording failed")
+                    self.stop(f"interrupted: recording failed: {exc}")
                     raise CampaignStopped(f"recording failed: {exc}") from exc
                 except FAULTS as exc:
                     return self._after_fault(exc, todo, total)
@@ -296,22 +332,21 @@ class Executor:
     def _after_fault(self, exc: Exception, todo: list[int], total: int) -> list[int]:
         """Halt, let the operator (or the policy) decide, get the axis ready again; the points left."""
         point = self.next_point
-        self._enter("faulted")
+        self._enter(RunState.FAULTED, f"point {point + 1}: {type(exc).__name__}: {exc}")
         self._emit_safely("fault", f"point {point + 1}: {type(exc).__name__}: {exc}", point,
-                          error=type(exc).__name__, error_id=getattr(exc, "error_id", 0))
+                          FaultData(error=type(exc).__name__, error_id=getattr(exc, "error_id", 0)))
         self._halt("fault")
         decision = self._decide(exc, total)
         if decision == "abort":
-            self._enter("stopped")
             raise CampaignStopped(str(exc)) from exc
-        self._recover(exc)
+        self._recover(exc)  # CampaignStopped when the axis is not ready again: run() stops
         if decision == "skip":
             self.emit("skip", f"point {point + 1} skipped (resume measures it later)", point)
             return [p for p in todo if p > point]
         self.emit("retry", f"point {point + 1} measured again", point)
         return [p for p in todo if p >= point]
 
-    def _decide(self, exc: Exception, total: int) -> str:
+    def _decide(self, exc: Exception, total: int) -> FaultAnswer:
         """The one fault policy: the operator's answer through the control channel when it asks
         the operator, else the config's (`campaign.on_fault`): retry a point up to
         `campaign.fault_retries` times after an axis fault, a lost connection or beam loss (the one
@@ -367,7 +402,7 @@ class Executor:
     def _maybe_pause(self) -> None:
         """Between points: hold while the control asks for a pause; abort when it asks to."""
         if self.control.pause_requested() and not self.control.abort_requested():
-            self._enter("paused")
+            self._enter(RunState.PAUSED, "the operator asked for a pause")
             self.emit("pause", f"paused after point {self.next_point}: press r to resume, a to abort",
                       self.next_point - 1)
             while self.control.pause_requested() and not self.control.abort_requested():
@@ -377,35 +412,40 @@ class Executor:
         if self.control.abort_requested():
             raise KeyboardInterrupt
 
-    def _emit_safely(self, kind: str, message: str, point: int | None = None, **data: Any) -> None:
+    def _emit_safely(self, kind: Kind, message: str, point: int | None = None, data: EventData | None = None) -> None:
         """Emit while stopping: a disk error must not keep the axis from being halted (the event
         is still shown, marked as not recorded)."""
         try:
-            self.emit(kind, message, point, **data)
+            self.emit(kind, message, point, data)
         except RecordingError as exc:
-            event = Event(self.now(), kind, f"{message} (not recorded: {exc})", point, data)
+            event = Event(self.now(), kind, f"{message} (not recorded: {exc})", point,
+                          data if data is not None else NoData())
             self._show(lambda obs: obs.emit(event))
 
     def _halt(self, why: str) -> None:
         try:
             self.hw.axis.halt()
             self.halted = True
-            self._emit_safely("halt", f"axis halted ({why})", self.next_point, ok=True, why=why)
+            self._emit_safely("halt", f"axis halted ({why})", self.next_point, HaltData(ok=True, why=why))
         except AxisError as exc:
-            self._emit_safely("halt", f"halt failed ({why}): {exc}", self.next_point, ok=False, why=why)
+            self._emit_safely("halt", f"halt failed ({why}): {exc}", self.next_point, HaltData(ok=False, why=why))
 
-    def _do(self, step: Step) -> None:
+    def _do(self, step: Step, captured: Captured | None) -> Captured | None:
+        """Do one step. `captured`: what the last capture step returned; a capture step returns
+        its point, which the checkpoint after it records (and then consumes: None)."""
         if isinstance(step, Move):
-            self._enter("moving")
+            self._enter(RunState.MOVING, "" if step.overrun else f"to point {self.next_point + 1}")
             self._move(step)
-        elif isinstance(step, Settle):
-            self._enter("settling")
+            return None
+        if isinstance(step, Settle):
+            self._enter(RunState.SETTLING)
             self._wait(step.seconds)
-        elif isinstance(step, Capture):
-            self._enter("capturing")
-            self._capture(step)
-        elif isinstance(step, Checkpoint):
-            self._checkpoint(step)
+            return captured
+        if isinstance(step, Capture):
+            self._enter(RunState.CAPTURING)
+            return self._capture(step)
+        self._checkpoint(step, captured)
+        return None
 
     def _tick(self) -> None:
         """Let one sample period pass and record the readings that arrived."""
@@ -421,7 +461,7 @@ class Executor:
                 self.beam_ok = reading.signal_ok
                 signal = "" if reading.signal_pct is None else f" (signal {reading.signal_pct:g} %)"
                 self.emit("beam", ("beam back" if reading.signal_ok else "beam lost") + signal, self.point_index,
-                          ok=reading.signal_ok, signal_pct=reading.signal_pct)
+                          BeamData(ok=reading.signal_ok, signal_pct=reading.signal_pct))
 
     def _show_reading(self, t: float, reading: Reading) -> None:
         self._show(lambda obs: obs.reading(t, reading, self.target))
@@ -443,19 +483,19 @@ class Executor:
         self.arrival_s = self.now()
         self.readings = []
 
-    def _capture(self, step: Capture) -> None:
+    def _capture(self, step: Capture) -> Captured:
         """Capture the point as its step says; after beam loss wait for the beam and capture again,
         up to the spec's `retries` times."""
         self.point_index = step.point.index
         for attempt in range(step.spec.retries + 1):
             try:
-                self.captured = capture_point(step, self.scale, self._capture_ticks(), self.now() - self.arrival_s)
-                return
+                return capture_point(step, self.scale, self._capture_ticks(), self.now() - self.arrival_s)
             except BeamLost as exc:
                 if attempt == step.spec.retries:
                     raise
                 self.emit("capture_retry", f"point {step.point.index + 1}: {exc}; capture retried", step.point.index)
                 self._wait_for_beam(step.spec.stable_timeout_s)
+        raise AssertionError("unreachable: the last attempt returns or raises")
 
     def _capture_ticks(self) -> Iterator[tuple[float, list[Reading]]]:
         """The running campaign as capture ticks: (time since arrival s, the readings of the tick)."""
@@ -472,20 +512,20 @@ class Executor:
                 return
         raise BeamLost(f"beam not back within {timeout_s:g} s")
 
-    def _checkpoint(self, step: Checkpoint) -> None:
+    def _checkpoint(self, step: Checkpoint, captured: Captured | None) -> None:
         point, t = step.point, self.now()
-        if self.captured is None:
+        if captured is None:
             raise ValueError(f"plan step {self.step_index}: a checkpoint without a capture before it")
-        env, messages = self.env_guard.check(self.captured.env, t)
-        got = replace(self.captured, env=env)
+        env, messages = self.env_guard.check(captured.env, t)
+        got = replace(captured, env=env)
         for field, problem, message in messages:
-            self.emit("environment", f"point {point.index + 1}: {message}", point.index, field=field,
-                      problem=problem)
+            self.emit("environment", f"point {point.index + 1}: {message}", point.index,
+                      EnvironmentData(field=field, problem=problem))
         skipped = self.hw.interferometer.skipped_lines
         if skipped > self.skipped_seen:
             lines = skipped - self.skipped_seen
             self.emit("serial", f"{lines} garbage or partial serial line(s) skipped, not recorded", point.index,
-                      lines=lines)
+                      SerialData(lines=lines))
             self.skipped_seen = skipped
         deviation, air, material = point_deviation(self.environment, self.axis.unit, point.target, got)
         self.rec.point(point.run, point.direction, point.target, deviation, t, got.env,
@@ -497,4 +537,5 @@ class Executor:
         dev_unit = deviation_label(pos_unit)
         self.emit("point", f"point {point.index + 1}: run {point.run} {sign}, target {point.target:g} {pos_unit}: "
                            f"deviation {deviation:+.4f} {dev_unit}", point.index,
-                  run=point.run, direction=point.direction, target=point.target, deviation=round(deviation, 4))
+                  PointData(run=point.run, direction=point.direction, target=point.target,
+                            deviation=round(deviation, 4)))

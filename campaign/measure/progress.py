@@ -65,5 +65,5 @@ class RichProgress(Observer):
             self.done.add(event.point)
             self.progress.update(self.overall, completed=len(self.done))
             self.progress.update(self.run_task, description=f"run {run}/{self.runs}", completed=self._done_in(run))
-        elif event.kind not in ("start", "stop"):
+        elif event.kind not in ("start", "stop", "state"):  # the run states: the bars show the work
             self.console.print(f"[yellow]{event.kind}:[/] {event.message}")

@@ -87,7 +87,7 @@ def _capture(step: Capture, deviation_scale: float, rows: pd.DataFrame, capture_
     return capture_point(step, deviation_scale, _ticks(window, arrival), start_s)
 
 
-def replay(directory: str | Path, capture_overrides: dict | None = None, speed: float | None = None,
+def replay(directory: str | Path, capture_overrides: dict[str, Any] | None = None, speed: float | None = None,
            ) -> tuple[CaptureSpec, Plan, list[ReplayedPoint]]:
     """Replay `directory` from its recorded plan (each capture step's CaptureSpec), with the keys
     in `capture_overrides` replaced (validated as the [capture] table). Returns the capture spec of

@@ -11,7 +11,7 @@ import datetime as dt
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, Literal, Protocol, runtime_checkable
 
 from campaign.config import Config, config_with, recorded_sections
 from campaign.errors import CampaignInterrupted, InputError
@@ -24,24 +24,15 @@ from campaign.record import (
     Event,
     Recorder,
     RecordingError,
+    ResumeData,
+    StopData,
     last_raw_state,
     open_campaign,
     recorded_point_indices,
 )
+from campaign.specs import DriverSpec
 from protocols.hardware import Hardware, Reading
 from protocols.plc_contract import CompTable
-
-Opened = tuple[Hardware, Any]
-"""Open hardware and the simulated machine's parts (None on a real machine)."""
-
-Opener = Callable[..., Opened]
-"""opener(driver_spec, speed=None, model=None, start_position=None, start_time=0.0, comp=None,
-kept_dir=None) -> (Hardware, the machine's parts or None, see MachineParts). `speed`: N times real
-time (simulated machine); `model`: its error model (default: the spec's, or the one kept in
-`kept_dir`); `start_position` (axis unit) and `start_time` (s): where and when it starts; `comp`: a
-compensation table (CompTable) written into the controller before it returns; `kept_dir`: the
-campaign directory holding the files the machine kept there (a resume reopens the same machine)."""
-
 
 
 @runtime_checkable
@@ -53,6 +44,27 @@ class MachineParts(Protocol):
 
     def kept_files(self) -> dict[str, str]: ...
     def bind_recorder(self, inject_disk_full: Callable[[], None]) -> None: ...
+
+
+Opened = tuple[Hardware, MachineParts | None]
+"""Open hardware and the machine's parts (None on a real machine)."""
+
+
+class Opener(Protocol):
+    """What opens the machine a campaign runs on (`drivers.factory.open_hardware` on the command
+    line, `drivers.fake.FakeMachine` in the fast tests and `demo --fake`)."""
+
+    def __call__(self, spec: DriverSpec, speed: float | None = None, model: ErrorModel | None = None,
+                 start_position: float | None = None, start_time: float = 0.0, comp: CompTable | None = None,
+                 kept_dir: Path | None = None) -> Opened:
+        """Open the axis, the instrument and the clock `spec` names and return them with the
+        machine's parts (see MachineParts; None on a real machine). `speed`: N times real time
+        (simulated machine); `model`: its error model (default: the spec's, or the one kept in
+        `kept_dir`); `start_position` (axis unit) and `start_time` (s): where and when it starts;
+        `comp`: a compensation table written into the controller (read back, compared, enabled)
+        before it returns; `kept_dir`: the campaign directory holding the files the machine kept
+        there (a resume reopens the same machine)."""
+        ...
 
 
 
@@ -73,7 +85,7 @@ def default_out_dir(config: Config) -> Path:
     return Path("runs") / f"{config.campaign.machine}-{config.axis.name}-{stamp}"
 
 
-def campaign_meta(config: Config, plan: Plan) -> dict:
+def campaign_meta(config: Config, plan: Plan) -> dict[str, Any]:
     c, a = config.campaign, config.axis
     return {"machine": c.machine, "axis": a.name, "operator": c.operator, "kind": a.kind,
             "unit": a.unit, "plan_seed": plan.seed, "points_planned": len(plan.points),
@@ -85,7 +97,8 @@ def campaign_meta(config: Config, plan: Plan) -> dict:
 def execute(config: Config, plan: Plan, recorder: Recorder, todo: int | list[int], *, opener: Opener | None = None,
             speed: float | None = None, model: ErrorModel | None = None, observer: Observer | None = None,
             t_offset: float = 0.0, start: float | None = None,
-            on_open: Callable[[Hardware, Any, Executor], None] | None = None, control: Control | None = None,
+            on_open: Callable[[Hardware, MachineParts | None, Executor], None] | None = None,
+            control: Control | None = None,
             opened: Opened | None = None, announce: Event | None = None) -> Outcome:
     """Measure the points `todo` of `plan` (plan indices; an int n: from n to the end) into
     `recorder`, between a start and a stop record. Re-raises
@@ -99,12 +112,13 @@ def execute(config: Config, plan: Plan, recorder: Recorder, todo: int | list[int
     hardware, parts = opened
     executor = Executor(plan, config, hardware, recorder, [observer] if observer else [],
                         t0=hardware.clock.now() - t_offset, control=control)
-    if isinstance(parts, MachineParts):
+    if parts is not None:
         parts.bind_recorder(recorder.inject_disk_full)
         for name, text in parts.kept_files().items():
             if not (recorder.dir / name).exists():
                 (recorder.dir / name).write_text(text, encoding="utf-8")
-    status, message = "failed", "stopped by an unexpected error"
+    status: Literal["completed", "interrupted", "failed"] = "failed"
+    message = "stopped by an unexpected error"
     try:
         if on_open:
             on_open(hardware, parts, executor)
@@ -130,9 +144,10 @@ def execute(config: Config, plan: Plan, recorder: Recorder, todo: int | list[int
         duration = executor.now()
         for failure in hardware.close():
             message = f"{message}; closing: {failure}"
+        executor.stop(status if status == "completed" else f"{status}: {message}")  # no-op when it stopped itself
         try:
             executor.publish(Event(duration, "stop", f"campaign {status}" + (f": {message}" if message else ""),
-                                   None, {"status": status, "points": recorder.points_written}))
+                                   None, StopData(status=status, points=recorder.points_written)))
             recorder.stop(duration, status, message)
         except RecordingError as exc:  # e.g. the disk is full: no stop record, resume treats it as interrupted
             message = f"{message}; could not record the stop: {exc}"
@@ -143,7 +158,7 @@ def execute(config: Config, plan: Plan, recorder: Recorder, todo: int | list[int
     return Outcome(recorder.dir, status, recorder.points_written, len(plan.points), duration, message)
 
 
-def start_campaign(config: Config, out: str | Path | None = None, meta_extra: dict | None = None,
+def start_campaign(config: Config, out: str | Path | None = None, meta_extra: dict[str, Any] | None = None,
                    on_created: Callable[[Path], None] | None = None, **kwargs: Any) -> Outcome:
     """A new campaign from `config` into `out` (a new directory); `meta_extra` goes into meta.json.
     The other keywords go to `execute` (`opener` or `opened` is required)."""
@@ -202,7 +217,7 @@ class Resumption:
         self.recorder.close()
 
 
-def prepare_resume(directory: str | Path, faults: dict | None = None) -> Resumption:
+def prepare_resume(directory: str | Path, faults: dict[str, Any] | None = None) -> Resumption:
     """Read an interrupted campaign for `continue_campaign`: the recorded plan (see
     `CampaignDir.plan_for`), checked against the limits before anything is touched, and the points
     an earlier run left out: those skipped after a fault, and those after the last one recorded.
@@ -240,13 +255,13 @@ def continue_campaign(r: Resumption, **kwargs: Any) -> Outcome:
     text = f"resumed: {len(r.todo)} of {len(r.plan.points)} points to measure, from point {r.todo[0] + 1}"
     if r.again:
         text += f"; measured again after a skip: {', '.join(str(i + 1) for i in r.again)}"
-    resumed = Event(r.t_last, "resume", text, r.todo[0], {"first_point": r.todo[0], "points": len(r.todo),
-                                                          "skipped": r.again})
+    resumed = Event(r.t_last, "resume", text, r.todo[0],
+                    ResumeData(first_point=r.todo[0], points=len(r.todo), skipped=list(r.again)))
     return execute(r.config, r.plan, r.recorder, r.todo, t_offset=r.t_last, start=r.position, announce=resumed,
                    **kwargs)
 
 
-def resume_campaign(directory: str | Path, faults: dict | None = None, *, opener: Opener,
+def resume_campaign(directory: str | Path, faults: dict[str, Any] | None = None, *, opener: Opener,
                     speed: float | None = None, **kwargs: Any) -> Outcome:
     """`prepare_resume`, open the hardware, `continue_campaign`: the script way of resuming."""
     r = prepare_resume(directory, faults)
@@ -272,7 +287,7 @@ def analyse_dir(directory: str | Path) -> tuple[object, Evaluation]:
     return table, evaluate(table)
 
 
-def dry_run(config: Config, opener: Opener | None = None, ticks: int = 10, opened: Opened | None = None) -> dict:
+def dry_run(config: Config, opener: Opener | None = None, ticks: int = 10, opened: Opened | None = None) -> dict[str, Any]:
     """Talk to the controller read-only and walk the plan: nothing is commanded.
 
     Reads the axis status, checks every move of the plan against the limits, and reads `ticks`

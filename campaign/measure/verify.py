@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import json
 from pathlib import Path
+from typing import Any
 
 from campaign.compensation.grid import ControllerTable
 from campaign.config import Config
@@ -127,7 +128,7 @@ def direction_table(table: PointTable, ev: Evaluation, direction: int) -> list[s
     return lines
 
 
-def write_report(directory: Path, after: PointTable, before: PointTable | None) -> dict:
+def write_report(directory: Path, after: PointTable, before: PointTable | None) -> dict[str, Any]:
     """verification.md and verification.png in `directory`; returns the before/after summaries."""
     ev_after = evaluate(after)
     ev_before = evaluate(before) if before is not None else None

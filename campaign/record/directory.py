@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 from campaign.config import Config, config_from_sections, load_config, resume_conflicts
 from campaign.errors import InputError
 from campaign.plan import Plan, build_plan, plan_from_records, plan_header
+from campaign.record.events import check_record
 from campaign.specs import CaptureSpec
 
 if TYPE_CHECKING:
@@ -227,8 +228,15 @@ def open_campaign(directory: str | Path) -> CampaignDir:
 
 def read_events(directory: str | Path) -> list[dict[str, Any]]:
     """The events.jsonl records of a campaign directory, in order (see campaign/record/events.py);
-    none in a version-1 directory."""
-    return read_json_lines(Path(directory) / "events.jsonl")
+    none in a version-1 directory. Each is validated as it is read (its kind and that kind's
+    payload): InputError naming the line of one that is not an event."""
+    path = Path(directory) / "events.jsonl"
+    records = read_json_lines(path)
+    for number, record in enumerate(records, start=1):
+        problem = check_record(record)
+        if problem is not None:
+            raise InputError(f"{path}:{number}: not an axiscal event: {problem}")
+    return records
 
 
 def recorded_point_indices(directory: Path) -> list[int]:

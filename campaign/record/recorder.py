@@ -29,7 +29,7 @@ import json
 import os
 import platform
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
 
 from campaign import __version__
 from campaign.errors import InputError
@@ -75,7 +75,7 @@ def write_once(path: Path, text: str) -> None:
     _fsync_dir(path.parent)
 
 
-def json_lines(records: list[dict]) -> str:
+def json_lines(records: list[dict[str, Any]]) -> str:
     return "".join(json.dumps(r, allow_nan=False) + "\n" for r in records)
 
 
@@ -138,7 +138,7 @@ class Recorder:
     RecordingError when the disk refuses, which stops the campaign). Use `Recorder.create` for a
     new campaign and `Recorder.reopen` to append to an interrupted one."""
 
-    def __init__(self, directory: Path, meta: dict, kind: str, runs_fd: int):
+    def __init__(self, directory: Path, meta: dict[str, Any], kind: str, runs_fd: int):
         """`runs_fd`: runs.jsonl, open for appending and locked by lock_directory (closed by close())."""
         self.dir = directory
         self.meta = meta
@@ -165,8 +165,8 @@ class Recorder:
         return f
 
     @classmethod
-    def create(cls, directory: str | Path, config_text: str, sections: dict, plan_records: list[dict],
-               meta: dict, kind: str) -> Recorder:
+    def create(cls, directory: str | Path, config_text: str, sections: dict[str, Any], plan_records: list[dict[str, Any]],
+               meta: dict[str, Any], kind: str) -> Recorder:
         """A new campaign directory: config.toml (`config_text`), meta.json (`meta` with the format
         version, software, host, creation time and the config's `sections`) and plan.jsonl."""
         path = Path(directory)
@@ -263,13 +263,17 @@ class Recorder:
 
     def emit(self, event: Event) -> None:
         """Append one event to events.jsonl and events.log, both fsynced. RecordingError when the
-        disk refuses."""
+        disk refuses. A `state` event (a run-state transition, several per point) is written and
+        flushed to the system at once but fsynced with the next other event or at close: a crash
+        of the process loses none, a power cut at most the transitions since the last fsync."""
         stamp = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
+        durable = event.kind != "state"
         for f, text in ((self._events, json.dumps(event.record(stamp), allow_nan=False, ensure_ascii=False)), (self._log, event.line(stamp))):
             try:
                 f.write(text + "\n")
                 f.flush()
-                os.fsync(f.fileno())
+                if durable:
+                    os.fsync(f.fileno())
             except OSError as exc:
                 raise RecordingError(f"{f.name}: {exc.strerror or exc}") from exc
 
@@ -284,7 +288,7 @@ class Recorder:
         self._run_record({"record": "stop", "t_s": round(t_s, 3), "status": status, "message": message,
                           "points": self.points_written, "duration_s": round(t_s, 3)})
 
-    def _run_record(self, record: dict) -> None:
+    def _run_record(self, record: dict[str, Any]) -> None:
         record = {"utc": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"), **record}
         try:
             _write_all(self._runs_fd, (json.dumps(record, allow_nan=False) + "\n").encode())
