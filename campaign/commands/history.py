@@ -72,6 +72,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     ls.add_argument("--since", type=day, metavar="YYYY-MM-DD", help="measured on or after this day (UTC)")
     ls.add_argument("--until", type=day, metavar="YYYY-MM-DD", help="measured on or before this day (UTC)")
     ls.add_argument("--verdict", choices=VERDICTS)
+    ls.add_argument("--all", action="store_true",
+                    help="list the converted tables too (files read by axiscal convert: copies, not campaigns)")
     ls.set_defaults(func=run_list)
 
     t = actions.add_parser("trend", parents=[db], help="an axis's A, E, B, R over time, drift, jumps, crossing",
@@ -88,14 +90,18 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     c = actions.add_parser("compare", parents=[db], help="two campaigns' mean deviation curves and their difference",
                            description="Overlay the mean deviation per target of two campaigns (id, key, directory "
                                        "or label, as `history list` shows) and their difference with its U.")
-    c.add_argument("first", metavar="A")
-    c.add_argument("second", metavar="B")
+    c.add_argument("first", metavar="FIRST")
+    c.add_argument("second", metavar="SECOND")
     c.add_argument("--plot", metavar="OUT", help="write the comparison plot (.png or .svg)")
     c.set_defaults(func=run_compare)
 
     s = actions.add_parser("store", parents=[db], help="where the store is, what it holds, what waits",
                            description="Name the store (without its credentials), count what it holds and what "
-                                       "waits in the queue for it.")
+                                       "waits in the queue for it; --upgrade migrates a shared server store to this "
+                                       "axiscal's schema (an embedded SQLite file migrates itself).")
+    s.add_argument("--upgrade", action="store_true",
+                   help="bring the store to this axiscal's schema revision (older axiscal clients of a shared store "
+                        "then queue their campaigns until they are upgraded too)")
     s.set_defaults(func=run_store)
 
 
@@ -107,19 +113,29 @@ def day(text: str) -> dt.datetime:
         raise argparse.ArgumentTypeError(f"'{text}' is not a day YYYY-MM-DD") from None
 
 
-def open_for(args: argparse.Namespace) -> Store:
-    """The store the command names, migrated, with what waited in its queue recorded first."""
+def open_for(args: argparse.Namespace, create: bool = False, upgrade: bool = False) -> Store:
+    """The store the command names, with what waited in its queue recorded first. A command that
+    only reads (`create` False) never makes a store: none there is exit 2 "no store at ...",
+    unless campaigns wait in the queue for it (they were meant to go there). A SQLite store at an
+    older revision migrates itself; a server store only with `upgrade` (`history store --upgrade`)."""
     from campaign.history.location import store_url
+    from campaign.history.pending import waiting
     from campaign.history.recording import drain_queue
-    from campaign.history.store import StoreUnavailable, open_store
+    from campaign.history.store import NoStore, StoreUnavailable, open_store
 
     url = store_url(args.db)
     if url is None:
         raise InputError("--db/AXISCAL_DB: the store is turned off (none): name a store")
     try:
-        store = open_store(url)
+        store = open_store(url, create=create or waiting(url) > 0, upgrade=upgrade)
+    except NoStore as exc:
+        raise InputError(f"{exc}; nothing is recorded there yet (axiscal history import DIR makes it)") from None
+    except StoreUnavailable as exc:
+        raise InputError(f"history store unreachable: {exc}") from None
+    try:
         drained, problems = drain_queue(store)
     except StoreUnavailable as exc:
+        store.close()
         raise InputError(f"history store unreachable: {exc}") from None
     if drained and not args.json:
         print(f"history: {drained} campaign(s) waiting in the queue recorded first", file=sys.stderr)
@@ -158,7 +174,7 @@ def run_import(args: argparse.Namespace) -> int:
     paths = campaign_dirs(args.paths)
     counts = {"added": 0, "updated": 0, "unchanged": 0}
     failed: list[dict[str, str]] = []
-    store = open_for(args)
+    store = open_for(args, create=True)
     console = make_console(stderr=True)
     try:
         with Progress(TextColumn("importing"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
@@ -198,31 +214,48 @@ def run_list(args: argparse.Namespace) -> int:
 
     with open_for(args) as store:
         until = args.until + dt.timedelta(days=1) if args.until else None
-        rows = store.campaigns(args.machine, args.axis, args.since, until, args.verdict)
+        everything = store.campaigns(args.machine, args.axis, args.since, until, args.verdict)
+    rows = everything if args.all else [r for r in everything if r["source"] != "converted"]
+    hidden = len(everything) - len(rows)
     if args.json:
-        print_json({"store": store.display, "campaigns": [_listed(r) for r in rows]})
+        print_json({"store": store.display, "campaigns": [_listed(r) for r in rows], "converted_not_listed": hidden})
         return 0
     console = make_console()
-    table = Table(title=f"{len(rows)} campaign(s) in {store.display}")
-    heads = ["id", "date", "machine", "axis", "command", "status", "points", "A ± U", "verdict", "where"]
-    if console.width < WIDE_LIST:  # a narrow terminal: what identifies a campaign, its state and result (--json: all)
-        heads = ["id", "date", "machine", "axis", "status", "A ± U", "verdict"]
+    heads = list_columns(console.width)
+    table = Table(title=f"{len(rows)} campaign(s) in {store.display}", title_justify="left")
     for head in heads:
-        # what identifies a campaign stays on one line; the path folds
-        table.add_column(head, justify="right" if head in ("id", "points", "A ± U") else "left",
-                         overflow="fold", no_wrap=head in ("id", "date", "A ± U"), ratio=2 if head == "where" else None)
+        # one line a campaign: a long name or path is cut with an ellipsis, never broken letter by letter
+        table.add_column(head, justify="right" if head in ("id", "points", "A ± U") else "left", no_wrap=True,
+                         overflow="ellipsis", min_width=MIN_WIDTH.get(head), ratio=RATIO.get(head))
     for r in rows:
         a, u = r["results"].get(("A", "both"), (None, None))
-        cells = {"id": str(r["id"]), "date": _date(r["measured_utc"]), "machine": r["machine"], "axis": r["axis"],
-                 "command": r["command"], "status": r["status"], "points": str(r["points"]), "A ± U": _fmt(a, u),
-                 "verdict": r["verdict"], "where": _shown_path(r["location"])}
+        cells = {"id": str(r["id"]), "date": _date(r["measured_utc"]), "day": _date(r["measured_utc"])[:10],
+                 "machine": r["machine"], "axis": r["axis"], "purpose": _purpose_shown(r), "command": r["command"],
+                 "status": r["status"], "points": str(r["points"]), "A ± U": _fmt(a, u), "verdict": r["verdict"],
+                 "where": _shown_path(r["location"])}
         table.add_row(*(cells[head] for head in heads))
     console.print(table)
+    if hidden:
+        console.print(f"{hidden} converted table(s) (axiscal convert) not listed: --all lists them", markup=False)
     return 0
 
 
-WIDE_LIST = 110
-"""Columns below which `history list` shows id, date, machine, axis, status, A ± U and verdict only."""
+LIST_LAYOUTS = ((120, ("id", "date", "machine", "axis", "purpose", "command", "status", "points", "A ± U", "verdict",
+                       "where")),
+                (90, ("id", "day", "machine", "axis", "purpose", "status", "A ± U", "verdict", "where")),
+                (70, ("id", "day", "machine", "axis", "purpose", "A ± U", "verdict")),
+                (0, ("id", "day", "machine", "axis", "A ± U", "verdict")))
+"""`history list`'s columns by the terminal's width (at least that many columns); --json gives all."""
+MIN_WIDTH = {"id": 2, "day": 10, "date": 16, "A ± U": 11, "machine": 6, "axis": 4, "verdict": 8, "purpose": 7}
+RATIO = {"machine": 2, "where": 3}
+
+
+def list_columns(width: int) -> tuple[str, ...]:
+    return next(heads for at_least, heads in LIST_LAYOUTS if width >= at_least)
+
+
+def _purpose_shown(r: dict[str, Any]) -> str:
+    return "converted" if r["source"] == "converted" else str(r.get("purpose") or "acceptance")
 
 
 def _shown_path(location: str) -> str:
@@ -242,7 +275,7 @@ def _date(when: dt.datetime | None) -> str:
 
 
 def _listed(r: dict[str, Any]) -> dict[str, Any]:
-    out = {k: v for k, v in r.items() if k not in ("results", "uncertainty", "checks", "state")}
+    out = {k: v for k, v in r.items() if k not in ("results", "uncertainty", "checks", "state", "recheck")}
     out["measured_utc"] = None if r["measured_utc"] is None else r["measured_utc"].isoformat()
     out["recorded_utc"] = r["recorded_utc"].isoformat()
     out["results"] = {f"{p}" + ("" if d == "both" else f"_{d}"): {"value": v, "U": u}
@@ -304,6 +337,8 @@ def print_trend(trend: Any) -> None:
     console.print("drift per year (weighted fit, 95 %):", markup=False)
     for fit in trend.fits.values():
         console.print(f"  {fit.sentence(unit)}", markup=False)
+    for sentence in trend.step_sentences():
+        console.print(sentence, markup=False)
     for jump in trend.jumps:
         console.print(f"jump: {jump.sentence(unit)}", markup=False)
     if not trend.jumps:
@@ -343,8 +378,9 @@ def run_compare(args: argparse.Namespace) -> int:
         print_json(result.as_json())
         return 0
     unit = unit_label(result.unit)
-    table = Table(title=f"B = {second['label']} − A = {first['label']} ({unit}, U with k = 2)")
-    for head in (f"target ({result.position_unit})", "mean A", "mean B", "B − A", "U", "beyond U"):
+    table = Table(title=f"first: {first['label']} (id {first['id']}), second: {second['label']} (id {second['id']}); "
+                        f"mean deviation, {unit}, U with k = 2")
+    for head in (f"target ({result.position_unit})", "first", "second", "second − first", "U", "beyond U"):
         table.add_column(head, justify="right")
     for r in result.rows:
         beyond = "" if r["U"] is None else ("yes" if abs(r["difference"]) > r["U"] else "no")
@@ -365,16 +401,37 @@ def run_store(args: argparse.Namespace) -> int:
     from campaign.history.pending import queue_path, waiting
     from campaign.views import print_json
 
-    with open_for(args) as store:
-        counts = store.counts()
     url = store_url(args.db) or ""
-    result = {"store": store.display, **counts, "waiting": waiting(url), "queue": str(queue_path())}
+    before = _revision_of(url) if args.upgrade else None
+    with open_for(args, create=args.upgrade, upgrade=args.upgrade) as store:
+        counts = store.counts()
+        revision = store.revision
+    result = {"store": store.display, "place": store.place, "revision": revision, **counts, "waiting": waiting(url),
+              "queue": str(queue_path())}
+    if args.upgrade:
+        result["upgraded_from"] = before
     if args.json:
         print_json(result)
     else:
-        print(f"{store.display}: {counts['campaigns']} campaigns ({counts['points']} points), "
+        if args.upgrade:
+            print(f"{store.display}: schema revision {revision}" + (
+                f" (was {before})" if before and before != revision else " (already)" if before else " (made)"))
+        print(f"{store.display} ({store.place}): {counts['campaigns']} campaigns ({counts['points']} points), "
               f"{counts['comp_tables']} compensation tables; {result['waiting']} waiting in {result['queue']}")
     return 0
+
+
+def _revision_of(url: str) -> str | None:
+    """The store's schema revision as it is, before an upgrade (None: no store, or unreachable)."""
+    from campaign.history.store import Store, StoreUnavailable
+
+    if url.startswith("sqlite") and not Path(url.removeprefix("sqlite:///")).is_file():
+        return None
+    try:
+        with Store(url, migrate=False, create=False) as store:
+            return store.revision
+    except (StoreUnavailable, Exception):  # noqa: BLE001 - said by open_for right after
+        return None
 
 
 def demo_history(args: argparse.Namespace) -> int:

@@ -5,15 +5,25 @@ Each parameter (A, E, B, R) is a series of campaigns, each with its value y_i an
 uncertainty U_i (k = 2, the campaign's own budget: campaign/uncertainty.py).
 
 **Change points.** Between two consecutive campaigns the parameter jumped when the change, less
-the drift the fit expects over the interval, is larger than the combined expanded uncertainty of
-the two, √(U_i² + U_j²). The detection and the fit are iterated until they agree (at most five
-rounds): a jump found becomes a step in the fit, which then says what drift to expect.
+the drift the fit expects over the interval, is larger than the smaller of the combined expanded
+uncertainty of the two, √(U_i² + U_j²), and three times their combined uncertainty between
+re-checks, 3·√(u_i² + u_j²) (scaled by the fit's Birge ratio when the campaigns scatter more than
+their u say). The budget's U holds terms common to the two campaigns (the instrument, the air),
+which do not make a change between them; with the u of campaign/history/recheck.py, a reversal
+jump of 2 µm is found where √(U_i² + U_j²) missed it and the jump went into A's drift. Three u
+rather than two: an axis's history has some 40 intervals over its four parameters, and at 2u one
+of them would jump by chance in most histories. The detection and the fit are iterated until they
+agree (at most five rounds): a jump found becomes a step in the fit, which then says what drift to
+expect. A change point's U is the threshold it passed.
 
 **Drift rate.** A weighted least-squares line over time, y = a + r·t + Σ c_j·[t ≥ t_j] (one step
-c_j per change point of the parameter itself, and for A and E, which contain the reversal, per
-change point of B too), with weights 1/u_i², u_i the campaign's random standard uncertainty (its
-budget's statistics and resolution terms, `Observation.u_random`) when known, else U_i/2: a
-campaign with a larger u_i counts less.
+c_j per change point of the parameter itself, for A, E and R, which contain the reversal, per
+change point of B too, and per known step: a campaign that verified a compensation, which changes
+every parameter by an amount the fit estimates), with weights 1/u_i², u_i the campaign's
+uncertainty between re-checks (`Observation.u_random`: how much the parameter would scatter if
+the unchanged axis were measured again, from the campaign's own points,
+campaign/history/recheck.py; for a campaign recorded without it, its budget's statistics and
+resolution terms), else U_i/2: a campaign with a larger u_i counts less.
 The rate's standard uncertainty comes from the fit's covariance (the weights' u_i) scaled by
 max(1, χ²/ν) (ν = n − p; χ²/ν is the Birge ratio squared): when the campaigns scatter about the
 line more than their u_i say, the scatter sets the scale (a type A evaluation), and the coverage
@@ -49,6 +59,9 @@ YEAR_S = 365.25 * 86400.0
 HORIZON_YEARS = 50.0
 """How far ahead a crossing is looked for, years."""
 MAX_ROUNDS = 5
+JUMP_SIGMAS = 3.0
+"""A change between consecutive campaigns beyond this many of their combined uncertainties
+between re-checks (scaled by the fit's Birge ratio when above 1) is a jump."""
 
 
 @dataclass(frozen=True)
@@ -204,8 +217,10 @@ def _step_indices(obs: list[Observation], after: list[dt.datetime]) -> list[int]
     return sorted(found)
 
 
-def detect(parameter: str, observations: list[Observation]) -> list[ChangePoint]:
-    """The jumps of one parameter between consecutive campaigns (see the module's docstring)."""
+def detect(parameter: str, observations: list[Observation], known: list[dt.datetime] | None = None) -> list[ChangePoint]:
+    """The jumps of one parameter between consecutive campaigns (see the module's docstring).
+    `known`: dates of known steps (a compensation verified): the change into the campaign of that
+    date is a step of the fit, never reported as a jump."""
     obs = sorted(observations, key=lambda o: o.when)
     n = len(obs)
     if n < 2:
@@ -214,13 +229,18 @@ def detect(parameter: str, observations: list[Observation]) -> list[ChangePoint]
     u = np.array([o.weight_u for o in obs])
     dt_years, jumps = np.diff(t), np.diff(y)
     combined = np.sqrt(np.array([o.U for o in obs[:-1]]) ** 2 + np.array([o.U for o in obs[1:]]) ** 2)
-    rate = 0.0
+    between = np.sqrt(u[:-1] ** 2 + u[1:] ** 2)
+    fixed = _step_indices(obs, known or [])
+    rate, scale = 0.0, 1.0
     steps: list[int] = []
     for _ in range(MAX_ROUNDS):
-        found = [i + 1 for i in range(n - 1) if abs(jumps[i] - rate * dt_years[i]) > combined[i]]
-        solved = _solve(t, y, u, found) if n - 2 - len(found) >= 1 else None
+        threshold = np.minimum(combined, JUMP_SIGMAS * scale * between)
+        found = [i + 1 for i in range(n - 1) if i + 1 not in fixed and abs(jumps[i] - rate * dt_years[i]) > threshold[i]]
+        in_fit = sorted(set(found) | set(fixed))
+        solved = _solve(t, y, u, in_fit) if n - 2 - len(in_fit) >= 1 else None
         if solved is not None:
             rate = float(solved[0][1])
+            scale = max(1.0, math.sqrt(solved[2] / solved[3]))
         if found == steps:
             break
         steps = found
@@ -228,13 +248,15 @@ def detect(parameter: str, observations: list[Observation]) -> list[ChangePoint]
                         float(jumps[i - 1] - rate * dt_years[i - 1])) for i in steps]
 
 
-def fit(parameter: str, observations: list[Observation], jumps: list[ChangePoint] | None = None) -> Fit:
+def fit(parameter: str, observations: list[Observation], jumps: list[ChangePoint] | None = None,
+        known: list[dt.datetime] | None = None) -> Fit:
     """The drift of one parameter over its campaigns, with a step at each change point in `jumps`
-    (its own, or a jump of a parameter it contains: a reversal jump moves A and E)."""
+    (its own, or a jump of a parameter it contains: a reversal jump moves A and E) and at each
+    known step (`known`: the dates of the campaigns that verified a compensation)."""
     obs = sorted(observations, key=lambda o: o.when)
     result = Fit(parameter, obs)
     n = len(obs)
-    steps = _step_indices(obs, [j.after.when for j in (jumps or [])])
+    steps = _step_indices(obs, [j.after.when for j in (jumps or [])] + list(known or []))
     result.step_at = steps
     if n - 2 - len(steps) < 1:
         need = 3 + len(steps)
@@ -268,12 +290,15 @@ STEPS_FROM = {"A": ("A", "B"), "E": ("E", "B"), "R": ("R", "B")}
 reversal: R_i of ISO 230-2 holds |B_i|) a reversal jump too; a jump of R does not move A's line."""
 
 
-def analyse(series: dict[str, list[Observation]]) -> tuple[dict[str, Fit], list[ChangePoint]]:
+def analyse(series: dict[str, list[Observation]],
+            known: list[dt.datetime] | None = None) -> tuple[dict[str, Fit], list[ChangePoint]]:
     """Every parameter's change points, then its drift with a step at its own jumps (and, for A,
-    E and R, at the reversal's: STEPS_FROM)."""
-    jumps = [j for parameter, obs in series.items() for j in detect(parameter, obs)]
+    E and R, at the reversal's: STEPS_FROM) and at every known step (`known`: the dates of the
+    campaigns that verified a compensation, which changes every parameter)."""
+    jumps = [j for parameter, obs in series.items() for j in detect(parameter, obs, known)]
     jumps.sort(key=lambda j: (j.after.when, j.parameter))
-    fits = {parameter: fit(parameter, obs, [j for j in jumps if j.parameter in STEPS_FROM.get(parameter, (parameter,))])
+    fits = {parameter: fit(parameter, obs, [j for j in jumps if j.parameter in STEPS_FROM.get(parameter, (parameter,))],
+                           known)
             for parameter, obs in series.items()}
     return fits, jumps
 

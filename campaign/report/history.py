@@ -1,7 +1,8 @@
 """The report's history section: when the campaign store (campaign/history/) holds other
 campaigns of the same machine and axis, the trend plot, the drift, the jumps, the crossing date
 and the last campaigns. Nothing when the store is turned off or holds no other campaign; one
-sentence (the store named without its credentials) when it cannot be reached. The report never
+sentence when it cannot be reached. The store is named by its short label (its file name, or host
+and database), never by a URL. The report never
 creates or migrates a store (store.open_reader): an embedded store file that does not exist, or a
 database without the store's tables, is no store."""
 
@@ -22,7 +23,7 @@ LAST = 10
 def _store_rows(machine: str, axis: str) -> tuple[list[dict[str, Any]], str] | None:
     """(the axis's rows, the store's name), or None without a store; RuntimeError with a sentence
     when the store cannot be reached."""
-    from campaign.history.location import display_url, store_url
+    from campaign.history.location import store_label, store_url
     from campaign.history.store import StoreUnavailable, open_reader
 
     url = store_url(None)
@@ -37,7 +38,7 @@ def _store_rows(machine: str, axis: str) -> tuple[list[dict[str, Any]], str] | N
     except StoreUnavailable as exc:
         raise RuntimeError(f"The history store could not be used ({exc}); the axis's history is not shown.") from None
     except Exception as exc:  # noqa: BLE001 - the report is made whatever the store says
-        raise RuntimeError(f"The history store {display_url(url)} could not be read ({type(exc).__name__}); "
+        raise RuntimeError(f"The history store {store_label(url)} could not be read ({type(exc).__name__}); "
                            "the axis's history is not shown.") from None
 
 
@@ -65,7 +66,7 @@ def history_section(machine: str, axis: str) -> str:
     image = "data:image/png;base64," + base64.b64encode(buffer.getvalue()).decode("ascii")
     unit = unit_label(trend.unit)
     sentences = [f.sentence(unit) for f in trend.fits.values()]
-    sentences += [j.sentence(unit) for j in trend.jumps]
+    sentences += trend.step_sentences() + [j.sentence(unit) for j in trend.jumps]
     if trend.crossing is not None:
         sentences.append(trend.crossing.sentence(unit))
     items = "".join(f"<li>{escape(s)}</li>" for s in sentences)
