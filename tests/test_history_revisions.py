@@ -107,7 +107,7 @@ def test_reading_a_missing_store_makes_nothing(cli, tmp_path, monkeypatch):
     made (it said '0 campaign(s)' and made both before)."""
     monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "xdg"))
     missing = tmp_path / "mistyped" / "dir" / "h.sqlite"
-    for action in (("list",), ("trend", "m", "X"), ("compare", "1", "2"), ("store",)):
+    for action in (("list",), ("trend", "m", "X"), ("compare", "1", "2"), ("store",), ("plant",)):
         result = cli("history", *action, "--db", missing)
         assert_one_line_error(result, f"no store at {missing}")
     assert not (tmp_path / "mistyped").exists()
@@ -186,3 +186,76 @@ def test_the_migration_fills_in_what_earlier_campaigns_lack(tmp_path):
         row = store.campaigns()[0]
     assert row["purpose"] == "verification"
     assert row["recheck"] == pytest.approx(entry.recheck, rel=1e-9)
+
+
+SMALL_RUN = """
+[campaign]
+machine = "sim-run"
+tolerance = 10.0
+{purpose}
+
+[axis]
+name = "X"
+soft_limit_min = -10.0
+soft_limit_max = 110.0
+max_velocity = 50.0
+max_acceleration = 200.0
+
+[plan]
+length = 100.0
+count = 4
+overrun = 2.0
+cycles = 2
+dwell_s = 1.0
+velocity = 20.0
+
+[axis_driver]
+type = "sim"
+
+[instrument]
+type = "sim"
+
+[capture]
+average_s = 0.5
+retries = 0
+
+[sim]
+seed = {seed}
+
+[sim.effects.linear_scale]
+ppm = -12.4
+
+[sim.effects.noise]
+sigma_um = 0.3
+reading_sigma_um = 0.05
+"""
+
+
+@pytest.mark.machine
+def test_run_with_a_newer_store_and_a_follow_up(cli, tmp_path, monkeypatch):
+    """Done-when of issue 30 with `axiscal run` on the simulated machine: the store at a newer
+    revision, the campaign completes with exit 0 and waits in the queue; a follow-up (the purpose
+    `discover --follow-up` writes) prints no PASS/FAIL and is absent from `history trend`."""
+    store = str(tmp_path / "store.sqlite")
+    monkeypatch.setenv("AXISCAL_DB", store)
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "xdg"))
+    config = tmp_path / "c.toml"
+    config.write_text(SMALL_RUN.format(purpose="", seed=1))
+    first = cli("run", config, "--out", tmp_path / "first")
+    assert first.code == 0, first.err
+    set_revision(store, "r9999")
+    config.write_text(SMALL_RUN.format(purpose="", seed=2))  # new noise: another measurement
+    second = cli("run", config, "--out", tmp_path / "second")
+    assert second.code == 0, second.err
+    told = [line for line in second.err.splitlines() if line.startswith("history:")]
+    assert len(told) == 1 and "newer than this axiscal" in told[0] and "queued" in told[0], second.err
+    assert json.loads(cli("history", "store", "--db", tmp_path / "other.sqlite", "--upgrade", "--json").out)
+    set_revision(store, _head())
+    follow = tmp_path / "follow.toml"
+    follow.write_text(SMALL_RUN.format(purpose=f'purpose = "follow-up"\nfollows = "{tmp_path / "first"}"', seed=3))
+    third = cli("run", follow, "--out", tmp_path / "third")
+    assert third.code == 0, third.err
+    assert "PASS" not in third.out and "FAIL" not in third.out and "not an acceptance test" in third.out, third.out
+    trend = json.loads(cli("history", "trend", "sim-run", "X", "--json").out)
+    assert [c["label"] for c in trend["campaigns"]] == ["first", "second"], (third.err[-600:], [r["reason"][:90] for r in trend["left_out"]])  # the queued one recorded first
+    assert [r["label"] for r in trend["left_out"]] == ["third"] and "a follow-up of" in trend["left_out"][0]["reason"]

@@ -95,6 +95,20 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     c.add_argument("--plot", metavar="OUT", help="write the comparison plot (.png or .svg)")
     c.set_defaults(func=run_compare)
 
+    g = actions.add_parser("plant", parents=[db], help="every axis at a glance: last A, drift, crossing, next re-check due",
+                           description="One row per machine and axis, most urgent first: the last campaign's A ± U "
+                                       "and verdict, the drift of A per year, when A + U is predicted to reach the "
+                                       "tolerance, and when the next re-check is due (the earliest predicted "
+                                       "crossing at 95 %% less --margin, at most --max-interval after the last "
+                                       "campaign).")
+    g.add_argument("--machine", help="only this machine's axes")
+    g.add_argument("--html", metavar="FILE", help="also write the plant as an HTML page, a small trend plot per axis")
+    g.add_argument("--max-interval", type=positive_int, default=None, metavar="DAYS",
+                   help="the longest interval between two re-checks of an axis, days (default 365)")
+    g.add_argument("--margin", type=non_negative_int, default=None, metavar="DAYS",
+                   help="how long before the earliest predicted crossing a re-check is due, days (default 30)")
+    g.set_defaults(func=run_plant)
+
     s = actions.add_parser("store", parents=[db], help="where the store is, what it holds, what waits",
                            description="Name the store (without its credentials), count what it holds and what "
                                        "waits in the queue for it; --upgrade migrates a shared server store to this "
@@ -103,6 +117,28 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="bring the store to this axiscal's schema revision (older axiscal clients of a shared store "
                         "then queue their campaigns until they are upgraded too)")
     s.set_defaults(func=run_store)
+
+
+def positive_int(text: str) -> int:
+    """argparse type: a whole number above 0."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"{value} is not above 0")
+    return value
+
+
+def non_negative_int(text: str) -> int:
+    """argparse type: a whole number, 0 or more."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{value} is below 0")
+    return value
 
 
 def day(text: str) -> dt.datetime:
@@ -221,37 +257,77 @@ def run_list(args: argparse.Namespace) -> int:
         print_json({"store": store.display, "campaigns": [_listed(r) for r in rows], "converted_not_listed": hidden})
         return 0
     console = make_console()
-    heads = list_columns(console.width)
-    table = Table(title=f"{len(rows)} campaign(s) in {store.display}", title_justify="left")
-    for head in heads:
-        # one line a campaign: a long name or path is cut with an ellipsis, never broken letter by letter
-        table.add_column(head, justify="right" if head in ("id", "points", "A ± U") else "left", no_wrap=True,
-                         overflow="ellipsis", min_width=MIN_WIDTH.get(head), ratio=RATIO.get(head))
+    cells = []
     for r in rows:
         a, u = r["results"].get(("A", "both"), (None, None))
-        cells = {"id": str(r["id"]), "date": _date(r["measured_utc"]), "day": _date(r["measured_utc"])[:10],
-                 "machine": r["machine"], "axis": r["axis"], "purpose": _purpose_shown(r), "command": r["command"],
-                 "status": r["status"], "points": str(r["points"]), "A ± U": _fmt(a, u), "verdict": r["verdict"],
-                 "where": _shown_path(r["location"])}
-        table.add_row(*(cells[head] for head in heads))
+        cells.append({"id": str(r["id"]), "date": _date(r["measured_utc"]), "day": _date(r["measured_utc"])[:10],
+                      "machine": r["machine"], "axis": r["axis"], "purpose": _purpose_shown(r), "command": r["command"],
+                      "status": r["status"], "points": str(r["points"]), "A ± U": _fmt(a, u), "verdict": r["verdict"],
+                      "where": _shown_path(r["location"])})
+    widths = list_widths(console.width, cells)
+    table = Table(title=f"{len(rows)} campaign(s) in {store.display}", title_justify="left")
+    for head, width in widths.items():
+        # one line a campaign: a long name or path is cut with an ellipsis, never broken letter by letter
+        table.add_column(head, justify="right" if head in ("id", "points", "A ± U") else "left", no_wrap=True,
+                         overflow="ellipsis", width=width)
+    for row in cells:
+        table.add_row(*(row[head] for head in widths))
     console.print(table)
     if hidden:
         console.print(f"{hidden} converted table(s) (axiscal convert) not listed: --all lists them", markup=False)
     return 0
 
 
-LIST_LAYOUTS = ((120, ("id", "date", "machine", "axis", "purpose", "command", "status", "points", "A ± U", "verdict",
-                       "where")),
-                (90, ("id", "day", "machine", "axis", "purpose", "status", "A ± U", "verdict", "where")),
-                (70, ("id", "day", "machine", "axis", "purpose", "A ± U", "verdict")),
-                (0, ("id", "day", "machine", "axis", "A ± U", "verdict")))
-"""`history list`'s columns by the terminal's width (at least that many columns); --json gives all."""
-MIN_WIDTH = {"id": 2, "day": 10, "date": 16, "A ± U": 11, "machine": 6, "axis": 4, "verdict": 8, "purpose": 7}
-RATIO = {"machine": 2, "where": 3}
+LIST_COLUMNS = ("id", "date", "day", "machine", "axis", "purpose", "command", "status", "points", "A ± U", "verdict",
+                "where")
+"""`history list`'s columns, in their order (date or day: one of them)."""
+FLEXIBLE = {"machine": 7, "where": 16}
+"""Columns that take what is left (each cut with an ellipsis), with the width each needs to be shown."""
+DROPPED_FIRST = ("command", "points", "status", "where", "date", "purpose")
+"""Which columns give way first when the terminal is narrow (date gives way to day)."""
 
 
-def list_columns(width: int) -> tuple[str, ...]:
-    return next(heads for at_least, heads in LIST_LAYOUTS if width >= at_least)
+def list_widths(width: int, cells: list[dict[str, str]]) -> dict[str, int]:
+    """The columns `history list` shows in `width` terminal columns, with their widths (see
+    fit_columns; date gives way to day). --json gives all."""
+    columns = [h for h in LIST_COLUMNS if h != "day"]
+    return fit_columns(width, cells, columns, FLEXIBLE, DROPPED_FIRST, {"date": "day"},
+                       ("id", "day", "machine", "axis", "A ± U", "verdict"))
+
+
+def fit_columns(width: int, cells: list[dict[str, str]], columns: list[str], flexible: dict[str, int],
+                dropped_first: tuple[str, ...], instead: dict[str, str], narrowest: tuple[str, ...]) -> dict[str, int]:
+    """Which columns of a table fit in `width` terminal columns, with their widths: every column
+    as wide as its widest cell but the `flexible` ones ({column: the width it needs to be shown}),
+    which share what is left (their cells cut with an ellipsis); columns are dropped in the order
+    `dropped_first` (or replaced by a shorter one: `instead`) until the table fits; at the last,
+    the `narrowest` columns, the first flexible one taking what is left."""
+    def need(head: str) -> int:
+        return max([len(head)] + [len(c[head]) for c in cells])
+
+    shown = list(columns)
+    for drop in (None, *dropped_first):
+        if drop in instead:
+            shown[shown.index(drop)] = instead[drop]
+        elif drop is not None and drop in shown:
+            shown.remove(drop)
+        fixed = {h: need(h) for h in shown if h not in flexible}
+        left = width - sum(fixed.values()) - 3 * len(shown) - 1
+        stretch = [h for h in shown if h in flexible]
+        if left >= sum(min(flexible[h], need(h)) for h in stretch):
+            out = dict(fixed)
+            wanted = {h: need(h) for h in stretch}
+            total = sum(wanted.values()) or 1
+            for h in stretch:
+                out[h] = max(min(flexible[h], wanted[h]), min(wanted[h], left * wanted[h] // total))
+            while stretch and sum(out[h] for h in stretch) > left:  # a share rounded up past what is left
+                out[max(stretch, key=lambda h: out[h])] -= 1
+            return {h: out[h] for h in shown}
+    narrow = {h: need(h) for h in narrowest}
+    first = next(h for h in narrowest if h in flexible)
+    narrow[first] = 0
+    narrow[first] = max(4, width - sum(narrow.values()) - 3 * len(narrow) - 1)
+    return narrow
 
 
 def _purpose_shown(r: dict[str, Any]) -> str:
@@ -394,6 +470,73 @@ def run_compare(args: argparse.Namespace) -> int:
     if args.plot:
         console.print(f"plot written to {args.plot}", markup=False)
     return 0
+
+
+def run_plant(args: argparse.Namespace) -> int:
+    from rich.table import Table
+
+    from campaign.history.plant import MARGIN_DAYS, MAX_INTERVAL_DAYS, plant
+    from campaign.views import make_console, print_json
+    from protocols.units import unit_label
+
+    max_interval = args.max_interval or MAX_INTERVAL_DAYS
+    margin = MARGIN_DAYS if args.margin is None else args.margin
+    if args.html:
+        _check_html_path(args.html)
+    today = dt.datetime.now(dt.UTC).date()
+    with open_for(args) as store:
+        rows = store.campaigns(args.machine)
+    glances = plant(rows, today, max_interval, margin)
+    if args.html:
+        from campaign.report.history import plant_page
+
+        Path(args.html).write_text(plant_page(glances, store.display, today, max_interval, margin), encoding="utf-8")
+    if args.json:
+        print_json({"store": store.display, "today": today.isoformat(), "max_interval_days": max_interval,
+                    "margin_days": margin, "axes": [g.as_json() for g in glances],
+                    **({"html": str(args.html)} if args.html else {})})
+        return 0
+    console = make_console()
+    cells = []
+    for g in glances:
+        a, u = g.a_and_u()
+        fit = g.trend.fits.get("A")
+        c = g.trend.crossing
+        drift = "n/a" if fit is None or fit.rate is None else f"{fit.rate:+.2f} ± {fit.U_rate:.2f}"
+        crossing = ("already" if c is not None and c.state == "already" else
+                    c.date.date().isoformat() if c is not None and c.state == "predicted" and c.date else "—")
+        cells.append({"machine": g.trend.machine, "axis": g.trend.axis, "due": g.due.isoformat(), "state": g.state,
+                      "A ± U": _fmt(a, u), "drift/year": drift, "crossing": crossing})
+    widths = fit_columns(console.width, cells, list(PLANT_COLUMNS), {"machine": 7}, ("crossing", "state", "drift/year"),
+                         {}, ("machine", "axis", "due", "A ± U"))
+    table = Table(title=f"{len(glances)} axes in {store.display}, most urgent first ({today.isoformat()})",
+                  title_justify="left")
+    for head, width in widths.items():
+        table.add_column(head, justify="right" if head in ("A ± U", "drift/year") else "left", no_wrap=True,
+                         overflow="ellipsis", width=width)
+    for row in cells:
+        table.add_row(*(row[head] for head in widths))
+    console.print(table)
+    units = sorted({unit_label(g.trend.unit) for g in glances})
+    console.print(f"A ± U and drift in {', '.join(units) or 'µm'} (per year); due: {margin} days before the earliest "
+                  f"predicted crossing (95 %), at most {max_interval} days after the last campaign. "
+                  "--json says why for each axis.", markup=False)
+    if args.html:
+        console.print(f"page written to {args.html}", markup=False)
+    return 0
+
+
+PLANT_COLUMNS = ("machine", "axis", "due", "state", "A ± U", "drift/year", "crossing")
+"""`history plant`'s columns in the terminal (--json and --html give all)."""
+
+
+def _check_html_path(path: str) -> None:
+    """--html: a writable file ending in .html, checked before the store is read."""
+    target = Path(path)
+    if target.suffix.lower() not in (".html", ".htm"):
+        raise InputError(f"--html: {path}: the page's name must end in .html")
+    if not target.parent.is_dir():
+        raise InputError(f"--html: {target.parent}: no such folder")
 
 
 def run_store(args: argparse.Namespace) -> int:

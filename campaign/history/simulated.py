@@ -261,10 +261,11 @@ def draw_history(rng: np.random.Generator, end: dt.datetime, rechecks: tuple[int
                         jump_at=int(rng.integers(round(n / 3), round(2 * n / 3) + 1)), seed=int(rng.integers(1, 10**6)))
 
 
-def record_drawn(store: Store, history: DrawnHistory, machine: str, axis: str = "X") -> int:
+def record_drawn(store: Store, history: DrawnHistory, machine: str, axis: str = "X", tolerance_um: float = 0.0) -> int:
     """Simulate every re-check of `history` (the fast simulator, each with its own noise) and record
-    it straight into `store` as machine `machine`, axis `axis` (no campaign directory: a re-check's
-    location is a name, drawn://MACHINE/AXIS/N). Returns the campaigns recorded."""
+    it straight into `store` as machine `machine`, axis `axis`, each stating the tolerance
+    `tolerance_um` on A (0: none) (no campaign directory: a re-check's location is a name,
+    drawn-MACHINE-AXIS-NN). Returns the campaigns recorded."""
     from campaign.assess import assess
     from campaign.discovery.simulate import Environment
     from campaign.history.entry import assessed_entry
@@ -272,7 +273,7 @@ def record_drawn(store: Store, history: DrawnHistory, machine: str, axis: str = 
     room = Environment(material_temp_c=(20.0, 20.0))
     for number, when in enumerate(history.dates):
         backlash = history.jump_um if number >= history.jump_at else 0.0
-        config = config_with(history.config(when, backlash), {"campaign": {"machine": machine},
+        config = config_with(history.config(when, backlash), {"campaign": {"machine": machine, "tolerance": tolerance_um},
                                                               "axis": {"name": axis}})
         table = simulate_campaign(config, sim_model(config.sim), seed=history.seed + number, environment=room)
         a = assess(table, config, meta={"simulated": True})

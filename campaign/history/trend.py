@@ -6,15 +6,17 @@ uncertainty U_i (k = 2, the campaign's own budget: campaign/uncertainty.py).
 
 **Change points.** Between two consecutive campaigns the parameter jumped when the change, less
 the drift the fit expects over the interval, is larger than the smaller of the combined expanded
-uncertainty of the two, √(U_i² + U_j²), and three times their combined uncertainty between
-re-checks, 3·√(u_i² + u_j²) (scaled by the fit's Birge ratio when the campaigns scatter more than
+uncertainty of the two, √(U_i² + U_j²), and 3.5 times their combined uncertainty between
+re-checks, 3.5·√(u_i² + u_j²) (scaled by the fit's Birge ratio when the campaigns scatter more than
 their u say). The budget's U holds terms common to the two campaigns (the instrument, the air),
 which do not make a change between them; with the u of campaign/history/recheck.py, a reversal
-jump of 2 µm is found where √(U_i² + U_j²) missed it and the jump went into A's drift. Three u
-rather than two: an axis's history has some 40 intervals over its four parameters, and at 2u one
-of them would jump by chance in most histories. The detection and the fit are iterated until they
-agree (at most five rounds): a jump found becomes a step in the fit, which then says what drift to
-expect. A change point's U is the threshold it passed.
+jump of 2 µm is found where √(U_i² + U_j²) missed it and the jump went into A's drift. 3.5 u
+rather than 2: an axis's history has some 40 intervals over its four parameters; at 2u one of
+them would jump by chance in most histories, at 3u in one of eight (3 of 20 seeds of the demo's
+history found a jump of R that is not there), at 3.5u in about one of fifty. The detection and the fit are iterated until
+they agree (at most five rounds): a jump found becomes a step in the fit, which then says what
+drift to expect. A change point's U is the combined expanded uncertainty √(U_i² + U_j²) of the
+two campaigns' statements.
 
 **Drift rate.** A weighted least-squares line over time, y = a + r·t + Σ c_j·[t ≥ t_j] (one step
 c_j per change point of the parameter itself, for A, E and R, which contain the reversal, per
@@ -59,7 +61,7 @@ YEAR_S = 365.25 * 86400.0
 HORIZON_YEARS = 50.0
 """How far ahead a crossing is looked for, years."""
 MAX_ROUNDS = 5
-JUMP_SIGMAS = 3.0
+JUMP_SIGMAS = 3.5
 """A change between consecutive campaigns beyond this many of their combined uncertainties
 between re-checks (scaled by the fit's Birge ratio when above 1) is a jump."""
 
@@ -147,6 +149,13 @@ class Fit:
         assert self.coef is not None and self.cov is not None
         g = np.concatenate([[1.0, tau], np.ones(len(self.step_at))])
         return float(g @ self.coef), float(math.sqrt(max(g @ self.cov @ g, 0.0)))
+
+    def predict_many(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """`predict` at many times at once: (fitted values, their standard uncertainties)."""
+        assert self.coef is not None and self.cov is not None
+        g = np.column_stack([np.ones_like(tau), tau] + [np.ones_like(tau)] * len(self.step_at))
+        variance = np.einsum("ij,jk,ik->i", g, self.cov, g)
+        return g @ self.coef, np.sqrt(np.clip(variance, 0.0, None))
 
     def fitted(self, tau: np.ndarray, index_from: int) -> np.ndarray:
         """The fitted line at `tau` (years from the last campaign) with the steps of the campaigns
@@ -339,24 +348,24 @@ class Crossing:
                            "as the last campaign"}
 
 
-def _first_reach(func: Callable[[float], float], target: float, horizon: float) -> float | None:
-    """The smallest tau in [0, horizon] (years) with func(tau) ≥ target, to a day; None if none."""
+def _first_reach(func: Callable[[np.ndarray], np.ndarray], target: float, horizon: float) -> float | None:
+    """The smallest tau in [0, horizon] (years) with func(tau) ≥ target, to a day; None if none.
+    `func` takes and gives arrays (evaluated on a grid at once, then refined by bisection)."""
     grid = np.linspace(0.0, horizon, 2001)
-    values = np.array([func(float(g)) for g in grid])
-    above = np.nonzero(values >= target)[0]
+    above = np.nonzero(func(grid) >= target)[0]
     if len(above) == 0:
         return None
     i = int(above[0])
     if i == 0:
         return 0.0
-    lo, hi = grid[i - 1], grid[i]
+    lo, hi = float(grid[i - 1]), float(grid[i])
     while hi - lo > 1.0 / 365.25:
         mid = (lo + hi) / 2
-        if func(mid) >= target:
+        if func(np.array([mid]))[0] >= target:
             hi = mid
         else:
             lo = mid
-    return float(hi)
+    return hi
 
 
 def crossing(a_fit: Fit, tolerance: float | None) -> Crossing:
@@ -379,15 +388,15 @@ def crossing(a_fit: Fit, tolerance: float | None) -> Crossing:
                         U_assumed=u_future)
     k = a_fit.k
 
-    def central(tau: float) -> float:
-        return a_fit.predict(tau)[0] + u_future
+    def central(tau: np.ndarray) -> np.ndarray:
+        return a_fit.predict_many(tau)[0] + u_future
 
-    def upper(tau: float) -> float:
-        v, s = a_fit.predict(tau)
+    def upper(tau: np.ndarray) -> np.ndarray:
+        v, s = a_fit.predict_many(tau)
         return v + k * s + u_future
 
-    def lower(tau: float) -> float:
-        v, s = a_fit.predict(tau)
+    def lower(tau: np.ndarray) -> np.ndarray:
+        v, s = a_fit.predict_many(tau)
         return v - k * s + u_future
 
     at = _first_reach(central, tolerance, HORIZON_YEARS)
