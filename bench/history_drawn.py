@@ -12,7 +12,7 @@ or --db URL: a PostgreSQL database), then `history trend`'s A drift compared wit
 Each figure also for the weights used before (the budget's random terms, `--old`), for
 comparison. Prints one line per history and the figures; writes nothing else.
 
-    .venv/bin/python bench/history_drawn.py [--histories 100] [--seed 30] [--db URL]
+    .venv/bin/python bench/history_drawn.py [--histories 100] [--seed 30] [--db URL | --postgres]
 """
 
 from __future__ import annotations
@@ -77,15 +77,34 @@ def main() -> None:
     parser.add_argument("--histories", type=int, default=100)
     parser.add_argument("--seed", type=int, default=30)
     parser.add_argument("--db", help="a store URL (default: a new SQLite file)")
+    parser.add_argument("--postgres", action="store_true",
+                        help="a throwaway PostgreSQL server (tests/pg_server.py) instead of SQLite")
     args = parser.parse_args()
     rng = np.random.default_rng(args.seed)
+    stop = None
     with tempfile.TemporaryDirectory() as tmp:
         url = args.db or f"sqlite:///{Path(tmp) / 'drawn.sqlite'}"
-        with open_store(url) as store:
-            print(f"store: {store.display} ({store.engine.dialect.name})")
-            drawn = sample(store, rng, args.histories, "drawn")
-            fixed = sample(store, rng, args.histories, "two-per-year", rechecks=(12, 12), years=(2.0, 2.0),
-                           growth=(2.0, 2.0), span=(1000.0, 1000.0))
+        if args.postgres:
+            from tests.pg_server import start_server
+
+            server, why, stop = start_server()
+            if server is None:
+                raise SystemExit(why)
+            url = server.new_database()
+        try:
+            figures_of(url, rng, args.histories)
+        finally:
+            if stop is not None:
+                stop()  # type: ignore[operator]
+
+
+def figures_of(url: str, rng: np.random.Generator, histories: int) -> None:
+    """Draw, record and judge the histories; print the figures."""
+    with open_store(url) as store:
+        print(f"store: {store.display} ({store.engine.dialect.name})")
+        drawn = sample(store, rng, histories, "drawn")
+        fixed = sample(store, rng, histories, "two-per-year", rechecks=(12, 12), years=(2.0, 2.0),
+                       growth=(2.0, 2.0), span=(1000.0, 1000.0))
     print(f"drawn histories (n = {len(drawn)}), new weights: {figures([n for n, _ in drawn])}")
     print(f"drawn histories (n = {len(drawn)}), old weights: {figures([o for _, o in drawn])}")
     print(f"2 µm/m a year on 1 m, 12 re-checks in 2 years (n = {len(fixed)}), new weights: "

@@ -485,7 +485,7 @@ def run_plant(args: argparse.Namespace) -> int:
         _check_html_path(args.html)
     today = dt.datetime.now(dt.UTC).date()
     with open_for(args) as store:
-        rows = store.campaigns(args.machine)
+        rows = store.campaigns(args.machine, summary=True)
     glances = plant(rows, today, max_interval, margin)
     if args.html:
         from campaign.report.history import plant_page

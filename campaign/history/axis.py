@@ -107,9 +107,11 @@ def _day(when: dt.datetime | None) -> str | None:
     return None if when is None else when.date().isoformat()
 
 
-def axis_trend(rows: list[dict[str, Any]], machine: str, axis: str, tolerance: float | None = None) -> AxisTrend:
+def axis_trend(rows: list[dict[str, Any]], machine: str, axis: str, tolerance: float | None = None,
+               parameters: tuple[str, ...] = TRENDED) -> AxisTrend:
     """The trend of one axis from its store rows (Store.campaigns(machine, axis)). `tolerance`:
-    on A, instead of the latest campaign's recorded one."""
+    on A, instead of the latest campaign's recorded one. `parameters`: those to trend (the plant
+    needs A, and B, whose jumps step A's line)."""
     dated = [r for r in rows if r["measured_utc"] is not None]
     unit = (dated or rows)[-1]["unit"] if rows else "um"
     counted: list[dict[str, Any]] = []
@@ -125,12 +127,12 @@ def axis_trend(rows: list[dict[str, Any]], machine: str, axis: str, tolerance: f
         seen[row["fingerprint"]] = row["label"]
         counted.append(row)
     series: dict[str, list[Observation]] = {}
-    for p in TRENDED:
+    for p in parameters:
         series[p] = []
         for row in counted:
             value, u = row["results"].get((p, "both"), (None, None))
             if value is not None and u is not None:
-                between = row.get("recheck", {}).get(p) or u_random(row["uncertainty"], p)
+                between = row.get("recheck", {}).get(p) or u_random(row.get("uncertainty") or {}, p)
                 series[p].append(Observation(row["measured_utc"], row["label"], float(value), float(u), between))
     trend = AxisTrend(machine, axis, unit, counted, left_out)
     trend.known_steps = [r for i, r in enumerate(counted) if i > 0 and is_known_step(r)]

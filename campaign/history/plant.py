@@ -103,11 +103,11 @@ def glance(trend: AxisTrend, today: dt.date, max_interval_days: int = MAX_INTERV
 
 def plant(rows: list[dict[str, Any]], today: dt.date, max_interval_days: int = MAX_INTERVAL_DAYS,
           margin_days: int = MARGIN_DAYS) -> list[AxisGlance]:
-    """Every axis of the store's rows (Store.campaigns()), most urgent first."""
+    """Every axis of the store's rows (Store.campaigns(summary=True) is enough), most urgent first."""
     by_axis: dict[tuple[str, str], list[dict[str, Any]]] = defaultdict(list)
     for row in rows:
         by_axis[(row["machine"], row["axis"])].append(row)
-    glances = [glance(axis_trend(axis_rows, machine, axis), today, max_interval_days, margin_days)
+    glances = [glance(axis_trend(axis_rows, machine, axis, parameters=("A", "B")), today, max_interval_days, margin_days)
                for (machine, axis), axis_rows in by_axis.items()]
     glances.sort(key=lambda g: (g.state != "out", g.due, g.trend.machine, g.trend.axis))
     return glances

@@ -31,6 +31,7 @@ from campaign.plan import build_plan, plan_records
 from campaign.record import Event, Recorder
 
 if TYPE_CHECKING:
+    from campaign.history.entry import Entry
     from campaign.history.store import Store
 
 SIMULATOR = "fast simulator (campaign/discovery/simulate.py): the simulated machine's error model and noise, no ADS or pty"
@@ -261,16 +262,17 @@ def draw_history(rng: np.random.Generator, end: dt.datetime, rechecks: tuple[int
                         jump_at=int(rng.integers(round(n / 3), round(2 * n / 3) + 1)), seed=int(rng.integers(1, 10**6)))
 
 
-def record_drawn(store: Store, history: DrawnHistory, machine: str, axis: str = "X", tolerance_um: float = 0.0) -> int:
-    """Simulate every re-check of `history` (the fast simulator, each with its own noise) and record
-    it straight into `store` as machine `machine`, axis `axis`, each stating the tolerance
-    `tolerance_um` on A (0: none) (no campaign directory: a re-check's location is a name,
-    drawn-MACHINE-AXIS-NN). Returns the campaigns recorded."""
+def drawn_entries(history: DrawnHistory, machine: str, axis: str = "X", tolerance_um: float = 0.0) -> list[Entry]:
+    """Every re-check of `history` simulated (the fast simulator, each with its own noise) and
+    assessed as the store records it: machine `machine`, axis `axis`, each stating the tolerance
+    `tolerance_um` on A (0: none); no campaign directory (a re-check's location is a name,
+    drawn-MACHINE-AXIS-NN)."""
     from campaign.assess import assess
     from campaign.discovery.simulate import Environment
     from campaign.history.entry import assessed_entry
 
     room = Environment(material_temp_c=(20.0, 20.0))
+    entries = []
     for number, when in enumerate(history.dates):
         backlash = history.jump_um if number >= history.jump_at else 0.0
         config = config_with(history.config(when, backlash), {"campaign": {"machine": machine, "tolerance": tolerance_um},
@@ -278,6 +280,15 @@ def record_drawn(store: Store, history: DrawnHistory, machine: str, axis: str = 
         table = simulate_campaign(config, sim_model(config.sim), seed=history.seed + number, environment=room)
         a = assess(table, config, meta={"simulated": True})
         key = f"drawn-{machine}-{axis}-{number}-{history.seed}"
-        store.put(assessed_entry(a, key, f"drawn-{machine}-{axis}-{number + 1:02d}", when, "demo",
-                                 {"machine": machine, "axis": axis}))
-    return len(history.dates)
+        entries.append(assessed_entry(a, key, f"drawn-{machine}-{axis}-{number + 1:02d}", when, "demo",
+                                      {"machine": machine, "axis": axis}))
+    return entries
+
+
+def record_drawn(store: Store, history: DrawnHistory, machine: str, axis: str = "X", tolerance_um: float = 0.0) -> int:
+    """Record every re-check of `history` (drawn_entries) straight into `store`. Returns the
+    campaigns recorded."""
+    entries = drawn_entries(history, machine, axis, tolerance_um)
+    for entry in entries:
+        store.put(entry)
+    return len(entries)

@@ -151,6 +151,12 @@ def _migrate(engine: Engine) -> None:
         command.upgrade(config, "head")
 
 
+SUMMARY_COLUMNS = ("id", "key", "source", "command", "machine", "axis", "axis_kind", "unit", "position_unit",
+                   "measured_utc", "status", "points", "points_planned", "with_compensation", "location", "label",
+                   "verdict", "tolerances", "fingerprint", "purpose", "follows")
+"""The campaigns' columns a trend and the plant read (Store.campaigns(summary=True))."""
+
+
 class Store:
     """An open store. `url`: its SQLAlchemy URL (never shown as is: `display`)."""
 
@@ -274,12 +280,14 @@ class Store:
             return conn.execute(sa.select(c.c.id).where(c.c.key == key)).scalar()
 
     def campaigns(self, machine: str | None = None, axis: str | None = None, since: dt.datetime | None = None,
-                  until: dt.datetime | None = None, verdict: str | None = None) -> list[dict[str, Any]]:
+                  until: dt.datetime | None = None, verdict: str | None = None,
+                  summary: bool = False) -> list[dict[str, Any]]:
         """The campaigns recorded, oldest first (undated last), each with its `results`:
         {(parameter, direction): (value, U)}, and `recheck`: {parameter: standard uncertainty
-        between re-checks}."""
+        between re-checks}. `summary`: only what a trend needs (SUMMARY_COLUMNS, the bidirectional
+        results; no budget, plan, checks: a plant's thousands of campaigns read in a second)."""
         c = schema.campaigns
-        query = sa.select(c)
+        query = sa.select(*(c.c[name] for name in SUMMARY_COLUMNS)) if summary else sa.select(c)
         if machine:
             query = query.where(c.c.machine == machine)
         if axis:
@@ -300,7 +308,10 @@ class Store:
             ids = list(by_id)
             for start in range(0, len(ids), 500):
                 chunk = ids[start:start + 500]
-                for res in conn.execute(sa.select(r).where(r.c.campaign_id.in_(chunk))):
+                wanted = sa.select(r).where(r.c.campaign_id.in_(chunk))
+                if summary:
+                    wanted = wanted.where(r.c.direction == "both")
+                for res in conn.execute(wanted):
                     by_id[res.campaign_id]["results"][(res.parameter, res.direction)] = (res.value, res.expanded_u)
                     if res.u_recheck is not None:
                         by_id[res.campaign_id]["recheck"][res.parameter] = res.u_recheck
