@@ -93,3 +93,13 @@ def test_a_plant_drift_is_significant(db):  # noqa: F811
                             growth=(2.0, 2.0), span=(1000.0, 1000.0))
     assert figures["significant"] >= 0.9, figures
     assert figures["coverage"] >= 0.9, figures
+
+
+def test_the_coverage_factor_table_is_students_t():
+    from scipy.special import stdtrit
+
+    from campaign.history.trend import student_975
+
+    for dof in (1, 2, 5, 9, 30, 31, 200):
+        assert student_975(dof) == pytest.approx(float(stdtrit(dof, 0.975)), abs=1e-6)
+

@@ -259,3 +259,9 @@ def test_run_with_a_newer_store_and_a_follow_up(cli, tmp_path, monkeypatch):
     trend = json.loads(cli("history", "trend", "sim-run", "X", "--json").out)
     assert [c["label"] for c in trend["campaigns"]] == ["first", "second"], (third.err[-600:], [r["reason"][:90] for r in trend["left_out"]])  # the queued one recorded first
     assert [r["label"] for r in trend["left_out"]] == ["third"] and "a follow-up of" in trend["left_out"][0]["reason"]
+
+
+def test_the_store_names_the_newest_revision_without_alembic():
+    from campaign.history.store import HEAD, known_revisions
+
+    assert HEAD == known_revisions()[-1]

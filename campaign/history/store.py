@@ -117,16 +117,29 @@ def _alembic() -> Any:
     return config
 
 
-def _revisions(engine: Engine, config: Any) -> tuple[str | None, str | None]:
-    """(the store's revision, None when it holds no store yet; the newest revision)."""
-    from alembic.runtime.migration import MigrationContext
-    from alembic.script import ScriptDirectory
+HEAD = "r0002"
+"""The newest schema revision (migrations/versions/; a test checks it is Alembic's head): a store
+there is opened without loading Alembic, which only migrating needs."""
 
-    head = ScriptDirectory.from_config(config).get_current_head()
+
+def _revisions(engine: Engine) -> tuple[str | None, str]:
+    """(the store's revision, None when it holds no store yet; the newest revision)."""
     with engine.connect() as conn:
-        current = MigrationContext.configure(conn).get_current_revision()
+        try:
+            current = conn.execute(sa.text("SELECT version_num FROM alembic_version")).scalar()
+        except (sa.exc.OperationalError, sa.exc.ProgrammingError):
+            if not _has_no_version_table(conn):
+                raise
+            current = None
         conn.rollback()
-    return current, head
+    return (None if current is None else str(current)), HEAD
+
+
+def _has_no_version_table(conn: Connection) -> bool:
+    """After a failed read of alembic_version: whether the table is simply not there (a new or
+    foreign database), rather than the store failing."""
+    conn.rollback()
+    return "alembic_version" not in sa.inspect(conn).get_table_names()
 
 
 def known_revisions() -> list[str]:
@@ -140,10 +153,10 @@ def _migrate(engine: Engine) -> None:
     """Bring the store to the newest revision (nothing to do when it is there)."""
     from alembic import command
 
-    config = _alembic()
-    current, head = _revisions(engine, config)
+    current, head = _revisions(engine)
     if current == head:
         return
+    config = _alembic()
     with writing(engine) as conn:
         if engine.dialect.name == "postgresql":
             conn.execute(sa.text("SELECT pg_advisory_xact_lock(:key)"), {"key": ADVISORY_LOCK})
@@ -173,7 +186,7 @@ class Store:
         with self._reaching():
             if migrate:
                 _migrate(self.engine)
-            self.revision, self.head = _revisions(self.engine, _alembic())
+            self.revision, self.head = _revisions(self.engine)
 
     @contextmanager
     def _reaching(self) -> Iterator[None]:
@@ -411,7 +424,7 @@ def _bring_to_head(store: Store, create: bool, upgrade: bool) -> None:
                                    "`axiscal history store --upgrade` (older axiscal clients then queue their campaigns)")
     with store._reaching():
         _migrate(store.engine)
-        store.revision, store.head = _revisions(store.engine, _alembic())
+        store.revision, store.head = _revisions(store.engine)
 
 
 def open_reader(url: str) -> Store | None:

@@ -186,6 +186,23 @@ class Fit:
                 f"{len(self.observations)} campaigns" + (f", {len(self.step_at)} jump(s) set apart)" if self.step_at else ")"))
 
 
+STUDENT_975 = (12.706205, 4.302653, 3.182446, 2.776445, 2.570582, 2.446912, 2.364624, 2.306004, 2.262157, 2.228139,
+               2.200985, 2.178813, 2.160369, 2.144787, 2.13145, 2.119905, 2.109816, 2.100922, 2.093024, 2.085963,
+               2.079614, 2.073873, 2.068658, 2.063899, 2.059539, 2.055529, 2.051831, 2.048407, 2.04523, 2.042272)
+"""Student's t at 97.5 % for 1 to 30 degrees of freedom (the two-sided 95 % coverage factor); a
+history has a few tens of campaigns, and scipy takes a second to import where a plant's page
+should take two (tests/test_history_drawn.py checks the table against scipy)."""
+
+
+def student_975(dof: int) -> float:
+    """The coverage factor for 95 % with `dof` degrees of freedom (Student's t at 97.5 %)."""
+    if 1 <= dof <= len(STUDENT_975):
+        return STUDENT_975[dof - 1]
+    from scipy.special import stdtrit
+
+    return float(stdtrit(dof, 0.975))
+
+
 def _years(observations: list[Observation]) -> np.ndarray:
     last = observations[-1].when
     return np.array([(o.when - last).total_seconds() / YEAR_S for o in observations])
@@ -281,12 +298,11 @@ def fit(parameter: str, observations: list[Observation], jumps: list[ChangePoint
         result.reason = _undetermined(obs, t)
         return result
     coef, cov, chi2, dof = solved
-    from scipy.special import stdtrit  # Student's t quantile (scipy.stats takes seconds to import)
 
     birge_sq = chi2 / dof
     if birge_sq > 1.0:  # the campaigns scatter more than their U says: the scatter sets the scale
         cov = cov * birge_sq
-        k = float(stdtrit(dof, 0.975))
+        k = student_975(dof)
     else:  # no more than their U allows: the stated U sets it, never shrunk below
         k = 2.0
     result.coef, result.cov, result.dof, result.k = coef, cov, dof, k
