@@ -7,7 +7,7 @@ or --db URL: a PostgreSQL database), then `history trend`'s A drift compared wit
 - coverage: the rate's 95 % interval contains the true rate (goal: at least 90 %);
 - Birge ratio of A's fit, median (goal: 0.7 to 1.4);
 - significance: a drift of 2 µm/m a year on a 1 m axis, 12 re-checks in 2 years (the other
-  draws as above): significant in at least 90 %.
+  draws as above, with the reversal jump, and without it): significant in at least 90 %.
 
 Each figure also for the weights used before (the budget's random terms, `--old`), for
 comparison. Prints one line per history and the figures; writes nothing else.
@@ -105,12 +105,16 @@ def figures_of(url: str, rng: np.random.Generator, histories: int) -> None:
         drawn = sample(store, rng, histories, "drawn")
         fixed = sample(store, rng, histories, "two-per-year", rechecks=(12, 12), years=(2.0, 2.0),
                        growth=(2.0, 2.0), span=(1000.0, 1000.0))
+        smooth = sample(store, rng, histories, "two-per-year-no-jump", rechecks=(12, 12), years=(2.0, 2.0),
+                        growth=(2.0, 2.0), span=(1000.0, 1000.0), jump=(0.0, 0.0))
     print(f"drawn histories (n = {len(drawn)}), new weights: {figures([n for n, _ in drawn])}")
     print(f"drawn histories (n = {len(drawn)}), old weights: {figures([o for _, o in drawn])}")
     print(f"2 µm/m a year on 1 m, 12 re-checks in 2 years (n = {len(fixed)}), new weights: "
           f"{figures([n for n, _ in fixed])}")
     print(f"2 µm/m a year on 1 m, 12 re-checks in 2 years (n = {len(fixed)}), old weights: "
           f"{figures([o for _, o in fixed])}")
+    print(f"the same without the jump (n = {len(smooth)}), new weights: {figures([n for n, _ in smooth])}")
+    print(f"the same without the jump (n = {len(smooth)}), old weights: {figures([o for _, o in smooth])}")
 
 
 if __name__ == "__main__":

@@ -406,7 +406,8 @@ def print_trend(trend: Any) -> None:
         table.add_column(head, justify="right" if head in "AEBR" else "left", overflow="fold")
     for r in trend.counted:
         cells = [_fmt(*r["results"].get((p, "both"), (None, None))) for p in ("A", "E", "B", "R")]
-        table.add_row(_date(r["measured_utc"])[:10], r["label"], *cells, r["verdict"])
+        step = " (verification: a known step)" if r in trend.known_steps else ""
+        table.add_row(_date(r["measured_utc"])[:10], r["label"] + step, *cells, r["verdict"])
     console.print(table)
     for r, why in trend.left_out:
         console.print(f"left out: {r['label']}: {why}", markup=False)

@@ -242,12 +242,12 @@ class DrawnHistory:
 
 def draw_history(rng: np.random.Generator, end: dt.datetime, rechecks: tuple[int, int] = (11, 14),
                  years: tuple[float, float] = (1.5, 2.5), growth: tuple[float, float] = (1.0, 5.0),
-                 span: tuple[float, float] = (300.0, 1000.0)) -> DrawnHistory:
+                 span: tuple[float, float] = (300.0, 1000.0), jump: tuple[float, float] = (2.0, 5.0)) -> DrawnHistory:
     """One history as issue 30 draws them: drift 1–5 µm/m a year, 300–1000 mm, 11–21 targets,
     noise 0.3–1 µm, 11–14 re-checks over 1.5–2.5 years at irregular intervals (each gap 0.4 to 1.6
     times the mean), a lead error of 4–10 µm/m at the first (either sign), and one reversal jump
     of 2–5 µm somewhere in the middle third to two thirds. Each range can be narrowed (a fixed
-    scenario: `rechecks=(12, 12)`)."""
+    scenario: `rechecks=(12, 12)`; no jump: `jump=(0, 0)`)."""
     n = int(rng.integers(rechecks[0], rechecks[1] + 1))
     gaps = rng.uniform(0.4, 1.6, n - 1)
     total_days = float(rng.uniform(*years)) * 365.25
@@ -258,7 +258,7 @@ def draw_history(rng: np.random.Generator, end: dt.datetime, rechecks: tuple[int
                         growth_ppm_per_year=round(float(rng.uniform(*growth)), 3),
                         lead_ppm_start=round(sign * float(rng.uniform(4.0, 10.0)), 3),
                         noise_um=round(float(rng.uniform(0.3, 1.0)), 3), dates=dates,
-                        jump_um=round(float(rng.uniform(2.0, 5.0)), 3),
+                        jump_um=round(float(rng.uniform(*jump)), 3),
                         jump_at=int(rng.integers(round(n / 3), round(2 * n / 3) + 1)), seed=int(rng.integers(1, 10**6)))
 
 
