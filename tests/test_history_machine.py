@@ -125,7 +125,7 @@ def test_killed_campaign_is_not_lost(tmp_path, monkeypatch):
     _, err = resumed.communicate(timeout=120)
     assert resumed.returncode == 0, err
     assert [line for line in err.splitlines() if line.startswith("history:")] == [
-        f"history: updated in sqlite:///{store}"]
+        f"history: updated in {store.name}"]  # the store's label, never a URL
     listed = json.loads(axiscal("history", "list", "--json", env=env).communicate(timeout=60)[0])["campaigns"]
     assert len(listed) == 1 and listed[0]["status"] == "completed" and listed[0]["points"] == 110
     assert listed[0]["command"] == "resume"

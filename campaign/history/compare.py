@@ -5,9 +5,9 @@ uncertainty.
 Per target the bidirectional mean x̄ = (x̄↑ + x̄↓)/2 (or the one direction measured), its standard
 uncertainty from the runs' scatter, u(x̄) = ½·√(s↑²/n↑ + s↓²/n↓) (s/√n for one direction), and
 each campaign's instrument and environment terms for E (its budget's terms other than the
-statistics: an upper bound, since they are stated for the whole travel). The difference B − A has
+statistics: an upper bound, since they are stated for the whole travel). The difference second − first has
 U = 2·√(u_A² + u_B² + u_inst,A² + u_inst,B²) (k = 2); it is beyond its uncertainty where
-|B − A| > U. Only the targets both campaigns measured are compared.
+|second − first| > U. Only the targets both campaigns measured are compared.
 """
 
 from __future__ import annotations
@@ -87,7 +87,7 @@ class Comparison:
 
 
 def compare(first: dict[str, Any], first_points: list, second: dict[str, Any], second_points: list) -> Comparison:
-    """Compare two stored campaigns (rows of Store.find, points of Store.points): second − first."""
+    """Compare two stored campaigns, the first and the second (rows of Store.find, points of Store.points): second − first."""
     ev_a, ev_b = evaluate(table_of(first, first_points)), evaluate(table_of(second, second_points))
     inst = math.hypot(instrument_u(first["uncertainty"]), instrument_u(second["uncertainty"]))
     by_target = {round(t.target, 6): t for t in ev_b.targets}

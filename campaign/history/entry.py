@@ -7,7 +7,15 @@ runs.jsonl, both written once when the campaign starts and never rewritten (the 
 carries the process id, so two campaigns started in the same second are still two). Its `state`
 hashes what grows (runs.jsonl, points.csv, config.toml): recording the same directory again
 changes nothing unless the campaign went on (a resume). A point table outside a campaign directory
-is known by the hash of its bytes.
+is known by the hash of its bytes; one read by `axiscal convert` is recorded as what it is, a
+converted table (source "converted": listed with `history list --all`, never trended), and as a
+measurement of its own only when asked (`axiscal history import FILE`).
+
+Each campaign keeps its purpose ([campaign] purpose: acceptance, verification, follow-up,
+diagnostic; a campaign measured with a compensation table written for it, by `axiscal verify`, is
+a verification whatever its config says) and the campaign it follows ([campaign] follows, or a
+verification's baseline), and the uncertainty of its A, E, B, R between re-checks
+(campaign/history/recheck.py).
 """
 
 from __future__ import annotations
@@ -21,6 +29,7 @@ from typing import Any
 
 from campaign import __version__
 from campaign.assess import Assessment, assess, assess_path, campaign_dir_of
+from campaign.history.recheck import k_of, recheck_u
 from campaign.pointtable import PointTable
 from campaign.record import (
     CONFIG_FILE,
@@ -49,6 +58,8 @@ class Entry:
     points: list[tuple[int, int, float, float, float | None]] = field(default_factory=list)
     baseline: Path | None = None
     compensation: dict[str, Any] | None = None
+    recheck: dict[str, float] = field(default_factory=dict)
+    """{parameter: standard uncertainty between re-checks} of A, E, B, R (recheck.py)."""
 
     @property
     def key(self) -> str:
@@ -148,9 +159,31 @@ def _plan(a: Assessment, meta: dict[str, Any]) -> dict[str, Any]:
     return plan
 
 
+def _recheck(a: Assessment) -> dict[str, float]:
+    t = a.table
+    return recheck_u(t.run, t.direction, t.target, t.deviation, k_of(a.evaluation.standard.title))
+
+
+def _purpose(a: Assessment | None, meta: dict[str, Any]) -> tuple[str, str]:
+    """(purpose, follows) of a campaign: its config's [campaign] purpose and follows; a campaign
+    measured with a compensation table written for it (`verify`) is a verification of its baseline."""
+    if a is not None and a.config is not None:
+        purpose, follows = a.config.campaign.purpose, a.config.campaign.follows
+    else:
+        section = (meta.get("config") or {}).get("campaign") or {}
+        purpose, follows = str(section.get("purpose") or meta.get("purpose") or "acceptance"), str(
+            section.get("follows") or meta.get("follows") or "")
+    if meta.get("compensation") and purpose == "acceptance":
+        purpose = "verification"
+    if purpose == "verification" and not follows and meta.get("baseline_dir"):
+        follows = str(meta["baseline_dir"])
+    return purpose, follows
+
+
 def _common(a: Assessment, key: str, state: str, source: str, command: str, location: Path,
             when: dt.datetime | None, meta: dict[str, Any]) -> dict[str, Any]:
     table = a.table
+    purpose, follows = _purpose(a, meta)
     config = a.config
     machine = meta.get("machine") or table.meta.get("machine") or (config.campaign.machine if config else "")
     axis = meta.get("axis") or table.meta.get("axis") or (config.axis.name if config else "")
@@ -164,7 +197,7 @@ def _common(a: Assessment, key: str, state: str, source: str, command: str, loca
             "verdict": verdict["verdict"], "reasons": verdict["reasons"], "checks": verdict["checks"],
             "tolerances": {k: t for k, t in a.tolerances.items() if t}, "uncertainty": a.uncertainty.as_json(),
             "instrument": _instrument(a), "plan": _plan(a, meta), "fingerprint": fingerprint(table),
-            "software": f"axiscal {__version__}", "recorded_utc": now_utc()}
+            "software": f"axiscal {__version__}", "recorded_utc": now_utc(), "purpose": purpose, "follows": follows}
 
 
 def directory_entry(directory: str | Path, command: str = "import") -> Entry:
@@ -186,12 +219,13 @@ def directory_entry(directory: str | Path, command: str = "import") -> Entry:
     if baseline:
         base = Path(str(baseline))
         base = base if base.is_absolute() else (path / base if (path / base).exists() else base)
-    return Entry(values, _results(a), _points(a.table), base, meta.get("compensation"))
+    return Entry(values, _results(a), _points(a.table), base, meta.get("compensation"), _recheck(a))
 
 
 def _empty(meta: dict[str, Any], key: str, state: str, command: str, path: Path, when: dt.datetime | None,
            status: str, planned: Any) -> dict[str, Any]:
     kind = str(meta.get("kind", "linear"))
+    purpose, follows = _purpose(None, meta)
     units = {"linear": ("um", "mm"), "rotary": ("arcsec", "deg")}.get(kind, ("um", "mm"))
     return {"key": key, "state": state, "source": "directory", "command": command,
             "machine": str(meta.get("machine") or "unknown"), "axis": str(meta.get("axis") or "unknown"),
@@ -202,19 +236,22 @@ def _empty(meta: dict[str, Any], key: str, state: str, command: str, path: Path,
             "with_compensation": bool(meta.get("compensation")), "location": str(path), "label": path.name,
             "standard": "", "verdict": "not judged", "reasons": ["no point was recorded"], "checks": [],
             "tolerances": {}, "uncertainty": {}, "instrument": {"recorded": False}, "plan": {},
-            "fingerprint": "", "software": f"axiscal {__version__}", "recorded_utc": now_utc()}
+            "fingerprint": "", "software": f"axiscal {__version__}", "recorded_utc": now_utc(), "purpose": purpose,
+            "follows": follows}
 
 
 def table_entry(table: PointTable, location: str | Path, raw: bytes, command: str) -> Entry:
     """The entry of a point table outside a campaign directory (a converted file, a baseline
     table): judged against the grid it shows, with the budget's defaults named as such
-    (campaign.assess), dated by its `# date:` comment when it has one."""
+    (campaign.assess), dated by its `# date:` comment when it has one. Read by `convert`, it is a
+    converted table (source "converted"); otherwise a measurement of its own (source "table")."""
     path = Path(location).resolve()
     a = assess(table, source=str(path))
     key = _hash(b"table", raw)
-    values = _common(a, key, key, "table", command, path, utc(table.meta.get("date")), dict(table.meta))
+    source = "converted" if command == "convert" else "table"
+    values = _common(a, key, key, source, command, path, utc(table.meta.get("date")), dict(table.meta))
     values.update(status="table", points_planned=None, with_compensation=False)
-    return Entry(values, _results(a), _points(table))
+    return Entry(values, _results(a), _points(table), recheck=_recheck(a))
 
 
 def path_entry(path: str | Path, command: str = "import", fmt: str = "points") -> Entry:
@@ -228,3 +265,13 @@ def path_entry(path: str | Path, command: str = "import", fmt: str = "points") -
 
     raw = read_input_bytes(path, "a measurement file")
     return table_entry(read_any(path, fmt), path, raw, command)
+
+
+def assessed_entry(a: Assessment, key: str, location: str | Path, when: dt.datetime, command: str,
+                   meta: dict[str, Any] | None = None) -> Entry:
+    """The entry of a campaign assessed in memory, with no file behind it (a simulated re-check
+    recorded straight into the store, bench/ and the tests' drawn histories): complete, dated
+    `when`, known by `key`."""
+    values = _common(a, key, key, "table", command, Path(location), when, dict(meta or {}))
+    values.update(status="completed", points_planned=len(a.table), with_compensation=False)
+    return Entry(values, _results(a), _points(a.table), recheck=_recheck(a))

@@ -129,3 +129,25 @@ def scrub(message: str, url: str) -> str:
         text = text.replace(secret, "***")
     text = _PASSWORD_ITEM.sub(r"\1***", _mask_urls(text))
     return " ".join(text.split())
+
+
+def store_label(url: str) -> str:
+    """The store's short name, as every line and report shows it: a SQLite store by its file name,
+    a server store by its host and database ("db.plant:5432/axiscal"); never a URL, never a
+    password."""
+    parsed = _parsed(url) if "://" in url else None
+    if parsed is None:
+        return Path(url).name or display_url(url)
+    if str(parsed.drivername).startswith("sqlite"):
+        return Path(parsed.database or ":memory:").name
+    host = f"{parsed.host or 'localhost'}" + (f":{parsed.port}" if parsed.port else "")
+    return f"{host}/{parsed.database or ''}"
+
+
+def store_place(url: str) -> str:
+    """Where the store is, in full but without credentials: a SQLite store's path, a server
+    store's URL with its password masked (for errors and `history store`)."""
+    parsed = _parsed(url) if "://" in url else None
+    if parsed is not None and str(parsed.drivername).startswith("sqlite"):
+        return str(parsed.database or ":memory:")
+    return display_url(url)

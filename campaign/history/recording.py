@@ -17,7 +17,7 @@ from typing import Any
 
 from campaign.assess import campaign_dir_of
 from campaign.history.entry import directory_key, directory_state, path_entry, utc
-from campaign.history.location import chosen, display_url, scrub, store_url
+from campaign.history.location import chosen, scrub, store_label, store_place, store_url
 from campaign.history.store import Store, StoreUnavailable, open_store
 
 
@@ -60,7 +60,7 @@ def record_item(store: Store, item: dict[str, Any]) -> str:
         campaign_id = None
         points = Path(str(item.get("points", "")))
         if points.exists():
-            campaign_id, _ = record_campaign(store, points, "import")
+            campaign_id, _ = record_campaign(store, points, "compensate")
         return store.put_comp_table(str(item["key"]), {"campaign_id": campaign_id, **values})
     path = Path(str(item["path"]))
     if not path.exists():
@@ -86,7 +86,11 @@ def record_now(item: dict[str, Any], option: str | None = None) -> str:
         return scrub(f"history: not recorded ({exc})", chosen(option) or "")
     if url is None:
         return ""
-    return "\n".join(scrub(line, url) for line in _record_or_queue(url, item).splitlines())
+    try:
+        told = _record_or_queue(url, item)
+    except Exception as exc:  # noqa: BLE001 - whatever fails after the verdict is queued, said in one line
+        told = _queue(url, item, f"{type(exc).__name__}: {exc}")
+    return "\n".join(scrub(line, url) for line in told.splitlines())
 
 
 def _record_or_queue(url: str, item: dict[str, Any]) -> str:
@@ -94,6 +98,8 @@ def _record_or_queue(url: str, item: dict[str, Any]) -> str:
         store = open_store(url)
     except StoreUnavailable as exc:
         return _queue(url, item, str(exc))
+    except Exception as exc:  # noqa: BLE001 - a store that cannot be opened (whatever the reason) waits
+        return _queue(url, item, f"{store_place(url)}: {type(exc).__name__}: {' '.join(str(exc).split())}")
     try:
         drained, problems = drain_queue(store)
         what = record_item(store, item)
@@ -103,7 +109,7 @@ def _record_or_queue(url: str, item: dict[str, Any]) -> str:
     except StoreUnavailable as exc:
         return _queue(url, item, str(exc))
     except Exception as exc:  # noqa: BLE001 - the campaign is recorded in its directory whatever happens here
-        return f"history: not recorded in {display_url(url)} ({exc}); the directory keeps it: axiscal history import"
+        return f"history: not recorded in {store_label(url)} ({exc}); the directory keeps it: axiscal history import"
     finally:
         store.close()
 
@@ -112,9 +118,10 @@ def _queue(url: str, item: dict[str, Any], reason: str) -> str:
     from campaign.history.pending import enqueue
 
     later = f"axiscal history import {item['path']}" if "path" in item else "axiscal history import"
+    what = "store not usable" if "schema revision" in reason else "store unreachable"
     try:
         queue = enqueue(url, item)
-    except OSError as exc:
-        return f"history: store unreachable ({reason}) and not queued ({exc.strerror or exc}): record it later with {later}"
-    return (f"history: store unreachable ({reason}); queued in {queue}, recorded at the next use of the store "
+    except Exception as exc:  # noqa: BLE001 - never raises: said instead
+        return f"history: {what} ({reason}) and not queued ({getattr(exc, 'strerror', None) or exc}): record it later with {later}"
+    return (f"history: {what} ({reason}); queued in {queue}, recorded at the next use of the store "
             f"(or: {later})")

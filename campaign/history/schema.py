@@ -3,11 +3,15 @@ them; this module describes the newest revision for the code that reads and writ
 
 | table | one row per | holds |
 |---|---|---|
-| campaigns | campaign directory or point table recorded | machine, axis, date (UTC), operator, instrument and its calibration, the plan, the verdict and its reasons, the uncertainty budget, where it lives |
-| results | campaign × ISO 230-2 parameter × direction | the value and its expanded uncertainty U (k = 2), deviation unit |
+| campaigns | campaign directory or point table recorded | machine, axis, date (UTC), operator, instrument and its calibration, the plan, the verdict and its reasons, the uncertainty budget, where it lives, its purpose ([campaign] purpose) and the campaign it follows |
+| results | campaign × ISO 230-2 parameter × direction | the value and its expanded uncertainty U (k = 2), deviation unit; for the bidirectional A, E, B, R the standard uncertainty between re-checks (campaign/history/recheck.py) |
 | points | campaign × point | the point table: run, direction, target, deviation, time |
 | comp_tables | compensation table written | its format, text and provenance, the campaign it came from |
 | verifications | verification campaign | the campaign before (its baseline) and the table written to the controller |
+
+`source` is "directory" (a campaign directory), "table" (a point table recorded as a measurement of
+its own: `history import FILE`) or "converted" (a table read by `axiscal convert`: a copy in
+another format, not a campaign of its own).
 
 Units: targets in the axis unit (mm or deg), deviations and U in the deviation unit (µm or
 arcsec), dates in UTC (stored without a zone).
@@ -52,6 +56,8 @@ campaigns = sa.Table(
     sa.Column("fingerprint", sa.String(64), nullable=False),
     sa.Column("software", sa.String(100), nullable=False),
     sa.Column("recorded_utc", sa.DateTime, nullable=False),
+    sa.Column("purpose", sa.String(20), nullable=False, server_default="acceptance"),
+    sa.Column("follows", sa.Text, nullable=False, server_default=""),
     sa.Index("ix_campaigns_axis_date", "machine", "axis", "measured_utc"),
 )
 
@@ -62,6 +68,7 @@ results = sa.Table(
     sa.Column("direction", sa.String(5), primary_key=True),
     sa.Column("value", sa.Float, nullable=True),
     sa.Column("expanded_u", sa.Float, nullable=True),
+    sa.Column("u_recheck", sa.Float, nullable=True),
 )
 
 points = sa.Table(

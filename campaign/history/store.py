@@ -5,8 +5,13 @@ read is a deferred transaction; writers take turns through `BEGIN IMMEDIATE`, ta
 transactions, and a busy timeout) and on a plant's shared PostgreSQL server (by URL; a connect
 timeout, a statement timeout and a lock timeout, so that a stalled server cannot hang a campaign's
 end: it is queued instead). A store is brought to the newest schema revision by its migrations
-(Alembic, `migrations/`) when it is opened; two processes opening a new store at once migrate it
-once (the migration holds the write lock: SQLite's, or a PostgreSQL advisory lock).
+(Alembic, `migrations/`): a new store is made at the newest revision by the first command that
+records into it; an embedded SQLite file at an older revision migrates itself when opened, a
+server store only by an explicit `axiscal history store --upgrade` (its other clients may be an
+older axiscal). A store at a revision this axiscal does not know (a newer one) is refused in one
+sentence, never touched. Two processes opening a new store at once migrate it once (the migration
+holds the write lock: SQLite's, or a PostgreSQL advisory lock). A command that only reads never
+makes a store: where there is none it is told `NoStore` ("no store at ...").
 
 Two processes recording at once lose nothing: each campaign is written in one transaction, known
 by its unique key; when both record the same campaign, the second finds it there (a unique-key
@@ -29,7 +34,7 @@ from sqlalchemy.engine import Connection, Engine
 
 from campaign.history import schema
 from campaign.history.entry import Entry, now_utc
-from campaign.history.location import display_url, scrub
+from campaign.history.location import display_url, scrub, store_label, store_place
 
 MIGRATIONS = Path(__file__).parent / "migrations"
 ADVISORY_LOCK = 230_2027
@@ -50,9 +55,14 @@ class StoreUnavailable(Exception):
     """The store cannot be reached or written; the message names it without its credentials."""
 
 
-def _sqlite_engine(url: str) -> Engine:
+class NoStore(StoreUnavailable):
+    """There is no store where one was named (a file that does not exist, a database without the
+    store's tables), and the command only reads: nothing is made."""
+
+
+def _sqlite_engine(url: str, create: bool = True) -> Engine:
     database = sa.engine.make_url(url).database
-    if database and database != ":memory:":
+    if create and database and database != ":memory:":
         try:
             Path(database).parent.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -79,9 +89,9 @@ def _sqlite_engine(url: str) -> Engine:
     return engine
 
 
-def _engine(url: str) -> Engine:
+def _engine(url: str, create: bool = True) -> Engine:
     if url.startswith("sqlite"):
-        return _sqlite_engine(url)
+        return _sqlite_engine(url, create)
     given = sa.engine.make_url(url).query  # what the URL sets itself stays as it is
     args: dict[str, Any] = {"connect_timeout": CONNECT_TIMEOUT_S}
     if "options" not in given:
@@ -107,26 +117,46 @@ def _alembic() -> Any:
     return config
 
 
-def _revisions(engine: Engine, config: Any) -> tuple[str | None, str | None]:
+HEAD = "r0002"
+"""The newest schema revision (migrations/versions/; a test checks it is Alembic's head): a store
+there is opened without loading Alembic, which only migrating needs."""
+
+
+def _revisions(engine: Engine) -> tuple[str | None, str]:
     """(the store's revision, None when it holds no store yet; the newest revision)."""
-    from alembic.runtime.migration import MigrationContext
+    with engine.connect() as conn:
+        try:
+            current = conn.execute(sa.text("SELECT version_num FROM alembic_version")).scalar()
+        except (sa.exc.OperationalError, sa.exc.ProgrammingError):
+            if not _has_no_version_table(conn):
+                raise
+            current = None
+        conn.rollback()
+    return (None if current is None else str(current)), HEAD
+
+
+def _has_no_version_table(conn: Connection) -> bool:
+    """After a failed read of alembic_version: whether the table is simply not there (a new or
+    foreign database), rather than the store failing."""
+    conn.rollback()
+    return "alembic_version" not in sa.inspect(conn).get_table_names()
+
+
+def known_revisions() -> list[str]:
+    """The schema revisions this axiscal knows, oldest first."""
     from alembic.script import ScriptDirectory
 
-    head = ScriptDirectory.from_config(config).get_current_head()
-    with engine.connect() as conn:
-        current = MigrationContext.configure(conn).get_current_revision()
-        conn.rollback()
-    return current, head
+    return [r.revision for r in reversed(list(ScriptDirectory.from_config(_alembic()).walk_revisions()))]
 
 
 def _migrate(engine: Engine) -> None:
     """Bring the store to the newest revision (nothing to do when it is there)."""
     from alembic import command
 
-    config = _alembic()
-    current, head = _revisions(engine, config)
+    current, head = _revisions(engine)
     if current == head:
         return
+    config = _alembic()
     with writing(engine) as conn:
         if engine.dialect.name == "postgresql":
             conn.execute(sa.text("SELECT pg_advisory_xact_lock(:key)"), {"key": ADVISORY_LOCK})
@@ -134,19 +164,29 @@ def _migrate(engine: Engine) -> None:
         command.upgrade(config, "head")
 
 
+SUMMARY_COLUMNS = ("id", "key", "source", "command", "machine", "axis", "axis_kind", "unit", "position_unit",
+                   "measured_utc", "status", "points", "points_planned", "with_compensation", "location", "label",
+                   "verdict", "tolerances", "fingerprint", "purpose", "follows")
+"""The campaigns' columns a trend and the plant read (Store.campaigns(summary=True))."""
+
+
 class Store:
     """An open store. `url`: its SQLAlchemy URL (never shown as is: `display`)."""
 
-    def __init__(self, url: str, migrate: bool = True):
+    def __init__(self, url: str, migrate: bool = True, create: bool = True):
         """Open the store; `migrate`: bring it to the newest revision (False: read it as it is;
-        `revision` says what it is, None when it holds no store)."""
+        `revision` says what it is, None when it holds no store); `create`: make a SQLite file's
+        folder when it is missing (False: never make anything)."""
         self.url = url
-        self.display = display_url(url)
-        self.engine = _engine(url)
+        self.display = store_label(url)
+        """The store's short name (file name, or host and database), for every line and report."""
+        self.place = store_place(url)
+        """Where it is in full, without credentials (errors, `history store`)."""
+        self.engine = _engine(url, create)
         with self._reaching():
             if migrate:
                 _migrate(self.engine)
-            self.revision, self.head = _revisions(self.engine, _alembic())
+            self.revision, self.head = _revisions(self.engine)
 
     @contextmanager
     def _reaching(self) -> Iterator[None]:
@@ -155,10 +195,10 @@ class Store:
             yield
         except (sa.exc.OperationalError, sa.exc.InterfaceError, sa.exc.ProgrammingError) as exc:
             reason = str(getattr(exc, "orig", None) or exc).strip().splitlines()
-            raise StoreUnavailable(scrub(f"{self.display}: {reason[0] if reason else type(exc).__name__}",
+            raise StoreUnavailable(scrub(f"{self.place}: {reason[0] if reason else type(exc).__name__}",
                                          self.url)) from None
         except OSError as exc:
-            raise StoreUnavailable(scrub(f"{self.display}: {exc.strerror or exc}", self.url)) from None
+            raise StoreUnavailable(scrub(f"{self.place}: {exc.strerror or exc}", self.url)) from None
 
     def close(self) -> None:
         self.engine.dispose()
@@ -184,11 +224,12 @@ class Store:
 
     def _put(self, conn: Connection, entry: Entry) -> tuple[int, str]:
         c = schema.campaigns
-        row = conn.execute(sa.select(c.c.id, c.c.state, c.c.command).where(c.c.key == entry.key)).first()
+        row = conn.execute(sa.select(c.c.id, c.c.state, c.c.command, c.c.source).where(c.c.key == entry.key)).first()
         values = dict(entry.values)
         if row is not None:
-            if row.state == values["state"]:
-                return row.id, "unchanged"
+            asked = row.source == "converted" and values["source"] == "table" and values["command"] == "import"
+            if row.state == values["state"] and not asked:
+                return row.id, "unchanged"  # (a converted table imported on purpose becomes a measurement)
             if values["command"] == "import":  # the command that measured it stays named
                 values["command"] = row.command
             conn.execute(c.update().where(c.c.id == row.id).values(**values))
@@ -200,7 +241,8 @@ class Store:
             what = "added"
         if entry.results:
             conn.execute(schema.results.insert(), [
-                {"campaign_id": campaign_id, "parameter": p, "direction": d, "value": v, "expanded_u": u}
+                {"campaign_id": campaign_id, "parameter": p, "direction": d, "value": v, "expanded_u": u,
+                 "u_recheck": entry.recheck.get(p) if d == "both" else None}
                 for p, d, v, u in entry.results])
         if entry.points:
             conn.execute(schema.points.insert(), [
@@ -251,11 +293,14 @@ class Store:
             return conn.execute(sa.select(c.c.id).where(c.c.key == key)).scalar()
 
     def campaigns(self, machine: str | None = None, axis: str | None = None, since: dt.datetime | None = None,
-                  until: dt.datetime | None = None, verdict: str | None = None) -> list[dict[str, Any]]:
+                  until: dt.datetime | None = None, verdict: str | None = None,
+                  summary: bool = False) -> list[dict[str, Any]]:
         """The campaigns recorded, oldest first (undated last), each with its `results`:
-        {(parameter, direction): (value, U)}."""
+        {(parameter, direction): (value, U)}, and `recheck`: {parameter: standard uncertainty
+        between re-checks}. `summary`: only what a trend needs (SUMMARY_COLUMNS, the bidirectional
+        results; no budget, plan, checks: a plant's thousands of campaigns read in a second)."""
         c = schema.campaigns
-        query = sa.select(c)
+        query = sa.select(*(c.c[name] for name in SUMMARY_COLUMNS)) if summary else sa.select(c)
         if machine:
             query = query.where(c.c.machine == machine)
         if axis:
@@ -272,12 +317,17 @@ class Store:
             rows = [dict(row._mapping) for row in conn.execute(query)]
             by_id = {row["id"]: row for row in rows}
             for row in rows:
-                row["results"] = {}
+                row["results"], row["recheck"] = {}, {}
             ids = list(by_id)
             for start in range(0, len(ids), 500):
                 chunk = ids[start:start + 500]
-                for res in conn.execute(sa.select(r).where(r.c.campaign_id.in_(chunk))):
+                wanted = sa.select(r).where(r.c.campaign_id.in_(chunk))
+                if summary:
+                    wanted = wanted.where(r.c.direction == "both")
+                for res in conn.execute(wanted):
                     by_id[res.campaign_id]["results"][(res.parameter, res.direction)] = (res.value, res.expanded_u)
+                    if res.u_recheck is not None:
+                        by_id[res.campaign_id]["recheck"][res.parameter] = res.u_recheck
         return rows
 
     def points(self, campaign_id: int) -> list[tuple[int, int, float, float, float | None]]:
@@ -333,27 +383,60 @@ class Store:
                                         ("comp_tables", schema.comp_tables))}
 
 
-def open_store(url: str) -> Store:
-    """Open (and migrate) the store at `url`; StoreUnavailable when it cannot be reached."""
+def open_store(url: str, create: bool = True, upgrade: bool = False) -> Store:
+    """Open the store at `url` to record into it or read it (see the module's docstring):
+    `create`: make a new store where there is none (False: NoStore, nothing made); `upgrade`:
+    bring a store at an older revision to the newest whatever its back end (only an embedded
+    SQLite file migrates itself otherwise). StoreUnavailable, in one sentence, when it cannot be
+    reached or is at a revision this axiscal cannot use."""
+    place = store_place(url)
+    if not create and url.startswith("sqlite"):
+        database = sa.engine.make_url(url).database
+        if database and database != ":memory:" and not Path(database).is_file():
+            raise NoStore(f"no store at {place}")
     try:
-        return Store(url)
-    except StoreUnavailable:
-        raise
+        store = Store(url, migrate=False, create=create)
     except sa.exc.ArgumentError as exc:
-        raise StoreUnavailable(scrub(f"{display_url(url)}: {exc}", url)) from None
+        raise StoreUnavailable(scrub(f"{place}: {exc}", url)) from None
+    try:
+        _bring_to_head(store, create, upgrade)
+    except BaseException:
+        store.close()
+        raise
+    return store
+
+
+def _bring_to_head(store: Store, create: bool, upgrade: bool) -> None:
+    """Migrate `store` as open_store says, or refuse it in one sentence."""
+    if store.revision == store.head:
+        return
+    if store.revision is None:
+        if not create:
+            raise NoStore(f"no store at {store.place} (the database holds no axiscal store)")
+    else:
+        known = known_revisions()
+        if store.revision not in known:
+            raise StoreUnavailable(f"{store.place} is at schema revision {store.revision}, newer than this axiscal "
+                                   f"knows (up to {store.head}): a newer axiscal wrote it; upgrade this one to use it")
+        if not (upgrade or store.url.startswith("sqlite")):
+            raise StoreUnavailable(f"{store.place} is at schema revision {store.revision}, this axiscal uses "
+                                   f"{store.head}: a shared server store is migrated only on purpose, by "
+                                   "`axiscal history store --upgrade` (older axiscal clients then queue their campaigns)")
+    with store._reaching():
+        _migrate(store.engine)
+        store.revision, store.head = _revisions(store.engine)
 
 
 def open_reader(url: str) -> Store | None:
-    """Open the store at `url` to read it only: never created (an embedded file that does not
-    exist is no store), never migrated. None when there is no store there; StoreUnavailable when
-    it cannot be reached, or is at another revision than this axiscal's (any `axiscal history`
-    command brings it there)."""
+    """Open the store at `url` to read it only: never created, never migrated. None when there is
+    no store there; StoreUnavailable when it cannot be reached, or is at another revision than this
+    axiscal's."""
     if url.startswith("sqlite"):
         database = sa.engine.make_url(url).database
         if not database or database == ":memory:" or not Path(database).is_file():
             return None
     try:
-        store = Store(url, migrate=False)
+        store = Store(url, migrate=False, create=False)
     except sa.exc.ArgumentError as exc:
         raise StoreUnavailable(scrub(f"{display_url(url)}: {exc}", url)) from None
     if store.revision is None:
@@ -362,8 +445,8 @@ def open_reader(url: str) -> Store | None:
     if store.revision != store.head:
         store.close()
         raise StoreUnavailable(f"{store.display} is at schema revision {store.revision}, this axiscal reads "
-                               f"{store.head} (any axiscal history command brings it there)")
+                               f"{store.head}")
     return store
 
 
-__all__ = ["Store", "StoreUnavailable", "now_utc", "open_reader", "open_store"]
+__all__ = ["NoStore", "Store", "StoreUnavailable", "now_utc", "open_reader", "open_store"]

@@ -5,15 +5,27 @@ Each parameter (A, E, B, R) is a series of campaigns, each with its value y_i an
 uncertainty U_i (k = 2, the campaign's own budget: campaign/uncertainty.py).
 
 **Change points.** Between two consecutive campaigns the parameter jumped when the change, less
-the drift the fit expects over the interval, is larger than the combined expanded uncertainty of
-the two, √(U_i² + U_j²). The detection and the fit are iterated until they agree (at most five
-rounds): a jump found becomes a step in the fit, which then says what drift to expect.
+the drift the fit expects over the interval, is larger than the smaller of the combined expanded
+uncertainty of the two, √(U_i² + U_j²), and 3.5 times their combined uncertainty between
+re-checks, 3.5·√(u_i² + u_j²) (scaled by the fit's Birge ratio when the campaigns scatter more than
+their u say). The budget's U holds terms common to the two campaigns (the instrument, the air),
+which do not make a change between them; with the u of campaign/history/recheck.py, a reversal
+jump of 2 µm is found where √(U_i² + U_j²) missed it and the jump went into A's drift. 3.5 u
+rather than 2: an axis's history has some 40 intervals over its four parameters; at 2u one of
+them would jump by chance in most histories, at 3u in one of eight (3 of 20 seeds of the demo's
+history found a jump of R that is not there), at 3.5u in about one of fifty. The detection and the fit are iterated until
+they agree (at most five rounds): a jump found becomes a step in the fit, which then says what
+drift to expect. A change point's U is the combined expanded uncertainty √(U_i² + U_j²) of the
+two campaigns' statements.
 
 **Drift rate.** A weighted least-squares line over time, y = a + r·t + Σ c_j·[t ≥ t_j] (one step
-c_j per change point of the parameter itself, and for A and E, which contain the reversal, per
-change point of B too), with weights 1/u_i², u_i the campaign's random standard uncertainty (its
-budget's statistics and resolution terms, `Observation.u_random`) when known, else U_i/2: a
-campaign with a larger u_i counts less.
+c_j per change point of the parameter itself, for A, E and R, which contain the reversal, per
+change point of B too, and per known step: a campaign that verified a compensation, which changes
+every parameter by an amount the fit estimates), with weights 1/u_i², u_i the campaign's
+uncertainty between re-checks (`Observation.u_random`: how much the parameter would scatter if
+the unchanged axis were measured again, from the campaign's own points,
+campaign/history/recheck.py; for a campaign recorded without it, its budget's statistics and
+resolution terms), else U_i/2: a campaign with a larger u_i counts less.
 The rate's standard uncertainty comes from the fit's covariance (the weights' u_i) scaled by
 max(1, χ²/ν) (ν = n − p; χ²/ν is the Birge ratio squared): when the campaigns scatter about the
 line more than their u_i say, the scatter sets the scale (a type A evaluation), and the coverage
@@ -37,6 +49,7 @@ arcsec).
 from __future__ import annotations
 
 import datetime as dt
+import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -49,6 +62,9 @@ YEAR_S = 365.25 * 86400.0
 HORIZON_YEARS = 50.0
 """How far ahead a crossing is looked for, years."""
 MAX_ROUNDS = 5
+JUMP_SIGMAS = 3.5
+"""A change between consecutive campaigns beyond this many of their combined uncertainties
+between re-checks (scaled by the fit's Birge ratio when above 1) is a jump."""
 
 
 @dataclass(frozen=True)
@@ -135,6 +151,13 @@ class Fit:
         g = np.concatenate([[1.0, tau], np.ones(len(self.step_at))])
         return float(g @ self.coef), float(math.sqrt(max(g @ self.cov @ g, 0.0)))
 
+    def predict_many(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """`predict` at many times at once: (fitted values, their standard uncertainties)."""
+        assert self.coef is not None and self.cov is not None
+        g = np.column_stack([np.ones_like(tau), tau] + [np.ones_like(tau)] * len(self.step_at))
+        variance = np.einsum("ij,jk,ik->i", g, self.cov, g)
+        return g @ self.coef, np.sqrt(np.clip(variance, 0.0, None))
+
     def fitted(self, tau: np.ndarray, index_from: int) -> np.ndarray:
         """The fitted line at `tau` (years from the last campaign) with the steps of the campaigns
         up to `index_from` in place (for drawing each segment)."""
@@ -163,6 +186,23 @@ class Fit:
                 f"{len(self.observations)} campaigns" + (f", {len(self.step_at)} jump(s) set apart)" if self.step_at else ")"))
 
 
+STUDENT_975 = (12.706205, 4.302653, 3.182446, 2.776445, 2.570582, 2.446912, 2.364624, 2.306004, 2.262157, 2.228139,
+               2.200985, 2.178813, 2.160369, 2.144787, 2.13145, 2.119905, 2.109816, 2.100922, 2.093024, 2.085963,
+               2.079614, 2.073873, 2.068658, 2.063899, 2.059539, 2.055529, 2.051831, 2.048407, 2.04523, 2.042272)
+"""Student's t at 97.5 % for 1 to 30 degrees of freedom (the two-sided 95 % coverage factor); a
+history has a few tens of campaigns, and scipy takes a second to import where a plant's page
+should take two (tests/test_history_drawn.py checks the table against scipy)."""
+
+
+def student_975(dof: int) -> float:
+    """The coverage factor for 95 % with `dof` degrees of freedom (Student's t at 97.5 %)."""
+    if 1 <= dof <= len(STUDENT_975):
+        return STUDENT_975[dof - 1]
+    from scipy.special import stdtrit
+
+    return float(stdtrit(dof, 0.975))
+
+
 def _years(observations: list[Observation]) -> np.ndarray:
     last = observations[-1].when
     return np.array([(o.when - last).total_seconds() / YEAR_S for o in observations])
@@ -173,11 +213,12 @@ def _solve(t: np.ndarray, y: np.ndarray, u: np.ndarray,
     """Weighted least squares: (coefficients, covariance, χ², ν); None when the design cannot
     separate its coefficients (rank-deficient: the campaigns span no time, or a segment between
     jumps has no two campaigns apart in time)."""
+    bounds = [0, *steps, len(t)]
+    if not any(np.ptp(t[a:b]) > 0 for a, b in itertools.pairwise(bounds) if b > a):
+        return None  # no segment between the steps spans time: the rate cannot be told from the steps
     columns = [np.ones_like(t), t] + [(np.arange(len(t)) >= i).astype(float) for i in steps]
     x = np.column_stack(columns)
     w = 1.0 / u ** 2
-    if np.linalg.matrix_rank(x * np.sqrt(w)[:, None]) < x.shape[1]:
-        return None
     normal = x.T @ (w[:, None] * x)
     cov = np.linalg.inv(normal)
     coef = cov @ (x.T @ (w * y))
@@ -204,8 +245,10 @@ def _step_indices(obs: list[Observation], after: list[dt.datetime]) -> list[int]
     return sorted(found)
 
 
-def detect(parameter: str, observations: list[Observation]) -> list[ChangePoint]:
-    """The jumps of one parameter between consecutive campaigns (see the module's docstring)."""
+def detect(parameter: str, observations: list[Observation], known: list[dt.datetime] | None = None) -> list[ChangePoint]:
+    """The jumps of one parameter between consecutive campaigns (see the module's docstring).
+    `known`: dates of known steps (a compensation verified): the change into the campaign of that
+    date is a step of the fit, never reported as a jump."""
     obs = sorted(observations, key=lambda o: o.when)
     n = len(obs)
     if n < 2:
@@ -214,13 +257,18 @@ def detect(parameter: str, observations: list[Observation]) -> list[ChangePoint]
     u = np.array([o.weight_u for o in obs])
     dt_years, jumps = np.diff(t), np.diff(y)
     combined = np.sqrt(np.array([o.U for o in obs[:-1]]) ** 2 + np.array([o.U for o in obs[1:]]) ** 2)
-    rate = 0.0
+    between = np.sqrt(u[:-1] ** 2 + u[1:] ** 2)
+    fixed = _step_indices(obs, known or [])
+    rate, scale = 0.0, 1.0
     steps: list[int] = []
     for _ in range(MAX_ROUNDS):
-        found = [i + 1 for i in range(n - 1) if abs(jumps[i] - rate * dt_years[i]) > combined[i]]
-        solved = _solve(t, y, u, found) if n - 2 - len(found) >= 1 else None
+        threshold = np.minimum(combined, JUMP_SIGMAS * scale * between)
+        found = [i + 1 for i in range(n - 1) if i + 1 not in fixed and abs(jumps[i] - rate * dt_years[i]) > threshold[i]]
+        in_fit = sorted(set(found) | set(fixed))
+        solved = _solve(t, y, u, in_fit) if n - 2 - len(in_fit) >= 1 else None
         if solved is not None:
             rate = float(solved[0][1])
+            scale = max(1.0, math.sqrt(solved[2] / solved[3]))
         if found == steps:
             break
         steps = found
@@ -228,13 +276,15 @@ def detect(parameter: str, observations: list[Observation]) -> list[ChangePoint]
                         float(jumps[i - 1] - rate * dt_years[i - 1])) for i in steps]
 
 
-def fit(parameter: str, observations: list[Observation], jumps: list[ChangePoint] | None = None) -> Fit:
+def fit(parameter: str, observations: list[Observation], jumps: list[ChangePoint] | None = None,
+        known: list[dt.datetime] | None = None) -> Fit:
     """The drift of one parameter over its campaigns, with a step at each change point in `jumps`
-    (its own, or a jump of a parameter it contains: a reversal jump moves A and E)."""
+    (its own, or a jump of a parameter it contains: a reversal jump moves A and E) and at each
+    known step (`known`: the dates of the campaigns that verified a compensation)."""
     obs = sorted(observations, key=lambda o: o.when)
     result = Fit(parameter, obs)
     n = len(obs)
-    steps = _step_indices(obs, [j.after.when for j in (jumps or [])])
+    steps = _step_indices(obs, [j.after.when for j in (jumps or [])] + list(known or []))
     result.step_at = steps
     if n - 2 - len(steps) < 1:
         need = 3 + len(steps)
@@ -248,12 +298,11 @@ def fit(parameter: str, observations: list[Observation], jumps: list[ChangePoint
         result.reason = _undetermined(obs, t)
         return result
     coef, cov, chi2, dof = solved
-    from scipy.stats import t as student
 
     birge_sq = chi2 / dof
     if birge_sq > 1.0:  # the campaigns scatter more than their U says: the scatter sets the scale
         cov = cov * birge_sq
-        k = float(student.ppf(0.975, dof))
+        k = student_975(dof)
     else:  # no more than their U allows: the stated U sets it, never shrunk below
         k = 2.0
     result.coef, result.cov, result.dof, result.k = coef, cov, dof, k
@@ -268,12 +317,15 @@ STEPS_FROM = {"A": ("A", "B"), "E": ("E", "B"), "R": ("R", "B")}
 reversal: R_i of ISO 230-2 holds |B_i|) a reversal jump too; a jump of R does not move A's line."""
 
 
-def analyse(series: dict[str, list[Observation]]) -> tuple[dict[str, Fit], list[ChangePoint]]:
+def analyse(series: dict[str, list[Observation]],
+            known: list[dt.datetime] | None = None) -> tuple[dict[str, Fit], list[ChangePoint]]:
     """Every parameter's change points, then its drift with a step at its own jumps (and, for A,
-    E and R, at the reversal's: STEPS_FROM)."""
-    jumps = [j for parameter, obs in series.items() for j in detect(parameter, obs)]
+    E and R, at the reversal's: STEPS_FROM) and at every known step (`known`: the dates of the
+    campaigns that verified a compensation, which changes every parameter)."""
+    jumps = [j for parameter, obs in series.items() for j in detect(parameter, obs, known)]
     jumps.sort(key=lambda j: (j.after.when, j.parameter))
-    fits = {parameter: fit(parameter, obs, [j for j in jumps if j.parameter in STEPS_FROM.get(parameter, (parameter,))])
+    fits = {parameter: fit(parameter, obs, [j for j in jumps if j.parameter in STEPS_FROM.get(parameter, (parameter,))],
+                           known)
             for parameter, obs in series.items()}
     return fits, jumps
 
@@ -314,24 +366,24 @@ class Crossing:
                            "as the last campaign"}
 
 
-def _first_reach(func: Callable[[float], float], target: float, horizon: float) -> float | None:
-    """The smallest tau in [0, horizon] (years) with func(tau) ≥ target, to a day; None if none."""
+def _first_reach(func: Callable[[np.ndarray], np.ndarray], target: float, horizon: float) -> float | None:
+    """The smallest tau in [0, horizon] (years) with func(tau) ≥ target, to a day; None if none.
+    `func` takes and gives arrays (evaluated on a grid at once, then refined by bisection)."""
     grid = np.linspace(0.0, horizon, 2001)
-    values = np.array([func(float(g)) for g in grid])
-    above = np.nonzero(values >= target)[0]
+    above = np.nonzero(func(grid) >= target)[0]
     if len(above) == 0:
         return None
     i = int(above[0])
     if i == 0:
         return 0.0
-    lo, hi = grid[i - 1], grid[i]
+    lo, hi = float(grid[i - 1]), float(grid[i])
     while hi - lo > 1.0 / 365.25:
         mid = (lo + hi) / 2
-        if func(mid) >= target:
+        if func(np.array([mid]))[0] >= target:
             hi = mid
         else:
             lo = mid
-    return float(hi)
+    return hi
 
 
 def crossing(a_fit: Fit, tolerance: float | None) -> Crossing:
@@ -354,15 +406,15 @@ def crossing(a_fit: Fit, tolerance: float | None) -> Crossing:
                         U_assumed=u_future)
     k = a_fit.k
 
-    def central(tau: float) -> float:
-        return a_fit.predict(tau)[0] + u_future
+    def central(tau: np.ndarray) -> np.ndarray:
+        return a_fit.predict_many(tau)[0] + u_future
 
-    def upper(tau: float) -> float:
-        v, s = a_fit.predict(tau)
+    def upper(tau: np.ndarray) -> np.ndarray:
+        v, s = a_fit.predict_many(tau)
         return v + k * s + u_future
 
-    def lower(tau: float) -> float:
-        v, s = a_fit.predict(tau)
+    def lower(tau: np.ndarray) -> np.ndarray:
+        v, s = a_fit.predict_many(tau)
         return v - k * s + u_future
 
     at = _first_reach(central, tolerance, HORIZON_YEARS)
