@@ -129,3 +129,43 @@ def test_verify_takes_a_linuxcnc_table_like_the_json_one(vertical):
     assert from_file["points"] == 110
     for key in ("A", "B", "E", "R"):
         assert from_file[key] == pytest.approx(from_json[key], abs=0.01), key
+
+
+def comp_json(path, start, spacing, points, **provenance):
+    """A compensate JSON table of `points` zero corrections, with the provenance given."""
+    zeros = [0.0] * points
+    path.write_text(json.dumps({"position_unit": "mm", "start": start, "spacing": spacing, "forward": zeros,
+                                "reverse": zeros, "common": zeros, "mode": "uni", "provenance": provenance}))
+    return path
+
+
+def test_verify_refuses_another_axis_table_before_writing_to_the_controller(cli, tmp_path, monkeypatch):
+    """A 600 mm X table on the 300 mm Z config: exit 2 with one line naming what disagrees, and the
+    controller is never opened, so nothing is written to it (the old code warned, wrote the table
+    and ran the whole campaign)."""
+    from tests.fakes import FakeMachine
+
+    machine = FakeMachine()
+    monkeypatch.setattr("campaign.commands.verify.hardware_opener", lambda: machine)
+    table = comp_json(tmp_path / "x.json", 0.0, 60.0, 11, machine="sim-press", axis="X")
+    result = cli("verify", CONFIGS / "vertical-sim.toml", "--comp", table, "--out", tmp_path / "after")
+    assert_one_line_error(result, "x.json", "axis 'X'", "axis 'Z'", "0 to 600 mm", "--force")
+    assert machine.openings == [] and not (tmp_path / "after").exists()
+    # the same travel, but made for another machine: refused too
+    other = comp_json(tmp_path / "m.json", 0.0, 30.0, 11, machine="mill-2", axis="Z")
+    assert_one_line_error(cli("verify", CONFIGS / "vertical-sim.toml", "--comp", other), "machine 'mill-2'")
+    assert machine.openings == []
+
+
+def test_verify_force_loads_another_axis_table_and_says_so(cli, tmp_path, monkeypatch):
+    from tests.fakes import SMALL, FakeMachine
+
+    machine = FakeMachine()
+    monkeypatch.setattr("campaign.commands.verify.hardware_opener", lambda: machine)
+    config = tmp_path / "small.toml"
+    config.write_text(SMALL)
+    table = comp_json(tmp_path / "y.json", 0.0, 25.0, 5, machine="fake", axis="Y")
+    result = cli("verify", config, "--comp", table, "--out", tmp_path / "after", "--force")
+    assert result.code == 0, result.err
+    assert "made for axis 'Y'" in result.out and "loaded anyway: --force" in result.out
+    assert machine.openings and machine.openings[0].axis.comp is not None

@@ -51,6 +51,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="rate limit of the correction, µm/s (arcsec/s on a rotary axis)")
     p.add_argument("--max-accel", type=positive_number, metavar="UM_PER_S2",
                    help="acceleration limit of the correction, µm/s² (arcsec/s²)")
+    p.add_argument("--force", action="store_true",
+                   help="load a table made for another machine or axis, or for a much longer travel "
+                        "(refused with exit 2 otherwise)")
     add_run_options(p)
     p.set_defaults(func=run)
 
@@ -70,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
     console = make_console(stderr=args.json)
     if units_note:
         console.print(f"note: {units_note}")
-    for warning in [*table_fits(table, read_comp_provenance(args.comp), config, plan, args.comp),
+    for warning in [*table_fits(table, read_comp_provenance(args.comp), config, plan, args.comp, args.force),
                     *table_spikes(table, args.comp)]:
         console.print(f"[yellow]warning:[/] {warning}")
     baseline = Path(args.before) if args.before else None

@@ -43,25 +43,34 @@ def correction_limits(config: Config, max_rate: float | None, max_accel: float |
             max_accel / scale if max_accel else 0.1 * axis.max_acceleration)
 
 
+SPAN_FACTOR = 1.5
+"""A table spanning more than this many times the plan's travel was made for a longer axis."""
+
+
 def table_fits(table: ControllerTable, provenance: dict[str, str], config: Config, plan: Plan,
-               where: str) -> list[str]:
-    """Warnings where the table and the campaign about to measure disagree (its span, machine or
-    axis); InputError when the table's range does not cover the plan's targets: the controller
-    would get no compensation at some of them."""
+               where: str, force: bool = False) -> list[str]:
+    """Warnings where the table and the campaign about to measure may disagree; InputError, before
+    anything is written to the controller, where they certainly do: the table's range does not cover
+    the plan's targets (the controller would get no compensation at some of them), it spans far more
+    than the plan's travel (SPAN_FACTOR), or it says it was made for another machine or axis. With
+    `force` the last two are warnings (the range must still cover the targets)."""
     end = table.start + table.spacing * (len(table.forward) - 1)
     unit = config.axis.unit
     lo, hi = min(plan.targets), max(plan.targets)
     if lo < table.start - 1e-9 or hi > end + 1e-9:
         raise InputError(f"{where}: the table covers {table.start:g} to {end:g} {unit}, the plan's targets "
                          f"{lo:g} to {hi:g} {unit}: made for another axis or range; refused")
-    warnings = []
-    if (end - table.start) > 1.5 * (hi - lo):
-        warnings.append(f"the table spans {table.start:g} to {end:g} {unit}, the plan only {lo:g} to {hi:g} {unit}: "
-                        "is it the table of this axis?")
+    certain = []
+    if (end - table.start) > SPAN_FACTOR * (hi - lo):
+        certain.append(f"the table spans {table.start:g} to {end:g} {unit}, the plan only {lo:g} to {hi:g} {unit}")
     for key, now in (("machine", config.campaign.machine), ("axis", config.axis.name)):
         then = provenance.get(key)
         if then and then != now:
-            warnings.append(f"the table was made for {key} '{then}', the config measures {key} '{now}'")
+            certain.append(f"the table was made for {key} '{then}', the config measures {key} '{now}'")
+    if certain and not force:
+        raise InputError(f"{where}: {'; '.join(certain)}: another axis' table? Nothing was written to the "
+                         "controller (--force loads it anyway)")
+    warnings = [f"{w} (loaded anyway: --force)" for w in certain]
     if not provenance:
         warnings.append("the table does not say which machine and axis it was made for (the linuxcnc, heidenhain "
                         "and fanuc formats have no comments to say it in): check that it is this axis' table")
