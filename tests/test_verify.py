@@ -2,6 +2,7 @@
 again with the compensation applied as FB_AxiscalCompensation does, compare before and after."""
 
 import json
+import re
 
 import pytest
 
@@ -169,3 +170,46 @@ def test_verify_force_loads_another_axis_table_and_says_so(cli, tmp_path, monkey
     assert result.code == 0, result.err
     assert "made for axis 'Y'" in result.out and "loaded anyway: --force" in result.out
     assert machine.openings and machine.openings[0].axis.comp is not None
+
+
+def test_the_report_of_a_verification_names_its_table_and_campaigns(cli, tmp_path, monkeypatch):
+    """The verification campaign keeps the table it wrote and records its file, format, checksum and
+    source campaign; the report names them, and the before and after campaigns by id and relative to
+    the report (the old report said neither, and gave the before campaign as an absolute path)."""
+    import hashlib
+
+    from campaign.config import parse_config
+    from campaign.measure import start_campaign
+    from tests.fakes import SMALL, FakeMachine
+
+    machine = FakeMachine()
+    monkeypatch.setattr("campaign.commands.verify.hardware_opener", lambda: machine)
+    config = tmp_path / "small.toml"
+    config.write_text(SMALL)
+    before = tmp_path / "runs" / "fake-X-before"
+    start_campaign(parse_config(SMALL, "small.toml"), before, opener=machine)
+    table = tmp_path / "tables" / "x.comp"
+    table.parent.mkdir()
+    assert cli("compensate", before / "points.csv", "--format", "linuxcnc", "-o", table).code == 0
+    after = tmp_path / "runs" / "fake-X-after"
+    result = cli("verify", config, "--comp", table, "--before", before, "--out", after)
+    assert result.code == 0, result.err
+    assert (after / "compensation-table.comp").read_bytes() == table.read_bytes()
+    digest = hashlib.sha256(table.read_bytes()).hexdigest()
+    meta = json.loads((after / "meta.json").read_text())
+    assert meta["compensation"]["table"]["format"] == "linuxcnc"
+    assert meta["compensation"]["table"]["sha256"] == digest
+    report = tmp_path / "filed" / "report.html"
+    assert cli("report", after, "-o", report).code == 0
+    html = report.read_text()
+    for text in ("Compensation table verified", "x.comp", "linuxcnc", digest, "fake-X-before",
+                 "../runs/fake-X-before", "../runs/fake-X-after", "compensation-table.comp", "Sign-off",
+                 "Checked by", "Approved by", "Page &quot;", "counter(pages)"):
+        assert text in html or text.replace("&quot;", '"') in html, text
+    assert str(tmp_path) not in html  # no absolute path of this PC
+    assert "not said by the table" in html  # a LinuxCNC file has no comments to name its campaign
+    json_table = tmp_path / "tables" / "x.json"
+    assert cli("compensate", before / "points.csv", "--format", "json", "-o", json_table).code == 0
+    assert cli("verify", config, "--comp", json_table, "--out", tmp_path / "runs" / "json-after").code == 0
+    assert cli("report", tmp_path / "runs" / "json-after", "-o", report).code == 0
+    assert re.search(r"Computed from</th><td>campaign fake-X-before, measured 20\d\d-", report.read_text())

@@ -13,6 +13,7 @@ from campaign.commands.run import add_run_options, finish, with_on_fault
 from campaign.compensation.table_file import (
     read_comp_provenance,
     read_comp_table,
+    table_identity,
     table_spikes,
     table_units_note,
 )
@@ -83,7 +84,8 @@ def run(args: argparse.Namespace) -> int:
     with RichProgress(unit) as observer:
         outcome = run_verification(config, table, out, opener=hardware_opener(), baseline=baseline if baseline and baseline.is_dir() else None,
                                    max_rate=args.max_rate, max_accel=args.max_accel, speed=args.speed,
-                                   observer=observer)
+                                   observer=observer, source=Path(args.comp),
+                                   identity=table_identity(args.comp, args.comp_format))
     summaries = {}
     if outcome.points:
         from campaign.pointtable import read_points

@@ -14,6 +14,7 @@ import json
 from pathlib import Path
 
 from campaign.compensation.grid import ControllerTable
+from campaign.compensation.table_file import KEPT_TABLE
 from campaign.config import Config
 from campaign.errors import InputError
 from campaign.iso230 import Evaluation, evaluate
@@ -79,23 +80,34 @@ def table_fits(table: ControllerTable, provenance: dict[str, str], config: Confi
 
 def run_verification(config: Config, table: ControllerTable, out: Path, *, opener: Opener,
                      baseline: Path | None = None, max_rate: float | None = None, max_accel: float | None = None,
-                     speed: float | None = None, observer: Observer | None = None) -> Outcome:
-    """Write `table` to the controller, then run the campaign of `config` into `out`."""
+                     speed: float | None = None, observer: Observer | None = None,
+                     source: Path | None = None, identity: dict[str, str] | None = None) -> Outcome:
+    """Write `table` to the controller, then run the campaign of `config` into `out`. `source`:
+    the table file as given, kept byte for byte in the campaign directory (KEPT_TABLE plus its
+    suffix), and `identity` (`table_identity`: its name, format, checksum, source campaign),
+    recorded in meta.json's `compensation`, so that the report names what was verified."""
     rate, accel = correction_limits(config, max_rate, max_accel)
     comp = table.to_plc(rate, accel, enabled=True)
     opened = open_with_comp(opener, config, comp, speed)
-    extra: dict[str, object] = {"compensation": {"file": COMP_FILE, "mode": table.mode, "points": len(table.forward),
-                              "start": table.start, "spacing": table.spacing, "overrun": table.overrun,
-                              "max_rate": rate, "max_accel": accel}}
+    kept = KEPT_TABLE + source.suffix if source is not None else None
+    compensation: dict[str, object] = {"file": COMP_FILE, "mode": table.mode, "points": len(table.forward),
+                                       "start": table.start, "spacing": table.spacing, "overrun": table.overrun,
+                                       "max_rate": rate, "max_accel": accel}
+    if identity is not None:
+        compensation["table"] = {**identity, "kept": kept}
+    extra: dict[str, object] = {"compensation": compensation}
     if baseline is not None:
         extra["baseline_dir"] = str(baseline.resolve())
     return start_campaign(config, out, opened=opened, observer=observer, meta_extra=extra,
-                          on_created=lambda directory: save_comp(directory, comp))
+                          on_created=lambda directory: save_comp(directory, comp, source, kept))
 
 
-def save_comp(directory: Path, comp: CompTable) -> None:
-    """Keep the controller's table in the campaign directory, so that resume writes it again."""
+def save_comp(directory: Path, comp: CompTable, source: Path | None = None, kept: str | None = None) -> None:
+    """Keep the controller's table in the campaign directory, so that resume writes it again, and
+    the table file it came from as given (`kept`), so that the campaign names what it verified."""
     (directory / COMP_FILE).write_text(json.dumps(dataclasses.asdict(comp), indent=1), encoding="utf-8")
+    if source is not None and kept is not None:
+        (directory / kept).write_bytes(source.read_bytes())
 
 
 def baseline_points(path: Path, config: Config) -> PointTable:
