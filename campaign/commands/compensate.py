@@ -62,6 +62,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--control", choices=("840d", "828d", "808d", "tnc640", "tnc426"), type=str.lower,
                    help="siemens: 840d (default), 828d or 808d (sets the point limit: 808D 200); "
                         "heidenhain: tnc640 (default) or tnc426 (power-of-two spacing)")
+    p.add_argument("--partial", action="store_true",
+                   help="write the table of an incomplete campaign (refused with exit 2 otherwise); "
+                        "says which part of the travel it covers")
     p.add_argument("--write-plc", metavar="CONFIG",
                    help="TwinCAT: also write the tables into the PLC of CONFIG over ADS "
                         "(GVL_Axiscal.astComp[n]), read them back, compare, then enable them")
@@ -97,6 +100,22 @@ def campaign_of(path: str) -> tuple[str, str]:
     return directory.resolve().name, created
 
 
+def partial_coverage(path: str, ctable: ControllerTable, unit: str) -> str:
+    """Which part of the planned travel a table of an incomplete campaign covers: "the table covers
+    0 to 480 mm of the planned 0 to 600 mm" (the plan's targets from meta.json; for a bare table, the
+    table's own span)."""
+    from campaign.assess import campaign_dir_of
+    from campaign.record import open_campaign
+
+    end = ctable.start + ctable.spacing * (len(ctable.forward) - 1)
+    covers = f"the table covers {ctable.start:g} to {end:g} {unit}"
+    directory = campaign_dir_of(path)
+    targets = open_campaign(directory).meta.get("targets") if directory is not None else None
+    if isinstance(targets, list) and targets and all(isinstance(t, (int, float)) for t in targets):
+        return f"{covers} of the planned {min(targets):g} to {max(targets):g} {unit}"
+    return covers
+
+
 def run(args: argparse.Namespace) -> int:
     from campaign import __version__
     from campaign.assess import incomplete
@@ -112,9 +131,14 @@ def run(args: argparse.Namespace) -> int:
         then = f"resume it first: axiscal resume {directory}" if directory else "measure the rest first"
         raise InputError(f"incomplete campaign ({'; '.join(missing)}): {exc}; {then}") from None
     console = make_console()
-    for problem in incomplete(args.file):
-        console.print(f"[yellow]warning:[/] incomplete campaign: {problem}; the table is built from the points "
-                      "measured (resume the campaign first for a complete one)")
+    missing = incomplete(args.file)
+    if missing and not args.partial:
+        from campaign.assess import campaign_dir_of
+
+        directory = campaign_dir_of(args.file)
+        then = f"resume it first (axiscal resume {directory})" if directory else "measure the rest first"
+        raise InputError(f"{args.file}: incomplete campaign ({'; '.join(missing)}): {then}, or give --partial "
+                         "for a table of the travel measured so far")
     method = args.method or DEFAULT_METHOD.get(args.format, "inverse")
     corr = corrections(table, args.mode, method, args.smooth)
     max_points = args.max_points or control_point_limit(args.format, args.control)
@@ -149,6 +173,9 @@ def run(args: argparse.Namespace) -> int:
             console.print(f"  the means move by at most {sm.max_change:.3f} {unit}")
     console.print(f"table: {len(ctable.forward)} points from {ctable.start:g} every {ctable.spacing:g} "
                   f"{table.position_unit}, overrun {ctable.overrun:g}")
+    if missing:
+        console.print(f"[yellow]warning:[/] --partial: {partial_coverage(args.file, ctable, table.position_unit)} "
+                      f"({'; '.join(missing)}): no correction beyond it")
     console.print(f"inverse interpolation - simple (-error): max {corr.max_inverse_minus_simple:.3f} {unit} "
                   f"(method used: {corr.method})")
     console.print(f"predicted accuracy A: {fmt(pred.accuracy_before)} -> {fmt(pred.accuracy_after)} {unit}; "
