@@ -30,23 +30,46 @@ BLOCKS = "▁▂▃▄▅▆▇█"
 QUIET_KINDS = ("start", "point", "interrupt", "fault", "halt", "stop", "skip", "retry")
 """Events the dashboard shows its own way (progress, the fault prompt, abort()) or not at all."""
 
-KEY_HELP = "keys: p pause after this point · r resume · a abort · Ctrl-C abort (twice: halt at once)"
+SIGNED_BLOCKS = "▁▂▃▄▅▆▇"
+"""The deviation chart's levels: an odd number, so that 0 is the middle block (▄) of a scale
+symmetric about 0, below it the negative deviations, above it the positive ones."""
+
+CTRL_C_HELP = "Ctrl-C abort (twice: halt at once)"
 
 
-def sparkline(values: list[float | None], lo: float, hi: float, width: int = 1) -> str:
-    """One block per value between lo and hi (`width` characters each); '·' where there is none."""
+def key_help(state: str) -> str:
+    """The key line for the dashboard's state: only the keys that do something now."""
+    if state in ("COMPLETED", "INTERRUPTED", "FAILED", "STOPPED"):
+        return ""
+    if state == "ABORTING":
+        return "aborting: the axis halts and the recording is flushed · Ctrl-C again: halt at once"
+    if state.startswith("PAUSED"):
+        return f"keys: r resume · a abort · {CTRL_C_HELP}"
+    if state == "PAUSE REQUESTED":
+        return f"keys: r cancel the pause · a abort · {CTRL_C_HELP}"
+    return f"keys: p pause after this point · a abort · {CTRL_C_HELP}"
+
+
+def sparkline(values: list[float | None], lo: float, hi: float, width: int = 1, blocks: str = BLOCKS) -> str:
+    """One block of `blocks` per value between lo and hi (`width` characters each); '·' where there is none."""
     out = []
     for v in values:
         if v is None:
             out.append("·" * width)
             continue
-        out.append(BLOCKS[level_of(v, lo, hi)] * width)
+        out.append(blocks[level_of(v, lo, hi, len(blocks))] * width)
     return "".join(out)
 
 
-def level_of(value: float, lo: float, hi: float) -> int:
-    """The block (0 to 7) that shows `value` on a scale from lo to hi."""
-    return 0 if hi <= lo else round((value - lo) / (hi - lo) * (len(BLOCKS) - 1))
+def signed_sparkline(values: list[float | None], half: float, width: int = 1) -> str:
+    """The values on a scale from -half to +half (SIGNED_BLOCKS): 0 is the middle block (▄), -half
+    the lowest (▁), +half the highest (▇); a more negative deviation is a lower block."""
+    return sparkline(values, -half, half, width, SIGNED_BLOCKS)
+
+
+def level_of(value: float, lo: float, hi: float, levels: int = len(BLOCKS)) -> int:
+    """The block (0 to levels - 1) that shows `value` on a scale from lo to hi."""
+    return 0 if hi <= lo else round((value - lo) / (hi - lo) * (levels - 1))
 
 
 def clock_text(seconds: float) -> str:
@@ -96,6 +119,9 @@ class Dashboard(Observer):
         self.per_run = len(plan.points) // self.runs
         self.state = "starting"
         self.abort_reason: str | None = None
+        self.stopping = False
+        """The campaign is stopping: its interrupt or stop event arrived (a second Ctrl-C then
+        only halts; it must not cut the stop record)."""
         self.prompt: str | None = None
         self.warnings: deque[str] = deque(maxlen=4)
         self.done: set[int] = set()
@@ -132,7 +158,7 @@ class Dashboard(Observer):
         if self.prompt:
             parts.append(Panel(self.prompt, title="FAULT", border_style="bold red"))
         else:
-            parts.append(f"[dim]{KEY_HELP}[/]")
+            parts.append(f"[dim]{key_help(self.state)}[/]")
         return Group(*parts)
 
     def current(self) -> int | None:
@@ -170,12 +196,13 @@ class Dashboard(Observer):
                                   f"{self.unit}" + (f", {min(known):+.2f} to {max(known):+.2f} {self.dev_unit}"
                                                     if known else ""))
         width = max(1, 48 // len(self.plan.targets))
-        lo, hi = (min(min(known), 0.0), max(max(known), 0.0)) if known else (0.0, 0.0)
+        half = max((abs(m) for m in known), default=0.0) or 1.0  # one scale for both directions
         for direction, label in ((1, "↑ +"), (-1, "↓ -")):
-            grid.add_row(f"  {label}", sparkline(means[direction], lo, hi, width))
+            grid.add_row(f"  {label}", signed_sparkline(means[direction], half, width))
         if known:
-            grid.add_row("  0", f"[dim]{BLOCKS[level_of(0.0, lo, hi)] * width * len(self.plan.targets)}[/] "
-                                f"[dim](the level of 0 {self.dev_unit})[/]")
+            middle = SIGNED_BLOCKS[len(SIGNED_BLOCKS) // 2]
+            grid.add_row("  0", f"[dim]{middle * width * len(self.plan.targets)}[/] "
+                                f"[dim](0 {self.dev_unit}; the scale is ±{half:.2f} {self.dev_unit})[/]")
         return grid
 
     def say(self, message: str, warning: bool = True) -> None:
@@ -261,6 +288,8 @@ class Dashboard(Observer):
 
     def emit(self, event: Event) -> None:
         kind = event.kind
+        if kind in ("interrupt", "stop"):
+            self.stopping = True
         if kind == "start":
             self.started_s = event.t_s
         elif kind == "point" and event.point is not None:

@@ -80,7 +80,10 @@ class Keys:
 
 class CtrlC:
     """SIGINT while the axis may move: the first aborts like `a` (halt at the next tick, flush,
-    mark interrupted); the second halts the axis at once and stops."""
+    mark interrupted); the second halts the axis at once and stops, unless the campaign is already
+    stopping (the dashboard saw its interrupt or stop event): then the halt is all it does,
+    so the stop record is still written and the summary and the resume line still come. Further
+    presses are said and change nothing."""
 
     def __init__(self, dashboard: Dashboard, hw: Hardware) -> None:
         self.dashboard, self.hw, self.count = dashboard, hw, 0
@@ -97,7 +100,13 @@ class CtrlC:
         if self.count == 1:
             self.dashboard.abort("Ctrl-C")
             return
+        if self.count > 2:
+            self.dashboard.say("Ctrl-C: already stopping; the summary and the resume line follow")
+            return
         with contextlib.suppress(Exception):  # the connection may be gone: the PLC then finishes its current move (no watchdog)
             self.hw.axis.halt()
+        if self.dashboard.stopping:
+            self.dashboard.say("second Ctrl-C: axis halted at once; the campaign is already stopping")
+            return
         self.dashboard.say("second Ctrl-C: axis halted at once")
         raise KeyboardInterrupt
