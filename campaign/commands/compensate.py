@@ -5,6 +5,7 @@ predicted accuracy next to the floor the repeatability allows."""
 from __future__ import annotations
 
 import argparse
+import itertools
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -100,6 +101,32 @@ def campaign_of(path: str) -> tuple[str, str]:
     return directory.resolve().name, created
 
 
+def nominal_grid(path: str) -> tuple[float, float, str] | None:
+    """(spacing, origin, what to say) of the nominal grid of a campaign measured with target offsets
+    (random or golden): its targets are off the grid a controller wants, so the table defaults to
+    the plan's nominal spacing from its first nominal target. None for a bare table, a campaign
+    without offsets, or nominal targets that are not equidistant."""
+    from campaign.assess import campaign_dir_of
+    from campaign.plan import nominal_targets
+    from campaign.record import open_campaign
+
+    directory = campaign_dir_of(path)
+    if directory is None:
+        return None
+    try:
+        plan = open_campaign(directory).config().plan
+    except (InputError, OSError, ValueError):
+        return None
+    if plan.offsets == "none":
+        return None
+    nominal = nominal_targets(plan)
+    steps = [b - a for a, b in itertools.pairwise(nominal)]
+    if not steps or max(steps) - min(steps) > 1e-9 * max(1.0, abs(nominal[-1])):
+        return None
+    return steps[0], nominal[0], (f"the plan's nominal grid: its targets carry {plan.offsets} offsets; "
+                                  "--spacing sets another")
+
+
 def partial_coverage(path: str, ctable: ControllerTable, unit: str) -> str:
     """Which part of the planned travel a table of an incomplete campaign covers: "the table covers
     0 to 480 mm of the planned 0 to 600 mm" (the plan's targets from meta.json; for a bare table, the
@@ -142,7 +169,10 @@ def run(args: argparse.Namespace) -> int:
     method = args.method or DEFAULT_METHOD.get(args.format, "inverse")
     corr = corrections(table, args.mode, method, args.smooth)
     max_points = args.max_points or control_point_limit(args.format, args.control)
-    ctable = resample(corr, max_points, args.spacing, args.reference, args.overrun)
+    spacing, origin, nominal_note = args.spacing, None, None
+    if spacing is None and (nominal := nominal_grid(args.file)) is not None:
+        spacing, origin, nominal_note = nominal
+    ctable = resample(corr, max_points, spacing, args.reference, args.overrun, origin)
     axis = args.axis_name or ("AX1" if args.format == "siemens" else "X")
     name, created = campaign_of(args.file)
     provenance = (("campaign", name), ("measured", created),
@@ -172,7 +202,7 @@ def run(args: argparse.Namespace) -> int:
         if sm.degree is not None:
             console.print(f"  the means move by at most {sm.max_change:.3f} {unit}")
     console.print(f"table: {len(ctable.forward)} points from {ctable.start:g} every {ctable.spacing:g} "
-                  f"{table.position_unit}, overrun {ctable.overrun:g}")
+                  f"{table.position_unit}, overrun {ctable.overrun:g}" + (f" ({nominal_note})" if nominal_note else ""))
     if missing:
         console.print(f"[yellow]warning:[/] --partial: {partial_coverage(args.file, ctable, table.position_unit)} "
                       f"({'; '.join(missing)}): no correction beyond it")
