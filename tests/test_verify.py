@@ -15,7 +15,7 @@ CONFIGS = ROOT / "data" / "configs"
 
 @pytest.fixture(scope="module")
 def vertical(tmp_path_factory):
-    """Seed 000's vertical axis (490 µm reversal): baseline, bidirectional table, verification."""
+    """The vertical axis of Li et al. 2022 (490 µm reversal): baseline, bidirectional table, verification."""
     base = tmp_path_factory.mktemp("vertical")
     assert axiscal("run", CONFIGS / "vertical-sim.toml", "--out", base / "before").returncode == 0
     comp = axiscal("compensate", base / "before" / "points.csv", "--format", "json", "-o", base / "t.json",
@@ -52,7 +52,7 @@ def test_verification_is_recorded_with_its_baseline(vertical):
     written = read_comp_json(base / "t.json")
     assert table["forward"] == pytest.approx(list(written.forward * 1e-3))  # µm -> mm in the PLC
     md = (base / "after" / "verification.md").read_text()
-    assert "Before compensation: forward (+) deviations" in md and "| accuracy A |" in md
+    assert "Before compensation: forward (+) deviations" in md and "| A | accuracy, bidirectional |" in md and "| A_up | accuracy, + direction |" in md
     assert (base / "after" / "verification.png").read_bytes()[:4] == b"\x89PNG"
 
 
@@ -194,6 +194,7 @@ def test_the_report_of_a_verification_names_its_table_and_campaigns(cli, tmp_pat
     after = tmp_path / "runs" / "fake-X-after"
     result = cli("verify", config, "--comp", table, "--before", before, "--out", after)
     assert result.code == 0, result.err
+    assert "A_up" in result.out and "A↑" not in result.out  # the summary's names (the old table said A↑)
     assert (after / "compensation-table.comp").read_bytes() == table.read_bytes()
     digest = hashlib.sha256(table.read_bytes()).hexdigest()
     meta = json.loads((after / "meta.json").read_text())

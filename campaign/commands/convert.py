@@ -14,7 +14,7 @@ from campaign.errors import InputError
 from campaign.iso230 import evaluate
 from campaign.pointtable import PointTable
 from campaign.views import make_console, print_json
-from protocols.units import unit_label
+from protocols.units import counted, unit_label
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -102,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
         keys = ("A", "B", "R") if values.get("A") is not None else ("A_up", "R_up", "A_down", "R_down")
         shown = ", ".join(f"{k.replace('_up', '↑').replace('_down', '↓')} {values[k]:.3f} {unit}"
                           for k in keys if values.get(k) is not None) or "no value (too few runs)"
-        make_console().print(f"{args.output}: {len(table)} points, {summary['runs']} runs, {summary['targets']} "
+        make_console().print(f"{args.output}: {len(table)} points, {counted(int(table.run.max()), 'run')}, {summary['targets']} "
                              f"targets ({source} → {target}); ISO 230-2: {shown}")
         if undated and target == "rtl":
             make_console().print(f"[yellow]warning:[/] {args.input}: no measurement date (no `# date:` comment and "

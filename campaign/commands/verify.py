@@ -93,11 +93,13 @@ def run(args: argparse.Namespace) -> int:
         summaries = write_report(outcome.dir, read_points(outcome.dir / "points.csv"), before)
         if not args.json:
             shown = Table(title=f"Before and after compensation ({'µm' if unit == 'mm' else 'arcsec'})")
-            for head in ("parameter", "before", "after"):
+            shown.add_column("parameter")
+            shown.add_column("meaning")
+            for head in ("before", "after"):
                 shown.add_column(head, justify="right")
             for key, name in SUMMARY_KEYS:
                 b = summaries["before"].get(key) if summaries["before"] else None
-                shown.add_row(name, fmt(b), fmt(summaries["after"].get(key)))
+                shown.add_row(key, name, fmt(b), fmt(summaries["after"].get(key)))
             console.print(shown)
             console.print(f"tables: {outcome.dir / 'verification.md'}; plot: {outcome.dir / 'verification.png'}")
     return finish(outcome, args, {"before": summaries.get("before")})

@@ -79,7 +79,8 @@ def clock_text(seconds: float) -> str:
 
 
 def error_id_text(error_id: int) -> str:
-    """A controller error number in decimal and hex, as TwinCAT's documentation lists them."""
+    """A controller error number in decimal and hex, as TwinCAT's documentation lists them (the
+    number is the controller's error id: look it up in its error list)."""
     return f"{error_id} (0x{error_id:04X})"
 
 

@@ -24,12 +24,13 @@ from campaign.plan import Plan
 from campaign.plot import draw_evaluation, pyplot
 from campaign.pointtable import PointTable, read_points
 from campaign.record import COMP_FILE, open_campaign
+from campaign.views import SUMMARY_ROWS
 from protocols.plc_contract import CompTable
 from protocols.units import DEVIATION_SCALE, unit_label
 
-SUMMARY_KEYS = (("M", "mean bidirectional deviation range M"), ("E", "systematic deviation E"),
-                ("R_up", "repeatability R↑"), ("R_down", "repeatability R↓"), ("B", "reversal B"),
-                ("A_up", "accuracy A↑"), ("A_down", "accuracy A↓"), ("A", "accuracy A"))
+SUMMARY_KEYS = tuple((key, dict(SUMMARY_ROWS)[key]) for key in ("M", "E", "R_up", "R_down", "B", "A_up", "A_down", "A"))
+"""The before/after rows: each parameter by the key and meaning the ISO 230-2 summary uses (A_up,
+not A↑), so that the two tables read alike."""
 
 
 def correction_limits(config: Config, max_rate: float | None, max_accel: float | None) -> tuple[float, float]:
@@ -159,12 +160,12 @@ def write_report(directory: Path, after: PointTable, before: PointTable | None) 
             continue
         for direction, name in ((1, "forward (+)"), (-1, "reverse (-)")):
             md += [f"## {label}: {name} deviations, {unit}", ""] + direction_table(table, ev, direction) + [""]
-    md += [f"## Accuracy, {unit}", "", "| parameter | before | after |", "|---|---|---|"]
+    md += [f"## Accuracy, {unit}", "", "| parameter | meaning | before | after |", "|---|---|---|---|"]
     result = {"after": ev_after.summary, "before": ev_before.summary if ev_before else None}
     for key, name in SUMMARY_KEYS:
         b = ev_before.summary.get(key) if ev_before else None
         a = ev_after.summary.get(key)
-        md.append(f"| {name} | {'–' if b is None else f'{b:.3f}'} | {'–' if a is None else f'{a:.3f}'} |")
+        md.append(f"| {key} | {name} | {'–' if b is None else f'{b:.3f}'} | {'–' if a is None else f'{a:.3f}'} |")
     (directory / "verification.md").write_text("\n".join(md) + "\n", encoding="utf-8")
     panels = [(before, ev_before, "before: "), (after, ev_after, "after: ")] \
         if before is not None and ev_before is not None else [(after, ev_after, "after: ")]

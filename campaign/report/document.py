@@ -42,7 +42,7 @@ from campaign.report.html import (
 )
 from campaign.uncertainty import TYPICAL
 from campaign.verdict import completeness
-from protocols.units import unit_label
+from protocols.units import counted, unit_label
 
 
 def baseline_of(a: Assessment) -> Path | None:
@@ -293,7 +293,7 @@ def render_report(a: Assessment, before: Assessment | None = None, here: Path | 
     if before is not None:
         parts.append(_comparison(before, a, here))
     plot = plot_png([("", a)])
-    parts += [section(f"Result ({ev.standard.title}, {ev.runs} runs)", summary_table(ev)),
+    parts += [section(f"Result ({ev.standard.title}, {counted(ev.runs, 'run')})", summary_table(ev)),
               section("Measurement uncertainty", budget_table(a.uncertainty)),
               section("Outliers", outliers_table(a.outliers, ev.unit)),
               section("Deviation plot", f"<img class='plot' alt='Deviation per target' src='{plot}'>"),
