@@ -89,3 +89,40 @@ def test_the_comments_in_data_name_the_papers_not_the_seed_files():
              if path.is_file() and path.suffix in (".csv", ".toml", ".md", ".json")
              for line in path.read_text(encoding="utf-8").splitlines() if re.search(r"seed 0\d\d", line, re.IGNORECASE)]
     assert found == []
+
+
+@pytest.mark.parametrize("fmt, needs", [
+    ("pmac", ("--counts-per-unit", "--mode uni")),
+    ("fanuc", ("--counts-per-unit", "--reference")),
+    ("twincat_cnc", ("--axis-number",)),
+])
+def test_every_option_a_format_needs_is_said_at_once(cli, tmp_path, fmt, needs):
+    """The old compensate revealed them one error at a time."""
+    from tests.conftest import PAPER
+
+    result = cli("compensate", PAPER / "vertical_before.csv", "--format", fmt, "-o", tmp_path / "t")
+    assert_one_line_error(result, f"--format {fmt} needs", *needs)
+    assert not (tmp_path / "t").exists()
+
+
+def test_the_checklist_keeps_its_rows_when_the_hardware_does_not_open(tmp_path):
+    """The old checklist showed the controller row only: the interferometer and environment rows
+    are said as not checked, and a file the config names is a config failure, not the controller."""
+    from campaign.commands.guide import Setup, open_hardware
+    from campaign.errors import InputError
+    from protocols.hardware import AxisError
+
+    config = parse_config(SMALL, "small.toml")
+
+    def failing(exc):
+        def opener():
+            raise exc
+        return Setup(config, build_plan(config), [], opener)
+
+    _, _, rows = open_hardware(failing(AxisError("no route", 0)), None)
+    names = {r.name: r for r in rows}
+    assert names["controller"].ok is False and names["interferometer signal"].ok is None
+    assert {"air temperature", "air pressure", "humidity", "material temperature"} <= set(names)
+    _, _, rows = open_hardware(failing(InputError("model.toml is missing")), None)
+    names = {r.name: r for r in rows}
+    assert names["config"].ok is False and names["controller"].ok is None

@@ -101,6 +101,25 @@ def campaign_of(path: str) -> tuple[str, str]:
     return directory.resolve().name, created
 
 
+def missing_options(args: argparse.Namespace, mode: str, start: float) -> list[str]:
+    """Every option the format still needs, each with why, so that they are all said at once (not
+    one error per try): counts per unit (pmac, fanuc), one table (pmac, siemens: `mode` is what was
+    chosen), the reference (fanuc; pmac's table starts at motor zero), the axis number (twincat_cnc)."""
+    fmt, needed = args.format, []
+    if fmt in ("pmac", "fanuc") and args.counts_per_unit is None:
+        what = "encoder counts" if fmt == "pmac" else "detection units"
+        needed.append(f"--counts-per-unit ({what} per mm or degree)")
+    if fmt in ("pmac", "siemens") and mode != "uni":
+        needed.append(f"--mode uni (it holds one table per axis; the {args.mode} mode gave {mode})")
+    if fmt == "fanuc" and args.reference is None:
+        needed.append("--reference (fanuc counts its points from the reference position)")
+    if fmt == "pmac" and args.reference is None and abs(start) > 1e-9:
+        needed.append(f"--reference 0 (a pmac table starts at motor zero; the grid starts at {start:g})")
+    if fmt == "twincat_cnc" and args.axis_number is None:
+        needed.append("--axis-number (the axis' logical number, kopf.achs_nr, P-AXIS-00016 in its axis parameters)")
+    return needed
+
+
 def nominal_grid(path: str) -> tuple[float, float, str] | None:
     """(spacing, origin, what to say) of the nominal grid of a campaign measured with target offsets
     (random or golden): its targets are off the grid a controller wants, so the table defaults to
@@ -173,6 +192,8 @@ def run(args: argparse.Namespace) -> int:
     if spacing is None and (nominal := nominal_grid(args.file)) is not None:
         spacing, origin, nominal_note = nominal
     ctable = resample(corr, max_points, spacing, args.reference, args.overrun, origin)
+    if needed := missing_options(args, corr.mode, ctable.start):
+        raise InputError(f"--format {args.format} needs {'; '.join(needed)}")
     axis = args.axis_name or ("AX1" if args.format == "siemens" else "X")
     name, created = campaign_of(args.file)
     provenance = (("campaign", name), ("measured", created),
