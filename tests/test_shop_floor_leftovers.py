@@ -126,3 +126,28 @@ def test_the_checklist_keeps_its_rows_when_the_hardware_does_not_open(tmp_path):
     _, _, rows = open_hardware(failing(InputError("model.toml is missing")), None)
     names = {r.name: r for r in rows}
     assert names["config"].ok is False and names["controller"].ok is None
+
+
+@pytest.mark.parametrize("width", [60, 80, 120])
+def test_progress_lines_never_cut_a_number(width):
+    """At 80 columns the old progress line read `1… 0:0…`: now the counts and the time left stay
+    whole, and only the live text is cut, at its end."""
+    import io
+
+    from rich.console import Console
+
+    from campaign.measure.progress import RichProgress
+    from protocols.hardware import Reading
+
+    shown = RichProgress("mm")
+    shown.console = Console(file=io.StringIO(), width=width, force_terminal=True, color_system=None)
+    shown.progress.live.console = shown.console
+    plan = build_plan(parse_config(SMALL.replace("cycles = 2", "cycles = 40"), "small.toml"))
+    shown.started(plan, list(range(len(plan.points))))
+    shown.reading(100.0, Reading(1.0, 123.45678, True, 90.0, 20.0, 1013.2, 50.0, 20.0), 123.456)
+    shown.progress.refresh()
+    shown.progress.stop()
+    screen = re.sub(r"\x1b\[[0-9;?]*[a-zA-Z]", "", shown.console.file.getvalue()).replace("\r", "\n")
+    assert "0/240" in screen and "0/6" in screen and "-:--:--" in screen, screen
+    assert not re.search(r"[\d:]…", screen), screen
+    assert all(len(line) <= width for line in screen.splitlines())
