@@ -14,7 +14,6 @@ from campaign.plan import Plan
 from campaign.record import Event
 from protocols.hardware import Reading
 
-
 FIXED_WIDTH = 40
 """Characters the progress line's other columns take (description 10, bar 10, counts 9, time left 7,
 a space after each): the live text gets the rest of the terminal's width."""
