@@ -71,14 +71,14 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{args.comp}: a {table.kind} table does not fit the {config.axis.kind} axis")
     plan = build_plan(config)
     check_plan(plan, config.axis)
+    baseline = Path(args.before) if args.before else None
+    before = baseline_points(baseline, config) if baseline else None  # a wrong baseline is said first
     console = make_console(stderr=args.json)
     if units_note:
         console.print(f"note: {units_note}")
     for warning in [*table_fits(table, read_comp_provenance(args.comp), config, plan, args.comp, args.force),
                     *table_spikes(table, args.comp)]:
         console.print(f"[yellow]warning:[/] {warning}")
-    baseline = Path(args.before) if args.before else None
-    before = baseline_points(baseline, config) if baseline else None
     out = Path(args.out) if args.out else default_out_dir(config)
     unit = config.axis.unit
     with RichProgress(unit) as observer:

@@ -140,8 +140,8 @@ def _campaign_facts(a: Assessment, here: Path | None = None) -> list[tuple[str, 
             times = a.table.optional.get("time_s")
             duration = f"{float(times.max()) / 60:.1f} min to the last point" if times is not None else "not recorded"
         rows += [("Status", f"{status}, {len(a.table)}{planned} points"), ("Duration", duration),
-                 ("Software", m.get("software", "axiscal")), ("Campaign id", campaign_id(a)),
-                 ("Campaign directory", where(a.directory, here))]
+                 ("Software", m.get("software", "axiscal")),
+                 ("Campaign directory", f"{where(a.directory, here)} (relative to this report)")]
     else:
         rows += [("Points", str(len(a.table))), ("Point table", where(a.source, here))]
     if a.config and a.config.campaign.description:
