@@ -275,7 +275,7 @@ def on_dashboard(config: Config, plan: Plan, args: argparse.Namespace, opened: O
         dashboard = Dashboard(console, config, plan, control, "ask" if asks else None, hw)
         if interactive:
             dashboard.keys = stack.enter_context(Keys(dashboard.on_key))
-        stack.enter_context(CtrlC(dashboard, hw))
+        stack.enter_context(CtrlC(dashboard))
         if before is not None:
             try:
                 before(control, dashboard.keys)

@@ -34,7 +34,7 @@ SIGNED_BLOCKS = "▁▂▃▄▅▆▇"
 """The deviation chart's levels: an odd number, so that 0 is the middle block (▄) of a scale
 symmetric about 0, below it the negative deviations, above it the positive ones."""
 
-CTRL_C_HELP = "Ctrl-C abort (twice: halt at once)"
+CTRL_C_HELP = "Ctrl-C abort"
 
 
 def key_help(state: str) -> str:
@@ -42,7 +42,7 @@ def key_help(state: str) -> str:
     if state in ("COMPLETED", "INTERRUPTED", "FAILED", "STOPPED"):
         return ""
     if state == "ABORTING":
-        return "aborting: the axis halts and the recording is flushed · Ctrl-C again: halt at once"
+        return "aborting: the axis halts and the recording is flushed · Ctrl-C three times: quit at once"
     if state.startswith("PAUSED"):
         return f"keys: r resume · a abort · {CTRL_C_HELP}"
     if state == "PAUSE REQUESTED":
@@ -120,9 +120,6 @@ class Dashboard(Observer):
         self.per_run = len(plan.points) // self.runs
         self.state = "starting"
         self.abort_reason: str | None = None
-        self.stopping = False
-        """The campaign is stopping: its interrupt or stop event arrived (a second Ctrl-C then
-        only halts; it must not cut the stop record)."""
         self.prompt: str | None = None
         self.warnings: deque[str] = deque(maxlen=4)
         self.done: set[int] = set()
@@ -289,8 +286,6 @@ class Dashboard(Observer):
 
     def emit(self, event: Event) -> None:
         kind = event.kind
-        if kind in ("interrupt", "stop"):
-            self.stopping = True
         if kind == "start":
             self.started_s = event.t_s
         elif kind == "point" and event.point is not None:
