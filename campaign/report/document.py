@@ -115,7 +115,14 @@ def where(path: str | Path, here: Path | None) -> str:
     """`path` relative to the report's folder `here` (how a reader who files both finds it), else as given."""
     if here is None:
         return str(path)
-    return os.path.relpath(Path(path).resolve(), here.resolve())
+    relative = os.path.relpath(Path(path).resolve(), here.resolve())
+    return "the report's own folder" if relative == "." else relative
+
+
+def located(path: Path, here: Path | None) -> str:
+    """`where`, said as relative to the report when it is."""
+    place = where(path, here)
+    return place if here is None or place == "the report's own folder" else f"{place} (relative to this report)"
 
 
 def named(a: Assessment, here: Path | None) -> str:
@@ -141,7 +148,7 @@ def _campaign_facts(a: Assessment, here: Path | None = None) -> list[tuple[str, 
             duration = f"{float(times.max()) / 60:.1f} min to the last point" if times is not None else "not recorded"
         rows += [("Status", f"{status}, {len(a.table)}{planned} points"), ("Duration", duration),
                  ("Software", m.get("software", "axiscal")),
-                 ("Campaign directory", f"{where(a.directory, here)} (relative to this report)")]
+                 ("Campaign directory", located(a.directory, here))]
     else:
         rows += [("Points", str(len(a.table))), ("Point table", where(a.source, here))]
     if a.config and a.config.campaign.description:
