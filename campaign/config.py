@@ -143,7 +143,7 @@ def config_from_dict(data: Mapping[str, Any], source: str = "<config>", text: st
                 values[name] = value
                 continue
             if name not in keys:
-                raise InputError(f"{source}: unknown key '{section}.{name}'")
+                raise InputError(f"{source}: unknown key '{section}.{name}'{did_you_mean(name, keys)}")
             values[name] = _check_value(f"{section}.{name}", keys[name], value, source)
         for name, key in keys.items():
             if name not in values:
@@ -190,13 +190,21 @@ def config_with(config: Config, changes: Mapping[str, Mapping[str, Any]]) -> Con
     return config_from_dict(data, config.source, config.text)
 
 
+def did_you_mean(name: str, keys: Mapping[str, Any]) -> str:
+    """"; did you mean 'dwell_s'?" for a mistyped key of the section whose keys are `keys`; "" when none is close."""
+    import difflib
+
+    close = difflib.get_close_matches(name, list(keys), n=1, cutoff=0.6)
+    return f"; did you mean '{close[0]}'?" if close else ""
+
+
 def _section_values(section: str, given: Mapping[str, Any], where: str) -> dict[str, Any]:
     """One section's keys checked and its defaults filled in (sub-tables are not taken here)."""
     keys = SCHEMA[section]
     values: dict[str, Any] = {}
     for name, value in given.items():
         if name not in keys:
-            raise InputError(f"{where}: unknown key '{section}.{name}'")
+            raise InputError(f"{where}: unknown key '{section}.{name}'{did_you_mean(name, keys)}")
         values[name] = _check_value(f"{section}.{name}", keys[name], value, where)
     for name, key in keys.items():
         if name not in values:
@@ -291,7 +299,8 @@ def schema_markdown() -> str:
     out = ["# Campaign configuration (TOML)", "",
            "Generated from `campaign/config.py` by `python -m campaign.config`. Examples are in",
            "`data/configs/`. An unknown key or an out-of-range value stops the command with exit status 2",
-           "and one line naming the key.", ""]
+           "and one line naming the key (a mistyped key gets the nearest known one: \"did you mean 'dwell_s'?\").",
+           ""]
     for section, keys in SCHEMA.items():
         out += [f"## [{section}]", "", "| key | type | default | meaning |", "|---|---|---|---|"]
         for name, key in keys.items():

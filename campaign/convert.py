@@ -80,6 +80,32 @@ def from_points(table: PointTable) -> Measurement:
     return Measurement(table.kind, tuple(targets), rows, meta)
 
 
+CARRIED_META = {"rtl": set(rtl.USER_TEXT.values()) | set(rtl.ENVIRONMENT.values()) | {"simulated", "software"}}
+"""The metadata keys a format has a place for (besides its own `rtl.…` keys); a format not listed
+keeps every key (ecmc and the point table: `# key: value` comments)."""
+
+
+def not_carried(table: PointTable, fmt: str) -> list[str]:
+    """What of `table` the format `fmt` has no place for, one phrase each: the per-point columns
+    (environment columns are reduced to their mean), the metadata keys it cannot hold."""
+    if fmt == "points":
+        return []
+    lost = []
+    environment = [c for c in ENVIRONMENT if c in table.optional]
+    if environment:
+        lost.append(f"the per-point {', '.join(environment)} (only their mean is kept: a bare table without the "
+                    "column has no material temperature per point for the uncertainty budget)")
+    other = [c for c in [*table.optional, *table.extra] if c not in ENVIRONMENT]
+    if other:
+        lost.append(f"the per-point columns {', '.join(other)}")
+    carried = CARRIED_META.get(fmt)
+    if carried is not None:
+        keys = [k for k in table.meta if k not in carried and not k.startswith(f"{fmt}.") and k != "source"]
+        if keys:
+            lost.append(f"the metadata {', '.join(keys)}")
+    return lost
+
+
 def render_any(table: PointTable, fmt: str) -> str:
     """The text of `table` in format `fmt`."""
     if fmt == "points":

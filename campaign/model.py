@@ -165,12 +165,42 @@ def read_model(path: str | Path, require_all: bool = True) -> ErrorModel:
     return model_from_dict(read_toml(path, "a model TOML file"), str(path), require_all)
 
 
+SHIPPED_MODELS = Path(__file__).resolve().parent.parent / "data" / "models"
+"""The error models shipped with axiscal (data/models/NAME.toml): `[sim] model = "NAME"` names one,
+so that a config copied anywhere still finds it."""
+
+
+def is_model_name(value: str) -> bool:
+    """Whether `[sim] model = value` names a shipped model (no folder, no .toml) rather than a file."""
+    return "/" not in value and "\\" not in value and not value.endswith(".toml")
+
+
+def model_path(sim: SimSpec) -> Path:
+    """The file `[sim] model` names: a shipped model's name (no folder, no .toml: SHIPPED_MODELS), or
+    a path (relative to the config's directory). InputError saying it is the simulated machine's
+    model file that is missing, and what names the shipped models have."""
+    name = sim.model
+    shipped = sorted(p.stem for p in SHIPPED_MODELS.glob("*.toml"))
+    if is_model_name(name):
+        if name not in shipped:
+            raise InputError(f"{sim.source}: [sim] model '{name}': no shipped error model of that name "
+                             f"(shipped: {', '.join(shipped) or 'none found'}; or give a .toml file)")
+        return SHIPPED_MODELS / f"{name}.toml"
+    path = Path(sim.base_dir) / name
+    if not path.is_file():
+        raise InputError(f"{sim.source}: [sim] model: the simulated machine's error model {path} is missing "
+                         f"(a path is relative to the config's folder; a shipped model is named without one: "
+                         f"{', '.join(shipped)})")
+    return path
+
+
 def sim_model(sim: SimSpec) -> ErrorModel:
-    """The simulated machine's error model from a campaign's [sim] spec: its `model` file (relative
-    to the config's directory) and/or inline [sim.effects]."""
+    """The simulated machine's error model from a campaign's [sim] spec: its `model` (a shipped
+    model's name or a file relative to the config's directory, `model_path`) and/or inline
+    [sim.effects]."""
     model = ErrorModel()
     if sim.model:
-        model = read_model(Path(sim.base_dir) / sim.model)
+        model = read_model(model_path(sim))
     if sim.effects is not None:
         inline = model_from_dict({"effects": plain(sim.effects)}, f"{sim.source}: [sim.effects]")
         model.effects.update(inline.effects)

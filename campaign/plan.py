@@ -269,7 +269,9 @@ def check_motion(position: float, velocity: float, axis: AxisSpec) -> None:
     Called before every motion is sent, and for the whole plan before anything moves."""
     lo, hi, unit = axis.soft_limit_min, axis.soft_limit_max, axis.unit
     if not (math.isfinite(position) and lo <= position <= hi):
-        raise SafetyError(f"motion to {position:g} {unit} is outside the soft limits [{lo:g}, {hi:g}] {unit}")
+        side = (f"below axis.soft_limit_min = {lo:g} {unit}" if math.isfinite(position) and position < lo else
+                f"above axis.soft_limit_max = {hi:g} {unit}" if math.isfinite(position) else "not a number")
+        raise SafetyError(f"motion to {position:g} {unit} is outside the soft limits [{lo:g}, {hi:g}] {unit}: {side}")
     if not (math.isfinite(velocity) and 0 < velocity <= axis.max_velocity):
         raise SafetyError(f"velocity {velocity:g} {unit}/s is outside (0, {axis.max_velocity:g}] {unit}/s "
                           "(axis.max_velocity)")
@@ -279,7 +281,15 @@ def check_plan(plan: Plan, axis: AxisSpec) -> None:
     """Check every move of the plan against the axis' limits before anything is commanded."""
     for step in plan.steps:
         if isinstance(step, Move):
-            check_motion(step.position, step.velocity, axis)
+            try:
+                check_motion(step.position, step.velocity, axis)
+            except SafetyError as exc:
+                if "soft limits" not in str(exc):  # the velocity: its key is said already
+                    raise
+                if not step.overrun:
+                    raise SafetyError(f"{exc} (a target of the plan: plan.start, plan.length or plan.targets, "
+                                      "with its offset)") from None
+                raise SafetyError(f"{exc} (the overrun beyond the end target: plan.overrun)") from None
 
 
 def move_time_s(distance: float, velocity: float, acceleration: float) -> float:

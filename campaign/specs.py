@@ -293,7 +293,7 @@ class SimSpec:
     speed: float | None = key(float, None,
         "run N times faster than real time; absent = as fast as possible", min=0.001, resume=True)
     seed: int = key(int, 1, "seed of the simulated noise", min=0)
-    model: str = key(str, "", "error-model TOML file (relative to this config); or [sim.effects.NAME]")
+    model: str = key(str, "", "error model: a shipped one by name (seed000-horizontal, seed000-vertical: data/models), a TOML file (relative to this config), or [sim.effects.NAME]")
     effects: Mapping[str, Any] | None = field(default=None, metadata={"table": "the error model"})
     """[sim.effects]: the inline error model, one table per effect (docs/error-model.md); None: none."""
     faults: Mapping[str, Any] = field(default_factory=lambda: EMPTY, metadata={"table": "faults to inject"})

@@ -30,7 +30,7 @@ from campaign.outliers import Outliers
 from campaign.pointtable import PointTable
 from campaign.specs import JUDGED_PURPOSES
 from campaign.uncertainty import Budget
-from protocols.units import unit_label
+from protocols.units import counted, unit_label
 
 PASS, FAIL, NOT_JUDGED = "pass", "fail", "not judged"
 
@@ -86,7 +86,7 @@ def completeness(table: PointTable, plan: Planned | None) -> list[str]:
     expected = len(targets) * len(directions) * len(runs)
     if len(table) < expected:
         problems.append(f"{expected - len(table)} of {expected} points missing ({len(targets)} targets × "
-                        f"{len(directions)} direction(s) × {len(runs)} runs)")
+                        f"{len(directions)} direction(s) × {counted(len(runs), 'run')})")
     return problems
 
 

@@ -20,7 +20,7 @@ from campaign.iso230 import Evaluation
 from campaign.outliers import Outliers
 from campaign.uncertainty import Budget
 from campaign.verdict import Verdict
-from protocols.units import unit_label
+from protocols.units import counted, unit_label
 
 SUMMARY_ROWS = (
     ("A", "accuracy, bidirectional"), ("A_up", "accuracy, + direction"), ("A_down", "accuracy, - direction"),
@@ -77,7 +77,7 @@ def target_table(ev: Evaluation) -> Table:
 
 
 def summary_table(ev: Evaluation, title: str | None = None) -> Table:
-    table = Table(title=title or f"Axis summary ({ev.standard.title}, {ev.runs} runs)", header_style="bold")
+    table = Table(title=title or f"Axis summary ({ev.standard.title}, {counted(ev.runs, 'run')})", header_style="bold")
     table.add_column("parameter")
     table.add_column("meaning")
     number_column(table, f"value ({unit_label(ev.unit)})")

@@ -79,6 +79,28 @@ def _native_stderr_silenced() -> Iterator[None]:
             os.close(devnull)
 
 
+NATIVE_LOG_LEVEL = "_ZN6Logger8logLevelE"
+"""The ADS library's (Beckhoff ADS, AdsLib.so) log threshold, `Logger::logLevel`: messages below it
+are not written. It logs from its receive thread ("<date> Info: connection closed by remote"), at
+any moment, in its own date format; every failure it logs reaches axiscal as an ADSError anyway."""
+QUIET = 4
+"""Above Error (0 verbose, 1 info, 2 warning, 3 error): the library writes nothing."""
+
+
+def _quiet_native_log() -> None:
+    """Raise the ADS library's log threshold so that its lines never appear in a command's output
+    (an error must be one line). A library without that variable (TcAdsDll on Windows) is left as it is."""
+    import ctypes
+
+    library = getattr(pyads.pyads_ex, "_adsDLL", None)
+    if library is None:
+        return
+    try:
+        ctypes.c_size_t.in_dll(library, NATIVE_LOG_LEVEL).value = QUIET
+    except ValueError:  # no such symbol
+        pass
+
+
 class _BadAnswer(Exception):
     """A read gave None or an error text instead of a value (port not open, broken connection)."""
 
@@ -107,6 +129,8 @@ class AdsAxis:
         self.axis = axis
         self.read_only = read_only
         self._address = (ams_net_id, ams_port, ip_address)
+        self._hinted = False  # the causes of a PLC that does not answer are said once per axis
+        _quiet_native_log()
         self._timeout_ms = max(1, round(timeout_s * 1000))
         self._retries = retries
         self._retry_wait_s = retry_wait_s
@@ -266,8 +290,11 @@ class AdsAxis:
                 if self._connection is None:
                     with _native_stderr_silenced():  # the library logs every failed connect
                         self._connect()
-                        return action(self._connection)
-                return action(self._connection)
+                        result = action(self._connection)
+                else:
+                    result = action(self._connection)
+                self._hinted = False  # it answers again: a later loss is said in full
+                return result
             except (pyads.ADSError, _BadAnswer) as e:
                 error = e
                 self._disconnect()
@@ -277,8 +304,13 @@ class AdsAxis:
         ) from error
 
     def _where(self, error: Exception | None) -> str:
-        """Where axiscal looked for the PLC, and what usually keeps it from answering."""
+        """Where axiscal looked for the PLC, and what usually keeps it from answering: said in full
+        the first time, then only where (a link that stays down fails every read: one long hint for
+        each would bury the messages)."""
         net_id, port, ip = self._address
+        if self._hinted:
+            return f"PLC at IP {ip}, AMS Net ID {net_id}, port {port}: still not answering (the likely causes as said before)"
+        self._hinted = True
         code: int = getattr(error, "err_code", None) or 0
         likely = {6: "the PLC runtime is not in RUN, or ams_port is wrong",
                   7: "there is no ADS route between this PC and the PLC (add it on both sides)",

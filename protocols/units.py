@@ -15,3 +15,8 @@ def unit_label(unit: str) -> str:
 def deviation_label(position_unit: str) -> str:
     """The deviation unit people read for an axis in `position_unit`: mm -> µm, deg -> arcsec."""
     return "µm" if position_unit == "mm" else "arcsec"
+
+
+def counted(n: int, noun: str) -> str:
+    """A count as people say it: "1 run", "5 runs" (`noun` singular; the plural adds s)."""
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"

@@ -283,3 +283,29 @@ def test_write_of_the_wrong_size_is_refused_like_twincat_and_the_plc_keeps_scann
     m.clock.sleep(POLL_S)
     m.axis.start_move(5.0, 10.0)
     assert wait_until_idle(m).actual_position == 5.0
+
+
+@pytest.mark.machine
+def test_a_link_that_stays_down_gives_the_hint_once_and_no_library_log_line(machine, capfd):
+    """Every failed read used to repeat the whole hint, and the ADS library wrote its own line
+    ("<date>+0000 Info: connection closed by remote") to stderr from its receive thread."""
+    import time
+
+    machine.axis.status()
+    machine.server.stop()
+    time.sleep(0.3)  # the library's receive thread sees the closed socket
+    messages = []
+    for _ in range(3):
+        with pytest.raises(AxisError) as lost:
+            machine.axis.status()
+        messages.append(str(lost.value))
+    assert "the usual causes" in messages[0]
+    assert all("the usual causes" not in m and "still not answering" in m for m in messages[1:])
+    machine.server.start()
+    assert machine.axis.status().enabled
+    machine.server.stop()
+    with pytest.raises(AxisError) as again:
+        machine.axis.status()
+    assert "the usual causes" in str(again.value)  # a new loss after it answered: said in full again
+    machine.server.start()
+    assert "connection closed by remote" not in capfd.readouterr().err

@@ -207,3 +207,32 @@ def test_compensate_numeric_options_are_checked(cli, tmp_path, option, value, sa
                  f"{option}={value}")
     assert_one_line_error(result, says)
     assert option in result.err and not (tmp_path / "o").exists()
+
+
+def test_a_golden_offset_campaign_gets_a_table_on_its_nominal_grid(cli, tmp_path):
+    """Targets carrying golden offsets are off the grid a controller wants: the table defaults to
+    the plan's nominal spacing from its first nominal target (the old default was span/(N-1) at the
+    format's point limit: 1024 csv points every 0.0978 mm here); --spacing still rules."""
+    from campaign.config import parse_config
+    from campaign.measure import start_campaign
+    from tests.fakes import SMALL, FakeMachine
+
+    config = parse_config(SMALL.replace("velocity = 25.0", 'velocity = 25.0\noffsets = "golden"\noffset_fraction = 0.2'),
+                          "small.toml")
+    assert config.plan.offsets == "golden"
+    start_campaign(config, tmp_path / "c", opener=FakeMachine())
+    result = cli("compensate", tmp_path / "c" / "points.csv", "--format", "csv", "-o", tmp_path / "t.csv")
+    assert result.code == 0, result.err
+    assert "table: 3 points from 0 every 50 mm" in result.out and "nominal grid" in result.out
+    given = cli("compensate", tmp_path / "c" / "points.csv", "--format", "csv", "-o", tmp_path / "t.csv",
+                "--spacing", "25")
+    assert "table: 5 points from 0 every 25 mm" in given.out and "nominal grid" not in given.out
+
+
+def test_a_pmac_spacing_of_fractional_counts_names_spacing(cli, tmp_path):
+    result = cli("compensate", PAPER / "vertical_before.csv", "--format", "pmac", "--counts-per-unit", "1000.01",
+                 "--reference", "0", "--mode", "uni", "-o", tmp_path / "t.pmac")
+    assert_one_line_error(result, "not a whole number", "--spacing 30.000699993", "30001 counts")
+    hinted = cli("compensate", PAPER / "vertical_before.csv", "--format", "pmac", "--counts-per-unit", "1000.01",
+                 "--reference", "0", "--mode", "uni", "--spacing", "30.000699993", "-o", tmp_path / "t.pmac")
+    assert hinted.code == 0, hinted.err  # the spacing it names is accepted

@@ -267,3 +267,35 @@ def test_demo_points_to_rtl_and_back_keep_every_iso_value(cli, tmp_path):
     before, after = analyze(cli, points), analyze(cli, tmp_path / "back.csv")
     for key in ("A", "A_up", "A_down", "E", "E_up", "E_down", "M", "B", "B_mean", "R", "R_up", "R_down"):
         assert after[key] == pytest.approx(before[key], abs=1e-9), key
+
+
+def test_a_round_trip_says_what_the_rtl_cannot_hold_and_keeps_the_simulated_mark(cli, tmp_path):
+    """points.csv of a campaign -> .rtl -> .csv: the ISO values stay; what the .rtl has no place
+    for (per-point columns, the campaign's tolerance) is said, and so is the verdict's change
+    (PASS for the campaign, NOT JUDGED for the file alone: the old convert said nothing); the
+    simulated mark travels in the TITLE and comes back."""
+    from campaign.config import parse_config
+    from campaign.measure import start_campaign
+    from tests.fakes import SMALL, FakeMachine
+
+    config = parse_config(SMALL.replace("tolerance = 10.0", "tolerance = 500.0"), "small.toml")
+    machine = FakeMachine(setup=lambda parts: parts.laser.env.update(material_temp_c=20.4))
+    start_campaign(config, tmp_path / "c", opener=machine)
+    points = tmp_path / "c" / "points.csv"
+    simulated = "# simulated: yes (not a measurement of a real axis)\n"
+    points.write_text(simulated + points.read_text())  # as the simulated machine's campaigns say it
+    out = cli("convert", points, "-o", tmp_path / "c.rtl", "--json")
+    assert out.code == 0, out.err
+    said = json.loads(out.out)
+    lost = " ".join(said["not_carried"])
+    assert "tolerance on A (500 µm" in lost and "the per-point columns time_s" in lost
+    assert said["verdict_change"].startswith(f"the verdict changes: PASS for {points}, NOT JUDGED for ")
+    text = cli("convert", points, "-o", tmp_path / "c2.rtl")
+    assert "not carried by rtl:" in text.out and "warning: the verdict changes: PASS" in text.out
+    assert "TITLE: SIMULATED, not a measurement of a real axis" in (tmp_path / "c.rtl").read_text()
+    back = cli("convert", tmp_path / "c.rtl", "-o", tmp_path / "back.csv", "--json")
+    assert back.code == 0 and json.loads(back.out)["verdict_change"] is None
+    assert simulated in (tmp_path / "back.csv").read_text()
+    before, after = analyze(cli, points), analyze(cli, tmp_path / "back.csv")
+    for key in ("A", "E", "M", "B", "R"):
+        assert after[key] == pytest.approx(before[key], abs=1e-3), key

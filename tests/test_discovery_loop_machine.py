@@ -21,7 +21,7 @@ BOW = ("[effects.linear_scale]\nppm = -12.4\n[effects.nonlinear_lead]\np2_um = 0
 def first_campaign(cli, tmp_path, extra: str, seed: int, fixed_dwell: bool = False, count: int = 11):
     """Record the user's campaign on a machine with the bow and `extra`; returns its directory."""
     (tmp_path / "machine.toml").write_text(BOW + extra)
-    config = BASE.replace('model = "../models/seed000-horizontal.toml"', f'model = "{tmp_path / "machine.toml"}"')
+    config = re.sub(r'(?m)^model = .*$', f'model = "{tmp_path / "machine.toml"}"', BASE)
     config = re.sub(r"\[sim\]\nseed = \d+", f"[sim]\nseed = {seed}", config)
     config = config.replace("count = 11", f"count = {count}")
     if fixed_dwell:  # the ISO fixed-dwell test: every capture at the same wait

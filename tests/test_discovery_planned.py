@@ -26,7 +26,7 @@ SEEDS = (1, 2, 3)
 def user_campaign(cli, tmp_path, extra: str, seed: int):
     model = tmp_path / "machine.toml"
     model.write_text(BOW + extra)
-    config = BASE.replace('model = "../models/seed000-horizontal.toml"', f'model = "{model}"')
+    config = re.sub(r'(?m)^model = .*$', f'model = "{model}"', BASE)
     config = re.sub(r"\[sim\]\nseed = \d+", f"[sim]\nseed = {seed}", config)
     config = re.sub(r"(\[plan\][^\[]*?)seed = \d+", lambda m: m.group(1) + f"seed = {seed}", config, flags=re.DOTALL)
     assert "offsets = \"golden\"" in config and "count = 11" in config and "method = \"stable\"" in config

@@ -15,7 +15,7 @@ import pytest
 from campaign.cli import build_parser
 from campaign.commands import guide
 from campaign.errors import InputError
-from campaign.guide.dashboard import sparkline
+from campaign.guide.dashboard import signed_sparkline, sparkline
 from campaign.guide.keys import CtrlC, Keys
 from campaign.measure.executor import Control
 from tests.conftest import ROOT, assert_one_line_error, events, status
@@ -184,6 +184,53 @@ def test_sparkline_scales_between_the_lowest_and_highest_value():
     assert sparkline([1.0, 2.0], 0.0, 10.0, width=2) == "▂▂▂▂"
 
 
+def test_the_signed_chart_has_zero_in_the_middle():
+    assert signed_sparkline([0.0, -1.0, -2.0, 2.0, None], 2.0) == "▄▃▁▇·"
+
+
+def small_dashboard():
+    from rich.console import Console
+
+    from campaign.config import parse_config
+    from campaign.guide import Dashboard
+    from campaign.plan import build_plan
+    from tests.fakes import SMALL
+
+    config = parse_config(SMALL, "small.toml")
+    plan = build_plan(config)
+    console = Console(file=io.StringIO(), width=120, force_terminal=False, color_system=None)
+    return Dashboard(console, config, plan, Control(), None), console, plan
+
+
+def test_the_dashboard_chart_is_signed_and_more_negative_is_lower():
+    """Deviations all below 0: the 0 line is the middle block and the bars go down as the deviation
+    grows more negative (the old chart drew 0 as a full bar and shrank the bars instead)."""
+    dashboard, console, plan = small_dashboard()
+    ups = [p for p in plan.points if p.direction > 0 and p.run == 1]
+    for point, deviation in zip(ups, (-1.0, -2.0, -3.0)):
+        dashboard.point_done(point, deviation, 1.0)
+    console.print(dashboard._chart())
+    rows = {line.split()[0] + line.split()[1] if line.split()[0] in "↑↓" else line.split()[0]: line
+            for line in console.file.getvalue().splitlines() if line.strip()}
+    width = 48 // 3  # characters per target
+    up = rows["↑+"].split()[-1]
+    assert up == "▃" * width + "▂" * width + "▁" * width, up  # -1, -2, -3 on ±3: below 0, lower as they grow
+    assert rows["0"].split()[1] == "▄" * 3 * width and "±3.00 µm" in rows["0"]
+
+
+def test_the_key_line_follows_the_state():
+    dashboard, console, _ = small_dashboard()
+    for state, offered, not_offered in (("RUNNING", "p pause", "r resume"), ("PAUSED", "r resume", "p pause"),
+                                        ("PAUSE REQUESTED", "r cancel the pause", "p pause"),
+                                        ("ABORTING", "aborting", "p pause")):
+        dashboard.state = state
+        console.file.truncate(0)
+        console.file.seek(0)
+        console.print(dashboard)
+        screen = console.file.getvalue()
+        assert offered in screen and not_offered not in screen, (state, screen)
+
+
 # -- a technician at a real terminal -----------------------------------------------------------
 
 def spawn_guide(config, out, speed="10"):
@@ -260,7 +307,11 @@ def test_ctrl_c_aborts_like_a(tmp_path, small_config):
     assert events(out, "halt", ok=True, why="interrupted")
 
 
-def test_a_second_ctrl_c_halts_at_once():
+def test_a_second_ctrl_c_says_the_stop_is_under_way_and_a_third_quits():
+    """The first Ctrl-C asks the campaign to stop (the executor halts the axis at its next tick).
+    The second neither talks to the controller from the signal handler (the old one called halt()
+    there: in the middle of the main thread's own exchange with the controller, a hang) nor raises
+    in the middle of the stop record; it says the stop is under way. A third quits at once."""
     calls = []
 
     class FakeDashboard:
@@ -270,18 +321,15 @@ def test_a_second_ctrl_c_halts_at_once():
         def say(self, message):
             calls.append(message)
 
-    class FakeAxis:
-        def halt(self):
-            calls.append("halt")
-
-    hw = type("FakeHardware", (), {"axis": FakeAxis()})()
     before = signal.getsignal(signal.SIGINT)
-    with CtrlC(FakeDashboard(), hw):
+    with CtrlC(FakeDashboard()):
         os.kill(os.getpid(), signal.SIGINT)
         assert calls == ["abort: Ctrl-C"]  # the first only asks the campaign to stop
+        os.kill(os.getpid(), signal.SIGINT)
+        assert len(calls) == 2 and "already stopping" in calls[1] and "a third Ctrl-C quits" in calls[1]
         with pytest.raises(KeyboardInterrupt):
             os.kill(os.getpid(), signal.SIGINT)
-    assert calls[1:] == ["halt", "second Ctrl-C: axis halted at once"]
+    assert len(calls) == 2
     assert signal.getsignal(signal.SIGINT) is before  # restored
 
 
@@ -361,3 +409,89 @@ def test_resume_on_a_terminal_is_guided_and_finishes_the_campaign(tmp_path, smal
     assert count_points(out) == 60 and status(out) == "completed"
     assert "PASS" in screen and "Traceback" not in screen
     assert [e["data"]["first_point"] for e in events(out, "resume")] == [stopped_at]
+
+
+@pytest.mark.machine
+def test_a_copied_example_config_runs_the_guide(tmp_path):
+    """The shipped example, copied elsewhere, still finds its simulated machine's model (the old one
+    named it ../models/..., which broke as soon as the file was copied)."""
+    copied = tmp_path / "elsewhere" / "vertical.toml"
+    copied.parent.mkdir()
+    copied.write_text((ROOT / "data" / "configs" / "vertical-sim.toml").read_text()
+                      .replace("cycles = 5", "cycles = 1").replace("count = 11", "count = 3"))
+    proc = subprocess.run([sys.executable, "-m", "campaign", "guide", copied, "--out", tmp_path / "run", "--yes"],
+                          stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=180, cwd=tmp_path,
+                          check=False)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr
+    assert status(tmp_path / "run") == "completed"
+
+
+@pytest.mark.machine
+def test_a_fixed_config_passes_the_recheck_without_a_restart(tmp_path, small_config):
+    """A missing model file is said as such (not as a controller failure); fixing the config and
+    pressing Enter checks the config as it is now (the old guide kept the first reading)."""
+    config = small_config()
+    good = config.read_text()
+    config.write_text(good.replace("[sim.effects.linear_scale]", '[sim]\nmodel = "gone.toml"\n[sim.effects.linear_scale]'))
+    out = tmp_path / "run"
+    child = spawn_guide(config, out)
+    try:
+        child.expect("Fix it, then press Enter")
+        screen = child.logfile_read.getvalue()
+        assert "error model" in screen and "gone.toml is missing" in screen
+        config.write_text(good)
+        child.sendline("")
+        child.expect("Start the motion")
+        child.sendline("n")
+        child.expect(pexpect.EOF)
+    finally:
+        child.close(force=True)
+    screen = child.logfile_read.getvalue()
+    after_fix = screen.split("Fix it, then press Enter")[-1]
+    assert "gone.toml" not in after_fix and "FAIL" not in after_fix, after_fix[-3000:]
+    assert "│ config " in screen.split("Fix it")[0] or "config " in screen.split("Fix it")[0]
+    assert "cannot open the hardware" not in screen  # not said to be the controller
+
+
+@pytest.mark.machine
+def test_a_second_ctrl_c_still_prints_the_summary_and_the_resume_line(tmp_path, small_config):
+    out = tmp_path / "run"
+    child = spawn_guide(small_config(), out)
+    try:
+        confirm_and_wait_for_points(child, out, 2)
+        child.sendintr()
+        time.sleep(0.05)
+        child.sendintr()
+        child.expect(pexpect.EOF)
+    finally:
+        child.close(force=True)
+    screen = child.logfile_read.getvalue()
+    assert child.exitstatus == 3, screen[-2000:]
+    assert "Traceback" not in screen and "error: interrupted" not in screen
+    assert "Campaign interrupted" in screen and f"axiscal resume {out}" in screen, screen[-2000:]
+    assert status(out) == "interrupted"
+
+
+def test_a_copied_example_finds_its_shipped_model_and_a_missing_one_is_said_as_such(tmp_path):
+    """The shipped examples name their model by name, found wherever the config is copied (the old
+    '../models/…' broke on the copy); a missing model file is named as the simulated machine's
+    error model, and a follow-up config keeps the name (no path made relative to it)."""
+    from campaign.config import load_config
+    from campaign.discovery.followup import _moved_paths
+    from campaign.model import sim_model
+
+    for name in ("horizontal-sim.toml", "vertical-sim.toml"):
+        copied = tmp_path / name
+        copied.write_text((ROOT / "data" / "configs" / name).read_text())
+        config = load_config(copied)
+        assert sim_model(config.sim).effects, name
+        assert "sim" not in _moved_paths(config, tmp_path / "elsewhere")
+    broken = tmp_path / "broken.toml"
+    broken.write_text((ROOT / "data" / "configs" / "vertical-sim.toml").read_text()
+                      .replace('model = "seed000-vertical"', 'model = "../models/gone.toml"'))
+    with pytest.raises(InputError, match=r"\[sim\] model: the simulated machine's error model .*gone.toml is missing"):
+        sim_model(load_config(broken).sim)
+    unknown = tmp_path / "unknown.toml"
+    unknown.write_text(broken.read_text().replace('"../models/gone.toml"', '"seed999"'))
+    with pytest.raises(InputError, match="no shipped error model of that name .*seed000-horizontal"):
+        sim_model(load_config(unknown).sim)

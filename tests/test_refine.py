@@ -75,6 +75,20 @@ def test_smooth_axis_needs_no_new_targets(cli):
     assert data["new"] == [] and len(data["intervals"]) == 10
 
 
+def test_refine_with_nothing_to_add_writes_no_file_and_says_so(cli, tmp_path):
+    """The old refine wrote a follow-up config identical in targets to the campaign, silently."""
+    from tests.conftest import ROOT
+
+    out = tmp_path / "follow.toml"
+    result = cli("refine", PAPER / "horizontal_before.csv", "--threshold", "5", "--config",
+                 ROOT / "campaign" / "demo.toml", "-o", out)
+    assert result.code == 0, result.err
+    assert not out.exists() and "no follow-up config written" in result.out
+    data = json.loads(cli("refine", PAPER / "horizontal_before.csv", "--threshold", "5", "--config",
+                          ROOT / "campaign" / "demo.toml", "-o", out, "--json").out)
+    assert data["written"] is None and not out.exists()
+
+
 def test_follow_up_config_text():
     text = follow_up_config("[axis]\nname = 'X'\n[plan]\nlength = 10.0\ncount = 3\nvelocity = 1.0\n[capture]\n",
                             [0.0, 2.5, 5.0])

@@ -80,3 +80,16 @@ def test_replay_of_a_resumed_campaign(cli, tmp_path):
 def test_replay_bad_input(cli, tmp_path):
     assert_one_line_error(cli("replay", tmp_path), str(tmp_path))
     assert_one_line_error(cli("replay", tmp_path, "--average-s", "-1"), "--average-s")
+
+
+def test_an_average_longer_than_the_dwell_is_refused(cli, tmp_path):
+    """--average-s 100 on a 1 s dwell: one error line (the old replay took it and averaged the
+    dwell it had); a window within the dwell is replayed."""
+    from campaign.config import parse_config
+    from campaign.measure import start_campaign
+    from tests.fakes import SMALL, FakeMachine
+
+    start_campaign(parse_config(SMALL, "small.toml"), tmp_path / "c", opener=FakeMachine())
+    assert_one_line_error(cli("replay", tmp_path / "c", "--average-s", "100"), "--average-s 100",
+                          "recorded dwell of 1 s")
+    assert cli("replay", tmp_path / "c", "--average-s", "0.8", "--json").code == 0

@@ -171,6 +171,44 @@ def test_a_report_with_the_axis_history_renders_in_headless_chromium(tmp_path, c
         "</body>", "<script>document.body.setAttribute('data-plot-widths', Array.from("
                    "document.images).map(i => i.naturalWidth).join(','))</script></body>"))
     dom = chromium("--dump-dom", probe.as_uri(), tmp_path=tmp_path)
-    assert "History of this axis" in dom and dom.count("<td>recheck-0") == 3
+    history = dom[dom.index("History of this axis"):]
+    assert history.count("<td>recheck-0") == 3  # the three campaigns in the history's table
     widths = [int(w) for w in dom.split('data-plot-widths="')[1].split('"')[0].split(",")]
     assert len(widths) >= 2 and all(w > 100 for w in widths), widths
+
+
+@pytest.mark.machine
+def test_the_pdf_has_numbered_pages_that_render(demo_dir, tmp_path, cli):
+    """`report --pdf`: headless Chromium prints the report; poppler turns each page into an image,
+    every page is drawn (not blank) and its foot names the campaign and says "Page i of n"; the
+    sign-off block and the verdict's assumption are in it."""
+    for tool in ("pdftoppm", "pdftotext"):
+        if not shutil.which(tool):
+            pytest.fail(f"{tool} is missing: run `bash tests/setup_system.sh` (poppler-utils; make test does)")
+    pdf = tmp_path / "filed" / "report.pdf"
+    result = cli("report", demo_dir, "-o", tmp_path / "r.html", "--pdf", pdf)
+    assert result.code == 0, result.err
+    assert pdf.read_bytes()[:5] == b"%PDF-"
+    subprocess.run(["pdftoppm", "-r", "40", "-png", pdf, tmp_path / "page"], check=True, timeout=120)
+    images = sorted(tmp_path.glob("page-*.png"))
+    assert len(images) >= 2
+    for image in images:
+        grey = matplotlib.image.imread(image)[..., :3].mean(axis=2)
+        assert grey.shape[0] > grey.shape[1]  # A4 portrait
+        assert (grey < 0.9).mean() > 0.003, image  # something is drawn
+        foot = grey[int(0.94 * grey.shape[0]):]
+        assert (foot < 0.8).any(), image  # the page footer is drawn
+    for i in range(1, len(images) + 1):
+        text = subprocess.run(["pdftotext", "-layout", "-f", str(i), "-l", str(i), pdf, "-"], capture_output=True,
+                              text=True, check=True, timeout=60).stdout
+        assert f"Page {i} of {len(images)}" in text and f"Campaign {demo_dir.name}" in text, (i, text[-300:])
+    everything = subprocess.run(["pdftotext", pdf, "-"], capture_output=True, text=True, check=True).stdout
+    for phrase in ("Sign-off", "Checked by", "Approved by", "PASS rests on an assumed instrument specification"):
+        assert phrase in everything, phrase
+
+
+def test_pdf_without_chromium_is_one_error_line(tmp_path, cli, monkeypatch):
+    table = tmp_path / "t.csv"
+    table.write_text("run,direction,target_mm,deviation_um\n1,+,0,0.1\n1,+,10,0.2\n1,-,10,0.3\n1,-,0,0.1\n")
+    monkeypatch.setattr("campaign.report.pdf.BROWSERS", ("no-such-browser-xyz",))
+    assert_one_line_error(cli("report", table, "--pdf", tmp_path / "t.pdf"), "--pdf", "Chromium")

@@ -114,25 +114,43 @@ def test_report_takes_a_point_table_file(cli, tmp_path):
     assert "NOT JUDGED" in html and "material temperature" in html and "9.152" in html
 
 
-def test_compensate_warns_about_an_incomplete_campaign(cli, tmp_path):
+def test_compensate_refuses_an_incomplete_campaign_unless_partial(cli, tmp_path):
+    """An incomplete campaign gets exit 2 naming what is missing, resume and --partial (the old code
+    warned and wrote the table, exit 0); --partial writes it and says which travel it covers."""
+    from tests.conftest import assert_one_line_error
+
     cfg = parse_config(SMALL.replace("cycles = 2", "cycles = 3"), "small.toml")
     cfg = config_with(cfg, {"campaign": {"on_fault": "abort"}})
     # move 17 is the overrun before run 3: runs 1 and 2 are complete, run 3 is missing
     start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(17))))
     result = cli("compensate", tmp_path / "c" / "points.csv", "--format", "csv", "-o", tmp_path / "t.csv")
-    assert result.code == 0, result.err
-    assert "warning: incomplete campaign: 6 of 18 planned points are missing" in result.out
-    clean = cli("compensate", tmp_path / "c" / "points.csv", "--format", "json", "-o", tmp_path / "t.json")
+    assert_one_line_error(result, "incomplete campaign (6 of 18 planned points are missing", "axiscal resume",
+                          "--partial")
+    assert not (tmp_path / "t.csv").exists()
+    partial = cli("compensate", tmp_path / "c" / "points.csv", "--format", "json", "-o", tmp_path / "t.json",
+                  "--partial")
+    assert partial.code == 0, partial.err
+    assert "--partial: the table covers 0 to 100 mm of the planned 0 to 100 mm" in partial.out
     assert json.loads((tmp_path / "t.json").read_text())["provenance"]["machine"] == "fake"
-    assert clean.code == 0
     # the same points outside their directory: no plan, but the grid shows what is missing
     (tmp_path / "bare.csv").write_text((tmp_path / "c" / "points.csv").read_text())
     bare = cli("compensate", tmp_path / "bare.csv", "--format", "csv", "-o", tmp_path / "b.csv")
-    assert bare.code == 0 and "warning: incomplete campaign: 6 of 18 points missing" not in bare.out  # whole runs
+    assert bare.code == 0, bare.err  # whole runs: nothing is seen missing
     lines = (tmp_path / "c" / "points.csv").read_text().splitlines(keepends=True)
     (tmp_path / "cut.csv").write_text("".join(lines[:-2]))  # run 2 lacks its last two points
-    cut = cli("compensate", tmp_path / "cut.csv", "--format", "csv", "-o", tmp_path / "b.csv")
-    assert cut.code == 0 and "warning: incomplete campaign: 2 of 12 points missing" in cut.out, cut.out
+    assert_one_line_error(cli("compensate", tmp_path / "cut.csv", "--format", "csv", "-o", tmp_path / "b.csv"),
+                          "2 of 12 points missing")
+
+
+def test_compensate_partial_names_the_travel_a_first_run_covers(cli, tmp_path):
+    cfg = parse_config(SMALL, "small.toml")
+    cfg = config_with(cfg, {"campaign": {"on_fault": "abort"}})
+    # the fourth move goes to 100 mm: only 0 and 50 mm are measured, upwards
+    start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(4))))
+    result = cli("compensate", tmp_path / "c" / "points.csv", "--format", "json", "-o", tmp_path / "t.json",
+                 "--partial")
+    assert result.code == 0, result.err
+    assert "the table covers 0 to 50 mm of the planned 0 to 100 mm" in result.out
 
 
 def test_verify_refuses_a_table_that_does_not_cover_the_plan(cli, tmp_path):

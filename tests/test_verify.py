@@ -2,6 +2,7 @@
 again with the compensation applied as FB_AxiscalCompensation does, compare before and after."""
 
 import json
+import re
 
 import pytest
 
@@ -14,7 +15,7 @@ CONFIGS = ROOT / "data" / "configs"
 
 @pytest.fixture(scope="module")
 def vertical(tmp_path_factory):
-    """Seed 000's vertical axis (490 µm reversal): baseline, bidirectional table, verification."""
+    """The vertical axis of Li et al. 2022 (490 µm reversal): baseline, bidirectional table, verification."""
     base = tmp_path_factory.mktemp("vertical")
     assert axiscal("run", CONFIGS / "vertical-sim.toml", "--out", base / "before").returncode == 0
     comp = axiscal("compensate", base / "before" / "points.csv", "--format", "json", "-o", base / "t.json",
@@ -51,7 +52,7 @@ def test_verification_is_recorded_with_its_baseline(vertical):
     written = read_comp_json(base / "t.json")
     assert table["forward"] == pytest.approx(list(written.forward * 1e-3))  # µm -> mm in the PLC
     md = (base / "after" / "verification.md").read_text()
-    assert "Before compensation: forward (+) deviations" in md and "| accuracy A |" in md
+    assert "Before compensation: forward (+) deviations" in md and "| A | accuracy, bidirectional |" in md and "| A_up | accuracy, + direction |" in md
     assert (base / "after" / "verification.png").read_bytes()[:4] == b"\x89PNG"
 
 
@@ -129,3 +130,87 @@ def test_verify_takes_a_linuxcnc_table_like_the_json_one(vertical):
     assert from_file["points"] == 110
     for key in ("A", "B", "E", "R"):
         assert from_file[key] == pytest.approx(from_json[key], abs=0.01), key
+
+
+def comp_json(path, start, spacing, points, **provenance):
+    """A compensate JSON table of `points` zero corrections, with the provenance given."""
+    zeros = [0.0] * points
+    path.write_text(json.dumps({"position_unit": "mm", "start": start, "spacing": spacing, "forward": zeros,
+                                "reverse": zeros, "common": zeros, "mode": "uni", "provenance": provenance}))
+    return path
+
+
+def test_verify_refuses_another_axis_table_before_writing_to_the_controller(cli, tmp_path, monkeypatch):
+    """A 600 mm X table on the 300 mm Z config: exit 2 with one line naming what disagrees, and the
+    controller is never opened, so nothing is written to it (the old code warned, wrote the table
+    and ran the whole campaign)."""
+    from tests.fakes import FakeMachine
+
+    machine = FakeMachine()
+    monkeypatch.setattr("campaign.commands.verify.hardware_opener", lambda: machine)
+    table = comp_json(tmp_path / "x.json", 0.0, 60.0, 11, machine="sim-press", axis="X")
+    result = cli("verify", CONFIGS / "vertical-sim.toml", "--comp", table, "--out", tmp_path / "after")
+    assert_one_line_error(result, "x.json", "axis 'X'", "axis 'Z'", "0 to 600 mm", "--force")
+    assert machine.openings == [] and not (tmp_path / "after").exists()
+    # the same travel, but made for another machine: refused too
+    other = comp_json(tmp_path / "m.json", 0.0, 30.0, 11, machine="mill-2", axis="Z")
+    assert_one_line_error(cli("verify", CONFIGS / "vertical-sim.toml", "--comp", other), "machine 'mill-2'")
+    assert machine.openings == []
+
+
+def test_verify_force_loads_another_axis_table_and_says_so(cli, tmp_path, monkeypatch):
+    from tests.fakes import SMALL, FakeMachine
+
+    machine = FakeMachine()
+    monkeypatch.setattr("campaign.commands.verify.hardware_opener", lambda: machine)
+    config = tmp_path / "small.toml"
+    config.write_text(SMALL)
+    table = comp_json(tmp_path / "y.json", 0.0, 25.0, 5, machine="fake", axis="Y")
+    result = cli("verify", config, "--comp", table, "--out", tmp_path / "after", "--force")
+    assert result.code == 0, result.err
+    assert "made for axis 'Y'" in result.out and "loaded anyway: --force" in result.out
+    assert machine.openings and machine.openings[0].axis.comp is not None
+
+
+def test_the_report_of_a_verification_names_its_table_and_campaigns(cli, tmp_path, monkeypatch):
+    """The verification campaign keeps the table it wrote and records its file, format, checksum and
+    source campaign; the report names them, and the before and after campaigns by id and relative to
+    the report (the old report said neither, and gave the before campaign as an absolute path)."""
+    import hashlib
+
+    from campaign.config import parse_config
+    from campaign.measure import start_campaign
+    from tests.fakes import SMALL, FakeMachine
+
+    machine = FakeMachine()
+    monkeypatch.setattr("campaign.commands.verify.hardware_opener", lambda: machine)
+    config = tmp_path / "small.toml"
+    config.write_text(SMALL)
+    before = tmp_path / "runs" / "fake-X-before"
+    start_campaign(parse_config(SMALL, "small.toml"), before, opener=machine)
+    table = tmp_path / "tables" / "x.comp"
+    table.parent.mkdir()
+    assert cli("compensate", before / "points.csv", "--format", "linuxcnc", "-o", table).code == 0
+    after = tmp_path / "runs" / "fake-X-after"
+    result = cli("verify", config, "--comp", table, "--before", before, "--out", after)
+    assert result.code == 0, result.err
+    assert "A_up" in result.out and "A↑" not in result.out  # the summary's names (the old table said A↑)
+    assert (after / "compensation-table.comp").read_bytes() == table.read_bytes()
+    digest = hashlib.sha256(table.read_bytes()).hexdigest()
+    meta = json.loads((after / "meta.json").read_text())
+    assert meta["compensation"]["table"]["format"] == "linuxcnc"
+    assert meta["compensation"]["table"]["sha256"] == digest
+    report = tmp_path / "filed" / "report.html"
+    assert cli("report", after, "-o", report).code == 0
+    html = report.read_text()
+    for text in ("Compensation table verified", "x.comp", "linuxcnc", digest, "fake-X-before",
+                 "../runs/fake-X-before", "../runs/fake-X-after", "compensation-table.comp", "Sign-off",
+                 "Checked by", "Approved by", "Page &quot;", "counter(pages)"):
+        assert text in html or text.replace("&quot;", '"') in html, text
+    assert str(tmp_path) not in html  # no absolute path of this PC
+    assert "not said by the table" in html  # a LinuxCNC file has no comments to name its campaign
+    json_table = tmp_path / "tables" / "x.json"
+    assert cli("compensate", before / "points.csv", "--format", "json", "-o", json_table).code == 0
+    assert cli("verify", config, "--comp", json_table, "--out", tmp_path / "runs" / "json-after").code == 0
+    assert cli("report", tmp_path / "runs" / "json-after", "-o", report).code == 0
+    assert re.search(r"Computed from</th><td>campaign fake-X-before, measured 20\d\d-", report.read_text())

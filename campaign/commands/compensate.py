@@ -5,6 +5,7 @@ predicted accuracy next to the floor the repeatability allows."""
 from __future__ import annotations
 
 import argparse
+import itertools
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -62,6 +63,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--control", choices=("840d", "828d", "808d", "tnc640", "tnc426"), type=str.lower,
                    help="siemens: 840d (default), 828d or 808d (sets the point limit: 808D 200); "
                         "heidenhain: tnc640 (default) or tnc426 (power-of-two spacing)")
+    p.add_argument("--partial", action="store_true",
+                   help="write the table of an incomplete campaign (refused with exit 2 otherwise); "
+                        "says which part of the travel it covers")
     p.add_argument("--write-plc", metavar="CONFIG",
                    help="TwinCAT: also write the tables into the PLC of CONFIG over ADS "
                         "(GVL_Axiscal.astComp[n]), read them back, compare, then enable them")
@@ -97,6 +101,67 @@ def campaign_of(path: str) -> tuple[str, str]:
     return directory.resolve().name, created
 
 
+def missing_options(args: argparse.Namespace, mode: str, start: float) -> list[str]:
+    """Every option the format still needs, each with why, so that they are all said at once (not
+    one error per try): counts per unit (pmac, fanuc), one table (pmac, siemens: `mode` is what was
+    chosen), the reference (fanuc; pmac's table starts at motor zero), the axis number (twincat_cnc)."""
+    fmt, needed = args.format, []
+    if fmt in ("pmac", "fanuc") and args.counts_per_unit is None:
+        what = "encoder counts" if fmt == "pmac" else "detection units"
+        needed.append(f"--counts-per-unit ({what} per mm or degree)")
+    if fmt in ("pmac", "siemens") and mode != "uni":
+        needed.append(f"--mode uni (it holds one table per axis; the {args.mode} mode gave {mode})")
+    if fmt == "fanuc" and args.reference is None:
+        needed.append("--reference (fanuc counts its points from the reference position)")
+    if fmt == "pmac" and args.reference is None and abs(start) > 1e-9:
+        needed.append(f"--reference 0 (a pmac table starts at motor zero; the grid starts at {start:g})")
+    if fmt == "twincat_cnc" and args.axis_number is None:
+        needed.append("--axis-number (the axis' logical number, kopf.achs_nr, P-AXIS-00016 in its axis parameters)")
+    return needed
+
+
+def nominal_grid(path: str) -> tuple[float, float, str] | None:
+    """(spacing, origin, what to say) of the nominal grid of a campaign measured with target offsets
+    (random or golden): its targets are off the grid a controller wants, so the table defaults to
+    the plan's nominal spacing from its first nominal target. None for a bare table, a campaign
+    without offsets, or nominal targets that are not equidistant."""
+    from campaign.assess import campaign_dir_of
+    from campaign.plan import nominal_targets
+    from campaign.record import open_campaign
+
+    directory = campaign_dir_of(path)
+    if directory is None:
+        return None
+    try:
+        plan = open_campaign(directory).config().plan
+    except (InputError, OSError, ValueError):
+        return None
+    if plan.offsets == "none":
+        return None
+    nominal = nominal_targets(plan)
+    steps = [b - a for a, b in itertools.pairwise(nominal)]
+    if not steps or max(steps) - min(steps) > 1e-9 * max(1.0, abs(nominal[-1])):
+        return None
+    return steps[0], nominal[0], (f"the plan's nominal grid: its targets carry {plan.offsets} offsets; "
+                                  "--spacing sets another")
+
+
+def partial_coverage(path: str, ctable: ControllerTable, unit: str) -> str:
+    """Which part of the planned travel a table of an incomplete campaign covers: "the table covers
+    0 to 480 mm of the planned 0 to 600 mm" (the plan's targets from meta.json; for a bare table, the
+    table's own span)."""
+    from campaign.assess import campaign_dir_of
+    from campaign.record import open_campaign
+
+    end = ctable.start + ctable.spacing * (len(ctable.forward) - 1)
+    covers = f"the table covers {ctable.start:g} to {end:g} {unit}"
+    directory = campaign_dir_of(path)
+    targets = open_campaign(directory).meta.get("targets") if directory is not None else None
+    if isinstance(targets, list) and targets and all(isinstance(t, (int, float)) for t in targets):
+        return f"{covers} of the planned {min(targets):g} to {max(targets):g} {unit}"
+    return covers
+
+
 def run(args: argparse.Namespace) -> int:
     from campaign import __version__
     from campaign.assess import incomplete
@@ -112,13 +177,23 @@ def run(args: argparse.Namespace) -> int:
         then = f"resume it first: axiscal resume {directory}" if directory else "measure the rest first"
         raise InputError(f"incomplete campaign ({'; '.join(missing)}): {exc}; {then}") from None
     console = make_console()
-    for problem in incomplete(args.file):
-        console.print(f"[yellow]warning:[/] incomplete campaign: {problem}; the table is built from the points "
-                      "measured (resume the campaign first for a complete one)")
+    missing = incomplete(args.file)
+    if missing and not args.partial:
+        from campaign.assess import campaign_dir_of
+
+        directory = campaign_dir_of(args.file)
+        then = f"resume it first (axiscal resume {directory})" if directory else "measure the rest first"
+        raise InputError(f"{args.file}: incomplete campaign ({'; '.join(missing)}): {then}, or give --partial "
+                         "for a table of the travel measured so far")
     method = args.method or DEFAULT_METHOD.get(args.format, "inverse")
     corr = corrections(table, args.mode, method, args.smooth)
     max_points = args.max_points or control_point_limit(args.format, args.control)
-    ctable = resample(corr, max_points, args.spacing, args.reference, args.overrun)
+    spacing, origin, nominal_note = args.spacing, None, None
+    if spacing is None and (nominal := nominal_grid(args.file)) is not None:
+        spacing, origin, nominal_note = nominal
+    ctable = resample(corr, max_points, spacing, args.reference, args.overrun, origin)
+    if needed := missing_options(args, corr.mode, ctable.start):
+        raise InputError(f"--format {args.format} needs {'; '.join(needed)}")
     axis = args.axis_name or ("AX1" if args.format == "siemens" else "X")
     name, created = campaign_of(args.file)
     provenance = (("campaign", name), ("measured", created),
@@ -148,7 +223,10 @@ def run(args: argparse.Namespace) -> int:
         if sm.degree is not None:
             console.print(f"  the means move by at most {sm.max_change:.3f} {unit}")
     console.print(f"table: {len(ctable.forward)} points from {ctable.start:g} every {ctable.spacing:g} "
-                  f"{table.position_unit}, overrun {ctable.overrun:g}")
+                  f"{table.position_unit}, overrun {ctable.overrun:g}" + (f" ({nominal_note})" if nominal_note else ""))
+    if missing:
+        console.print(f"[yellow]warning:[/] --partial: {partial_coverage(args.file, ctable, table.position_unit)} "
+                      f"({'; '.join(missing)}): no correction beyond it")
     console.print(f"inverse interpolation - simple (-error): max {corr.max_inverse_minus_simple:.3f} {unit} "
                   f"(method used: {corr.method})")
     console.print(f"predicted accuracy A: {fmt(pred.accuracy_before)} -> {fmt(pred.accuracy_after)} {unit}; "

@@ -64,8 +64,11 @@ def run(args: argparse.Namespace) -> int:
         print_json(result)
         return 0
     console = make_console()
-    console.print(f"step {args.step:g} µm, cycle {args.cycle_ms:g} ms: settles after {settled} cycles "
-                  f"(continuous-time minimum {t_min:.6g} s = {t_min / dt:.1f} cycles)")
+    settles = (f"settles after {settled} cycles = {settled * dt:.6g} s" if settled is not None else
+               f"has not settled after {cycles} cycles")
+    console.print(f"step {args.step:g} µm, cycle {args.cycle_ms:g} ms: {settles}; the continuous-time profile takes "
+                  f"{t_min:.6g} s (the planner changes the correction once per cycle, so it may end a cycle or two "
+                  "before or after that)")
     console.print(f"step:    max change per cycle {step_change:.4g} µm, max acceleration {step_accel:.4g} µm/s²")
     console.print(f"planned: max change per cycle {plan_change:.4g} µm, max acceleration {plan_accel:.4g} µm/s²")
     if plot_path:

@@ -10,10 +10,13 @@ ends with exit status 2 and one `error:` line. See docs/guide.md.
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
-from collections.abc import Callable
-from contextlib import ExitStack
+from collections.abc import Callable, Iterator
+from contextlib import ExitStack, contextmanager
+from dataclasses import dataclass
 from pathlib import Path
+from types import FrameType
 from typing import Any, NoReturn
 
 from rich.console import Console
@@ -70,29 +73,48 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.set_defaults(func=run)
 
 
+@dataclass(frozen=True)
+class Setup:
+    """What one setup check checks: the config as read now, its plan, the checks that need no
+    hardware, and how to open the hardware it names."""
+
+    config: Config
+    plan: Plan
+    offline: list[CheckItem]
+    open: Callable[[], Opened]
+
+
 def run(args: argparse.Namespace, on_hardware: Callable[[Hardware, Any], None] | None = None) -> int:
     """The whole session. `on_hardware(hw, sim)`: called right after the hardware is opened (tests
     use it to inject faults into the simulated machine)."""
-    config = load_config(args.config) if args.config else parse_config(demo_config_text(), "demo.toml")
-    config = with_on_fault(config, args)  # --on-fault answers every fault: the executor's one policy
     interactive = sys.stdin.isatty()
     console = Console(stderr=True) if args.json else make_console()
-    plan = build_plan(config)
+    operator: list[str] = []  # asked once, kept when the config is read again
+
+    def prepare() -> Setup:
+        """Read the config (again: each re-check sees the file as it is now), plan, offline checks."""
+        config = load_config(args.config) if args.config else parse_config(demo_config_text(), "demo.toml")
+        config = with_on_fault(config, args)  # --on-fault answers every fault: the executor's one policy
+        if args.operator:
+            config = config_with(config, {"campaign": {"operator": args.operator}})
+        elif not config.campaign.operator and interactive:
+            if not operator:
+                operator.append(ask_operator(console))
+            config = config_with(config, {"campaign": {"operator": operator[0]}})
+        plan = build_plan(config)
+        out = Path(args.out) if args.out else default_out_dir(config)
+        return Setup(config, plan, [soft_limit_item(plan, config), record_item(out)],
+                     lambda: hardware_opener()(config.driver, speed=args.speed))
+
+    setup = prepare()
+    introduce(setup, args, console)
+    if failures(setup.offline) and not interactive:
+        console.print(checklist_table(setup.offline))
+        stop_on(failures(setup.offline)[0])
+    opened, setup = open_and_check(prepare, console, interactive, on_hardware, first=setup,
+                                   on_change=lambda changed: introduce(changed, args, console))
+    config, plan = setup.config, setup.plan
     out = Path(args.out) if args.out else default_out_dir(config)
-    if args.operator:
-        config = config_with(config, {"campaign": {"operator": args.operator}})
-    elif not config.campaign.operator and interactive:
-        config = config_with(config, {"campaign": {"operator": ask_operator(console)}})
-    c = config.campaign
-    console.print(f"[bold]axiscal guide[/]: machine {c.machine}, axis {config.axis.name}, "
-                  f"operator {c.operator or '-'}, config {config.source}")
-    console.print(plan_preview(plan, config, args.speed))
-    offline = [soft_limit_item(plan, config), record_item(out)]
-    if failures(offline):
-        console.print(checklist_table(offline))
-        stop_on(failures(offline)[0])
-    opened = open_and_check(lambda: hardware_opener()(config.driver, speed=args.speed), config, offline,
-                            console, interactive, on_hardware)
     try:
         lo, hi = plan.ends()
         unit = config.axis.unit
@@ -106,7 +128,36 @@ def run(args: argparse.Namespace, on_hardware: Callable[[Hardware, Any], None] |
                                                                            console, keys))
     finally:
         opened[0].close()
-    return conclude(outcome, config, args, console)
+    with ctrl_c_held(console):
+        return conclude(outcome, config, args, console)
+
+
+@contextmanager
+def ctrl_c_held(console: Console) -> Iterator[None]:
+    """While the summary is written after the campaign stopped: a Ctrl-C (one pressed too many while
+    stopping) is said and ignored, so the summary and the resume line always come."""
+    def held(signum: int, frame: FrameType | None) -> None:
+        console.print("Ctrl-C: the campaign has stopped and its record is closed; the summary follows.",
+                      markup=False)
+
+    try:
+        previous = signal.signal(signal.SIGINT, held)
+    except ValueError:  # not the main thread: nothing to hold
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def introduce(setup: Setup, args: argparse.Namespace, console: Console) -> None:
+    """The session's header and the plan preview (again when a re-check read a changed config)."""
+    config = setup.config
+    c = config.campaign
+    console.print(f"[bold]axiscal guide[/]: machine {c.machine}, axis {config.axis.name}, "
+                  f"operator {c.operator or '-'}, config {config.source}")
+    console.print(plan_preview(setup.plan, config, args.speed))
 
 
 def ask_operator(console: Console) -> str:
@@ -118,40 +169,85 @@ def stop_on(item: CheckItem) -> NoReturn:
     raise InputError(f"setup check failed: {item.name}: {item.value}")
 
 
-def open_and_check(open_hardware: Callable[[], Opened], config: Config, offline: list[CheckItem], console: Console,
-                   interactive: bool, on_hardware: Callable[[Hardware, Any], None] | None = None,
-                   more_items: Callable[[Hardware], list[CheckItem]] | None = None) -> Opened:
-    """Open the hardware (`open_hardware()` -> (Hardware, parts)) and run the checklist until it
-    passes; on a failure ask to retry (interactive) or stop with InputError (scripts). Nothing
-    moves here. `more_items(hw)`: further checks. The hardware is closed again when this ends
-    without a pass."""
+def open_and_check(prepare: Callable[[], Setup], console: Console, interactive: bool,
+                   on_hardware: Callable[[Hardware, Any], None] | None = None,
+                   more_items: Callable[[Hardware], list[CheckItem]] | None = None, *,
+                   first: Setup | None = None, on_change: Callable[[Setup], None] | None = None
+                   ) -> tuple[Opened, Setup]:
+    """Run the setup checklist until it passes: each check calls `prepare()` (the guide reads its
+    config again, so a file fixed since the last check is what is checked; `first`: the setup read
+    already), opens the hardware when it is not open or the config's hardware changed, and checks
+    it. On a failure ask to retry (interactive) or stop with InputError (scripts). Nothing moves
+    here. `more_items(hw)`: further checks; `on_change(setup)`: told when a re-check read a changed
+    config. Returns the hardware and the setup that passed; the hardware is closed again when this
+    ends without a pass."""
     hw: Hardware | None = None
     sim: Any = None
+    opened_for: Setup | None = None
+    setup: Setup | None = first
     try:
         while True:
-            if hw is None:
+            items: list[CheckItem] = []
+            if setup is None:
                 try:
-                    hw, sim = open_hardware()
-                except (AxisError, InstrumentError, *BAD_INPUT, OSError) as exc:
-                    items = [CheckItem("controller", False, f"cannot open the hardware: {exc}")]
+                    setup = prepare()
+                except InputError as exc:
+                    items = [CheckItem("config", False, str(exc))]
                 else:
-                    if on_hardware:
-                        on_hardware(hw, sim)
-            if hw is not None:
-                items = hardware_items(hw, config) + (more_items(hw) if more_items else [])
-            items += offline
+                    if on_change is not None and opened_for is not None and \
+                            setup.config.text != opened_for.config.text:
+                        on_change(setup)
+            if setup is not None:
+                if hw is not None and opened_for is not None and setup.config.driver != opened_for.config.driver:
+                    hw.close()  # the config now names other hardware: open that
+                    hw = None
+                if hw is None:
+                    hw, sim, items = open_hardware(setup, on_hardware)
+                    opened_for = setup
+                if hw is not None:
+                    items = hardware_items(hw, setup.config) + (more_items(hw) if more_items else [])
+                items += setup.offline
             console.print(checklist_table(items))
-            if hw is not None and not failures(items):
-                return hw, sim
+            if hw is not None and setup is not None and not failures(items):
+                return (hw, sim), setup
             answer = "q"
             if interactive:
                 answer = console.input("Fix it, then press Enter to check again (q and Enter quits): ")
             if answer.strip().lower() in ("q", "quit"):
                 stop_on(failures(items)[0])
+            setup = None  # read it again
     except BaseException:
         if hw is not None:
             hw.close()
         raise
+
+
+NOT_CHECKED = ("interferometer signal", "air temperature", "air pressure", "humidity", "material temperature")
+"""The checklist's rows that need the hardware open: shown as not checked when it did not open."""
+
+
+def open_hardware(setup: Setup, on_hardware: Callable[[Hardware, Any], None] | None
+                  ) -> tuple[Hardware | None, Any, list[CheckItem]]:
+    """Open the hardware the setup names: (hardware, parts, []) or (None, None, the checklist's
+    rows saying why: a file the config names, the controller or the interferometer, and the rows
+    not checked because of it)."""
+    try:
+        hw, sim = setup.open()
+    except InputError as exc:  # a file the config names (the simulated machine's model, a serial port...)
+        failed = CheckItem("config", False, str(exc))
+    except InstrumentError as exc:
+        failed = CheckItem("interferometer signal", False, f"cannot open the interferometer: {exc}")
+    except (AxisError, *BAD_INPUT, OSError) as exc:
+        failed = CheckItem("controller", False, f"cannot open the hardware: {exc}")
+    else:
+        if on_hardware:
+            on_hardware(hw, sim)
+        return hw, sim, []
+    rows = [failed] + [CheckItem(name, None, "not checked: the hardware did not open")
+                       for name in NOT_CHECKED if name != failed.name]
+    if failed.name != "controller":
+        rows.insert(1, CheckItem("controller", None, "not checked: the hardware did not open"))
+    return None, None, rows
 
 
 def confirm(args: argparse.Namespace, console: Console, interactive: bool, motion: str) -> None:
@@ -179,7 +275,7 @@ def on_dashboard(config: Config, plan: Plan, args: argparse.Namespace, opened: O
         dashboard = Dashboard(console, config, plan, control, "ask" if asks else None, hw)
         if interactive:
             dashboard.keys = stack.enter_context(Keys(dashboard.on_key))
-        stack.enter_context(CtrlC(dashboard, hw))
+        stack.enter_context(CtrlC(dashboard))
         if before is not None:
             try:
                 before(control, dashboard.keys)
@@ -210,9 +306,11 @@ def check_alignment(hw: Hardware, plan: Plan, config: Config, control: Control, 
 
 
 def recorded_outcome(directory: Path, planned: int, reason: str | None) -> Outcome:
-    """The outcome of a campaign that ended with an abort, from its directory."""
+    """The outcome of a campaign that ended with an abort, from its directory. A record without its
+    stop record (a second Ctrl-C came while it was written) is interrupted: resume treats it so."""
     campaign = open_campaign(directory)
-    return Outcome(directory, campaign.status, len(recorded_point_indices(directory)), planned,
+    status = "interrupted" if campaign.status == "running" else campaign.status
+    return Outcome(directory, status, len(recorded_point_indices(directory)), planned,
                    campaign.duration_s, reason or campaign.message or "aborted")
 
 

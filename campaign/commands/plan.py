@@ -20,6 +20,7 @@ from campaign.plan import (
     plan_records,
 )
 from campaign.views import make_console, print_json
+from protocols.units import counted
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -53,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     console = make_console()
     u = info["unit"]
     table = Table(title=f"Plan: {args.config}", show_header=False)
-    table.add_row("points", f"{info['points']} ({len(plan.targets)} targets × 2 directions × {info['runs']} runs)"
+    table.add_row("points", f"{info['points']} ({len(plan.targets)} targets × 2 directions × {counted(info['runs'], 'run')})"
                   if info["cycle"] == "linear" else str(info["points"]))
     table.add_row("targets", ", ".join(f"{t:g}" for t in plan.targets) + f" {u}")
     table.add_row("travel", f"{info['travel']:.1f} {u}")

@@ -40,14 +40,20 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--config and -o go together")
     table = read_points(args.file)
     proposal = propose(table, args.threshold, args.max_per_interval)
+    written = None
     if args.config:
         config = load_config(args.config)
-        text = follow_up_config(config.text, proposal.all_targets)
-        parse_config(text, str(args.output))  # the follow-up config must be valid
-        Path(args.output).write_text(text, encoding="utf-8")
+        if proposal.new:  # nothing to add: no follow-up config (it would repeat the campaign)
+            text = follow_up_config(config.text, proposal.all_targets)
+            parse_config(text, str(args.output))  # the follow-up config must be valid
+            try:
+                Path(args.output).write_text(text, encoding="utf-8")
+            except OSError as exc:
+                raise InputError(f"-o: {args.output}: cannot write ({exc.strerror})") from None
+            written = str(args.output)
     unit = unit_label(table.deviation_unit)
     if args.json:
-        print_json({"targets": proposal.targets, "new": proposal.new, "all": proposal.all_targets,
+        print_json({"targets": proposal.targets, "new": proposal.new, "all": proposal.all_targets, "written": written,
                     "threshold": proposal.threshold, "unit": unit,
                     "intervals": [{"from": a, "to": b, "estimated_error": e, "new": n}
                                   for a, b, e, n in proposal.gaps]})
@@ -64,5 +70,6 @@ def run(args: argparse.Namespace) -> int:
         if args.output:
             console.print(f"follow-up config written to {args.output} ({len(proposal.all_targets)} targets)")
     else:
-        console.print("linear interpolation follows the mean deviation everywhere: no new targets")
+        console.print("linear interpolation follows the mean deviation everywhere: no new targets"
+                      + (f"; no follow-up config written ({args.output} not created)" if args.output else ""))
     return 0

@@ -46,12 +46,29 @@ def _overrides(args: argparse.Namespace) -> dict:
     return out
 
 
+def check_window(directory: Path, overrides: dict) -> None:
+    """A dwell capture averages within the dwell: an --average-s longer than the recorded dwell
+    would silently average less than asked (the capture takes at most the dwell). InputError."""
+    from campaign.record import open_campaign
+
+    average = overrides.get("average_s")
+    if average is None:
+        return
+    config = open_campaign(directory).config()
+    method = overrides.get("method", config.capture.method)
+    dwell = config.plan.dwell_s
+    if method == "dwell" and average > dwell:
+        raise InputError(f"--average-s {average:g}: longer than the recorded dwell of {dwell:g} s at each point "
+                         f"({directory}): a dwell capture averages within the dwell (at most --average-s {dwell:g})")
+
+
 def run(args: argparse.Namespace) -> int:
     overrides = _overrides(args)
     directory = Path(args.dir)
     if not (directory / "meta.json").is_file():
         raise InputError(f"{directory}: not a campaign directory (no meta.json)")
     recorded = read_points(directory / "points.csv")
+    check_window(directory, overrides)
     capture, _, points = replay_campaign(directory, overrides, args.speed)
     if "point" not in recorded.extra:
         raise InputError(f"{directory / 'points.csv'}: no 'point' column: not recorded by axiscal")

@@ -1,4 +1,4 @@
-"""`axiscal report DIR [-o report.html] [--before DIR0]`: the self-contained HTML report of a campaign."""
+"""`axiscal report DIR [-o report.html] [--before DIR0] [--pdf FILE]`: the self-contained HTML report of a campaign."""
 
 from __future__ import annotations
 
@@ -18,6 +18,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="tolerance on A, µm (arcsec on a rotary axis); default: the campaign's [campaign] tolerance")
     p.add_argument("--before", metavar="DIR0",
                    help="baseline campaign to compare with (default: meta.json's baseline_dir, if set)")
+    p.add_argument("--pdf", metavar="FILE",
+                   help="also print the report to a PDF (A4, page numbers and the campaign id on every page; "
+                        "needs headless Chromium)")
     p.set_defaults(func=run)
 
 
@@ -29,4 +32,8 @@ def run(args: argparse.Namespace) -> int:
                                                   else source.with_suffix(".html"))
     path = write_report(args.dir, out, args.before, args.tolerance)
     print(f"report written to {path}")
+    if args.pdf:
+        from campaign.report.pdf import print_pdf
+
+        print(f"PDF written to {print_pdf(path, Path(args.pdf))}")
     return 0

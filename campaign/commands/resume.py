@@ -66,7 +66,7 @@ def guided(r: Resumption, args: argparse.Namespace) -> int:
     """The guided resume: checklist, confirmation, dashboard, verdict (campaign/commands/guide.py)."""
     from rich.console import Console
 
-    from campaign.commands.guide import conclude, confirm, on_dashboard, open_and_check
+    from campaign.commands.guide import Setup, conclude, confirm, on_dashboard, open_and_check
     from campaign.guide import datum_item, reapproach_item, soft_limit_item
     from campaign.measure import continue_campaign
     from campaign.record import last_reading_offset
@@ -80,8 +80,9 @@ def guided(r: Resumption, args: argparse.Namespace) -> int:
     offline = [soft_limit_item(plan, config), reapproach_item(plan, config, r.todo, r.again)]
     recorded_offset = last_reading_offset(r.path, plan)
     try:
-        opened = open_and_check(lambda: r.open(hardware_opener(), args.speed), config, offline, console, True,
-                                more_items=lambda hw: [datum_item(hw, config, recorded_offset)])
+        setup = Setup(config, plan, offline, lambda: r.open(hardware_opener(), args.speed))
+        opened, _ = open_and_check(lambda: setup, console, True,
+                                   more_items=lambda hw: [datum_item(hw, config, recorded_offset)])
     except BaseException:
         r.close()
         raise

@@ -114,6 +114,20 @@ def run_config(config: Config, args: argparse.Namespace, extra: dict | None = No
     return finish(outcome, args, extra)
 
 
+def dry_run_lines(report: dict, unit: str) -> list[str]:
+    """What a dry run found, for people: each value rounded and with its unit."""
+    yes = {True: "yes", False: "NO"}
+    reading = report["reading"]
+    error_id = int(report["axis_error_id"])
+    error = f"ERROR: controller error id {error_id} (0x{error_id:04X})" if report["axis_error"] else "no error"
+    return [(f"controller   read-only; axis enabled {yes[report['axis_enabled']]}, homed {yes[report['axis_homed']]}, "
+            f"{error}, at {report['axis_position']:.4f} {unit}"),
+            f"instrument   {report['readings']} readings, beam {'OK' if report['beam_ok'] else 'NOT OK'}"
+            + (f", last reading {reading:.4f} {unit}" if reading is not None else ", no reading"),
+            (f"plan         {report['points']} points, {report['moves']} moves, travel {report['travel']:.1f} {unit}, "
+            f"estimated duration {report['estimated_duration_s'] / 60:.1f} min, within the soft limits")]
+
+
 def run(args: argparse.Namespace) -> int:
     config = load_config(args.config)
     if args.dry_run or config.controller.read_only:
@@ -121,12 +135,14 @@ def run(args: argparse.Namespace) -> int:
             report = dry_run(config, hardware_opener())
         except (AxisError, InstrumentError) as exc:  # a dry run changes nothing: a set-up problem, exit 2
             raise InputError(f"dry run: {exc}") from None
+        report = {**report, "travel": round(report["travel"], 6),
+                  "estimated_duration_s": round(report["estimated_duration_s"], 1)}
         if args.json:
             print_json(report)
         else:
             console = make_console()
-            for key, value in report.items():
-                console.print(f"{key:22s} {value}")
+            for line in dry_run_lines(report, config.axis.unit):
+                console.print(line, markup=False, highlight=False)
             console.print("dry run: nothing was commanded")
         return 0
     return run_config(config, args)

@@ -13,6 +13,7 @@ from campaign.commands.run import add_run_options, finish, with_on_fault
 from campaign.compensation.table_file import (
     read_comp_provenance,
     read_comp_table,
+    table_identity,
     table_spikes,
     table_units_note,
 )
@@ -51,6 +52,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="rate limit of the correction, µm/s (arcsec/s on a rotary axis)")
     p.add_argument("--max-accel", type=positive_number, metavar="UM_PER_S2",
                    help="acceleration limit of the correction, µm/s² (arcsec/s²)")
+    p.add_argument("--force", action="store_true",
+                   help="load a table made for another machine or axis, or for a much longer travel "
+                        "(refused with exit 2 otherwise)")
     add_run_options(p)
     p.set_defaults(func=run)
 
@@ -67,20 +71,21 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{args.comp}: a {table.kind} table does not fit the {config.axis.kind} axis")
     plan = build_plan(config)
     check_plan(plan, config.axis)
+    baseline = Path(args.before) if args.before else None
+    before = baseline_points(baseline, config) if baseline else None  # a wrong baseline is said first
     console = make_console(stderr=args.json)
     if units_note:
         console.print(f"note: {units_note}")
-    for warning in [*table_fits(table, read_comp_provenance(args.comp), config, plan, args.comp),
+    for warning in [*table_fits(table, read_comp_provenance(args.comp), config, plan, args.comp, args.force),
                     *table_spikes(table, args.comp)]:
         console.print(f"[yellow]warning:[/] {warning}")
-    baseline = Path(args.before) if args.before else None
-    before = baseline_points(baseline, config) if baseline else None
     out = Path(args.out) if args.out else default_out_dir(config)
     unit = config.axis.unit
     with RichProgress(unit) as observer:
         outcome = run_verification(config, table, out, opener=hardware_opener(), baseline=baseline if baseline and baseline.is_dir() else None,
                                    max_rate=args.max_rate, max_accel=args.max_accel, speed=args.speed,
-                                   observer=observer)
+                                   observer=observer, source=Path(args.comp),
+                                   identity=table_identity(args.comp, args.comp_format))
     summaries = {}
     if outcome.points:
         from campaign.pointtable import read_points
@@ -88,11 +93,13 @@ def run(args: argparse.Namespace) -> int:
         summaries = write_report(outcome.dir, read_points(outcome.dir / "points.csv"), before)
         if not args.json:
             shown = Table(title=f"Before and after compensation ({'µm' if unit == 'mm' else 'arcsec'})")
-            for head in ("parameter", "before", "after"):
+            shown.add_column("parameter")
+            shown.add_column("meaning")
+            for head in ("before", "after"):
                 shown.add_column(head, justify="right")
             for key, name in SUMMARY_KEYS:
                 b = summaries["before"].get(key) if summaries["before"] else None
-                shown.add_row(name, fmt(b), fmt(summaries["after"].get(key)))
+                shown.add_row(key, name, fmt(b), fmt(summaries["after"].get(key)))
             console.print(shown)
             console.print(f"tables: {outcome.dir / 'verification.md'}; plot: {outcome.dir / 'verification.png'}")
     return finish(outcome, args, {"before": summaries.get("before")})

@@ -71,13 +71,14 @@ class ControllerTable:
 
 
 def grid(targets: np.ndarray, max_points: int, spacing: float | None = None,
-         reference: float | None = None) -> tuple[float, float, int]:
+         reference: float | None = None, origin: float | None = None) -> tuple[float, float, int]:
     """(start, spacing, count) of an equidistant grid covering the measured targets (axis unit).
 
     Without `spacing`: the targets' own spacing when they are equidistant and few enough, else
-    span/(max_points - 1). With `reference`, the grid is aligned so the reference is a point,
-    and it reaches one spacing beyond the targets where needed to cover them. More than
-    `max_points` points with a given spacing is an InputError.
+    span/(max_points - 1). With `reference` (else `origin`: a campaign's first nominal target),
+    the grid is aligned so that point is a grid point, and it reaches one spacing beyond the
+    targets where needed to cover them. More than `max_points` points with a given spacing is an
+    InputError.
     """
     if max_points < 2:
         raise InputError(f"--max-points must be at least 2, got {max_points}")
@@ -92,7 +93,7 @@ def grid(targets: np.ndarray, max_points: int, spacing: float | None = None,
     derived = spacing is None
     if spacing is None:
         spacing = float(steps[0]) if equidistant and len(targets) <= max_points else span / (max_points - 1)
-    origin = low if reference is None else reference
+    origin = reference if reference is not None else (origin if origin is not None else low)
     for _ in range(2):
         first = math.floor((low - origin) / spacing + 1e-9)
         last = math.ceil((high - origin) / spacing - 1e-9)
@@ -107,14 +108,15 @@ def grid(targets: np.ndarray, max_points: int, spacing: float | None = None,
 
 
 def resample(corr: Corrections, max_points: int, spacing: float | None = None,
-             reference: float | None = None, overrun: float = 0.0) -> ControllerTable:
+             reference: float | None = None, overrun: float = 0.0, origin: float | None = None) -> ControllerTable:
     """The corrections on a controller's grid (see `grid`), by linear interpolation between the
     measured targets (end values held beyond them). With `reference` (axis unit), every table is
     shifted by the same amount so that the correction is 0 there: the common table in `uni`
-    mode, the forward table in `bi` mode (the reverse table keeps its offset, the reversal)."""
+    mode, the forward table in `bi` mode (the reverse table keeps its offset, the reversal).
+    `origin`: a point the grid goes through (the campaign's first nominal target)."""
     if overrun < 0 or not math.isfinite(overrun):
         raise InputError(f"--overrun must be >= 0, got {overrun}")
-    start, step, count = grid(corr.targets, max_points, spacing, reference)
+    start, step, count = grid(corr.targets, max_points, spacing, reference, origin)
     points = start + step * np.arange(count)
     forward = np.interp(points, corr.targets, corr.forward)
     reverse = np.interp(points, corr.targets, corr.reverse)

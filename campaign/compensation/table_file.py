@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import re
@@ -38,6 +39,25 @@ def read_comp_provenance(path: str | Path) -> dict[str, str]:
         return {m.group(1): m.group(2) for line in text.splitlines() if (m := PROVENANCE_COMMENT.match(line))}
     value = doc.get("provenance") if isinstance(doc, dict) else None
     return {str(k): str(v) for k, v in value.items()} if isinstance(value, dict) else {}
+
+
+KEPT_TABLE = "compensation-table"
+"""The name (plus the table's own suffix) under which verify keeps the table file it was given in
+the campaign directory, byte for byte."""
+
+
+def table_identity(path: str | Path, fmt: str | None) -> dict[str, str]:
+    """What names a table file for the record and the report: its file name and absolute path, its
+    format (given, else recognised from its text), its SHA-256 and the provenance it carries
+    (`read_comp_provenance`: the campaign it was computed from, when that was measured, when the
+    table was written, machine and axis)."""
+    raw = read_input_bytes(path, "a compensation table")
+    text = raw.decode("utf-8-sig", errors="replace")
+    found = fmt or sniff(text) or "unknown"
+    identity = {"name": Path(path).name, "path": str(Path(path).resolve()), "format": found,
+                "sha256": hashlib.sha256(raw).hexdigest()}
+    identity.update({f"source_{k}": v for k, v in read_comp_provenance(path).items() if v})
+    return identity
 
 
 def read_comp_json(path: str | Path) -> ControllerTable:

@@ -34,6 +34,7 @@ from campaign.config import Config, config_toml, config_with, parse_config
 from campaign.discovery.data import CampaignData
 from campaign.discovery.fit import Fit, Term, linear_fit
 from campaign.discovery.search import RIVAL_MARGIN
+from campaign.model import is_model_name
 from campaign.plan import build_plan, check_plan, estimate_duration_s
 
 WAITS_S = (0.5, 5.0)
@@ -185,7 +186,7 @@ def _moved_paths(config: Config, out_dir: Path) -> dict[str, dict[str, Any]]:
     changes: dict[str, dict[str, Any]] = {}
     for section, key, value in (("sim", "model", config.sim.model),
                                 ("axis_driver", "comp_file", config.controller.comp_file)):
-        if value:
+        if value and not (section == "sim" and is_model_name(value)):  # a shipped model's name is found anywhere
             changes[section] = {key: os.path.relpath((config.base_dir / value).resolve(), out_dir.resolve())}
     return changes
 

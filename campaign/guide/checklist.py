@@ -17,9 +17,11 @@ from rich.table import Table
 
 from campaign.config import Config
 from campaign.errors import SafetyError
+from campaign.guide.dashboard import error_id_text
 from campaign.measure import Control, move_and_wait
 from campaign.plan import Plan, check_motion, check_plan, estimate_duration_s
 from protocols.hardware import AxisError, Hardware, InstrumentError, Reading
+from protocols.units import counted
 
 SAMPLE_S = 1.0
 """How long the signal and environment are sampled at rest, s."""
@@ -83,7 +85,7 @@ def plan_preview(plan: Plan, config: Config, speed: float | None) -> Table:
     table.add_column(style="bold")
     table.add_column()
     table.add_row("targets", f"{targets} {unit}")
-    table.add_row("points", f"{len(plan.points)} ({len(plan.targets)} targets × {runs} runs × 2 directions)")
+    table.add_row("points", f"{len(plan.points)} ({len(plan.targets)} targets × {counted(runs, 'run')} × 2 directions)")
     table.add_row("cycle", f"{config.plan.cycle}, dwell {config.plan.dwell_s:g} s, overrun "
                            f"{config.plan.overrun:g} {unit}")
     table.add_row("travel", f"{plan.travel():.1f} {unit}")
@@ -107,7 +109,7 @@ def controller_item(hw: Hardware, unit: str) -> CheckItem:
         return CheckItem("controller", False, f"not reachable: {exc}")
     ok = status.enabled and status.homed and not status.error
     yes = {True: "yes", False: "NO"}
-    error = f"ERROR {status.error_id}" if status.error else "no error"
+    error = f"ERROR: controller error id {error_id_text(status.error_id)}" if status.error else "no error"
     return CheckItem("controller", ok, f"reachable, axis enabled {yes[status.enabled]}, homed "
                                        f"{yes[status.homed]}, {error}, at {status.actual_position:.3f} {unit}")
 

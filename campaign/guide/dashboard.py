@@ -37,23 +37,47 @@ STATE_COLOUR = {RunState.IDLE: "white", RunState.MOVING: "green", RunState.SETTL
                 RunState.CAPTURING: "green", RunState.PAUSED: "yellow", RunState.FAULTED: "red",
                 RunState.STOPPED: "red"}
 
-KEY_HELP = "keys: p pause after this point · r resume · a abort · Ctrl-C abort (twice: halt at once)"
+SIGNED_BLOCKS = "▁▂▃▄▅▆▇"
+"""The deviation chart's levels: an odd number, so that 0 is the middle block (▄) of a scale
+symmetric about 0, below it the negative deviations, above it the positive ones."""
+
+CTRL_C_HELP = "Ctrl-C abort"
 
 
-def sparkline(values: list[float | None], lo: float, hi: float, width: int = 1) -> str:
-    """One block per value between lo and hi (`width` characters each); '·' where there is none."""
+def key_help(state: RunState | None, request: str | None = None) -> str:
+    """The key line for the published run state and the operator's pending request: only the keys
+    that do something now."""
+    if state is RunState.STOPPED:
+        return ""
+    if request == "aborting":
+        return "aborting: the axis halts and the recording is flushed · Ctrl-C three times: quit at once"
+    if state is RunState.PAUSED:
+        return f"keys: r resume · a abort · {CTRL_C_HELP}"
+    if request == "pause requested":
+        return f"keys: r cancel the pause · a abort · {CTRL_C_HELP}"
+    return f"keys: p pause after this point · a abort · {CTRL_C_HELP}"
+
+
+def sparkline(values: list[float | None], lo: float, hi: float, width: int = 1, blocks: str = BLOCKS) -> str:
+    """One block of `blocks` per value between lo and hi (`width` characters each); '·' where there is none."""
     out = []
     for v in values:
         if v is None:
             out.append("·" * width)
             continue
-        out.append(BLOCKS[level_of(v, lo, hi)] * width)
+        out.append(blocks[level_of(v, lo, hi, len(blocks))] * width)
     return "".join(out)
 
 
-def level_of(value: float, lo: float, hi: float) -> int:
-    """The block (0 to 7) that shows `value` on a scale from lo to hi."""
-    return 0 if hi <= lo else round((value - lo) / (hi - lo) * (len(BLOCKS) - 1))
+def signed_sparkline(values: list[float | None], half: float, width: int = 1) -> str:
+    """The values on a scale from -half to +half (SIGNED_BLOCKS): 0 is the middle block (▄), -half
+    the lowest (▁), +half the highest (▇); a more negative deviation is a lower block."""
+    return sparkline(values, -half, half, width, SIGNED_BLOCKS)
+
+
+def level_of(value: float, lo: float, hi: float, levels: int = len(BLOCKS)) -> int:
+    """The block (0 to levels - 1) that shows `value` on a scale from lo to hi."""
+    return 0 if hi <= lo else round((value - lo) / (hi - lo) * (levels - 1))
 
 
 def clock_text(seconds: float) -> str:
@@ -63,7 +87,8 @@ def clock_text(seconds: float) -> str:
 
 
 def error_id_text(error_id: int) -> str:
-    """A controller error number in decimal and hex, as TwinCAT's documentation lists them."""
+    """A controller error number in decimal and hex, as TwinCAT's documentation lists them (the
+    number is the controller's error id: look it up in its error list)."""
     return f"{error_id} (0x{error_id:04X})"
 
 
@@ -143,7 +168,7 @@ class Dashboard(Observer):
         if self.prompt:
             parts.append(Panel(self.prompt, title="FAULT", border_style="bold red"))
         else:
-            parts.append(f"[dim]{KEY_HELP}[/]")
+            parts.append(f"[dim]{key_help(self.state, self.request)}[/]")
         return Group(*parts)
 
     def current(self) -> int | None:
@@ -176,12 +201,13 @@ class Dashboard(Observer):
                                   f"{self.unit}" + (f", {min(known):+.2f} to {max(known):+.2f} {self.dev_unit}"
                                                     if known else ""))
         width = max(1, 48 // len(self.plan.targets))
-        lo, hi = (min(min(known), 0.0), max(max(known), 0.0)) if known else (0.0, 0.0)
+        half = max((abs(m) for m in known), default=0.0) or 1.0  # one scale for both directions
         for direction, label in ((1, "↑ +"), (-1, "↓ -")):
-            grid.add_row(f"  {label}", sparkline(means[direction], lo, hi, width))
+            grid.add_row(f"  {label}", signed_sparkline(means[direction], half, width))
         if known:
-            grid.add_row("  0", f"[dim]{BLOCKS[level_of(0.0, lo, hi)] * width * len(self.plan.targets)}[/] "
-                                f"[dim](the level of 0 {self.dev_unit})[/]")
+            middle = SIGNED_BLOCKS[len(SIGNED_BLOCKS) // 2]
+            grid.add_row("  0", f"[dim]{middle * width * len(self.plan.targets)}[/] "
+                                f"[dim](0 {self.dev_unit}; the scale is ±{half:.2f} {self.dev_unit})[/]")
         return grid
 
     def state_text(self) -> str:

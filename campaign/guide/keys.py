@@ -7,7 +7,6 @@ turns SIGINT into an abort, and a second one into an immediate halt.
 
 from __future__ import annotations
 
-import contextlib
 import os
 import queue
 import select
@@ -20,7 +19,6 @@ from types import FrameType
 from typing import TYPE_CHECKING, Self
 
 from campaign.measure import Control
-from protocols.hardware import Hardware
 
 if TYPE_CHECKING:
     from campaign.guide.dashboard import Dashboard
@@ -79,11 +77,17 @@ class Keys:
 
 
 class CtrlC:
-    """SIGINT while the axis may move: the first aborts like `a` (halt at the next tick, flush,
-    mark interrupted); the second halts the axis at once and stops."""
+    """SIGINT while the axis may move. The first aborts like `a`: the executor halts the axis at its
+    next tick (within one sample period, 0.1 s by default), flushes and marks the campaign
+    interrupted; the stop record, the summary and the resume line follow. The second only says that
+    this is under way: a signal handler must not talk to the controller itself (it would interrupt
+    the main thread in the middle of its own exchange with it, or of the simulated PLC's scan, and
+    wait on it: a hang) nor raise in the middle of the stop record. A third is the way out when
+    something does not stop: KeyboardInterrupt wherever the program is (the record keeps every point
+    written; `axiscal resume` continues it)."""
 
-    def __init__(self, dashboard: Dashboard, hw: Hardware) -> None:
-        self.dashboard, self.hw, self.count = dashboard, hw, 0
+    def __init__(self, dashboard: Dashboard) -> None:
+        self.dashboard, self.count = dashboard, 0
 
     def __enter__(self) -> Self:
         self.previous = signal.signal(signal.SIGINT, self._handle)
@@ -97,7 +101,8 @@ class CtrlC:
         if self.count == 1:
             self.dashboard.abort("Ctrl-C")
             return
-        with contextlib.suppress(Exception):  # the connection may be gone: the PLC then finishes its current move (no watchdog)
-            self.hw.axis.halt()
-        self.dashboard.say("second Ctrl-C: axis halted at once")
+        if self.count == 2:
+            self.dashboard.say("second Ctrl-C: already stopping, the axis halts at the next tick; "
+                               "the summary and the resume line follow (a third Ctrl-C quits at once)")
+            return
         raise KeyboardInterrupt

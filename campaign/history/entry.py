@@ -167,6 +167,7 @@ def _recheck(a: Assessment) -> dict[str, float]:
 def _purpose(a: Assessment | None, meta: dict[str, Any]) -> tuple[str, str]:
     """(purpose, follows) of a campaign: its config's [campaign] purpose and follows; a campaign
     measured with a compensation table written for it (`verify`) is a verification of its baseline."""
+    purpose: str
     if a is not None and a.config is not None:
         purpose, follows = a.config.campaign.purpose, a.config.campaign.follows
     else:

@@ -6,12 +6,26 @@ from typing import Self
 
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TaskID, TextColumn, TimeRemainingColumn
+from rich.table import Column
 
 from campaign.measure.executor import Observer
 from campaign.measure.live import live_text
 from campaign.plan import Plan
 from campaign.record import Event
 from protocols.hardware import Reading
+
+FIXED_WIDTH = 40
+"""Characters the progress line's other columns take (description 10, bar 10, counts 9, time left 7,
+a space after each): the live text gets the rest of the terminal's width."""
+
+
+def fit(text: str, width: int) -> str:
+    """The live text within `width` characters, its trailing ", "-separated parts dropped whole (a
+    value is never cut in the middle); the first part alone when nothing else fits."""
+    parts = text.split(", ")
+    while len(parts) > 1 and len(", ".join(parts)) > width:
+        parts.pop()
+    return ", ".join(parts)
 
 
 class RichProgress(Observer):
@@ -20,8 +34,14 @@ class RichProgress(Observer):
     def __init__(self, unit: str = "mm"):
         """`unit`: the axis unit, mm or deg; the live reading as campaign.measure.live shows it."""
         self.console = Console(stderr=True)
-        self.progress = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                                 TimeRemainingColumn(), TextColumn("{task.fields[live]}"),
+        # numbers never cut (no_wrap, a minimum width each); on a narrow terminal the bar and then
+        # the live text give way, the live text cut at its end with an ellipsis
+        self.progress = Progress(TextColumn("{task.description}", table_column=Column(no_wrap=True, min_width=10)),
+                                 BarColumn(bar_width=10),
+                                 MofNCompleteColumn(table_column=Column(no_wrap=True, min_width=9)),
+                                 TimeRemainingColumn(table_column=Column(no_wrap=True, min_width=7)),
+                                 TextColumn("{task.fields[live]}",
+                                            table_column=Column(no_wrap=True, overflow="ellipsis", ratio=1)),
                                  console=self.console, transient=False)
         self.unit = unit
         self.overall: TaskID | None = None
@@ -54,7 +74,7 @@ class RichProgress(Observer):
         if t_s - self._last_reading_t < 0.5 or self.overall is None or self.run_task is None:
             return
         self._last_reading_t = t_s
-        text = live_text(reading, target, self.unit)
+        text = fit(live_text(reading, target, self.unit), self.console.width - FIXED_WIDTH)
         self.progress.update(self.overall, live=f"t={t_s:7.1f} s")
         self.progress.update(self.run_task, live=text)
 

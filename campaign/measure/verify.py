@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from campaign.compensation.grid import ControllerTable
+from campaign.compensation.table_file import KEPT_TABLE
 from campaign.config import Config
 from campaign.errors import InputError
 from campaign.iso230 import Evaluation, evaluate
@@ -24,12 +25,13 @@ from campaign.plan import Plan
 from campaign.plot import draw_evaluation, pyplot
 from campaign.pointtable import PointTable, read_points
 from campaign.record import COMP_FILE, open_campaign
+from campaign.views import SUMMARY_ROWS
 from protocols.plc_contract import CompTable
 from protocols.units import DEVIATION_SCALE, unit_label
 
-SUMMARY_KEYS = (("M", "mean bidirectional deviation range M"), ("E", "systematic deviation E"),
-                ("R_up", "repeatability R↑"), ("R_down", "repeatability R↓"), ("B", "reversal B"),
-                ("A_up", "accuracy A↑"), ("A_down", "accuracy A↓"), ("A", "accuracy A"))
+SUMMARY_KEYS = tuple((key, dict(SUMMARY_ROWS)[key]) for key in ("M", "E", "R_up", "R_down", "B", "A_up", "A_down", "A"))
+"""The before/after rows: each parameter by the key and meaning the ISO 230-2 summary uses (A_up,
+not A↑), so that the two tables read alike."""
 
 
 def correction_limits(config: Config, max_rate: float | None, max_accel: float | None) -> tuple[float, float]:
@@ -44,25 +46,34 @@ def correction_limits(config: Config, max_rate: float | None, max_accel: float |
             max_accel / scale if max_accel else 0.1 * axis.max_acceleration)
 
 
+SPAN_FACTOR = 1.5
+"""A table spanning more than this many times the plan's travel was made for a longer axis."""
+
+
 def table_fits(table: ControllerTable, provenance: dict[str, str], config: Config, plan: Plan,
-               where: str) -> list[str]:
-    """Warnings where the table and the campaign about to measure disagree (its span, machine or
-    axis); InputError when the table's range does not cover the plan's targets: the controller
-    would get no compensation at some of them."""
+               where: str, force: bool = False) -> list[str]:
+    """Warnings where the table and the campaign about to measure may disagree; InputError, before
+    anything is written to the controller, where they certainly do: the table's range does not cover
+    the plan's targets (the controller would get no compensation at some of them), it spans far more
+    than the plan's travel (SPAN_FACTOR), or it says it was made for another machine or axis. With
+    `force` the last two are warnings (the range must still cover the targets)."""
     end = table.start + table.spacing * (len(table.forward) - 1)
     unit = config.axis.unit
     lo, hi = min(plan.targets), max(plan.targets)
     if lo < table.start - 1e-9 or hi > end + 1e-9:
         raise InputError(f"{where}: the table covers {table.start:g} to {end:g} {unit}, the plan's targets "
                          f"{lo:g} to {hi:g} {unit}: made for another axis or range; refused")
-    warnings = []
-    if (end - table.start) > 1.5 * (hi - lo):
-        warnings.append(f"the table spans {table.start:g} to {end:g} {unit}, the plan only {lo:g} to {hi:g} {unit}: "
-                        "is it the table of this axis?")
+    certain = []
+    if (end - table.start) > SPAN_FACTOR * (hi - lo):
+        certain.append(f"the table spans {table.start:g} to {end:g} {unit}, the plan only {lo:g} to {hi:g} {unit}")
     for key, now in (("machine", config.campaign.machine), ("axis", config.axis.name)):
         then = provenance.get(key)
         if then and then != now:
-            warnings.append(f"the table was made for {key} '{then}', the config measures {key} '{now}'")
+            certain.append(f"the table was made for {key} '{then}', the config measures {key} '{now}'")
+    if certain and not force:
+        raise InputError(f"{where}: {'; '.join(certain)}: another axis' table? Nothing was written to the "
+                         "controller (--force loads it anyway)")
+    warnings = [f"{w} (loaded anyway: --force)" for w in certain]
     if not provenance:
         warnings.append("the table does not say which machine and axis it was made for (the linuxcnc, heidenhain "
                         "and fanuc formats have no comments to say it in): check that it is this axis' table")
@@ -71,23 +82,34 @@ def table_fits(table: ControllerTable, provenance: dict[str, str], config: Confi
 
 def run_verification(config: Config, table: ControllerTable, out: Path, *, opener: Opener,
                      baseline: Path | None = None, max_rate: float | None = None, max_accel: float | None = None,
-                     speed: float | None = None, observer: Observer | None = None) -> Outcome:
-    """Write `table` to the controller, then run the campaign of `config` into `out`."""
+                     speed: float | None = None, observer: Observer | None = None,
+                     source: Path | None = None, identity: dict[str, str] | None = None) -> Outcome:
+    """Write `table` to the controller, then run the campaign of `config` into `out`. `source`:
+    the table file as given, kept byte for byte in the campaign directory (KEPT_TABLE plus its
+    suffix), and `identity` (`table_identity`: its name, format, checksum, source campaign),
+    recorded in meta.json's `compensation`, so that the report names what was verified."""
     rate, accel = correction_limits(config, max_rate, max_accel)
     comp = table.to_plc(rate, accel, enabled=True)
     opened = open_with_comp(opener, config, comp, speed)
-    extra: dict[str, object] = {"compensation": {"file": COMP_FILE, "mode": table.mode, "points": len(table.forward),
-                              "start": table.start, "spacing": table.spacing, "overrun": table.overrun,
-                              "max_rate": rate, "max_accel": accel}}
+    kept = KEPT_TABLE + source.suffix if source is not None else None
+    compensation: dict[str, object] = {"file": COMP_FILE, "mode": table.mode, "points": len(table.forward),
+                                       "start": table.start, "spacing": table.spacing, "overrun": table.overrun,
+                                       "max_rate": rate, "max_accel": accel}
+    if identity is not None:
+        compensation["table"] = {**identity, "kept": kept}
+    extra: dict[str, object] = {"compensation": compensation}
     if baseline is not None:
         extra["baseline_dir"] = str(baseline.resolve())
     return start_campaign(config, out, opened=opened, observer=observer, meta_extra=extra,
-                          on_created=lambda directory: save_comp(directory, comp))
+                          on_created=lambda directory: save_comp(directory, comp, source, kept))
 
 
-def save_comp(directory: Path, comp: CompTable) -> None:
-    """Keep the controller's table in the campaign directory, so that resume writes it again."""
+def save_comp(directory: Path, comp: CompTable, source: Path | None = None, kept: str | None = None) -> None:
+    """Keep the controller's table in the campaign directory, so that resume writes it again, and
+    the table file it came from as given (`kept`), so that the campaign names what it verified."""
     (directory / COMP_FILE).write_text(json.dumps(dataclasses.asdict(comp), indent=1), encoding="utf-8")
+    if source is not None and kept is not None:
+        (directory / kept).write_bytes(source.read_bytes())
 
 
 def baseline_points(path: Path, config: Config) -> PointTable:
@@ -139,12 +161,12 @@ def write_report(directory: Path, after: PointTable, before: PointTable | None) 
             continue
         for direction, name in ((1, "forward (+)"), (-1, "reverse (-)")):
             md += [f"## {label}: {name} deviations, {unit}", ""] + direction_table(table, ev, direction) + [""]
-    md += [f"## Accuracy, {unit}", "", "| parameter | before | after |", "|---|---|---|"]
+    md += [f"## Accuracy, {unit}", "", "| parameter | meaning | before | after |", "|---|---|---|---|"]
     result = {"after": ev_after.summary, "before": ev_before.summary if ev_before else None}
     for key, name in SUMMARY_KEYS:
         b = ev_before.summary.get(key) if ev_before else None
         a = ev_after.summary.get(key)
-        md.append(f"| {name} | {'–' if b is None else f'{b:.3f}'} | {'–' if a is None else f'{a:.3f}'} |")
+        md.append(f"| {key} | {name} | {'–' if b is None else f'{b:.3f}'} | {'–' if a is None else f'{a:.3f}'} |")
     (directory / "verification.md").write_text("\n".join(md) + "\n", encoding="utf-8")
     panels = [(before, ev_before, "before: "), (after, ev_after, "after: ")] \
         if before is not None and ev_before is not None else [(after, ev_after, "after: ")]

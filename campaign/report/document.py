@@ -13,12 +13,15 @@ from __future__ import annotations
 
 import base64
 import io
+import os
 from dataclasses import replace
 from html import escape
 from pathlib import Path
+from typing import Any
 
 from campaign.assess import Assessment, assess_path
 from campaign.errors import InputError
+from campaign.iso230 import Evaluation
 from campaign.plot import draw_evaluation, pyplot
 from campaign.record import open_campaign
 from campaign.report.history import history_section
@@ -32,13 +35,14 @@ from campaign.report.html import (
     page,
     per_run_table,
     section,
+    sign_off,
     summary_table,
     target_table,
     verdict_box,
 )
 from campaign.uncertainty import TYPICAL
 from campaign.verdict import completeness
-from protocols.units import unit_label
+from protocols.units import counted, unit_label
 
 
 def baseline_of(a: Assessment) -> Path | None:
@@ -51,14 +55,41 @@ def baseline_of(a: Assessment) -> Path | None:
     return beside if not path.is_absolute() and beside.exists() else path
 
 
+def accuracy_envelope(ev: Evaluation) -> tuple[float, float] | None:
+    """(lowest, highest) of x̄ ± k·s over every target and direction: the band whose width is A."""
+    k = ev.standard.k
+    ends = [(m - k * (sd or 0.0), m + k * (sd or 0.0)) for t in ev.targets
+            for m, sd in ((t.mean_up, t.s_up), (t.mean_down, t.s_down)) if m is not None]
+    if not ends:
+        return None
+    return min(lo for lo, _ in ends), max(hi for _, hi in ends)
+
+
+def draw_tolerance(ax: Any, ev: Evaluation, tolerance: float | None) -> None:
+    """The tolerance on A as a band of its width, centred on the measured envelope (x̄ ± k·s of
+    every target and direction): the envelope fits inside it exactly when A is within tolerance."""
+    envelope = accuracy_envelope(ev)
+    if not tolerance or envelope is None:
+        return
+    middle = (envelope[0] + envelope[1]) / 2
+    lo, hi = middle - tolerance / 2, middle + tolerance / 2
+    for y in (lo, hi):
+        ax.axhline(y, color="#c62828", lw=1.2, ls="--")
+    ax.axhspan(lo, hi, color="#c62828", alpha=0.05,
+               label=f"tolerance on A: {tolerance:g} {unit_label(ev.unit)} wide, centred on the measured band")
+    ax.legend(fontsize=8, loc="best")
+
+
 def plot_png(campaigns: list[tuple[str, Assessment]]) -> str:
-    """The deviation plot(s) side by side (same deviation scale), as a base64 PNG data URI."""
+    """The deviation plot(s) side by side (same deviation scale), as a base64 PNG data URI, each
+    with its tolerance band on A (`draw_tolerance`)."""
     plt = pyplot()
     size = (10.0, 4.8) if len(campaigns) == 1 else (6.4 * len(campaigns), 4.6)  # inches
     fig, axes = plt.subplots(1, len(campaigns), figsize=size, sharey=True, squeeze=False)
     for ax, (label, c) in zip(axes[0], campaigns):
         printable = replace(c.evaluation, unit=unit_label(c.evaluation.unit))  # µm, not um
         draw_evaluation(ax, c.table, printable, f"{label}: " if label else "")
+        draw_tolerance(ax, c.evaluation, c.tolerances.get("A"))
     fig.tight_layout()
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=120)
@@ -75,7 +106,31 @@ def _label(a: Assessment) -> str:
     return a.directory.name if a.directory is not None else Path(a.source).name
 
 
-def _campaign_facts(a: Assessment) -> list[tuple[str, str]]:
+def campaign_id(a: Assessment) -> str:
+    """The campaign's id: its directory's name (machine, axis, start time), or the table's file name."""
+    return _label(a)
+
+
+def where(path: str | Path, here: Path | None) -> str:
+    """`path` relative to the report's folder `here` (how a reader who files both finds it), else as given."""
+    if here is None:
+        return str(path)
+    relative = os.path.relpath(Path(path).resolve(), here.resolve())
+    return "the report's own folder" if relative == "." else relative
+
+
+def located(path: Path, here: Path | None) -> str:
+    """`where`, said as relative to the report when it is."""
+    place = where(path, here)
+    return place if here is None or place == "the report's own folder" else f"{place} (relative to this report)"
+
+
+def named(a: Assessment, here: Path | None) -> str:
+    """A campaign as the report names it: its id and where it is, relative to the report."""
+    return f"campaign {campaign_id(a)} ({where(a.directory if a.directory is not None else a.source, here)})"
+
+
+def _campaign_facts(a: Assessment, here: Path | None = None) -> list[tuple[str, str]]:
     m = a.meta or {}
     axis = m.get("axis", a.config.axis.name if a.config else a.table.meta.get("axis", "?"))
     kind = f"{m.get('kind', a.table.kind)}, {a.table.position_unit}"
@@ -92,9 +147,10 @@ def _campaign_facts(a: Assessment) -> list[tuple[str, str]]:
             times = a.table.optional.get("time_s")
             duration = f"{float(times.max()) / 60:.1f} min to the last point" if times is not None else "not recorded"
         rows += [("Status", f"{status}, {len(a.table)}{planned} points"), ("Duration", duration),
-                 ("Software", m.get("software", "axiscal")), ("Campaign directory", str(a.directory))]
+                 ("Software", m.get("software", "axiscal")),
+                 ("Campaign directory", located(a.directory, here))]
     else:
-        rows += [("Points", str(len(a.table))), ("Point table", a.source)]
+        rows += [("Points", str(len(a.table))), ("Point table", where(a.source, here))]
     if a.config and a.config.campaign.description:
         rows.insert(2, ("Description", a.config.campaign.description))
     return rows
@@ -129,6 +185,43 @@ def _instrument_facts(a: Assessment) -> list[tuple[str, str]]:
             ("Air correction", air), ("Material temperature", material)]
 
 
+def _compensation_facts(a: Assessment, here: Path | None) -> list[tuple[str, str]] | None:
+    """The compensation table a verification measured with (meta.json's `compensation`, written by
+    `axiscal verify`): its file, format, mode, grid, checksum, the campaign it was computed from and
+    when, and the copy kept in the campaign directory. None for a campaign without one."""
+    comp = (a.meta or {}).get("compensation")
+    if not isinstance(comp, dict):
+        return None
+    unit = a.table.position_unit
+    table = comp.get("table") if isinstance(comp.get("table"), dict) else {}
+    rows = []
+    if table:
+        rows += [("Table file", str(table.get("name", "not recorded"))), ("Format", str(table.get("format", "?"))),
+                 ("SHA-256", str(table.get("sha256", "not recorded")))]
+    else:
+        kept_only = comp.get("file", "plc-compensation.json")
+        rows.append(("Table file", f"not recorded (an older axiscal kept only the controller's copy, {kept_only})"))
+    points, spacing, start = comp.get("points"), comp.get("spacing"), comp.get("start")
+    rows += [("Mode", {"bi": "bidirectional (a table per direction)", "uni": "unidirectional (one table)"}
+              .get(str(comp.get("mode")), str(comp.get("mode"))))]
+    if isinstance(points, int) and isinstance(spacing, (int, float)) and isinstance(start, (int, float)):
+        rows.append(("Grid", (f"{points} points from {start:g} every {spacing:g} {unit} "
+                             f"(to {start + spacing * (points - 1):g} {unit})")))
+    if table:
+        source = table.get("source_campaign")
+        measured = table.get("source_measured", "")
+        when = f", measured {measured.replace('T', ' ')}" if measured else ""
+        rows.append(("Computed from", f"campaign {source}{when}" if source
+                     else "not said by the table (its format has no comments)"))
+        if written := table.get("source_written"):
+            rows.append(("Table written", written.replace("T", " ")))
+        if table.get("source_machine") or table.get("source_axis"):
+            rows.append(("Made for", f"machine {table.get('source_machine', '?')}, axis {table.get('source_axis', '?')}"))
+        if table.get("kept") and a.directory is not None:
+            rows.append(("Kept as", where(a.directory / str(table["kept"]), here)))
+    return rows
+
+
 def _plan_facts(a: Assessment) -> list[tuple[str, str]]:
     unit = a.table.position_unit
     targets = sorted({float(t) for t in a.table.target})
@@ -148,7 +241,7 @@ def _plan_facts(a: Assessment) -> list[tuple[str, str]]:
     return rows
 
 
-def _comparison(before: Assessment, after: Assessment) -> str:
+def _comparison(before: Assessment, after: Assessment, here: Path | None = None) -> str:
     plots = plot_png([(f"before ({_label(before)})", before), (f"after ({_label(after)})", after)])
     unit = unit_label(after.evaluation.unit)
     value_after, value_before = after.evaluation.summary.get("A"), before.evaluation.summary.get("A")
@@ -158,7 +251,7 @@ def _comparison(before: Assessment, after: Assessment) -> str:
                 f"{'smaller' if value_after <= value_before else 'larger'}.")
     else:
         lead = "A cannot be compared: it is unavailable in one of the campaigns."
-    sources = (f"Before: {before.source} ({_date(before)}). After: {after.source} ({_date(after)}). "
+    sources = (f"Before: {named(before, here)}, {_date(before)}. After: {named(after, here)}, {_date(after)}. "
                "Changes compare magnitudes (|after| / |before|); smaller is better.")
     for label, c in (("before", before), ("after", after)):
         if missing := completeness(c.table, c.planned):
@@ -169,22 +262,45 @@ def _comparison(before: Assessment, after: Assessment) -> str:
                    + f"<img class='plot' alt='Deviation before and after' src='{plots}'>")
 
 
-def render_report(a: Assessment, before: Assessment | None = None) -> str:
-    """The whole HTML document for `a` (the after campaign when `before` is given)."""
+def assumptions(a: Assessment) -> list[str]:
+    """What the verdict rests on beyond the measurement: an instrument specification assumed (no
+    certificate value in the config) or a calibration not recorded. Empty when both are recorded."""
+    if a.config is None:
+        return [("an instrument and a calibration not recorded (a point table without its campaign; the "
+                 "uncertainty uses a typical laser specification)")]
+    inst = a.config.instrument
+    said = []
+    if a.table.kind == "rotary" and inst.angle_uncertainty_arcsec is None:
+        said.append(f"an assumed instrument specification ({TYPICAL['angle_uncertainty_arcsec']:g} arcsec, "
+                    "typical, not from a certificate)")
+    if a.table.kind != "rotary" and inst.wavelength_uncertainty_ppm is None:
+        said.append(f"an assumed instrument specification ({TYPICAL['wavelength_uncertainty_ppm']:g} µm/m, "
+                    "typical, not from a certificate)")
+    if not inst.certificate:
+        said.append("a calibration not recorded (no certificate in the config)")
+    return said
+
+
+def render_report(a: Assessment, before: Assessment | None = None, here: Path | None = None) -> str:
+    """The whole HTML document for `a` (the after campaign when `before` is given). `here`: the
+    folder the report is written to; the campaigns are named relative to it."""
     ev = a.evaluation
     meta = a.meta or {}
     machine = meta.get("machine", a.table.meta.get("machine", "?"))
     axis = meta.get("axis", a.table.meta.get("axis", "?"))
     title = f"Positioning accuracy: machine {machine}, axis {axis}" + (" (SIMULATED)" if a.simulated else "")
-    parts = [verdict_box(a.verdict, a.tolerances, ev.unit), key_figures(ev, a.uncertainty),
-             "<div class='columns'>" + section("Campaign", facts_table(_campaign_facts(a)))
+    rests_on = assumptions(a) if a.verdict.verdict in ("pass", "fail") else []
+    parts = [verdict_box(a.verdict, a.tolerances, ev.unit, rests_on), key_figures(ev, a.uncertainty),
+             "<div class='columns'>" + section("Campaign", facts_table(_campaign_facts(a, here)))
              + section("Plan", facts_table(_plan_facts(a))) + "</div>",
              "<div class='columns'>" + section("Instrument and corrections", facts_table(_instrument_facts(a)))
              + section("Environment", environment_table(a.table.optional)) + "</div>"]
+    if (comp := _compensation_facts(a, here)) is not None:
+        parts.append(section("Compensation table verified", facts_table(comp)))
     if before is not None:
-        parts.append(_comparison(before, a))
+        parts.append(_comparison(before, a, here))
     plot = plot_png([("", a)])
-    parts += [section(f"Result ({ev.standard.title}, {ev.runs} runs)", summary_table(ev)),
+    parts += [section(f"Result ({ev.standard.title}, {counted(ev.runs, 'run')})", summary_table(ev)),
               section("Measurement uncertainty", budget_table(a.uncertainty)),
               section("Outliers", outliers_table(a.outliers, ev.unit)),
               section("Deviation plot", f"<img class='plot' alt='Deviation per target' src='{plot}'>"),
@@ -195,8 +311,9 @@ def render_report(a: Assessment, before: Assessment | None = None) -> str:
         items = "".join(f"<li>{escape(w)}</li>" for w in ev.warnings)
         parts.append(section("Warnings", f"<ul class='warnings'>{items}</ul>"))
     operator = meta.get("operator") or a.table.meta.get("operator") or "not recorded"
-    subtitle = f"{ev.standard.title}. Measured {_date(a)}. Operator: {operator}."
-    return page(title, "".join(parts), subtitle)
+    parts.append(sign_off(a.verdict.word, operator if operator != "not recorded" else ""))
+    subtitle = f"{ev.standard.title}. Measured {_date(a)}. Operator: {operator}. Campaign {campaign_id(a)}."
+    return page(title, "".join(parts), subtitle, campaign_id(a))
 
 
 def write_report(source: str | Path, out: str | Path, before: str | Path | None = None,
@@ -211,7 +328,7 @@ def write_report(source: str | Path, out: str | Path, before: str | Path | None 
     path = Path(out)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(render_report(a, previous), encoding="utf-8")
+        path.write_text(render_report(a, previous, path.parent), encoding="utf-8")
     except OSError as exc:
         raise InputError(f"{path}: cannot write ({exc.strerror})") from None
     return path

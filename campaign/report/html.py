@@ -54,15 +54,29 @@ img.plot { width: 100%; height: auto; border: 1px solid #e3e7eb; margin-top: 10p
 .better { color: #1b5e20; } .worse { color: #8e1b1b; }
 ul.warnings { margin: 0; padding-left: 20px; color: #8a5a00; }
 footer { color: #7b8794; font-size: 12px; margin-top: 28px; }
-@media print { body { background: #fff; } main { padding: 0; } .columns { display: block; } }
+.verdict p.rests { font-size: 14px; margin-top: 6px; font-weight: 600; }
+table.signoff td { height: 44px; vertical-align: bottom; }
+table.signoff td.line { border-bottom: 1px solid #1d2630; }
+@media print { body { background: #fff; font-size: 12px; } main { padding: 0; max-width: none; }
+               .columns { display: block; } h2 { break-after: avoid; } tr, img.plot { break-inside: avoid; } }
 """
 
 
-def page(title: str, body: str, subtitle: str = "") -> str:
-    """A complete HTML document with the CSS inline."""
+def page_css(campaign: str) -> str:
+    """The printed page: A4, with the campaign id at the foot of every page and "page N of M"
+    (CSS page margin boxes, which headless Chromium's print-to-PDF draws)."""
+    quoted = campaign.replace("\\", "\\\\").replace('"', '\\"').replace("<", "\\3C ").replace("\n", " ")
+    return ("@page { size: A4; margin: 14mm 12mm 16mm 12mm; "
+            f'@bottom-left {{ content: "Campaign {quoted}"; font-size: 9pt; color: #52606d; }} '
+            '@bottom-right { content: "Page " counter(page) " of " counter(pages); font-size: 9pt; '
+            "color: #52606d; } }")
+
+
+def page(title: str, body: str, subtitle: str = "", campaign: str = "") -> str:
+    """A complete HTML document with the CSS inline; printed, each page names `campaign` and its number."""
     return (f"<!DOCTYPE html>\n<html lang='en'>\n<head>\n<meta charset='utf-8'>\n"
             f"<meta name='viewport' content='width=device-width, initial-scale=1'>\n"
-            f"<title>{escape(title)}</title>\n<style>{CSS}</style>\n</head>\n<body>\n<main>\n"
+            f"<title>{escape(title)}</title>\n<style>{CSS}{page_css(campaign)}</style>\n</head>\n<body>\n<main>\n"
             f"<h1>{escape(title)}</h1>\n<p class='subtitle'>{escape(subtitle)}</p>\n{body}\n"
             f"<footer>Made by axiscal. Deviation = measured − target (ISO 230-2 sign).</footer>\n"
             f"</main>\n</body>\n</html>\n")
@@ -161,14 +175,32 @@ def key_figures(ev: Evaluation, budget: Budget) -> str:
     return f"<div class='figures'>{''.join(cells)}</div>"
 
 
-def verdict_box(verdict: Verdict, tolerances: dict[str, float], unit: str) -> str:
-    """PASS, FAIL or NOT JUDGED with its reasons, the tolerances on A, E, B and R and the decision rule."""
+def verdict_box(verdict: Verdict, tolerances: dict[str, float], unit: str, rests_on: Sequence[str] = ()) -> str:
+    """PASS, FAIL or NOT JUDGED with its reasons, the tolerances on A, E, B and R and the decision
+    rule; `rests_on`: what the verdict assumes beyond the measurement (an instrument specification
+    assumed, a calibration not recorded), said beside the word."""
     css = {"pass": "pass", "fail": "fail"}.get(verdict.verdict, "none")
     reasons = "".join(f"<li>{escape(r)}</li>" for r in verdict.reasons)
     notes = "".join(f"<li>{escape(n)}</li>" for n in verdict.notes)
-    return (f"<div class='verdict {css}'><span class='word'>{verdict.word}</span><div><ul>{reasons}{notes}</ul>"
+    rests = (f"<p class='rests'>{verdict.word} rests on {escape(' and on '.join(rests_on))}: "
+             "record the laser's certificate to make it a calibrated verdict.</p>" if rests_on else "")
+    return (f"<div class='verdict {css}'><span class='word'>{verdict.word}</span><div>{rests}<ul>{reasons}{notes}</ul>"
             f"{tolerance_table(verdict, tolerances, unit)}"
             f"<p class='rule'>Decision rule: {escape(verdict.rule)}.</p></div></div>")
+
+
+def sign_off(verdict: str, operator: str) -> str:
+    """The block a quality engineer signs: measured by (the operator, when recorded), checked by,
+    approved by, each with name, signature and date lines, and the disposition."""
+    rows = "".join(f"<tr><th>{role}</th><td class='line'>{escape(name)}</td><td class='line'></td>"
+                   f"<td class='line'></td></tr>"
+                   for role, name in (("Measured by", operator), ("Checked by", ""), ("Approved by", "")))
+    return section("Sign-off", f"<p>Result as reported: <b>{escape(verdict)}</b>. Disposition: "
+                   "☐ accepted&nbsp;&nbsp; ☐ accepted with remarks&nbsp;&nbsp; ☐ rejected</p>"
+                   "<table class='signoff'><thead><tr><th>Role</th><th>Name</th><th>Signature</th><th>Date</th>"
+                   f"</tr></thead><tbody>{rows}</tbody></table><p>Remarks:</p>"
+                   "<table class='signoff'><tbody><tr><td class='line'></td></tr><tr><td class='line'></td></tr>"
+                   "</tbody></table>")
 
 
 def tolerance_table(verdict: Verdict, tolerances: dict[str, float], unit: str) -> str:

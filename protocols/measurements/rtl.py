@@ -35,6 +35,11 @@ NO_DATE = "not recorded"
 """The `Date:` written when the point table gives no measurement date (never an empty value)."""
 PER_LINE = 5
 """Targets written per line."""
+SIMULATED_TITLE = "SIMULATED, not a measurement of a real axis"
+"""The TITLE (before ` | ` and the title, if any) that carries the point table's `simulated` mark,
+which the .rtl has no field for; read back into `simulated`."""
+SIMULATED_MARK = "yes (not a measurement of a real axis)"
+"""The point table's `simulated` value that mark stands for."""
 
 
 KNOWN = ("HEADER", "TARGET DATA", "USER-TEXT", "RUNS", "DEVIATIONS", "ENVIRONMENT", "EOF")
@@ -142,6 +147,11 @@ def parse(text: str, name: str = "<rtl>", kind: str = "linear") -> Measurement:
         pair = _key_value(line)
         if pair and pair[1] and pair != ("Date", NO_DATE):
             meta[USER_TEXT.get(pair[0]) or _meta_key(pair[0])] = pair[1]
+    if meta.get("title", "").startswith(SIMULATED_TITLE):
+        meta["simulated"] = SIMULATED_MARK
+        title = meta.pop("title")[len(SIMULATED_TITLE):].removeprefix(" | ")
+        if title:
+            meta["title"] = title
     for number, line in sections.get("ENVIRONMENT", []):
         pair = _key_value(line)
         if pair and pair[1]:
@@ -218,7 +228,10 @@ def render(m: Measurement) -> str:
     for i in range(0, n, PER_LINE):
         lines.append(" ".join(_text(t) for t in m.targets[i:i + PER_LINE]))
     lines += ["Flags: 0 0 2 0" if bidirectional else "Flags: 0 1 2 0", "", "USER-TEXT::"]
-    lines += [f"{key}: {m.meta.get(meta_key) or NO_DATE if key == 'Date' else m.meta.get(meta_key, '')}"
+    user = dict(m.meta)
+    if user.get("simulated"):  # the mark travels in the title: a simulated campaign stays marked
+        user["title"] = SIMULATED_TITLE + (f" | {user['title']}" if user.get("title") else "")
+    lines += [f"{key}: {user.get(meta_key) or NO_DATE if key == 'Date' else user.get(meta_key, '')}"
               for key, meta_key in USER_TEXT.items()]
     runs = m.runs
     lines += ["", "RUNS::", f"Run-count: {2 * runs if bidirectional else runs}", "", "DEVIATIONS::", "Run Target Data:"]

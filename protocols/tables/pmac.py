@@ -8,6 +8,7 @@ motor zero. One table only: uni mode (a backlash B̄ is reported for Ixx86).
 
 from __future__ import annotations
 
+import math
 import re
 
 from protocols.errors import FormatError
@@ -25,7 +26,10 @@ def render(table: CorrectionTable, options: FormatOptions) -> Rendered:
                          "(use --reference 0)")
     spacing_counts = table.spacing * cpu
     if abs(spacing_counts - round(spacing_counts)) > 1e-6:
-        raise FormatError(f"the spacing {table.spacing:g} is {spacing_counts:g} counts, not a whole number")
+        whole = math.ceil(spacing_counts) / cpu
+        raise FormatError(f"the spacing {table.spacing:g} is {spacing_counts:g} counts, not a whole number: "
+                          f"give --spacing with a whole number of counts, e.g. --spacing {whole:.12g} "
+                          f"({math.ceil(spacing_counts)} counts)")
     sixteenths = [round(c * table.unit_factor * cpu * 16) for c in table.common]
     entries = sixteenths[1:] + sixteenths[:1]
     count_length = round(spacing_counts) * len(entries)
