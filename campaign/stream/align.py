@@ -17,8 +17,9 @@ error hardly changes: there the deviation changes by e·Δv, and only a timing e
    (controller time, instrument time) pair per move, and a line through them the first offset and
    rate (good to about deviation/velocity, a millisecond);
 2. fine: in every acceleration ramp, the residual (reading − controller position at the mapped
-   time) is fitted by one constant per ramp (the machine's error there, whatever its direction
-   effects) plus v·(α + β·(t − t_ref)): α corrects the offset, β the rate. Iterated until the
+   time) is fitted by one constant and one slope in position per ramp (the machine's error there,
+   whatever its direction effects; in a ramp the position goes with v², so the slope and the
+   timing separate) plus v·(α + β·(t − t_ref)): α corrects the offset, β the rate. Iterated until the
    corrections vanish; the covariance of (α, β), scaled by the residuals, is the uncertainty;
 3. wander: each ramp alone also gives its own offset; their scatter about the line beyond their own
    uncertainty is clock wander the line cannot follow, added to the uncertainty.
@@ -139,7 +140,7 @@ def find_moves(stream: ControllerStream, min_fraction: float = 0.5) -> list[Move
     if np.any(np.diff(t) <= 0):
         raise InputError("the controller stream's times must increase")
     step = np.abs(np.diff(x))
-    still = max(1e-9, 1e-6 * float(np.max(np.abs(x))) if len(x) else 1e-9)
+    still = 1e-9 * max(1.0, float(np.max(np.abs(x))))  # a step of float rounding is no motion
     moving = np.concatenate([[False], step > still, [False]])
     edges = np.flatnonzero(np.diff(moving.astype(int)))
     runs = list(zip(edges[::2], edges[1::2]))  # sample i..j-1 moved towards i+1..j
@@ -244,50 +245,56 @@ def align(ctrl: ControllerStream, inst: InstrumentStream, max_iterations: int = 
         t = a + b * inst.time_s
         idx, ramp = _ramp_samples(ctrl, v_ctrl, moves, t, cycle)
         n_ramps = int(ramp.max()) + 1 if len(ramp) else 0
-        if n_ramps < 2 or len(idx) < n_ramps + 3:
+        if n_ramps < 2 or len(idx) < 2 * n_ramps + 4:
             raise InputError("too few instrument samples in the acceleration ramps to align the clocks "
                              "(a higher instrument rate or a lower acceleration gives more)")
         ti = t[idx]
-        r = inst.reading[idx] - np.interp(ti, ctrl.time_s, ctrl.position)
+        x = np.interp(ti, ctrl.time_s, ctrl.position)
+        r = inst.reading[idx] - x
         v = np.interp(ti, ctrl.time_s, v_ctrl)
-        design = np.zeros((len(idx), n_ramps + 2))
-        design[np.arange(len(idx)), ramp] = 1.0
-        design[:, n_ramps] = v
-        design[:, n_ramps + 1] = v * (ti - t_ref)
+        design = np.zeros((len(idx), 2 * n_ramps + 2))
+        rows = np.arange(len(idx))
+        design[rows, ramp] = 1.0
+        centre = np.array([np.mean(x[ramp == k]) for k in range(n_ramps)])
+        design[rows, n_ramps + ramp] = x - centre[ramp]  # the machine's error changing along the ramp
+        col = 2 * n_ramps
+        design[:, col] = v
+        design[:, col + 1] = v * (ti - t_ref)
         coef, *_ = np.linalg.lstsq(design, r, rcond=None)
         fit_residual = r - design @ coef
         dof = max(len(idx) - design.shape[1], 1)
         sigma2 = float(fit_residual @ fit_residual) / dof
         inv = np.linalg.pinv(design.T @ design)
-        alpha, beta = float(coef[n_ramps]), float(coef[n_ramps + 1])
-        cov = ((sigma2 * inv[n_ramps, n_ramps], sigma2 * inv[n_ramps, n_ramps + 1]),
-               (sigma2 * inv[n_ramps + 1, n_ramps], sigma2 * inv[n_ramps + 1, n_ramps + 1]))
+        alpha, beta = float(coef[col]), float(coef[col + 1])
+        cov = ((sigma2 * inv[col, col], sigma2 * inv[col, col + 1]),
+               (sigma2 * inv[col + 1, col], sigma2 * inv[col + 1, col + 1]))
         residual = math.sqrt(sigma2)
         # true controller time = t + alpha + beta (t - t_ref)
         a, b = (1 + beta) * a + alpha - beta * t_ref, (1 + beta) * b
         span = float(np.ptp(ti))
-        per_ramp = _per_ramp_offsets(ramp, fit_residual, v)
+        per_ramp = _per_ramp_offsets(ramp, fit_residual, v, x)
         if abs(alpha) < 1e-9 and abs(beta) * span < 1e-9:
             break
     wander = _wander(per_ramp)
     return Alignment(a, b, t_ref, cov, wander, len(per_ramp), residual, iterations)
 
 
-def _per_ramp_offsets(ramp: np.ndarray, residual: np.ndarray, v: np.ndarray) -> list[tuple[float, float]]:
+def _per_ramp_offsets(ramp: np.ndarray, residual: np.ndarray, v: np.ndarray,
+                      x: np.ndarray) -> list[tuple[float, float]]:
     """Each ramp's own timing error about the fitted line and its standard uncertainty (s): the
-    line's residuals in that ramp fitted by a constant plus v·e."""
+    line's residuals in that ramp fitted by a constant, a slope in position and v·e."""
     out = []
     for k in np.unique(ramp):
         sel = ramp == k
-        vk, rk = v[sel], residual[sel]
-        if len(vk) < 4 or np.ptp(vk) == 0:
+        vk, rk, xk = v[sel], residual[sel], x[sel]
+        if len(vk) < 5 or np.ptp(vk) == 0:
             continue
-        d = np.column_stack([np.ones(len(vk)), vk])
+        d = np.column_stack([np.ones(len(vk)), xk - np.mean(xk), vk])
         coef, *_ = np.linalg.lstsq(d, rk, rcond=None)
         res = rk - d @ coef
-        s2 = float(res @ res) / max(len(vk) - 2, 1)
-        var_e = s2 * float(np.linalg.pinv(d.T @ d)[1, 1])
-        out.append((float(coef[1]), var_e))
+        s2 = float(res @ res) / max(len(vk) - 3, 1)
+        var_e = s2 * float(np.linalg.pinv(d.T @ d)[2, 2])
+        out.append((float(coef[2]), var_e))
     return out
 
 

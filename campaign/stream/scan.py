@@ -29,7 +29,15 @@ import numpy as np
 
 from campaign.errors import InputError
 from campaign.pointtable import PointTable, write_points_text
-from campaign.stream.align import Alignment, ControllerStream, InstrumentStream, Move, align, find_moves
+from campaign.stream.align import (
+    Alignment,
+    ControllerStream,
+    InstrumentStream,
+    Move,
+    align,
+    find_moves,
+    velocity,
+)
 from protocols.units import DEVIATION_SCALE, UNITS, unit_label
 
 PROFILE_COLUMNS = ("position", "direction", "pass", "deviation", "time_s")
@@ -84,6 +92,7 @@ class ScanResult:
     alignment: Alignment
     moves: list[Move]
     profile: Profile
+    rest: dict[int, RestStep]
     table: PointTable
     budget: TimingBudget
     wanted_u: float
@@ -144,6 +153,71 @@ def point_table(prof: Profile, targets: tuple[float, ...] | list[float], window:
     return PointTable(kind=prof.kind, run=arr[:, 0].astype(int), direction=arr[:, 1].astype(int),
                       target=arr[:, 2], deviation=arr[:, 3], optional={"time_s": arr[:, 4]},
                       meta=dict(meta or {}), extra={"samples": arr[:, 5]})
+
+
+@dataclass(frozen=True)
+class RestStep:
+    """What stopping changes, per direction of arrival (+1/-1): the deviation on the move at the
+    end of a pass minus the deviation at rest there at the end of the dwell, mean over the ends
+    arrived at in that direction (deviation unit), its standard uncertainty and the ends counted."""
+
+    direction: int
+    step: float
+    u: float
+    ends: int
+
+
+def rest_steps(ctrl: ControllerStream, inst: InstrumentStream, alignment: Alignment, moves: list[Move],
+               prof: Profile, average_s: float = 1.0, fit_span: float = 1.0) -> dict[int, RestStep]:
+    """The rest step per direction (see RestStep). At each end the axis rests until the next move:
+    its deviation at rest is the mean over the last `average_s` s of that rest (as a dwell capture
+    takes it; the rest must last at least twice that), its deviation on the move a line through
+    the aligned samples of the move's last `fit_span` (axis unit) and its deceleration, with a term
+    in velocity, taken to the end position at the cruise speed (so that a timing error the profile
+    keeps is in the step too and is removed with it).
+    Directions without such an end are left out."""
+    scale = DEVIATION_SCALE[UNITS[prof.kind][0]]
+    t = alignment.controller_time(inst.time_s)
+    v_ctrl = velocity(ctrl)
+    steps: dict[int, list[float]] = {1: [], -1: []}
+    passes = {1: 0, -1: 0}
+    for i, m in enumerate(moves):
+        passes[m.direction] += 1
+        rest_to = moves[i + 1].start_s if i + 1 < len(moves) else float(ctrl.time_s[-1])
+        if rest_to - m.end_s < 2 * average_s:
+            continue
+        at_rest = (t >= rest_to - average_s) & (t < rest_to)
+        # on the move: the last `fit_span` of the move and its deceleration, fitted by a line in
+        # position plus a term in velocity, taken at the end position at the cruise speed: so a
+        # timing error left in the profile (velocity × error) is in the step too, and cancels
+        arriving = (t >= m.ramps[1][0] - fit_span / m.speed) & (t < m.end_s)
+        x = np.interp(t[arriving], ctrl.time_s, ctrl.position)
+        v = np.abs(np.interp(t[arriving], ctrl.time_s, v_ctrl))
+        e = (inst.reading[arriving] - x) * scale
+        if at_rest.sum() < 2 or len(x) < 4:
+            continue
+        design = np.column_stack([np.ones(len(x)), x - m.end_position, v])
+        coef, *_ = np.linalg.lstsq(design, e, rcond=None)
+        moving = float(coef[0] + coef[2] * m.speed)
+        ctrl_rest = (ctrl.time_s >= rest_to - average_s) & (ctrl.time_s < rest_to)
+        where = float(np.median(ctrl.position[ctrl_rest])) if ctrl_rest.any() else m.end_position
+        resting = float(np.mean(inst.reading[at_rest]) - where) * scale
+        steps[m.direction].append(moving - resting)
+    out = {}
+    for d, values in steps.items():
+        if values:
+            u = float(np.std(values, ddof=1) / math.sqrt(len(values))) if len(values) > 1 else math.nan
+            out[d] = RestStep(d, float(np.mean(values)), u, len(values))
+    return out
+
+
+def at_rest(prof: Profile, steps: dict[int, RestStep]) -> Profile:
+    """The profile with each direction's rest step removed: what the axis would show stopped there,
+    if stopping changes the deviation by the same everywhere."""
+    shift = np.zeros(len(prof))
+    for d, st in steps.items():
+        shift[prof.direction == d] = st.step
+    return Profile(prof.kind, prof.position, prof.direction, prof.pass_, prof.deviation - shift, prof.time_s)
 
 
 def sample_jitter_s(prof: Profile, speed: float, noise: float) -> float:
@@ -221,12 +295,15 @@ def scan_warnings(budget: TimingBudget, limit: float, wanted_u: float, moves: li
 
 def analyse_scan(ctrl: ControllerStream, inst: InstrumentStream, targets: tuple[float, ...] | list[float],
                  rate_hz: float, window: float = 1.0, wanted_u: float = 0.2, noise: float = 0.0,
-                 kind: str = "linear", meta: dict[str, str] | None = None) -> ScanResult:
+                 kind: str = "linear", meta: dict[str, str] | None = None, rest_reference: bool = True,
+                 average_s: float = 1.0) -> ScanResult:
     """Align, profile and tabulate a scan. rate_hz: the instrument's nominal sample rate, Hz;
     window: the window around each target, axis unit; wanted_u: the wanted standard uncertainty of a
     target's value per pass from timing, deviation unit; noise: the instrument's own reading noise,
     deviation unit RMS (what the profile's scatter is beyond timing; 0 when unknown: all scatter is
-    then taken as jitter, on the safe side)."""
+    then taken as jitter, on the safe side). rest_reference: when the axis rested at the ends (at
+    least 2 × `average_s`), remove each direction's rest step (`rest_steps`) from the profile and
+    the table, so that they compare with a stop-and-go campaign; the steps are in the metadata."""
     alignment = align(ctrl, inst)
     moves = find_moves(ctrl)
     order = np.argsort(inst.time_s, kind="stable")
@@ -234,6 +311,9 @@ def analyse_scan(ctrl: ControllerStream, inst: InstrumentStream, targets: tuple[
     prof = profile(ctrl, inst, alignment, moves, kind)
     v = float(np.median([m.speed for m in moves]))
     jitter = sample_jitter_s(prof, v, noise)
+    steps = rest_steps(ctrl, inst, alignment, moves, prof, average_s) if rest_reference else {}
+    if steps:
+        prof = at_rest(prof, steps)
     budget = timing_budget(alignment, moves, jitter, rate_hz, window, kind)
     limit = speed_limit(alignment, moves, jitter, rate_hz, window, wanted_u, kind)
     unit = UNITS[kind][1]
@@ -247,12 +327,48 @@ def analyse_scan(ctrl: ControllerStream, inst: InstrumentStream, targets: tuple[
                   "timing_u": f"{budget.deviation_u:.3f} {label} per target and pass at {v:g}/s",
                   "speed_limit": f"{limit:.3g} {UNITS[kind][0]}/s for {wanted_u:g} {label}",
                   **(meta or {})}
+    unit_ = label
+    table_meta["deviation"] = ("on the move, less each direction's rest step (" + "; ".join(
+        f"{'+' if d > 0 else '-'}: {st.step:.3f} ± {st.u:.3f} {unit_} over {st.ends} ends" for d, st in steps.items())
+        + ")") if steps else "on the move (no rest at the ends to refer it to)"
     for i, w in enumerate(warnings, 1):
         table_meta[f"warning_{i}"] = w
     table = point_table(prof, targets, window, table_meta)
-    return ScanResult(alignment, moves, prof, table, budget, wanted_u, limit, warnings)
+    return ScanResult(alignment, moves, prof, steps, table, budget, wanted_u, limit, warnings)
 
 
 def table_text(result: ScanResult) -> str:
     """The point table's CSV text, as analyze reads it."""
     return write_points_text(result.table)
+
+
+def write_profile(path: str, result: ScanResult) -> None:
+    """profile.csv: the scan's metadata as `# key: value` comments (as a point table carries them),
+    then the profile."""
+    meta = "".join(f"# {k}: {v}\n" for k, v in result.table.meta.items())
+    with open(path, "w", encoding="utf-8") as f:
+        f.write(meta + result.profile.csv_text())
+
+
+def sine_fit(prof: Profile, period_min: float, period_max: float, steps: int = 4000) -> tuple[float, float]:
+    """(period, amplitude) of the sinusoid that best fits the profile, with one constant per direction
+    and one slope beside it (axis unit, deviation unit): the period by least squares over a grid
+    of `steps` periods in [period_min, period_max], refined by a parabola through the best three."""
+    x, e = prof.position, prof.deviation
+    base = [np.ones(len(x)) * (prof.direction == d) for d in (1, -1) if np.any(prof.direction == d)]
+
+    def fit(period: float) -> tuple[float, float]:
+        w = 2 * math.pi / period
+        design = np.column_stack([*base, x - np.mean(x), np.sin(w * x), np.cos(w * x)])
+        coef, *_ = np.linalg.lstsq(design, e, rcond=None)
+        res = e - design @ coef
+        return float(res @ res), float(math.hypot(coef[-2], coef[-1]))
+
+    periods = np.linspace(period_min, period_max, steps)
+    cost = np.array([fit(float(p))[0] for p in periods])
+    k = int(np.clip(np.argmin(cost), 1, steps - 2))
+    c0, c1, c2 = cost[k - 1:k + 2]
+    h = periods[1] - periods[0]
+    denom = c0 - 2 * c1 + c2
+    best = float(periods[k] + (0.5 * h * (c0 - c2) / denom if denom > 0 else 0.0))
+    return best, fit(best)[1]
