@@ -16,10 +16,12 @@ error hardly changes: there the deviation changes by e·Δv, and only a timing e
 1. coarse: each full move is found in both streams; the instant each crosses its middle gives one
    (controller time, instrument time) pair per move, and a line through them the first offset and
    rate (good to about deviation/velocity, a millisecond);
-2. fine: in every acceleration ramp, the residual (reading − controller position at the mapped
-   time) is fitted by one constant and one slope in position per ramp (the machine's error there,
-   whatever its direction effects; in a ramp the position goes with v², so the slope and the
-   timing separate) plus v·(α + β·(t − t_ref)): α corrects the offset, β the rate. Iterated until the
+2. fine: in every acceleration ramp and the stretch of cruise beside it (as long as the ramp),
+   the residual (reading − controller position at the mapped time) is fitted by a constant for
+   the ramp, another for the cruise (an acceleration may deflect the machine) and one slope in
+   position for both (the machine's error changing along the ramp; the cruise, where a timing
+   error is only a constant, fixes it) plus v·(α + β·(t − t_ref)): α corrects the offset, β the
+   rate. Iterated until the
    corrections vanish; the covariance of (α, β), scaled by the residuals, is the uncertainty;
 3. wander: each ramp alone also gives its own offset; their scatter about the line beyond their own
    uncertainty is clock wander the line cannot follow, added to the uncertainty.
@@ -209,22 +211,30 @@ def coarse_alignment(ctrl: ControllerStream, inst: InstrumentStream, moves: list
     return float(a), float(b)
 
 
-def _ramp_samples(ctrl: ControllerStream, v_ctrl: np.ndarray, moves: list[Move], t_mapped: np.ndarray,
-                  cycle_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """Indices of the instrument samples (mapped to controller time) inside a ramp, at least one
-    PLC cycle from its ends, and the ramp each belongs to."""
-    index, ramp = [], []
+def _ramp_samples(moves: list[Move], t_mapped: np.ndarray,
+                  cycle_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The instrument samples (mapped to controller time) each ramp's fit uses: those inside the
+    ramp, at least one PLC cycle from its ends, and those of the cruise beside it (after an
+    acceleration, before a deceleration) over as long a distance as the ramp's. Returns their
+    indices, the ramp each belongs to, and whether each is in the cruise."""
+    index, ramp, cruise = [], [], []
     k = 0
     for m in moves:
-        for t0, t1 in m.ramps:
-            sel = np.flatnonzero((t_mapped > t0 + cycle_s) & (t_mapped < t1 - cycle_s))
-            if len(sel) >= 2:
-                index.append(sel)
-                ramp.append(np.full(len(sel), k))
+        for side, (t0, t1) in enumerate(m.ramps):
+            inside = np.flatnonzero((t_mapped > t0 + cycle_s) & (t_mapped < t1 - cycle_s))
+            beside_s = max((t1 - t0) / 2, 4 * cycle_s)  # a ramp from rest covers v·(t1 - t0)/2
+            if side == 0:
+                beside = np.flatnonzero((t_mapped > t1 + cycle_s) & (t_mapped < t1 + cycle_s + beside_s))
+            else:
+                beside = np.flatnonzero((t_mapped > t0 - cycle_s - beside_s) & (t_mapped < t0 - cycle_s))
+            if len(inside) >= 2 and len(beside) >= 2:
+                index += [inside, beside]
+                ramp += [np.full(len(inside), k), np.full(len(beside), k)]
+                cruise += [np.zeros(len(inside), bool), np.ones(len(beside), bool)]
                 k += 1
     if not index:
-        return np.array([], dtype=int), np.array([], dtype=int)
-    return np.concatenate(index), np.concatenate(ramp)
+        return np.array([], dtype=int), np.array([], dtype=int), np.array([], dtype=bool)
+    return np.concatenate(index), np.concatenate(ramp), np.concatenate(cruise)
 
 
 def align(ctrl: ControllerStream, inst: InstrumentStream, max_iterations: int = 20) -> Alignment:
@@ -243,21 +253,22 @@ def align(ctrl: ControllerStream, inst: InstrumentStream, max_iterations: int = 
     per_ramp: list[tuple[float, float]] = []
     for iterations in range(1, max_iterations + 1):
         t = a + b * inst.time_s
-        idx, ramp = _ramp_samples(ctrl, v_ctrl, moves, t, cycle)
+        idx, ramp, cruise = _ramp_samples(moves, t, cycle)
         n_ramps = int(ramp.max()) + 1 if len(ramp) else 0
-        if n_ramps < 2 or len(idx) < 2 * n_ramps + 4:
+        if n_ramps < 2 or len(idx) < 3 * n_ramps + 4:
             raise InputError("too few instrument samples in the acceleration ramps to align the clocks "
                              "(a higher instrument rate or a lower acceleration gives more)")
         ti = t[idx]
         x = np.interp(ti, ctrl.time_s, ctrl.position)
         r = inst.reading[idx] - x
         v = np.interp(ti, ctrl.time_s, v_ctrl)
-        design = np.zeros((len(idx), 2 * n_ramps + 2))
+        # per ramp: its own constant, the cruise beside it its own, one slope in position for both
+        design = np.zeros((len(idx), 3 * n_ramps + 2))
         rows = np.arange(len(idx))
-        design[rows, ramp] = 1.0
+        design[rows, ramp + n_ramps * cruise] = 1.0
         centre = np.array([np.mean(x[ramp == k]) for k in range(n_ramps)])
-        design[rows, n_ramps + ramp] = x - centre[ramp]  # the machine's error changing along the ramp
-        col = 2 * n_ramps
+        design[rows, 2 * n_ramps + ramp] = x - centre[ramp]
+        col = 3 * n_ramps
         design[:, col] = v
         design[:, col + 1] = v * (ti - t_ref)
         coef, *_ = np.linalg.lstsq(design, r, rcond=None)
@@ -272,29 +283,30 @@ def align(ctrl: ControllerStream, inst: InstrumentStream, max_iterations: int = 
         # true controller time = t + alpha + beta (t - t_ref)
         a, b = (1 + beta) * a + alpha - beta * t_ref, (1 + beta) * b
         span = float(np.ptp(ti))
-        per_ramp = _per_ramp_offsets(ramp, fit_residual, v, x)
+        per_ramp = _per_ramp_offsets(ramp, fit_residual, v, x, cruise)
         if abs(alpha) < 1e-9 and abs(beta) * span < 1e-9:
             break
     wander = _wander(per_ramp)
     return Alignment(a, b, t_ref, cov, wander, len(per_ramp), residual, iterations)
 
 
-def _per_ramp_offsets(ramp: np.ndarray, residual: np.ndarray, v: np.ndarray,
-                      x: np.ndarray) -> list[tuple[float, float]]:
+def _per_ramp_offsets(ramp: np.ndarray, residual: np.ndarray, v: np.ndarray, x: np.ndarray,
+                      cruise: np.ndarray) -> list[tuple[float, float]]:
     """Each ramp's own timing error about the fitted line and its standard uncertainty (s): the
-    line's residuals in that ramp fitted by a constant, a slope in position and v·e."""
+    line's residuals in that ramp and its cruise fitted like the whole (a constant each, one slope)
+    plus v·e."""
     out = []
     for k in np.unique(ramp):
         sel = ramp == k
-        vk, rk, xk = v[sel], residual[sel], x[sel]
-        if len(vk) < 5 or np.ptp(vk) == 0:
+        vk, rk, xk, ck = v[sel], residual[sel], x[sel], cruise[sel]
+        if len(vk) < 6 or np.ptp(vk) == 0:
             continue
-        d = np.column_stack([np.ones(len(vk)), xk - np.mean(xk), vk])
+        d = np.column_stack([~ck, ck, xk - np.mean(xk), vk]).astype(float)
         coef, *_ = np.linalg.lstsq(d, rk, rcond=None)
         res = rk - d @ coef
-        s2 = float(res @ res) / max(len(vk) - 3, 1)
-        var_e = s2 * float(np.linalg.pinv(d.T @ d)[2, 2])
-        out.append((float(coef[2]), var_e))
+        s2 = float(res @ res) / max(len(vk) - 4, 1)
+        var_e = s2 * float(np.linalg.pinv(d.T @ d)[3, 3])
+        out.append((float(coef[3]), var_e))
     return out
 
 
