@@ -57,7 +57,7 @@ def _streams(rec: ScanRecord) -> tuple[ControllerStream, InstrumentStream]:
             InstrumentStream(rec.instrument_time_s, rec.instrument_reading))
 
 
-@pytest.mark.parametrize("seed", [11, 12, 13, *(pytest.param(s, marks=pytest.mark.machine) for s in range(14, 18))])
+@pytest.mark.parametrize("seed", [11, 12, *(pytest.param(s, marks=pytest.mark.machine) for s in range(13, 18))])
 def test_the_clocks_are_aligned_from_the_passes_within_their_stated_uncertainty(seed):
     draw = _draw(seed)
     rec = _scan(draw, -3.0, 33.0, 2, seed)
@@ -78,7 +78,7 @@ def test_the_clocks_are_aligned_from_the_passes_within_their_stated_uncertainty(
     assert float(np.std(jitter)) == pytest.approx(clock.sample_jitter_s, rel=0.1, abs=1e-7)
 
 
-@pytest.mark.parametrize("seed", [21, 23, *(pytest.param(s, marks=pytest.mark.machine) for s in (22, 24))])
+@pytest.mark.parametrize("seed", [21, *(pytest.param(s, marks=pytest.mark.machine) for s in (22, 23, 24))])
 def test_the_scan_table_is_the_moving_axis_error_at_the_targets(seed):
     draw = _draw(seed)
     rec = _scan(draw, -3.0, 33.0, 2, seed)
@@ -139,10 +139,9 @@ def test_what_stopping_changes_is_measured_at_the_ends_and_removed(seed):
     rec = machine.scan(-3.0, 33.0, draw["speed"], 3, end_dwell_s=2.5)
     targets = [0.0, 10.0, 20.0, 30.0]
     res = analyse_scan(*_streams(rec), targets, draw["rate_hz"], noise=draw["noise_um"], average_s=0.5)
-    timing_um = draw["speed"] * 1e3 * 4 * res.budget.alignment_s  # a timing error left in the profile is in the step too
     for d in (1, -1):
         assert res.rest[d].ends == 3
-        assert res.rest[d].step == pytest.approx(-d * e0, abs=3 * res.rest[d].u + 0.05 + timing_um)
+        assert res.rest[d].step == pytest.approx(-d * e0, abs=3 * res.rest[d].u + 0.05)
     t = res.table
     at_rest = draw["model"].deviation_um(t.target, t.direction, 0.0, np.inf)
     # the passes' mean at each target and direction, within the stated budget of the truth at rest

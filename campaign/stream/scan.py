@@ -168,13 +168,12 @@ class RestStep:
 
 
 def rest_steps(ctrl: ControllerStream, inst: InstrumentStream, alignment: Alignment, moves: list[Move],
-               prof: Profile, average_s: float = 1.0, fit_span: float = 1.0) -> dict[int, RestStep]:
+               prof: Profile, average_s: float = 1.0) -> dict[int, RestStep]:
     """The rest step per direction (see RestStep). At each end the axis rests until the next move:
     its deviation at rest is the mean over the last `average_s` s of that rest (as a dwell capture
-    takes it; the rest must last at least twice that), its deviation on the move a line through
-    the aligned samples of the move's last `fit_span` (axis unit) and its deceleration, with a term
-    in velocity, taken to the end position at the cruise speed (so that a timing error the profile
-    keeps is in the step too and is removed with it).
+    takes it; the rest must last at least twice that), its deviation on the move from the aligned
+    samples of the move's deceleration, where it ends (at the end position, at zero velocity:
+    no extrapolation over the ramp, which a screw's periodic error would bend, and no timing error).
     Directions without such an end are left out."""
     scale = DEVIATION_SCALE[UNITS[prof.kind][0]]
     t = alignment.controller_time(inst.time_s)
@@ -187,10 +186,10 @@ def rest_steps(ctrl: ControllerStream, inst: InstrumentStream, alignment: Alignm
         if rest_to - m.end_s < 2 * average_s:
             continue
         at_rest = (t >= rest_to - average_s) & (t < rest_to)
-        # on the move: the last `fit_span` of the move and its deceleration, fitted by a line in
-        # position plus a term in velocity, taken at the end position at the cruise speed: so a
-        # timing error left in the profile (velocity × error) is in the step too, and cancels
-        arriving = (t >= m.ramps[1][0] - fit_span / m.speed) & (t < m.end_s)
+        # on the move: the deceleration, fitted by a constant, a slope in position (the machine's
+        # error along the ramp) and a term in velocity (a timing error left), taken where it ends:
+        # at the end position, at zero velocity, where a timing error changes nothing
+        arriving = (t > m.ramps[1][0]) & (t < m.end_s)
         x = np.interp(t[arriving], ctrl.time_s, ctrl.position)
         v = np.abs(np.interp(t[arriving], ctrl.time_s, v_ctrl))
         e = (inst.reading[arriving] - x) * scale
@@ -198,7 +197,7 @@ def rest_steps(ctrl: ControllerStream, inst: InstrumentStream, alignment: Alignm
             continue
         design = np.column_stack([np.ones(len(x)), x - m.end_position, v])
         coef, *_ = np.linalg.lstsq(design, e, rcond=None)
-        moving = float(coef[0] + coef[2] * m.speed)
+        moving = float(coef[0])
         ctrl_rest = (ctrl.time_s >= rest_to - average_s) & (ctrl.time_s < rest_to)
         where = float(np.median(ctrl.position[ctrl_rest])) if ctrl_rest.any() else m.end_position
         resting = float(np.mean(inst.reading[at_rest]) - where) * scale
