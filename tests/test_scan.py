@@ -14,7 +14,7 @@ from campaign.iso230 import evaluate
 from campaign.model import ErrorModel
 from campaign.pointtable import parse_points
 from campaign.stream.align import ControllerStream, InstrumentStream, align
-from campaign.stream.scan import analyse_scan, sine_fit, table_text
+from campaign.stream.scan import analyse_scan, sine_fit, table_text, write_profile
 from drivers.sim.scan_streams import InstrumentClock, ScanRecord, scan_machine
 
 
@@ -94,10 +94,16 @@ def test_the_scan_table_is_the_moving_axis_error_at_the_targets(seed):
     assert float(np.max(np.abs(naive))) * 1e3 > 50 * float(np.sqrt(np.mean(error**2)))
 
 
-def test_the_scan_table_reads_back_and_is_not_judged():
+def test_the_scan_table_reads_back_and_is_not_judged(tmp_path):
     draw = _draw(31, speeds=(10.0, 10.0))
     rec = _scan(draw, -3.0, 33.0, 2, 31)
     res = analyse_scan(*_streams(rec), [0.0, 10.0, 20.0, 30.0], draw["rate_hz"], noise=draw["noise_um"])
+    write_profile(str(tmp_path / "profile.csv"), res)
+    lines = (tmp_path / "profile.csv").read_text().splitlines()
+    header = next(line for line in lines if not line.startswith("#"))
+    assert header == "position_mm,direction,pass,deviation_um,time_s"
+    assert "# purpose: diagnostic" in lines
+    assert len(lines) - lines.index(header) - 1 == len(res.profile) > 36 / 0.1  # a sample every fraction of a mm
     table = parse_points(table_text(res), "scan.csv")
     assert table.meta["purpose"] == "diagnostic" and table.meta["capture"] == "scan"
     assert np.allclose(table.deviation, res.table.deviation, atol=1e-3)
@@ -115,7 +121,7 @@ def test_a_scan_too_fast_for_the_wanted_uncertainty_is_warned_about():
     res = analyse_scan(*_streams(rec), [0.0, 15.0, 30.0], draw["rate_hz"], wanted_u=0.1, noise=draw["noise_um"])
     assert res.budget.jitter_s == pytest.approx(100e-6, rel=0.3)
     assert res.speed_limit < 25.0
-    assert any(w.startswith("too fast") for w in res.warnings)
+    assert any(w.startswith("too fast: at 25 mm/s") for w in res.warnings)
     slow = analyse_scan(*_streams(rec), [0.0, 15.0, 30.0], draw["rate_hz"], wanted_u=5.0, noise=draw["noise_um"])
     assert not any(w.startswith("too fast") for w in slow.warnings)
 

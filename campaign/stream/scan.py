@@ -40,10 +40,6 @@ from campaign.stream.align import (
 )
 from protocols.units import DEVIATION_SCALE, UNITS, unit_label
 
-PROFILE_COLUMNS = ("position", "direction", "pass", "deviation", "time_s")
-"""profile.csv's columns; position and deviation carry the unit in their names (position_mm,
-deviation_um; position_deg, deviation_arcsec)."""
-
 
 @dataclass(frozen=True)
 class Profile:
@@ -268,14 +264,15 @@ def speed_limit(alignment: Alignment, moves: list[Move], jitter_s: float, rate_h
 
 
 def scan_warnings(budget: TimingBudget, limit: float, wanted_u: float, moves: list[Move], targets: tuple[float, ...] |
-                  list[float], window: float, unit_label: str) -> list[str]:
+                  list[float], window: float, kind: str = "linear") -> list[str]:
     """What makes this scan's result less than it should be, one sentence each."""
     out = []
+    speed_unit, dev_unit = f"{UNITS[kind][0]}/s", unit_label(UNITS[kind][1])
     if budget.velocity > limit:
-        out.append(f"too fast: at {budget.velocity:g} /s the timing alone gives {budget.deviation_u:.2f} {unit_label} "
-                   f"per target and pass (alignment {budget.alignment_s * 1e6:.1f} µs, sample jitter "
+        out.append(f"too fast: at {budget.velocity:.3g} {speed_unit} the timing alone gives {budget.deviation_u:.2f} "
+                   f"{dev_unit} per target and pass (alignment {budget.alignment_s * 1e6:.1f} µs, sample jitter "
                    f"{budget.jitter_s * 1e6:.1f} µs over {budget.samples_per_window:.0f} samples), more than the "
-                   f"wanted {wanted_u:g} {unit_label}; scan at most {limit:.3g} /s")
+                   f"wanted {wanted_u:g} {dev_unit}; scan at most {limit:.3g} {speed_unit}")
     for m in moves:
         (_, cruise_from), (cruise_to, _) = m.ramps
         ramp_up = m.speed * (cruise_from - m.start_s) / 2
@@ -315,21 +312,20 @@ def analyse_scan(ctrl: ControllerStream, inst: InstrumentStream, targets: tuple[
         prof = at_rest(prof, steps)
     budget = timing_budget(alignment, moves, jitter, rate_hz, window, kind)
     limit = speed_limit(alignment, moves, jitter, rate_hz, window, wanted_u, kind)
-    unit = UNITS[kind][1]
-    label = unit_label(unit)
-    warnings = scan_warnings(budget, limit, wanted_u, moves, targets, window, label)
+    warnings = scan_warnings(budget, limit, wanted_u, moves, targets, window, kind)
     a = alignment.as_dict()
+    pos, dev = UNITS[kind][0], unit_label(UNITS[kind][1])
+    rest = "; ".join(f"{'+' if d > 0 else '-'}: {st.step:.3f} ± {st.u:.3f} {dev} over {st.ends} ends"
+                     for d, st in steps.items())
     table_meta = {"purpose": "diagnostic", "capture": "scan",
-                  "scan": f"{len(moves)} moves at {v:g} {UNITS[kind][0]}/s, window {window:g} {UNITS[kind][0]}",
+                  "scan": f"{len(moves)} moves at {v:g} {pos}/s, window {window:g} {pos}",
                   "clock_offset_ms": f"{a['offset_ms']} ± {a['offset_uncertainty_ms']}",
                   "clock_rate_error_ppm": f"{a['rate_error_ppm']} ± {a['rate_uncertainty_ppm']}",
-                  "timing_u": f"{budget.deviation_u:.3f} {label} per target and pass at {v:g}/s",
-                  "speed_limit": f"{limit:.3g} {UNITS[kind][0]}/s for {wanted_u:g} {label}",
+                  "timing_u": f"{budget.deviation_u:.3f} {dev} per target and pass at {v:g} {pos}/s",
+                  "speed_limit": f"{limit:.3g} {pos}/s for {wanted_u:g} {dev}",
+                  "deviation": (f"on the move, less each direction's rest step ({rest})" if steps
+                                else "on the move (no rest at the ends to refer it to)"),
                   **(meta or {})}
-    unit_ = label
-    table_meta["deviation"] = ("on the move, less each direction's rest step (" + "; ".join(
-        f"{'+' if d > 0 else '-'}: {st.step:.3f} ± {st.u:.3f} {unit_} over {st.ends} ends" for d, st in steps.items())
-        + ")") if steps else "on the move (no rest at the ends to refer it to)"
     for i, w in enumerate(warnings, 1):
         table_meta[f"warning_{i}"] = w
     table = point_table(prof, targets, window, table_meta)
