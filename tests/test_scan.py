@@ -127,6 +127,19 @@ def test_a_scan_too_fast_for_the_wanted_uncertainty_is_warned_about():
     assert not any(w.startswith("too fast") for w in slow.warnings)
 
 
+def test_samples_without_a_reading_are_left_out():
+    """A beam lost for a moment (NaN readings) costs those samples only."""
+    draw = _draw(12)
+    rec = _scan(draw, -3.0, 33.0, 2, 12)
+    reading = rec.instrument_reading.copy()
+    reading[np.random.default_rng(0).random(len(reading)) < 0.05] = np.nan
+    ctrl, inst = _streams(rec)
+    res = analyse_scan(ctrl, InstrumentStream(inst.time_s, reading), [0.0, 15.0, 30.0], draw["rate_hz"])
+    clean = analyse_scan(ctrl, inst, [0.0, 15.0, 30.0], draw["rate_hz"])
+    assert np.all(np.isfinite(res.table.deviation))
+    assert np.allclose(res.table.deviation, clean.table.deviation, atol=0.1)
+
+
 def test_streams_without_motion_are_refused():
     t = np.arange(0, 1, 1e-3)
     with pytest.raises(InputError, match="no motion"):

@@ -237,12 +237,20 @@ def _ramp_samples(moves: list[Move], t_mapped: np.ndarray,
     return np.concatenate(index), np.concatenate(ramp), np.concatenate(cruise)
 
 
+def in_order(inst: InstrumentStream) -> InstrumentStream:
+    """The instrument's samples in the order taken (not as they arrived), without those that have
+    no reading (beam lost: NaN)."""
+    keep = np.isfinite(inst.time_s) & np.isfinite(inst.reading)
+    t, r = inst.time_s[keep], inst.reading[keep]
+    order = np.argsort(t, kind="stable")
+    return InstrumentStream(t[order], r[order])
+
+
 def align(ctrl: ControllerStream, inst: InstrumentStream, max_iterations: int = 20) -> Alignment:
     """The instrument clock against the controller's, from the scan's own moves (module docstring)."""
+    inst = in_order(inst)
     if len(inst.time_s) < 10:
-        raise InputError("the instrument stream has fewer than 10 samples")
-    order = np.argsort(inst.time_s, kind="stable")  # in the order taken, not as they arrived
-    inst = InstrumentStream(inst.time_s[order], inst.reading[order])
+        raise InputError("the instrument stream has fewer than 10 samples with a reading")
     moves = find_moves(ctrl)
     cycle = float(np.median(np.diff(ctrl.time_s)))
     v_ctrl = velocity(ctrl)

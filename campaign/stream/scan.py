@@ -36,6 +36,7 @@ from campaign.stream.align import (
     Move,
     align,
     find_moves,
+    in_order,
     velocity,
 )
 from protocols.units import DEVIATION_SCALE, UNITS, unit_label
@@ -302,8 +303,7 @@ def analyse_scan(ctrl: ControllerStream, inst: InstrumentStream, targets: tuple[
     the table, so that they compare with a stop-and-go campaign; the steps are in the metadata."""
     alignment = align(ctrl, inst)
     moves = find_moves(ctrl)
-    order = np.argsort(inst.time_s, kind="stable")
-    inst = InstrumentStream(inst.time_s[order], inst.reading[order])
+    inst = in_order(inst)
     prof = profile(ctrl, inst, alignment, moves, kind)
     v = float(np.median([m.speed for m in moves]))
     jitter = sample_jitter_s(prof, v, noise)
