@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from rich.console import Console
 
 from campaign.assess import assess
 from campaign.errors import InputError
@@ -15,6 +16,7 @@ from campaign.model import ErrorModel
 from campaign.pointtable import parse_points
 from campaign.stream.align import ControllerStream, InstrumentStream, align
 from campaign.stream.scan import analyse_scan, sine_fit, table_text, write_profile
+from campaign.views import verdict_line
 from drivers.sim.scan_streams import InstrumentClock, ScanRecord, scan_machine
 
 
@@ -112,6 +114,9 @@ def test_the_scan_table_reads_back_and_is_not_judged(tmp_path):
     assert a.verdict.verdict == "not judged"
     assert any("not an acceptance test" in r for r in a.verdict.reasons)
     assert evaluate(table).summary["A"] is not None
+    console = Console(record=True, width=200)
+    console.print(verdict_line(a.verdict))  # rich markup must not eat the key's "[campaign]"
+    assert '[campaign] purpose = "diagnostic"' in console.export_text()
 
 
 def test_a_scan_too_fast_for_the_wanted_uncertainty_is_warned_about():
