@@ -345,25 +345,44 @@ def write_profile(path: str, result: ScanResult) -> None:
         f.write(meta + result.profile.csv_text())
 
 
-def sine_fit(prof: Profile, period_min: float, period_max: float, steps: int = 4000) -> tuple[float, float]:
+def sine_fit(prof: Profile, period_min: float, period_max: float, steps: int = 400) -> tuple[float, float]:
     """(period, amplitude) of the sinusoid that best fits the profile, with one constant per direction
     and one slope beside it (axis unit, deviation unit): the period by least squares over a grid
-    of `steps` periods in [period_min, period_max], refined by a parabola through the best three."""
-    x, e = prof.position, prof.deviation
-    base = [np.ones(len(x)) * (prof.direction == d) for d in (1, -1) if np.any(prof.direction == d)]
+    of `steps` periods in [period_min, period_max], then over a grid as fine again around the best,
+    refined by a parabola through the best three. The search runs on the profile's means over bins
+    of period_min/50 per direction; the amplitude comes from every sample."""
+    width = period_min / 50
+    xs, es, ds = [], [], []
+    for d in (1, -1):
+        mine = prof.direction == d
+        if not mine.any():
+            continue
+        bins = np.floor(prof.position[mine] / width).astype(int)
+        keys, where, counts = np.unique(bins, return_inverse=True, return_counts=True)
+        xs.append(np.bincount(where, prof.position[mine]) / counts)
+        es.append(np.bincount(where, prof.deviation[mine]) / counts)
+        ds.append(np.full(len(keys), d))
+    binned = (np.concatenate(xs), np.concatenate(es), np.concatenate(ds))
 
-    def fit(period: float) -> tuple[float, float]:
+    def fit(period: float, data: tuple[np.ndarray, np.ndarray, np.ndarray] = binned) -> tuple[float, float]:
+        """(sum of squared residuals, amplitude) of the fit at `period` to (position, deviation, direction)."""
+        x, e, direction = data
+        base = [(direction == d).astype(float) for d in (1, -1) if np.any(direction == d)]
         w = 2 * math.pi / period
         design = np.column_stack([*base, x - np.mean(x), np.sin(w * x), np.cos(w * x)])
         coef, *_ = np.linalg.lstsq(design, e, rcond=None)
         res = e - design @ coef
         return float(res @ res), float(math.hypot(coef[-2], coef[-1]))
 
-    periods = np.linspace(period_min, period_max, steps)
-    cost = np.array([fit(float(p))[0] for p in periods])
-    k = int(np.clip(np.argmin(cost), 1, steps - 2))
-    c0, c1, c2 = cost[k - 1:k + 2]
-    h = periods[1] - periods[0]
-    denom = c0 - 2 * c1 + c2
-    best = float(periods[k] + (0.5 * h * (c0 - c2) / denom if denom > 0 else 0.0))
-    return best, fit(best)[1]
+    def best_of(periods: np.ndarray) -> tuple[float, float]:
+        """The best period of the grid, refined by a parabola, and the grid's step."""
+        cost = np.array([fit(float(p))[0] for p in periods])
+        k = int(np.clip(np.argmin(cost), 1, len(periods) - 2))
+        c0, c1, c2 = cost[k - 1:k + 2]
+        h = float(periods[1] - periods[0])
+        denom = c0 - 2 * c1 + c2
+        return float(periods[k] + (0.5 * h * (c0 - c2) / denom if denom > 0 else 0.0)), h
+
+    coarse, h = best_of(np.linspace(period_min, period_max, steps))
+    best, _ = best_of(np.linspace(coarse - 2 * h, coarse + 2 * h, steps))
+    return best, fit(best, (prof.position, prof.deviation, prof.direction))[1]
