@@ -19,6 +19,7 @@ from campaign.iso230 import STANDARDS, Evaluation, Standard, evaluate
 from campaign.outliers import Outliers, find_outliers
 from campaign.pointtable import PointTable, read_points
 from campaign.record import META_FILE, open_campaign
+from campaign.specs import PURPOSES
 from campaign.uncertainty import Budget, budget
 from campaign.verdict import Planned, Verdict, completeness, judge
 
@@ -71,11 +72,21 @@ def assess(table: PointTable, config: Config | None = None, planned: Planned | N
         tolerances["A"] = tolerance
     outliers = find_outliers(table)
     unc = budget(table, ev, config)
-    purpose, follows = (config.campaign.purpose, config.campaign.follows) if config is not None else ("acceptance", "")
+    purpose, follows = ((config.campaign.purpose, config.campaign.follows) if config is not None
+                        else table_purpose(table))
     verdict = judge(table, ev, tolerances, unc, outliers, planned, purpose, follows)
     simulated = is_simulated(table, config, meta)
     return Assessment(source or table.source, table, ev, outliers, unc, verdict, tolerances, config, planned,
                       directory, meta, simulated)
+
+
+def table_purpose(table: PointTable) -> tuple[str, str]:
+    """A bare table's purpose and what it follows, from its `# purpose:` and `# follows:` comments
+    (a scan's table says `diagnostic`); acceptance when it says nothing."""
+    purpose = table.meta.get("purpose", "acceptance")
+    if purpose not in PURPOSES:
+        raise InputError(f"{table.source}: '# purpose: {purpose}' must be one of {', '.join(PURPOSES)}")
+    return purpose, table.meta.get("follows", "")
 
 
 def is_simulated(table: PointTable, config: Config | None, meta: dict | None) -> bool:

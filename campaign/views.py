@@ -14,6 +14,7 @@ import sys
 from typing import Protocol
 
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from campaign.iso230 import Evaluation
@@ -90,7 +91,7 @@ def summary_table(ev: Evaluation, title: str | None = None) -> Table:
 def verdict_line(verdict: Verdict) -> str:
     """The verdict in one coloured word with its reasons (rich markup)."""
     colour = {"pass": "bold green", "fail": "bold red"}.get(verdict.verdict, "bold yellow")
-    return f"[{colour}]{verdict.word}[/]: " + "; ".join(verdict.reasons)
+    return f"[{colour}]{verdict.word}[/]: " + escape("; ".join(verdict.reasons))
 
 
 def budget_table(budget: Budget) -> Table:
