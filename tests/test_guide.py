@@ -18,6 +18,7 @@ from campaign.errors import InputError
 from campaign.guide.dashboard import signed_sparkline, sparkline
 from campaign.guide.keys import CtrlC, Keys
 from campaign.measure.executor import Control
+from campaign.record import RunState
 from tests.conftest import ROOT, assert_one_line_error, events, status
 
 SMALL = """
@@ -219,16 +220,18 @@ def test_the_dashboard_chart_is_signed_and_more_negative_is_lower():
 
 
 def test_the_key_line_follows_the_state():
+    """The key line renders the published run state and the operator's pending request."""
     dashboard, console, _ = small_dashboard()
-    for state, offered, not_offered in (("RUNNING", "p pause", "r resume"), ("PAUSED", "r resume", "p pause"),
-                                        ("PAUSE REQUESTED", "r cancel the pause", "p pause"),
-                                        ("ABORTING", "aborting", "p pause")):
-        dashboard.state = state
+    for state, request, offered, not_offered in (
+            (RunState.MOVING, None, "p pause", "r resume"), (RunState.PAUSED, None, "r resume", "p pause"),
+            (RunState.CAPTURING, "pause requested", "r cancel the pause", "p pause"),
+            (RunState.MOVING, "aborting", "aborting", "p pause"), (RunState.STOPPED, None, None, "p pause")):
+        dashboard.state, dashboard.request = state, request
         console.file.truncate(0)
         console.file.seek(0)
         console.print(dashboard)
         screen = console.file.getvalue()
-        assert offered in screen and not_offered not in screen, (state, screen)
+        assert (offered is None or offered in screen) and not_offered not in screen, (state, request, screen)
 
 
 # -- a technician at a real terminal -----------------------------------------------------------
