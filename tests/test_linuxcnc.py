@@ -300,3 +300,17 @@ def test_after_kill_9_of_the_demo_the_next_run_stops_the_linuxcnc_it_left_and_co
         assert foreign.proc.poll() is None  # left running
     finally:
         foreign.stop()
+
+
+@pytest.mark.parametrize("whose", ["ours", "zero", "init"])
+def test_a_record_naming_axiscals_own_group_or_no_group_is_never_a_leftover(files, whose):
+    """A hand-edited or foreign record (the same user: root writes /tmp's record) whose process group
+    is axiscal's own, 0 (killpg(0) signals the caller's own group) or 1 is not a leftover: stopping it
+    would SIGINT and SIGKILL axiscal itself and the shell's group. The record is dropped."""
+    record_file, lock_file = files
+    pgid = {"ours": os.getpgrp(), "zero": 0, "init": 1}[whose]
+    ticks = process._start_ticks(pgid) or 0 if pgid else 0
+    record = process.Record(pgid, ticks, process._boot_id(), "/tmp/axiscal-linuxcnc-x", 1, "2026-01-01 00:00:00")
+    record_file.write_text(json.dumps(record.__dict__))
+    assert process.find_leftover(record_file, lock_file) is None
+    assert not record_file.exists()

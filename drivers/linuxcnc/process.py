@@ -241,16 +241,19 @@ def find_leftover(record_file: Path = RECORD_FILE, lock_file: Path = LOCK_FILE) 
     """The LinuxCNC an earlier axiscal started and left running, or None: none recorded, an
     axiscal holds the lock (it runs its LinuxCNC and will stop it), or the recorded one has ended
     (the stale record is removed then). Trusted only as written by this user, in this boot, its
-    process group alive and, while its leader lives, the leader the very process recorded."""
+    process group alive, not axiscal's own nor 0 or 1, and, while its leader lives, the leader the
+    very process recorded."""
     with _held(lock_file) as lock:
         if lock is None:
             return None
         record = _read_record(record_file)
         if record is None:
             return None
-        pids = _group(record.pgid)
+        # never a group of its own or none (killpg(0) signals the caller's group): a hand-edited or
+        # foreign record would have axiscal stop itself and its shell
+        pids = _group(record.pgid) if record.pgid > 1 and record.pgid != os.getpgrp() else []
         leader_ok = record.pgid not in pids or _start_ticks(record.pgid) == record.start_ticks
-        if record.boot_id != _boot_id() or not pids or not leader_ok:
+        if record.boot_id != _boot_id() or not pids or not leader_ok or os.getpid() in pids:
             _remove_record(record, record_file)
             return None
         return Leftover(record, tuple(pids), record_file, lock_file)
