@@ -182,8 +182,9 @@ def stopped_unopened(recorder: Recorder, t_s: float, exc: BaseException) -> None
 
 
 def start_campaign(config: Config, out: str | Path | None = None, meta_extra: dict[str, Any] | None = None,
-                   on_created: Callable[[Path], None] | None = None, **kwargs: Any) -> Outcome:
+                   on_created: Callable[[Path], None] | None = None, durable: bool = True, **kwargs: Any) -> Outcome:
     """A new campaign from `config` into `out` (a new directory); `meta_extra` goes into meta.json.
+    `durable` False only for the fake machine's demo (campaign.record.Recorder: no fsync per point).
     The other keywords go to `execute` (`opener` or `opened` is required)."""
     plan = build_plan(config)
     check_plan(plan, config.axis)
@@ -192,7 +193,7 @@ def start_campaign(config: Config, out: str | Path | None = None, meta_extra: di
     try:
         recorder = Recorder.create(directory, config.text, recorded_sections(config),
                                    plan_records(plan, recorded_sections(config)), meta,
-                                   config.axis.kind)
+                                   config.axis.kind, durable=durable)
     except BaseException:
         if kwargs.get("opened") is not None:
             kwargs["opened"][0].close()
