@@ -35,7 +35,8 @@ How pyads' AdsTestServer behaves, and what this class does about it:
   HTTP/1.1` is neither), is refused
   before anything more is read: one warning line, the connection closed. A packet that has not
   arrived whole PACKET_TIMEOUT_S after its first byte (half a frame, then silence) closes the
-  connection the same way. What a request may ask for is bounded by the device
+  connection the same way. All clients together hold at most PENDING_TOTAL_LIMIT_BYTES of
+  unfinished packets (a client beyond it is closed). What a request may ask for is bounded by the device
   (`drivers.sim.ads_device`: REPLY_LIMIT_BYTES, NOTIFICATIONS_PER_CLIENT).
 - It keeps every request in `request_history`, for good (about 0.75 kB each: a polling client
   grew the demo by 75 MB in 100,000 requests). FramedConnection answers without it: the history
@@ -83,6 +84,10 @@ PACKET_LIMIT_BYTES = 1 << 20
 """The largest AMS packet (after the AMS/TCP header) the PLC takes; one announcing more closes the
 connection. The PLC's memory is 16.8 kB: a write of all of it, or a sum request over it, fits
 sixty times over."""
+PENDING_TOTAL_LIMIT_BYTES = 16 << 20
+"""What all clients together may have the PLC hold of packets not yet arrived whole, bytes: each
+connection may hold one of up to PACKET_LIMIT_BYTES, so without a common budget a thousand of them
+held a GiB; a client whose bytes would go beyond it is closed (one warning line)."""
 PACKET_TIMEOUT_S = 5.0
 """How long a packet may take to arrive whole after its first byte, s (wall time); a client that
 sends part of one and then nothing is closed after it."""
@@ -129,6 +134,13 @@ class FramedConnection(AdsClientConnection):
             self._close()
 
     def _serve(self) -> None:
+        held = [0]  # bytes of `pending` counted against the server's PENDING_TOTAL_LIMIT_BYTES
+        try:
+            self._serve_held(held)
+        finally:
+            _hold(self.server, -held[0])
+
+    def _serve_held(self, held: list[int]) -> None:
         pending = bytearray()
         started = 0.0  # time.monotonic() when the first byte of the packet in `pending` came
         timeout_s = getattr(self.server, "packet_timeout_s", PACKET_TIMEOUT_S)
@@ -149,6 +161,11 @@ class FramedConnection(AdsClientConnection):
                 return
             if not pending:
                 started = time.monotonic()
+            if not _hold(self.server, len(data)):
+                self._lost(f"sent {len(pending) + len(data)} bytes of unfinished packets while the clients together "
+                           f"hold {PENDING_TOTAL_LIMIT_BYTES} (the PLC's limit): connection closed")
+                return
+            held[0] += len(data)
             pending += data
             while len(pending) >= AMS_TCP_HEADER_BYTES and self._run:
                 refused = _refusal(pending)
@@ -160,6 +177,8 @@ class FramedConnection(AdsClientConnection):
                     break  # the rest of this packet is still on its way
                 packet = bytes(pending[:end])
                 del pending[:end]
+                _hold(self.server, -end)
+                held[0] -= end
                 started = time.monotonic()
                 self._answer(packet)
 
@@ -254,6 +273,20 @@ class FramedConnection(AdsClientConnection):
         self.client.close()
 
 
+def _hold(server: object, change: int) -> bool:
+    """Count `change` bytes of unfinished packets against the server's PENDING_TOTAL_LIMIT_BYTES
+    (a negative change gives them back); False, and nothing counted, when they do not fit."""
+    lock = getattr(server, "pending_lock", None)
+    if lock is None:  # pyads' own server: no budget
+        return True
+    with lock:
+        total = server.pending_bytes + change  # type: ignore[attr-defined]
+        if change > 0 and total > PENDING_TOTAL_LIMIT_BYTES:
+            return False
+        server.pending_bytes = total  # type: ignore[attr-defined]
+        return True
+
+
 def _refusal(pending: bytearray) -> str:
     """Why the AMS/TCP header at the start of `pending` is refused ("" when it is not): a length
     beyond PACKET_LIMIT_BYTES, an AMS packet too short for its header, or a first field that is
@@ -274,6 +307,9 @@ class FramedServer(AdsTestServer):
 
     clients: list[AdsClientConnection]
     packet_timeout_s = PACKET_TIMEOUT_S
+    pending_bytes = 0
+    """Bytes of unfinished packets all its clients hold now (PENDING_TOTAL_LIMIT_BYTES bounds it)."""
+    pending_lock = threading.Lock()
     _full = False
     """CLIENT_LIMIT was reached and said (one warning line until a client leaves)."""
 
