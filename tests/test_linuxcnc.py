@@ -314,3 +314,39 @@ def test_a_record_naming_axiscals_own_group_or_no_group_is_never_a_leftover(file
     record_file.write_text(json.dumps(record.__dict__))
     assert process.find_leftover(record_file, lock_file) is None
     assert not record_file.exists()
+
+
+@pytest.mark.parametrize("kind", ["fifo", "directory", "huge"])
+def test_a_record_path_that_is_no_record_is_none_without_a_hang_or_a_traceback(files, kind):
+    """/tmp is everyone's: another user may put a FIFO there (opening it for reading waited for a
+    writer for good), a directory (reading it raised IsADirectoryError) or a huge file. None of
+    them is a record; find_leftover says none, within a second."""
+    import threading
+
+    record_file, lock_file = files
+    if kind == "fifo":
+        os.mkfifo(record_file)
+    elif kind == "directory":
+        record_file.mkdir()
+    else:
+        record_file.write_text("[" * 100_000 + "]" * 100_000)
+    found: list[object] = []
+    worker = threading.Thread(target=lambda: found.append(process.find_leftover(record_file, lock_file)), daemon=True)
+    worker.start()
+    worker.join(5.0)
+    if worker.is_alive():  # let the blocked open go, so the test process can end
+        with open(record_file, "w"):
+            pass
+        pytest.fail("find_leftover hung on a FIFO at the record's path")
+    assert found == [None]
+
+
+def test_a_directory_at_the_records_path_is_refused_before_linuxcnc_starts(files):
+    record_file, _ = files
+    process._check_record_path(record_file)  # nothing there: fine
+    record_file.write_text("{}")
+    process._check_record_path(record_file)  # a stale record: replaced
+    record_file.unlink()
+    record_file.mkdir()
+    with pytest.raises(process.AxisError, match="is a directory"):
+        process._check_record_path(record_file)

@@ -23,6 +23,7 @@ import pwd
 import shutil
 import signal
 import socket
+import stat
 import subprocess
 import tempfile
 import time
@@ -108,6 +109,11 @@ class LinuxCnc:
         if not installed():
             raise AxisError(INSTALL_HINT)
         self._lock: TextIO | None = _one_instance()
+        try:
+            _check_record_path()
+        except AxisError:
+            self._lock.close()
+            raise
         self.dir = Path(tempfile.mkdtemp(prefix=DIR_PREFIX))
         os.chmod(self.dir, 0o755)
         self.env = dict(os.environ)
@@ -177,6 +183,8 @@ linuxcncrsh's port 5007 are machine-wide), and a second would take over the firs
 RECORD_FILE = Path(tempfile.gettempdir()) / "axiscal-linuxcnc.json"
 """The LinuxCNC axiscal started and has not stopped yet (JSON: pgid, start_ticks, boot_id, dir,
 axiscal_pid, started), written by the axiscal that holds LOCK_FILE, removed when it stops it."""
+RECORD_LIMIT_BYTES = 4096
+"""The largest record file read (a record is about 250 bytes)."""
 DIR_PREFIX = "axiscal-linuxcnc-"
 """The start of the name of each LinuxCNC's temporary directory (its INI, HAL file and log)."""
 STOP_TIMEOUT_S = 30.0
@@ -303,6 +311,16 @@ def _one_instance(confirm: Callable[[str], bool] | None = None, lock_file: Path 
                     "its axis)")
 
 
+def _check_record_path(record_file: Path = RECORD_FILE) -> None:
+    """AxisError, before LinuxCNC starts, when `record_file` is there and not a file axiscal can
+    replace with its record (a directory, e.g. another user's in /tmp: the record's rename failed
+    with LinuxCNC already running)."""
+    with contextlib.suppress(FileNotFoundError):
+        if stat.S_ISDIR(os.lstat(record_file).st_mode):
+            raise AxisError(f"{record_file} is a directory, not axiscal's record of the LinuxCNC it starts; "
+                            "remove it (axiscal records there the LinuxCNC it starts, to find it after a crash)")
+
+
 def _write_record(pgid: int, directory: Path, record_file: Path = RECORD_FILE) -> Record:
     """Record the LinuxCNC just started (its `linuxcnc` script's pid leads its process group)."""
     record = Record(pgid, _start_ticks(pgid) or 0, _boot_id(), str(directory), os.getpid(),
@@ -318,19 +336,23 @@ def _write_record(pgid: int, directory: Path, record_file: Path = RECORD_FILE) -
 
 
 def _read_record(record_file: Path) -> Record | None:
-    """The record in `record_file` when this user wrote it (not a link) and it reads whole."""
+    """The record in `record_file` when this user wrote it as a plain file (not a link, a FIFO,
+    whose opening would wait for a writer, or a directory), of at most RECORD_LIMIT_BYTES, and it
+    reads whole."""
     try:
-        fd = os.open(record_file, os.O_RDONLY | os.O_NOFOLLOW)
+        fd = os.open(record_file, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
     except OSError:
         return None
-    with os.fdopen(fd) as f:
-        if os.fstat(f.fileno()).st_uid != os.geteuid():
-            return None
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode) or info.st_uid != os.geteuid() or info.st_size > RECORD_LIMIT_BYTES:
+        os.close(fd)  # before fdopen: it refuses a directory
+        return None
+    with os.fdopen(fd, "rb") as f:
         try:
-            fields = json.loads(f.read())
+            fields = json.loads(f.read(RECORD_LIMIT_BYTES))
             return Record(int(fields["pgid"]), int(fields["start_ticks"]), str(fields["boot_id"]), str(fields["dir"]),
                           int(fields["axiscal_pid"]), str(fields["started"]))
-        except (ValueError, KeyError, TypeError):
+        except (OSError, ValueError, KeyError, TypeError, RecursionError):
             return None
 
 
