@@ -269,3 +269,28 @@ def test_many_clients_each_holding_most_of_a_packet_cost_the_server_a_bounded_to
     finally:
         axis.close()
     assert peak[0] - start_mb <= RSS_BOUND_MB, f"the server's RSS grew {peak[0] - start_mb:.0f} MB"
+
+
+def test_a_client_whose_socket_is_above_fd_1023_is_served():
+    """CLIENT_LIMIT lets 1000 clients in, and a process has other files open: a client's socket
+    then gets a descriptor above 1023, which select() refuses (ValueError in its thread, a
+    traceback, the client never answered). Here the server holds 1100 files open first."""
+    code = "import os\nkeep = [os.open(os.devnull, os.O_RDONLY) for _ in range(1100)]\n" + SERVER
+    proc = subprocess.Popen([sys.executable, "-c", code, str(PACKET_TIMEOUT_S)], cwd=ROOT, stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        ip = proc.stdout.readline().strip()
+        assert ip, proc.stderr.read()
+        axis = AdsAxis(f"{ip}.1.1", ip, axis=1, timeout_s=2.0)
+        try:
+            assert axis.status().error is False
+        finally:
+            axis.close()
+    finally:
+        proc.stdin.close()
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    assert "Traceback" not in proc.stderr.read()

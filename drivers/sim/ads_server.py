@@ -144,8 +144,10 @@ class FramedConnection(AdsClientConnection):
         pending = bytearray()
         started = 0.0  # time.monotonic() when the first byte of the packet in `pending` came
         timeout_s = getattr(self.server, "packet_timeout_s", PACKET_TIMEOUT_S)
+        poller = select.poll()  # not select(): a client's descriptor may be above 1023 (CLIENT_LIMIT)
+        poller.register(self.client, select.POLLIN)
         while self._run:
-            ready, _, _ = select.select([self.client], [], [], 0.1)
+            ready = poller.poll(100)
             if not ready:
                 if pending and time.monotonic() - started > timeout_s:
                     self._lost(f"sent {len(pending)} bytes of a packet and not the rest within {timeout_s:g} s: "
@@ -315,8 +317,10 @@ class FramedServer(AdsTestServer):
 
     def run(self) -> None:
         self._run = True
+        poller = select.poll()  # not select(): it refuses a descriptor above 1023
+        poller.register(self.server, select.POLLIN)
         while self._run:
-            ready, _, _ = select.select([self.server], [], [], 0.1)
+            ready = poller.poll(100)
             if not ready:
                 continue
             try:
