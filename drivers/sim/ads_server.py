@@ -78,6 +78,11 @@ AMS_HEADER_BYTES = 32
 OUTGOING_LIMIT_BYTES = 1 << 20
 """A client whose outgoing queue holds more than this many bytes when a notification is due is
 dropped (the queue grows only once the socket's own buffers, sized by the kernel, are full)."""
+OUTGOING_TOTAL_LIMIT_BYTES = 16 << 20
+"""What all clients together may have queued (replies and notifications), bytes: each may have
+OUTGOING_LIMIT_BYTES, so a thousand clients that send reads and never read the replies held a
+GiB; a client with something queued already whose next packet would go beyond it is dropped
+(one warning line). A client that reads its replies has an empty queue and is always served."""
 CLOSE_DRAIN_S = 1.0
 """How long a connection that ends waits for its queued replies to go out, s (wall time)."""
 PACKET_LIMIT_BYTES = 1 << 20
@@ -208,11 +213,10 @@ class FramedConnection(AdsClientConnection):
             if not self._open:
                 return
             waiting = self._outgoing_bytes
-            if not self._outgoing or waiting + len(packet) <= OUTGOING_LIMIT_BYTES:
-                self._append(packet)
+            if (not self._outgoing or waiting + len(packet) <= OUTGOING_LIMIT_BYTES) and self._append(packet):
                 return
         self._lost(f"does not read what the PLC sends ({waiting} bytes waiting, the limit is "
-                   f"{OUTGOING_LIMIT_BYTES}): connection dropped")
+                   f"{OUTGOING_LIMIT_BYTES} a client and {OUTGOING_TOTAL_LIMIT_BYTES} for all): connection dropped")
 
     def _queue_reply(self, data: bytes) -> None:
         """Queue a reply, waiting for room (this client's own thread waits, nobody else)."""
@@ -220,14 +224,23 @@ class FramedConnection(AdsClientConnection):
             while (self._open and self._run and self._outgoing
                    and self._outgoing_bytes + len(data) > OUTGOING_LIMIT_BYTES):
                 self._changed.wait(0.1)
-            if self._open:
-                self._append(data)
+            waiting = self._outgoing_bytes
+            if not self._open or self._append(data):
+                return
+        self._lost(f"does not read its replies ({waiting} bytes waiting) while the clients together have "
+                   f"{OUTGOING_TOTAL_LIMIT_BYTES} waiting (the PLC's limit): connection dropped")
 
-    def _append(self, data: bytes) -> None:
-        """Queue `data` (under `_changed`)."""
+    def _append(self, data: bytes) -> bool:
+        """Queue `data` (under `_changed`), counted against the server's OUTGOING_TOTAL_LIMIT_BYTES;
+        False, and nothing queued, when that budget is spent and this client has something waiting
+        already (an empty queue, a client that reads, always gets its packet in)."""
+        if not _budget(self.server, "outgoing_bytes", OUTGOING_TOTAL_LIMIT_BYTES, len(data),
+                       force=not self._outgoing):
+            return False
         self._outgoing.append(data)
         self._outgoing_bytes += len(data)
         self._changed.notify_all()
+        return True
 
     def _send_queued(self) -> None:
         """The sender thread: write what is queued, in order, until the connection ends and the
@@ -240,6 +253,7 @@ class FramedConnection(AdsClientConnection):
                     return
                 data = self._outgoing.popleft()
                 self._outgoing_bytes -= len(data)
+                _budget(self.server, "outgoing_bytes", OUTGOING_TOTAL_LIMIT_BYTES, -len(data))
                 self._changed.notify_all()
             try:
                 self.client.sendall(data)
@@ -255,6 +269,7 @@ class FramedConnection(AdsClientConnection):
                 return
             self._open = False
             self._outgoing.clear()
+            _budget(self.server, "outgoing_bytes", OUTGOING_TOTAL_LIMIT_BYTES, -self._outgoing_bytes)
             self._outgoing_bytes = 0
             self._changed.notify_all()
         log.warning("ADS client %s:%s %s", *self.client_address[:2], why)
@@ -278,14 +293,21 @@ class FramedConnection(AdsClientConnection):
 def _hold(server: object, change: int) -> bool:
     """Count `change` bytes of unfinished packets against the server's PENDING_TOTAL_LIMIT_BYTES
     (a negative change gives them back); False, and nothing counted, when they do not fit."""
-    lock = getattr(server, "pending_lock", None)
+    return _budget(server, "pending_bytes", PENDING_TOTAL_LIMIT_BYTES, change)
+
+
+def _budget(server: object, name: str, limit: int, change: int, force: bool = False) -> bool:
+    """Count `change` bytes against the server's counter `name` (pending_bytes, outgoing_bytes),
+    bounded by `limit` unless `force`; a negative change gives bytes back. False, and nothing
+    counted, when they do not fit."""
+    lock = getattr(server, "budget_lock", None)
     if lock is None:  # pyads' own server: no budget
         return True
     with lock:
-        total = server.pending_bytes + change  # type: ignore[attr-defined]
-        if change > 0 and total > PENDING_TOTAL_LIMIT_BYTES:
+        total = getattr(server, name) + change
+        if change > 0 and not force and total > limit:
             return False
-        server.pending_bytes = total  # type: ignore[attr-defined]
+        setattr(server, name, total)
         return True
 
 
@@ -311,7 +333,9 @@ class FramedServer(AdsTestServer):
     packet_timeout_s = PACKET_TIMEOUT_S
     pending_bytes = 0
     """Bytes of unfinished packets all its clients hold now (PENDING_TOTAL_LIMIT_BYTES bounds it)."""
-    pending_lock = threading.Lock()
+    outgoing_bytes = 0
+    """Bytes of replies and notifications queued for all its clients now (OUTGOING_TOTAL_LIMIT_BYTES)."""
+    budget_lock = threading.Lock()
     _full = False
     """CLIENT_LIMIT was reached and said (one warning line until a client leaves)."""
 
