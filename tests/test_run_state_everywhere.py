@@ -34,3 +34,13 @@ def test_a_campaign_from_bluesky_documents_ends_stopped(tmp_path):
     states = events(directory, "state")
     assert states and states[-1]["data"] == {"state": "stopped", "previous": "idle", "reason": "completed"}
     assert events(directory)[-1]["kind"] == "stop"
+
+
+def test_an_event_record_with_a_time_that_is_no_time_is_refused_where_it_is_read():
+    """A hand-edited events.jsonl: t_s NaN, Infinity (json reads both) or true is no campaign time."""
+    from campaign.record import check_record
+
+    good = {"t_s": 1.5, "kind": "unpause", "message": "m", "point": None, "data": {}}
+    assert check_record(good) is None
+    for bad in (float("nan"), float("inf"), True):
+        assert check_record({**good, "t_s": bad}) == "t_s missing or of the wrong type", bad
