@@ -350,3 +350,32 @@ def test_a_directory_at_the_records_path_is_refused_before_linuxcnc_starts(files
     record_file.mkdir()
     with pytest.raises(process.AxisError, match="is a directory"):
         process._check_record_path(record_file)
+
+
+@pytest.mark.machine
+@pytest.mark.skipif(not INSTALLED, reason="LinuxCNC is not installed (tests/setup_system.sh installs "
+                    "linuxcnc-uspace)")
+def test_a_linuxcnc_whose_record_cannot_be_written_is_stopped_again(monkeypatch):
+    """The record is written after LinuxCNC starts: when that fails (a full /tmp), the LinuxCNC
+    nothing could find after a crash is stopped again and the error says why (it was left running,
+    with a traceback)."""
+    import errno
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(process, "_write_record", full)
+    started: list[int] = []
+    real_popen = subprocess.Popen
+
+    def popen(*args, **kwargs):
+        proc = real_popen(*args, **kwargs)
+        started.append(proc.pid)
+        return proc
+
+    monkeypatch.setattr(process.subprocess, "Popen", popen)
+    axis = linuxcnc_config(demo_config_text()).axis
+    with pytest.raises(AxisError, match="cannot record the LinuxCNC axiscal starts"):
+        process.LinuxCnc(axis)
+    assert started and process._group(started[0]) == []
+    assert process.find_leftover() is None

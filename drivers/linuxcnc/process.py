@@ -132,7 +132,13 @@ class LinuxCnc:
         self.proc = subprocess.Popen(["linuxcnc", str(self.dir / "axiscal.ini")], cwd=self.dir, env=self.env,
                                      stdin=subprocess.DEVNULL, stdout=self.log, stderr=subprocess.STDOUT,
                                      start_new_session=True)
-        self._record = _write_record(self.proc.pid, self.dir)
+        try:
+            self._record = _write_record(self.proc.pid, self.dir)
+        except OSError as exc:  # e.g. /tmp full: stop the LinuxCNC nothing would find after a crash
+            self._record = Record(self.proc.pid, 0, "", str(self.dir), os.getpid(), "")
+            self.stop()
+            raise AxisError(f"{RECORD_FILE}: cannot record the LinuxCNC axiscal starts ({exc.strerror or exc}); "
+                            "LinuxCNC stopped again") from None
         self._wait_for_port()
 
     def _wait_for_port(self) -> None:
