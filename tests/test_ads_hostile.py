@@ -14,6 +14,7 @@ here; the subprocess holds nothing but the simulated PLC and its ADS server."""
 
 from __future__ import annotations
 
+import contextlib
 import socket
 import struct
 import subprocess
@@ -221,3 +222,128 @@ def test_every_hostile_probe_is_refused_or_closed_and_a_normal_client_is_served_
     assert sum("that is not ADS (starting b'GET / '): connection closed" in line for line in lines) == 1, log
     assert sum(f"not the rest within {PACKET_TIMEOUT_S:g} s" in line for line in lines) == 1, log
     assert sum("of 4 bytes, too short for an AMS header (32): connection closed" in line for line in lines) == 1, log
+
+
+PARTIAL_CLIENTS = 80
+
+
+def test_many_clients_each_holding_most_of_a_packet_cost_the_server_a_bounded_total(server):
+    """Each connection may hold one unfinished packet of up to PACKET_LIMIT_BYTES (1 MiB) for
+    PACKET_TIMEOUT_S: 80 clients each sending all but the last byte of a 1 MiB packet made the
+    server hold 80 MiB at once (1000 clients: 1 GiB). All clients together get a budget: the
+    server's RSS stays within RSS_BOUND_MB of its start, the clients beyond it are closed, and a
+    normal client is served after."""
+    proc, ip = server
+    net_id = f"{ip}.1.1"
+    start_mb = rss_mb(proc.pid)
+    peak = [start_mb]
+    done = threading.Event()
+
+    def watch() -> None:
+        while not done.is_set():
+            peak[0] = max(peak[0], rss_mb(proc.pid))
+            time.sleep(0.01)
+
+    def client(sock: socket.socket) -> None:
+        with contextlib.suppress(OSError):
+            sock.sendall(struct.pack("<HI", 0, PACKET_LIMIT_BYTES) + b"\0" * (PACKET_LIMIT_BYTES - 1))
+
+    watcher = threading.Thread(target=watch)
+    watcher.start()
+    socks = [socket.create_connection((ip, 48898)) for _ in range(PARTIAL_CLIENTS)]
+    try:
+        threads = [threading.Thread(target=client, args=(s,)) for s in socks]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(30)
+        time.sleep(0.2)
+    finally:
+        done.set()
+        watcher.join()
+        for s in socks:
+            s.close()
+    axis = AdsAxis(net_id, ip, axis=1, timeout_s=1.0)
+    try:
+        assert axis.status().error is False
+    finally:
+        axis.close()
+    assert peak[0] - start_mb <= RSS_BOUND_MB, f"the server's RSS grew {peak[0] - start_mb:.0f} MB"
+
+
+def test_a_client_whose_socket_is_above_fd_1023_is_served():
+    """CLIENT_LIMIT lets 1000 clients in, and a process has other files open: a client's socket
+    then gets a descriptor above 1023, which select() refuses (ValueError in its thread, a
+    traceback, the client never answered). Here the server holds 1100 files open first."""
+    code = "import os\nkeep = [os.open(os.devnull, os.O_RDONLY) for _ in range(1100)]\n" + SERVER
+    proc = subprocess.Popen([sys.executable, "-c", code, str(PACKET_TIMEOUT_S)], cwd=ROOT, stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        ip = proc.stdout.readline().strip()
+        assert ip, proc.stderr.read()
+        axis = AdsAxis(f"{ip}.1.1", ip, axis=1, timeout_s=2.0)
+        try:
+            assert axis.status().error is False
+        finally:
+            axis.close()
+    finally:
+        proc.stdin.close()
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    assert "Traceback" not in proc.stderr.read()
+
+
+@pytest.mark.machine
+def test_many_clients_that_never_read_their_replies_cost_the_server_a_bounded_total(server):
+    """Each connection may have OUTGOING_LIMIT_BYTES (1 MiB) of replies queued: 160 clients that
+    send 600 reads of 16 kB of the PLC's data each and never read the replies grew the server's
+    RSS by 56 MB within a few seconds and on towards 160 MiB (1000 clients: a GiB). All clients
+    together get a budget (OUTGOING_TOTAL_LIMIT_BYTES): a client that does not read its replies
+    while it is spent is dropped; the server's RSS stays within RSS_BOUND_MB and a normal client is
+    served. Machine tier: the server answers the 96,000 reads for several seconds."""
+    proc, ip = server
+    net_id = f"{ip}.1.1"
+    start_mb = rss_mb(proc.pid)
+    peak = [start_mb]
+    done = threading.Event()
+    read = w.request(net_id, 2, struct.pack("<III", PLC_DATA_GROUP, 0x10000, 16_000))
+
+    def watch() -> None:
+        while not done.is_set():
+            peak[0] = max(peak[0], rss_mb(proc.pid))
+            time.sleep(0.01)
+
+    def client(sock: socket.socket) -> None:
+        sock.settimeout(10.0)
+        with contextlib.suppress(OSError):
+            for _ in range(600):
+                sock.sendall(read)
+
+    watcher = threading.Thread(target=watch)
+    watcher.start()
+    socks = [socket.create_connection((ip, 48898)) for _ in range(2 * PARTIAL_CLIENTS)]
+    for s in socks:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    try:
+        threads = [threading.Thread(target=client, args=(s,)) for s in socks]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(30)
+        time.sleep(8.0)  # the server works through what came
+    finally:
+        done.set()
+        watcher.join()
+    try:
+        axis = AdsAxis(net_id, ip, axis=1, timeout_s=1.0)
+        try:
+            assert axis.status().error is False
+        finally:
+            axis.close()
+    finally:
+        for s in socks:
+            s.close()
+    assert peak[0] - start_mb <= RSS_BOUND_MB, f"the server's RSS grew {peak[0] - start_mb:.0f} MB"

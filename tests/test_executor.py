@@ -435,3 +435,50 @@ def test_the_operator_answers_through_the_control_channel_and_nothing_else_decid
     assert outcome.status == "completed" and rows(tmp_path / "c") == expected_rows(config())
     assert [e["point"] for e in events(tmp_path / "c", "retry")] == [2]
     assert events(tmp_path / "c", "display") == []
+
+
+def failing_opener(spec, **kwargs):
+    """An opener whose controller does not answer (as an unreachable PLC)."""
+    from protocols.hardware import AxisError
+
+    raise AxisError("no answer from the controller (test)", 0)
+
+
+def test_a_campaign_whose_machine_never_opens_ends_stopped(tmp_path):
+    """The directory is made before the machine opens: when the opener fails, its events.jsonl still
+    ends in `stopped` with the reason (it held no event at all before), and resume completes it."""
+    from protocols.hardware import AxisError
+
+    with pytest.raises(AxisError):
+        start_campaign(config(), tmp_path / "c", opener=failing_opener)
+    (run,) = runs_of_states(tmp_path / "c")
+    assert run == [("idle", "stopped", ("interrupted: the machine did not open: AxisError: "
+                                        "no answer from the controller (test)"))]
+    assert resume_campaign(tmp_path / "c", opener=FakeMachine()).status == "completed"
+    assert runs_of_states(tmp_path / "c")[-1][-1] == ("idle", "stopped", "completed")
+
+
+def test_a_resume_whose_machine_never_opens_ends_stopped(tmp_path):
+    from protocols.hardware import AxisError
+
+    cfg = config_with(config(), {"campaign": {"on_fault": "abort"}})
+    start_campaign(cfg, tmp_path / "c", opener=FakeMachine(setup=lambda p: p.axis.faults.append(AxisFault(6))))
+    with pytest.raises(AxisError):
+        resume_campaign(tmp_path / "c", opener=failing_opener)
+    runs = runs_of_states(tmp_path / "c")
+    assert len(runs) == 2 and runs[-1][-1][1:] == ("stopped", ("interrupted: the machine did not open: "
+                                                               "AxisError: no answer from the controller (test)"))
+
+
+def test_a_resume_with_nothing_left_ends_stopped(tmp_path):
+    """A run killed after its last point, before its stop: the resume measures nothing and its last
+    state is `stopped` (it was the killed run's `capturing` or `moving`)."""
+    start_campaign(config(), tmp_path / "c", opener=FakeMachine())
+    for name in ("events.jsonl", "runs.jsonl"):  # as if killed before the closing move's events and stop
+        path = tmp_path / "c" / name
+        lines = path.read_text().splitlines(keepends=True)
+        keep = [ln for ln in lines if '"stop"' not in ln and '"state": "stopped"' not in ln and '"state": "idle"' not in ln]
+        path.write_text("".join(keep))
+    assert resume_campaign(tmp_path / "c", opener=FakeMachine()).status == "completed"
+    assert events(tmp_path / "c", "state")[-1]["data"]["state"] == "stopped"
+    assert events(tmp_path / "c")[-1]["kind"] == "stop"

@@ -45,3 +45,26 @@ def test_a_run_time_import_does_not_load_the_fake_machine():
             "hardware_opener(fake=True); assert 'drivers.fake' in sys.modules")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=False)
     assert proc.returncode == 0, proc.stderr[-2000:]
+
+
+def test_demo_fake_syncs_no_point_to_disk_while_a_real_campaign_syncs_every_point(cli, tmp_path, monkeypatch):
+    """Where demo --fake's wall time went: four fsyncs per point (455 for the demo, about 5 s of a
+    6 s campaign on a busy disk, for a machine that does not exist). The fake demo's recording is
+    not synced per point; a campaign on a machine (the default) still syncs every point."""
+    import os
+
+    from campaign.config import parse_config
+    from campaign.measure import start_campaign
+    from drivers.fake import FakeMachine
+    from tests.fakes import SMALL
+
+    synced: list[int] = []
+    real_fsync = os.fsync
+    monkeypatch.setattr(os, "fsync", lambda fd: (synced.append(fd), real_fsync(fd))[1])
+    result = cli("demo", "--fake", "--cycles", "1", "--out", tmp_path / "fake", "--json")
+    assert result.code == 0, result.err[-2000:]
+    assert json.loads(result.out)["points"] == 22
+    assert len(synced) <= 10, f"{len(synced)} fsyncs for 22 fake points"
+    synced.clear()
+    outcome = start_campaign(parse_config(SMALL, "small.toml"), tmp_path / "real", opener=FakeMachine())
+    assert outcome.points == 12 and len(synced) >= 3 * 12, "a campaign's points are no longer synced one by one"

@@ -300,3 +300,82 @@ def test_after_kill_9_of_the_demo_the_next_run_stops_the_linuxcnc_it_left_and_co
         assert foreign.proc.poll() is None  # left running
     finally:
         foreign.stop()
+
+
+@pytest.mark.parametrize("whose", ["ours", "zero", "init"])
+def test_a_record_naming_axiscals_own_group_or_no_group_is_never_a_leftover(files, whose):
+    """A hand-edited or foreign record (the same user: root writes /tmp's record) whose process group
+    is axiscal's own, 0 (killpg(0) signals the caller's own group) or 1 is not a leftover: stopping it
+    would SIGINT and SIGKILL axiscal itself and the shell's group. The record is dropped."""
+    record_file, lock_file = files
+    pgid = {"ours": os.getpgrp(), "zero": 0, "init": 1}[whose]
+    ticks = process._start_ticks(pgid) or 0 if pgid else 0
+    record = process.Record(pgid, ticks, process._boot_id(), "/tmp/axiscal-linuxcnc-x", 1, "2026-01-01 00:00:00")
+    record_file.write_text(json.dumps(record.__dict__))
+    assert process.find_leftover(record_file, lock_file) is None
+    assert not record_file.exists()
+
+
+@pytest.mark.parametrize("kind", ["fifo", "directory", "huge"])
+def test_a_record_path_that_is_no_record_is_none_without_a_hang_or_a_traceback(files, kind):
+    """/tmp is everyone's: another user may put a FIFO there (opening it for reading waited for a
+    writer for good), a directory (reading it raised IsADirectoryError) or a huge file. None of
+    them is a record; find_leftover says none, within a second."""
+    import threading
+
+    record_file, lock_file = files
+    if kind == "fifo":
+        os.mkfifo(record_file)
+    elif kind == "directory":
+        record_file.mkdir()
+    else:
+        record_file.write_text("[" * 100_000 + "]" * 100_000)
+    found: list[object] = []
+    worker = threading.Thread(target=lambda: found.append(process.find_leftover(record_file, lock_file)), daemon=True)
+    worker.start()
+    worker.join(5.0)
+    if worker.is_alive():  # let the blocked open go, so the test process can end
+        with open(record_file, "w"):
+            pass
+        pytest.fail("find_leftover hung on a FIFO at the record's path")
+    assert found == [None]
+
+
+def test_a_directory_at_the_records_path_is_refused_before_linuxcnc_starts(files):
+    record_file, _ = files
+    process._check_record_path(record_file)  # nothing there: fine
+    record_file.write_text("{}")
+    process._check_record_path(record_file)  # a stale record: replaced
+    record_file.unlink()
+    record_file.mkdir()
+    with pytest.raises(process.AxisError, match="is a directory"):
+        process._check_record_path(record_file)
+
+
+@pytest.mark.machine
+@pytest.mark.skipif(not INSTALLED, reason="LinuxCNC is not installed (tests/setup_system.sh installs "
+                    "linuxcnc-uspace)")
+def test_a_linuxcnc_whose_record_cannot_be_written_is_stopped_again(monkeypatch):
+    """The record is written after LinuxCNC starts: when that fails (a full /tmp), the LinuxCNC
+    nothing could find after a crash is stopped again and the error says why (it was left running,
+    with a traceback)."""
+    import errno
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(process, "_write_record", full)
+    started: list[int] = []
+    real_popen = subprocess.Popen
+
+    def popen(*args, **kwargs):
+        proc = real_popen(*args, **kwargs)
+        started.append(proc.pid)
+        return proc
+
+    monkeypatch.setattr(process.subprocess, "Popen", popen)
+    axis = linuxcnc_config(demo_config_text()).axis
+    with pytest.raises(AxisError, match="cannot record the LinuxCNC axiscal starts"):
+        process.LinuxCnc(axis)
+    assert started and process._group(started[0]) == []
+    assert process.find_leftover() is None

@@ -31,7 +31,7 @@ from campaign.config import Config, parse_config, recorded_sections
 from campaign.errors import InputError
 from campaign.measure import Captured, point_deviation
 from campaign.plan import build_plan, check_plan, plan_records
-from campaign.record import Recorder
+from campaign.record import Event, Recorder, RunState, StateData, StopData
 from protocols.hardware import InstrumentError, Reading
 
 STREAM = "axiscal_point_"
@@ -128,8 +128,13 @@ def campaign_from_documents(documents: Iterable[tuple[str, dict]], out: str | Pa
                            {"point": index, "reading": mean, "air_correction_um": air,
                             "material_correction_um": material, "capture_wait_s": 0.0, "samples": len(samples)})
         complete = len(readings) == len(plan.points)
-        recorder.stop(last, "completed" if complete else "interrupted",
-                      "" if complete else f"{len(readings)} of {len(plan.points)} points in the documents")
+        why = "" if complete else f"{len(readings)} of {len(plan.points)} points in the documents"
+        reason = "completed" if complete else f"interrupted: {why}"
+        recorder.emit(Event(last, "state", f"idle -> stopped: {reason} (a bluesky run)", None,
+                            StateData(state=RunState.STOPPED, previous=RunState.IDLE, reason=reason)))
+        recorder.emit(Event(last, "stop", f"bluesky run: {len(readings)} of {len(plan.points)} points", None,
+                            StopData(status="completed" if complete else "interrupted", points=len(readings))))
+        recorder.stop(last, "completed" if complete else "interrupted", why)
     finally:
         recorder.close()
     return Path(out)

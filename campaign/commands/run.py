@@ -99,9 +99,10 @@ def print_outcome(outcome: Outcome, args: argparse.Namespace, extra: dict | None
 
 
 def run_config(config: Config, args: argparse.Namespace, extra: dict | None = None, opener: Opener | None = None,
-               meta_extra: dict | None = None) -> int:
+               meta_extra: dict | None = None, durable: bool = True) -> int:
     """Run `config` on the machine `opener` opens (default: the one its [axis_driver] names),
-    with `meta_extra` in meta.json; print the outcome."""
+    with `meta_extra` in meta.json; print the outcome. `durable` False: the recording is not
+    fsynced per point (the fake machine's demo only)."""
     config = with_on_fault(config, args)
     if args.plot:
         check_plot_path(args.plot)
@@ -110,7 +111,7 @@ def run_config(config: Config, args: argparse.Namespace, extra: dict | None = No
     observer = RichProgress(unit)
     with observer:
         outcome = start_campaign(config, args.out, meta_extra, opener=opener or hardware_opener(), speed=args.speed,
-                                 observer=observer)
+                                 observer=observer, durable=durable)
     return finish(outcome, args, extra)
 
 

@@ -28,7 +28,7 @@ from campaign.config import Config, config_toml, config_with, parse_config, plai
 from campaign.discovery.simulate import simulate_campaign
 from campaign.model import sim_model
 from campaign.plan import build_plan, plan_records
-from campaign.record import Event, Recorder
+from campaign.record import Event, Recorder, RunState, StateData
 
 if TYPE_CHECKING:
     from campaign.history.entry import Entry
@@ -139,6 +139,8 @@ def write_campaign(directory: Path, config: Config, created: dt.datetime, truth:
                             "material_correction_um": 0.0, "capture_wait_s": float(table.optional["capture_wait_s"][i]),
                             "samples": float(table.optional["samples"][i])})
         end = float(times[-1])
+        recorder.emit(Event(end, "state", "idle -> stopped: completed (simulated re-check)", None,
+                            StateData(state=RunState.STOPPED, previous=RunState.IDLE, reason="completed")))
         recorder.emit(Event(end, "stop", f"simulated re-check: {len(table)} points", data={
             "status": "completed", "points": len(table)}))
         recorder.stop(end, "completed", "all points measured (simulated re-check)")

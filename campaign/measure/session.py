@@ -25,6 +25,8 @@ from campaign.record import (
     Recorder,
     RecordingError,
     ResumeData,
+    RunState,
+    StateData,
     StopData,
     last_raw_state,
     open_campaign,
@@ -107,8 +109,13 @@ def execute(config: Config, plan: Plan, recorder: Recorder, todo: int | list[int
     if opened is None:
         if opener is None:
             raise ValueError("execute: give an opener or opened hardware")
-        opened = opener(config.driver, speed=speed, model=model, start_position=start, start_time=t_offset,
-                        kept_dir=recorder.dir)
+        try:
+            opened = opener(config.driver, speed=speed, model=model, start_position=start, start_time=t_offset,
+                            kept_dir=recorder.dir)
+        except Exception as exc:
+            stopped_unopened(recorder, t_offset, exc)
+            recorder.close()  # it was left open (and the directory locked) before
+            raise
     hardware, parts = opened
     executor = Executor(plan, config, hardware, recorder, [observer] if observer else [],
                         t0=hardware.clock.now() - t_offset, control=control)
@@ -158,9 +165,26 @@ def execute(config: Config, plan: Plan, recorder: Recorder, todo: int | list[int
     return Outcome(recorder.dir, status, recorder.points_written, len(plan.points), duration, message)
 
 
+def publish_stopped(recorder: Recorder, t_s: float, reason: str, point: int | None = None) -> None:
+    """Record the one transition of a run that never ran (idle -> stopped, with `reason`), so the
+    directory's last state is `stopped` (campaign/record/events.py). A disk that refuses it is
+    let go: the run did not start, and the caller's own error says why."""
+    try:
+        recorder.emit(Event(t_s, "state", f"{RunState.IDLE} -> {RunState.STOPPED}: {reason}", point,
+                            StateData(state=RunState.STOPPED, previous=RunState.IDLE, reason=reason)))
+    except RecordingError:
+        pass
+
+
+def stopped_unopened(recorder: Recorder, t_s: float, exc: BaseException) -> None:
+    """A run whose machine did not open (the opener raised `exc`) ends stopped with that reason."""
+    publish_stopped(recorder, t_s, f"interrupted: the machine did not open: {type(exc).__name__}: {exc}")
+
+
 def start_campaign(config: Config, out: str | Path | None = None, meta_extra: dict[str, Any] | None = None,
-                   on_created: Callable[[Path], None] | None = None, **kwargs: Any) -> Outcome:
+                   on_created: Callable[[Path], None] | None = None, durable: bool = True, **kwargs: Any) -> Outcome:
     """A new campaign from `config` into `out` (a new directory); `meta_extra` goes into meta.json.
+    `durable` False only for the fake machine's demo (campaign.record.Recorder: no fsync per point).
     The other keywords go to `execute` (`opener` or `opened` is required)."""
     plan = build_plan(config)
     check_plan(plan, config.axis)
@@ -169,7 +193,7 @@ def start_campaign(config: Config, out: str | Path | None = None, meta_extra: di
     try:
         recorder = Recorder.create(directory, config.text, recorded_sections(config),
                                    plan_records(plan, recorded_sections(config)), meta,
-                                   config.axis.kind)
+                                   config.axis.kind, durable=durable)
     except BaseException:
         if kwargs.get("opened") is not None:
             kwargs["opened"][0].close()
@@ -249,6 +273,9 @@ def continue_campaign(r: Resumption, **kwargs: Any) -> Outcome:
     in plan order, appending to the same files. The keywords go to `execute` (`opener` or
     `opened`)."""
     if not r.todo:  # stopped after its last point, before its stop record
+        publish_stopped(r.recorder, r.t_last, "completed")
+        r.recorder.emit(Event(r.t_last, "stop", "campaign completed: nothing left to measure", None,
+                              StopData(status="completed", points=r.recorder.points_written)))
         r.recorder.stop(r.t_last, "completed", "nothing left to measure")
         r.recorder.close()
         return Outcome(r.path, "completed", len(r.plan.points), len(r.plan.points), r.t_last, "nothing left to measure")
@@ -269,7 +296,9 @@ def resume_campaign(directory: str | Path, faults: dict[str, Any] | None = None,
         return continue_campaign(r)
     try:
         opened = r.open(opener, speed)
-    except BaseException:
+    except BaseException as exc:
+        if isinstance(exc, Exception):
+            stopped_unopened(r.recorder, r.t_last, exc)
         r.close()
         raise
     return continue_campaign(r, opened=opened, speed=speed, **kwargs)

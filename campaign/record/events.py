@@ -244,7 +244,7 @@ def check_record(record: object) -> str | None:
     """What is wrong with one events.jsonl object (None when it is a valid event record)."""
     if not isinstance(record, dict):
         return "not a JSON object"
-    for name, ok in (("t_s", isinstance(record.get("t_s"), int | float)), ("kind", isinstance(record.get("kind"), str)),
+    for name, ok in (("t_s", _fits(record.get("t_s"), float)), ("kind", isinstance(record.get("kind"), str)),
                      ("message", isinstance(record.get("message"), str)),
                      ("point", record.get("point") is None or _fits(record.get("point"), int))):
         if not ok:

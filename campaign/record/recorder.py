@@ -136,11 +136,14 @@ class RecordingError(Exception):
 class Recorder:
     """Writes one campaign directory; the recording sink of the event stream (its `emit` raises
     RecordingError when the disk refuses, which stops the campaign). Use `Recorder.create` for a
-    new campaign and `Recorder.reopen` to append to an interrupted one."""
+    new campaign and `Recorder.reopen` to append to an interrupted one. `durable` False (only for
+    the fake machine's demo, whose points measure nothing): written and flushed to the system as
+    always, but not fsynced point by point or event by event, which cost most of its wall time."""
 
-    def __init__(self, directory: Path, meta: dict[str, Any], kind: str, runs_fd: int):
+    def __init__(self, directory: Path, meta: dict[str, Any], kind: str, runs_fd: int, durable: bool = True):
         """`runs_fd`: runs.jsonl, open for appending and locked by lock_directory (closed by close())."""
         self.dir = directory
+        self.durable = durable
         self.meta = meta
         self.kind = kind
         # long-lived append handles, closed by close()
@@ -159,6 +162,11 @@ class Recorder:
         self.points_written = 0
         self.fail_next_point_write = False
 
+    def _sync(self, fd: int) -> None:
+        """fsync `fd`, unless this recording is not durable (the fake machine's demo)."""
+        if self.durable:
+            os.fsync(fd)
+
     def _open(self, path: Path, newline: str | None = None) -> TextIO:
         f = open(path, "a", encoding="utf-8", newline=newline)  # noqa: SIM115 - closed by close()
         self._files.append(f)
@@ -166,9 +174,10 @@ class Recorder:
 
     @classmethod
     def create(cls, directory: str | Path, config_text: str, sections: dict[str, Any], plan_records: list[dict[str, Any]],
-               meta: dict[str, Any], kind: str) -> Recorder:
+               meta: dict[str, Any], kind: str, durable: bool = True) -> Recorder:
         """A new campaign directory: config.toml (`config_text`), meta.json (`meta` with the format
-        version, software, host, creation time and the config's `sections`) and plan.jsonl."""
+        version, software, host, creation time and the config's `sections`) and plan.jsonl.
+        `durable`: see the class (always True for a campaign on a machine)."""
         path = Path(directory)
         path.mkdir(parents=True, exist_ok=True)
         runs_fd = lock_directory(path)
@@ -187,7 +196,7 @@ class Recorder:
                 "created": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"), **meta, "config": sections}
         write_once(path / PLAN_FILE, json_lines(plan_records))
         write_once(path / META_FILE, json.dumps(full, indent=1, allow_nan=False) + "\n")
-        rec = cls(path, full, kind, runs_fd)
+        rec = cls(path, full, kind, runs_fd, durable)
         rec._raw.write(",".join(RAW_COLUMNS) + "\n")
         rec._raw.flush()
         return rec
@@ -235,7 +244,7 @@ class Recorder:
     def _point(self, run: int, direction: int, target: float, deviation: float, time_s: float,
                env: dict[str, float | None], extra: dict[str, float]) -> None:
         self._raw.flush()
-        os.fsync(self._raw.fileno())
+        self._sync(self._raw.fileno())
         if self.env_columns is None:
             self.env_columns = tuple(f for f in ENV_FIELDS if env.get(f) is not None)
             header = ["run", "direction", *AXIS_KINDS[self.kind], "time_s", *self.env_columns,
@@ -254,7 +263,7 @@ class Recorder:
             os.write(self._points_fd, row[: len(row) // 2])
             raise OSError(errno.ENOSPC, "No space left on device")
         _write_all(self._points_fd, row)
-        os.fsync(self._points_fd)
+        self._sync(self._points_fd)
         self.points_written += 1
 
     def inject_disk_full(self) -> None:
@@ -273,7 +282,7 @@ class Recorder:
                 f.write(text + "\n")
                 f.flush()
                 if durable:
-                    os.fsync(f.fileno())
+                    self._sync(f.fileno())
             except OSError as exc:
                 raise RecordingError(f"{f.name}: {exc.strerror or exc}") from exc
 
@@ -292,7 +301,7 @@ class Recorder:
         record = {"utc": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"), **record}
         try:
             _write_all(self._runs_fd, (json.dumps(record, allow_nan=False) + "\n").encode())
-            os.fsync(self._runs_fd)
+            self._sync(self._runs_fd)
         except OSError as exc:
             raise RecordingError(f"{self.dir / RUNS_FILE}: {exc.strerror or exc}") from exc
 
@@ -305,7 +314,7 @@ class Recorder:
                 continue
             try:
                 f.flush()
-                os.fsync(f.fileno())
+                self._sync(f.fileno())
             except OSError as exc:
                 failure = failure or exc
             finally:

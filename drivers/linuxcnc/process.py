@@ -23,6 +23,7 @@ import pwd
 import shutil
 import signal
 import socket
+import stat
 import subprocess
 import tempfile
 import time
@@ -108,6 +109,11 @@ class LinuxCnc:
         if not installed():
             raise AxisError(INSTALL_HINT)
         self._lock: TextIO | None = _one_instance()
+        try:
+            _check_record_path()
+        except AxisError:
+            self._lock.close()
+            raise
         self.dir = Path(tempfile.mkdtemp(prefix=DIR_PREFIX))
         os.chmod(self.dir, 0o755)
         self.env = dict(os.environ)
@@ -126,7 +132,13 @@ class LinuxCnc:
         self.proc = subprocess.Popen(["linuxcnc", str(self.dir / "axiscal.ini")], cwd=self.dir, env=self.env,
                                      stdin=subprocess.DEVNULL, stdout=self.log, stderr=subprocess.STDOUT,
                                      start_new_session=True)
-        self._record = _write_record(self.proc.pid, self.dir)
+        try:
+            self._record = _write_record(self.proc.pid, self.dir)
+        except OSError as exc:  # e.g. /tmp full: stop the LinuxCNC nothing would find after a crash
+            self._record = Record(self.proc.pid, 0, "", str(self.dir), os.getpid(), "")
+            self.stop()
+            raise AxisError(f"{RECORD_FILE}: cannot record the LinuxCNC axiscal starts ({exc.strerror or exc}); "
+                            "LinuxCNC stopped again") from None
         self._wait_for_port()
 
     def _wait_for_port(self) -> None:
@@ -177,6 +189,8 @@ linuxcncrsh's port 5007 are machine-wide), and a second would take over the firs
 RECORD_FILE = Path(tempfile.gettempdir()) / "axiscal-linuxcnc.json"
 """The LinuxCNC axiscal started and has not stopped yet (JSON: pgid, start_ticks, boot_id, dir,
 axiscal_pid, started), written by the axiscal that holds LOCK_FILE, removed when it stops it."""
+RECORD_LIMIT_BYTES = 4096
+"""The largest record file read (a record is about 250 bytes)."""
 DIR_PREFIX = "axiscal-linuxcnc-"
 """The start of the name of each LinuxCNC's temporary directory (its INI, HAL file and log)."""
 STOP_TIMEOUT_S = 30.0
@@ -241,16 +255,19 @@ def find_leftover(record_file: Path = RECORD_FILE, lock_file: Path = LOCK_FILE) 
     """The LinuxCNC an earlier axiscal started and left running, or None: none recorded, an
     axiscal holds the lock (it runs its LinuxCNC and will stop it), or the recorded one has ended
     (the stale record is removed then). Trusted only as written by this user, in this boot, its
-    process group alive and, while its leader lives, the leader the very process recorded."""
+    process group alive, not axiscal's own nor 0 or 1, and, while its leader lives, the leader the
+    very process recorded."""
     with _held(lock_file) as lock:
         if lock is None:
             return None
         record = _read_record(record_file)
         if record is None:
             return None
-        pids = _group(record.pgid)
+        # never a group of its own or none (killpg(0) signals the caller's group): a hand-edited or
+        # foreign record would have axiscal stop itself and its shell
+        pids = _group(record.pgid) if record.pgid > 1 and record.pgid != os.getpgrp() else []
         leader_ok = record.pgid not in pids or _start_ticks(record.pgid) == record.start_ticks
-        if record.boot_id != _boot_id() or not pids or not leader_ok:
+        if record.boot_id != _boot_id() or not pids or not leader_ok or os.getpid() in pids:
             _remove_record(record, record_file)
             return None
         return Leftover(record, tuple(pids), record_file, lock_file)
@@ -300,6 +317,16 @@ def _one_instance(confirm: Callable[[str], bool] | None = None, lock_file: Path 
                     "its axis)")
 
 
+def _check_record_path(record_file: Path = RECORD_FILE) -> None:
+    """AxisError, before LinuxCNC starts, when `record_file` is there and not a file axiscal can
+    replace with its record (a directory, e.g. another user's in /tmp: the record's rename failed
+    with LinuxCNC already running)."""
+    with contextlib.suppress(FileNotFoundError):
+        if stat.S_ISDIR(os.lstat(record_file).st_mode):
+            raise AxisError(f"{record_file} is a directory, not axiscal's record of the LinuxCNC it starts; "
+                            "remove it (axiscal records there the LinuxCNC it starts, to find it after a crash)")
+
+
 def _write_record(pgid: int, directory: Path, record_file: Path = RECORD_FILE) -> Record:
     """Record the LinuxCNC just started (its `linuxcnc` script's pid leads its process group)."""
     record = Record(pgid, _start_ticks(pgid) or 0, _boot_id(), str(directory), os.getpid(),
@@ -315,19 +342,23 @@ def _write_record(pgid: int, directory: Path, record_file: Path = RECORD_FILE) -
 
 
 def _read_record(record_file: Path) -> Record | None:
-    """The record in `record_file` when this user wrote it (not a link) and it reads whole."""
+    """The record in `record_file` when this user wrote it as a plain file (not a link, a FIFO,
+    whose opening would wait for a writer, or a directory), of at most RECORD_LIMIT_BYTES, and it
+    reads whole."""
     try:
-        fd = os.open(record_file, os.O_RDONLY | os.O_NOFOLLOW)
+        fd = os.open(record_file, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
     except OSError:
         return None
-    with os.fdopen(fd) as f:
-        if os.fstat(f.fileno()).st_uid != os.geteuid():
-            return None
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode) or info.st_uid != os.geteuid() or info.st_size > RECORD_LIMIT_BYTES:
+        os.close(fd)  # before fdopen: it refuses a directory
+        return None
+    with os.fdopen(fd, "rb") as f:
         try:
-            fields = json.loads(f.read())
+            fields = json.loads(f.read(RECORD_LIMIT_BYTES))
             return Record(int(fields["pgid"]), int(fields["start_ticks"]), str(fields["boot_id"]), str(fields["dir"]),
                           int(fields["axiscal_pid"]), str(fields["started"]))
-        except (ValueError, KeyError, TypeError):
+        except (OSError, ValueError, KeyError, TypeError, RecursionError):
             return None
 
 

@@ -35,7 +35,8 @@ How pyads' AdsTestServer behaves, and what this class does about it:
   HTTP/1.1` is neither), is refused
   before anything more is read: one warning line, the connection closed. A packet that has not
   arrived whole PACKET_TIMEOUT_S after its first byte (half a frame, then silence) closes the
-  connection the same way. What a request may ask for is bounded by the device
+  connection the same way. All clients together hold at most PENDING_TOTAL_LIMIT_BYTES of
+  unfinished packets (a client beyond it is closed). What a request may ask for is bounded by the device
   (`drivers.sim.ads_device`: REPLY_LIMIT_BYTES, NOTIFICATIONS_PER_CLIENT).
 - It keeps every request in `request_history`, for good (about 0.75 kB each: a polling client
   grew the demo by 75 MB in 100,000 requests). FramedConnection answers without it: the history
@@ -77,12 +78,21 @@ AMS_HEADER_BYTES = 32
 OUTGOING_LIMIT_BYTES = 1 << 20
 """A client whose outgoing queue holds more than this many bytes when a notification is due is
 dropped (the queue grows only once the socket's own buffers, sized by the kernel, are full)."""
+OUTGOING_TOTAL_LIMIT_BYTES = 16 << 20
+"""What all clients together may have queued (replies and notifications), bytes: each may have
+OUTGOING_LIMIT_BYTES, so a thousand clients that send reads and never read the replies held a
+GiB; a client with something queued already whose next packet would go beyond it is dropped
+(one warning line). A client that reads its replies has an empty queue and is always served."""
 CLOSE_DRAIN_S = 1.0
 """How long a connection that ends waits for its queued replies to go out, s (wall time)."""
 PACKET_LIMIT_BYTES = 1 << 20
 """The largest AMS packet (after the AMS/TCP header) the PLC takes; one announcing more closes the
 connection. The PLC's memory is 16.8 kB: a write of all of it, or a sum request over it, fits
 sixty times over."""
+PENDING_TOTAL_LIMIT_BYTES = 16 << 20
+"""What all clients together may have the PLC hold of packets not yet arrived whole, bytes: each
+connection may hold one of up to PACKET_LIMIT_BYTES, so without a common budget a thousand of them
+held a GiB; a client whose bytes would go beyond it is closed (one warning line)."""
 PACKET_TIMEOUT_S = 5.0
 """How long a packet may take to arrive whole after its first byte, s (wall time); a client that
 sends part of one and then nothing is closed after it."""
@@ -129,11 +139,20 @@ class FramedConnection(AdsClientConnection):
             self._close()
 
     def _serve(self) -> None:
+        held = [0]  # bytes of `pending` counted against the server's PENDING_TOTAL_LIMIT_BYTES
+        try:
+            self._serve_held(held)
+        finally:
+            _hold(self.server, -held[0])
+
+    def _serve_held(self, held: list[int]) -> None:
         pending = bytearray()
         started = 0.0  # time.monotonic() when the first byte of the packet in `pending` came
         timeout_s = getattr(self.server, "packet_timeout_s", PACKET_TIMEOUT_S)
+        poller = select.poll()  # not select(): a client's descriptor may be above 1023 (CLIENT_LIMIT)
+        poller.register(self.client, select.POLLIN)
         while self._run:
-            ready, _, _ = select.select([self.client], [], [], 0.1)
+            ready = poller.poll(100)
             if not ready:
                 if pending and time.monotonic() - started > timeout_s:
                     self._lost(f"sent {len(pending)} bytes of a packet and not the rest within {timeout_s:g} s: "
@@ -149,6 +168,11 @@ class FramedConnection(AdsClientConnection):
                 return
             if not pending:
                 started = time.monotonic()
+            if not _hold(self.server, len(data)):
+                self._lost(f"sent {len(pending) + len(data)} bytes of unfinished packets while the clients together "
+                           f"hold {PENDING_TOTAL_LIMIT_BYTES} (the PLC's limit): connection closed")
+                return
+            held[0] += len(data)
             pending += data
             while len(pending) >= AMS_TCP_HEADER_BYTES and self._run:
                 refused = _refusal(pending)
@@ -160,6 +184,8 @@ class FramedConnection(AdsClientConnection):
                     break  # the rest of this packet is still on its way
                 packet = bytes(pending[:end])
                 del pending[:end]
+                _hold(self.server, -end)
+                held[0] -= end
                 started = time.monotonic()
                 self._answer(packet)
 
@@ -187,11 +213,10 @@ class FramedConnection(AdsClientConnection):
             if not self._open:
                 return
             waiting = self._outgoing_bytes
-            if not self._outgoing or waiting + len(packet) <= OUTGOING_LIMIT_BYTES:
-                self._append(packet)
+            if (not self._outgoing or waiting + len(packet) <= OUTGOING_LIMIT_BYTES) and self._append(packet):
                 return
         self._lost(f"does not read what the PLC sends ({waiting} bytes waiting, the limit is "
-                   f"{OUTGOING_LIMIT_BYTES}): connection dropped")
+                   f"{OUTGOING_LIMIT_BYTES} a client and {OUTGOING_TOTAL_LIMIT_BYTES} for all): connection dropped")
 
     def _queue_reply(self, data: bytes) -> None:
         """Queue a reply, waiting for room (this client's own thread waits, nobody else)."""
@@ -199,14 +224,23 @@ class FramedConnection(AdsClientConnection):
             while (self._open and self._run and self._outgoing
                    and self._outgoing_bytes + len(data) > OUTGOING_LIMIT_BYTES):
                 self._changed.wait(0.1)
-            if self._open:
-                self._append(data)
+            waiting = self._outgoing_bytes
+            if not self._open or self._append(data):
+                return
+        self._lost(f"does not read its replies ({waiting} bytes waiting) while the clients together have "
+                   f"{OUTGOING_TOTAL_LIMIT_BYTES} waiting (the PLC's limit): connection dropped")
 
-    def _append(self, data: bytes) -> None:
-        """Queue `data` (under `_changed`)."""
+    def _append(self, data: bytes) -> bool:
+        """Queue `data` (under `_changed`), counted against the server's OUTGOING_TOTAL_LIMIT_BYTES;
+        False, and nothing queued, when that budget is spent and this client has something waiting
+        already (an empty queue, a client that reads, always gets its packet in)."""
+        if not _budget(self.server, "outgoing_bytes", OUTGOING_TOTAL_LIMIT_BYTES, len(data),
+                       force=not self._outgoing):
+            return False
         self._outgoing.append(data)
         self._outgoing_bytes += len(data)
         self._changed.notify_all()
+        return True
 
     def _send_queued(self) -> None:
         """The sender thread: write what is queued, in order, until the connection ends and the
@@ -219,6 +253,7 @@ class FramedConnection(AdsClientConnection):
                     return
                 data = self._outgoing.popleft()
                 self._outgoing_bytes -= len(data)
+                _budget(self.server, "outgoing_bytes", OUTGOING_TOTAL_LIMIT_BYTES, -len(data))
                 self._changed.notify_all()
             try:
                 self.client.sendall(data)
@@ -234,6 +269,7 @@ class FramedConnection(AdsClientConnection):
                 return
             self._open = False
             self._outgoing.clear()
+            _budget(self.server, "outgoing_bytes", OUTGOING_TOTAL_LIMIT_BYTES, -self._outgoing_bytes)
             self._outgoing_bytes = 0
             self._changed.notify_all()
         log.warning("ADS client %s:%s %s", *self.client_address[:2], why)
@@ -252,6 +288,27 @@ class FramedConnection(AdsClientConnection):
                 self.client.shutdown(socket.SHUT_RDWR)
             self._sender.join()
         self.client.close()
+
+
+def _hold(server: object, change: int) -> bool:
+    """Count `change` bytes of unfinished packets against the server's PENDING_TOTAL_LIMIT_BYTES
+    (a negative change gives them back); False, and nothing counted, when they do not fit."""
+    return _budget(server, "pending_bytes", PENDING_TOTAL_LIMIT_BYTES, change)
+
+
+def _budget(server: object, name: str, limit: int, change: int, force: bool = False) -> bool:
+    """Count `change` bytes against the server's counter `name` (pending_bytes, outgoing_bytes),
+    bounded by `limit` unless `force`; a negative change gives bytes back. False, and nothing
+    counted, when they do not fit."""
+    lock = getattr(server, "budget_lock", None)
+    if lock is None:  # pyads' own server: no budget
+        return True
+    with lock:
+        total = getattr(server, name) + change
+        if change > 0 and not force and total > limit:
+            return False
+        setattr(server, name, total)
+        return True
 
 
 def _refusal(pending: bytearray) -> str:
@@ -274,13 +331,20 @@ class FramedServer(AdsTestServer):
 
     clients: list[AdsClientConnection]
     packet_timeout_s = PACKET_TIMEOUT_S
+    pending_bytes = 0
+    """Bytes of unfinished packets all its clients hold now (PENDING_TOTAL_LIMIT_BYTES bounds it)."""
+    outgoing_bytes = 0
+    """Bytes of replies and notifications queued for all its clients now (OUTGOING_TOTAL_LIMIT_BYTES)."""
+    budget_lock = threading.Lock()
     _full = False
     """CLIENT_LIMIT was reached and said (one warning line until a client leaves)."""
 
     def run(self) -> None:
         self._run = True
+        poller = select.poll()  # not select(): it refuses a descriptor above 1023
+        poller.register(self.server, select.POLLIN)
         while self._run:
-            ready, _, _ = select.select([self.server], [], [], 0.1)
+            ready = poller.poll(100)
             if not ready:
                 continue
             try:
