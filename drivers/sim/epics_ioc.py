@@ -44,7 +44,7 @@ import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
-from caproto import AlarmSeverity, AlarmStatus, ChannelType
+from caproto import AlarmSeverity, AlarmStatus, ChannelType, get_beacon_address_list
 from caproto.asyncio.server import Context
 from caproto.server import PVGroup, pvproperty
 
@@ -84,8 +84,12 @@ _ENV_LOCK = threading.Lock()
 
 def _not_a_beacon_failure(record: logging.LogRecord) -> bool:
     """Nobody listens for beacons on loopback (no CA repeater runs here): caproto's server logs every
-    beacon that finds no listener as an error; those lines say nothing about the IOC."""
-    return not record.getMessage().startswith("Failed to send beacon")
+    beacon that finds no listener on loopback as an error; those lines say nothing about the IOC. A
+    failure to send a beacon anywhere else is let through (it would mean one was sent off loopback)."""
+    if not record.getMessage().startswith("Failed to send beacon"):
+        return True
+    address = record.args[0] if isinstance(record.args, tuple) and record.args else None
+    return not (isinstance(address, tuple) and address and address[0] == LOOPBACK)
 
 
 logging.getLogger("caproto.ctx").addFilter(_not_a_beacon_failure)
@@ -101,6 +105,12 @@ def loopback_environment(port: int) -> dict[str, str]:
         "EPICS_CAS_BEACON_ADDR_LIST": LOOPBACK, "EPICS_CAS_AUTO_BEACON_ADDR_LIST": "NO",
         "EPICS_CAS_BEACON_PORT": str(port + 1), "EPICS_CAS_SERVER_PORT": str(port),
     }
+
+
+def beacon_addresses() -> list[tuple[str, int]]:
+    """The (host, port) a caproto server made now would send its beacons to, as this process's
+    EPICS_CAS_* variables say."""
+    return [(str(host), int(port)) for host, port in get_beacon_address_list()]
 
 
 def free_loopback_port() -> int:
@@ -209,14 +219,23 @@ class SimMotorIoc:
         """Serve the PVs (again): the other side of `stop()`."""
         if self._server is not None:
             return
-        async def serve() -> None:
-            with environment(self.environment):
-                context = self._context = Context(self.group.pvdb, interfaces=[LOOPBACK])
-            context.ca_server_port = self.port
-            await context.run()
-
         async def spawn() -> asyncio.Task[None]:
-            return asyncio.get_running_loop().create_task(serve())
+            # caproto reads the EPICS_* variables twice: when the context is made and again inside
+            # run(), where it makes its beacon sockets; the loopback settings stay in os.environ
+            # until those sockets exist (or run() ended), or beacons would go to 255.255.255.255.
+            with environment(self.environment):
+                if (beacons := beacon_addresses()) and any(host != LOOPBACK for host, _ in beacons):
+                    raise OSError(f"the simulated IOC would send beacons off loopback: {beacons}")
+                context = self._context = Context(self.group.pvdb, interfaces=[LOOPBACK])
+                context.ca_server_port = self.port
+                task = asyncio.get_running_loop().create_task(context.run())
+                deadline = time.monotonic() + 5.0
+                while not context.beacon_socks and not task.done():
+                    if time.monotonic() > deadline:
+                        task.cancel()
+                        raise OSError(f"the simulated IOC made no beacon socket on {LOOPBACK}")
+                    await asyncio.sleep(0.001)
+            return task
 
         server = self._server = self._call(spawn())
         deadline = time.monotonic() + 5.0
