@@ -288,6 +288,17 @@ def test_an_ecmc_table_round_trips_through_verify_over_epics(tmp_path):
     assert np.allclose(written["reverse"], written["forward"])
 
 
+def test_a_record_in_another_unit_is_refused_before_anything_moves(ioc):
+    """The record's EGU (mm here) must be the config's axis unit: a rotary config (deg) is refused
+    with InputError naming axis.unit and the EGU, before any write; the same unit is accepted."""
+    from drivers.epics.axis import EpicsAxis
+
+    with pytest.raises(InputError, match=r"axis.unit.*'deg'.*EGU is 'mm'"):
+        EpicsAxis("SIM:T1", limits=(-5.0, 90.0), unit="deg", where="rotary.toml")
+    assert ioc.requests == []  # nothing was asked to move
+    EpicsAxis("SIM:T1", limits=(-5.0, 90.0), unit="mm").close()
+
+
 def test_the_ioc_applies_our_ecmc_file_as_ecmc_does_and_the_error_goes(ioc):
     """The ecmc file axiscal writes, loaded into the simulated IOC as ecmc loads it and applied as
     ecmc's encoder applies it (position = raw − scale·value(raw), the loop closed on it): moved

@@ -68,6 +68,8 @@ COMP_PVS = {"afForward": ":Comp:Forward", "afReverse": ":Comp:Reverse", "fStart"
 serves them only where its database and controller logic provide them, docs/epics.md)."""
 
 SPMG_GO = 3
+UNIT_NAMES = {"mm": {"mm"}, "deg": {"deg", "degree", "degrees", "°"}}
+"""The EGU spellings a motor record may use for each axis unit (compared in lower case)."""
 MOVE_ACCEPT_S = 0.5
 """How long start_move waits for the record to show the move (DMOV 0), real s."""
 
@@ -77,13 +79,14 @@ class EpicsAxis:
     say (implements protocols.hardware.Axis).
 
     limits: the config's soft limits (low, high), axis unit: InputError when they reach beyond the
-        record's LLM/HLM. read_only: a dry run: reads work, every write raises AxisError.
+        record's LLM/HLM. unit: the config's axis unit ("mm", "deg"): InputError when the record's
+        EGU names another one. read_only: a dry run: reads work, every write raises AxisError.
     timeout_s: how long each Channel Access read or write may take, real s.
     AxisError (error_id 0) when the record does not answer when opened.
     """
 
     def __init__(self, prefix: str, *, limits: tuple[float, float] | None = None, read_only: bool = False,
-                 timeout_s: float = 2.0, where: str = ""):
+                 timeout_s: float = 2.0, where: str = "", unit: str | None = None):
         self.prefix = prefix
         self.read_only = read_only
         self.timeout_s = timeout_s
@@ -101,7 +104,7 @@ class EpicsAxis:
                 except TimeoutError:
                     raise AxisError(f"motor record {prefix}: {pv.name} did not connect within {timeout_s:g} s; "
                                     "check the IOC is running and EPICS_CA_ADDR_LIST reaches it", 0) from None
-            self._check_record(limits)
+            self._check_record(limits, unit)
         except BaseException:
             self._context.disconnect()
             raise
@@ -231,7 +234,14 @@ class EpicsAxis:
 
     # --- Channel Access ----------------------------------------------------------------------
 
-    def _check_record(self, limits: tuple[float, float] | None) -> None:
+    def _check_record(self, limits: tuple[float, float] | None, unit: str | None) -> None:
+        if unit is not None:
+            data = self._get(self._pv["EGU"])  # a DBF_STRING: [b"mm"]
+            first = data[0] if len(data) else b""
+            egu = (first.decode("latin-1") if isinstance(first, bytes) else str(first)).strip("\x00 ")
+            if egu.lower() not in UNIT_NAMES.get(unit, {unit.lower()}):
+                raise InputError(f"{self._where}: key 'axis.unit': '{unit}', but the motor record {self.prefix}'s "
+                                 f"EGU is '{egu[:20]}'; positions would be read in the wrong unit: make them agree")
         low, high = self._read("LLM"), self._read("HLM")
         if limits is not None and high > low and not (low <= limits[0] and limits[1] <= high):
             raise InputError(f"{self._where}: axis soft limits [{limits[0]:g}, {limits[1]:g}] reach beyond the motor "

@@ -33,7 +33,7 @@ def open_epics(spec: DriverSpec, speed: float | None, model: ErrorModel | None, 
     limits = (axis_spec.soft_limit_min, axis_spec.soft_limit_max)
     if inst.type != "sim":
         axis = EpicsAxis(drv.pv, limits=limits, read_only=drv.read_only, timeout_s=drv.timeout_s,
-                         where=spec.source)
+                         where=spec.source, unit=axis_spec.unit)
         try:
             interferometer = SerialInterferometer(inst.port, inst.baudrate, inst.line, inst.mode, inst.timeout_s)
         except InstrumentError as exc:
@@ -80,7 +80,7 @@ def _open_sim_ioc(spec: DriverSpec, speed: float | None, model: ErrorModel | Non
         instrument = SimInterferometer(clock, physics.measure, inst.line, inst.rate_hz, inst.mode)
         closers.append(instrument.close)
         axis = EpicsAxis(pv, limits=(axis_spec.soft_limit_min, axis_spec.soft_limit_max),
-                         read_only=drv.read_only, timeout_s=drv.timeout_s, where=spec.source)
+                         read_only=drv.read_only, timeout_s=drv.timeout_s, where=spec.source, unit=axis_spec.unit)
         closers.append(axis.close)
         interferometer = SerialInterferometer(instrument.port_name, inst.baudrate, inst.line, inst.mode,
                                               inst.timeout_s)
