@@ -82,3 +82,16 @@ def test_a_bad_motor_record_name_exits_2_with_one_error_line(tmp_path, capsys):
     assert main(["verify", str(tmp_path / "real.toml"), "--comp", str(tmp_path / "none.corr")]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error:") and "axis_driver.pv" in lines[0], lines
+
+
+def test_the_bluesky_extra_brings_a_channel_access_layer_for_ophyd():
+    """ophyd's EpicsMotor talks Channel Access through pyepics (its default) or caproto: `pip install
+    'axiscal[bluesky]'` must bring one, or the beamline's session cannot move a motor."""
+    import re
+    import tomllib
+    from pathlib import Path
+
+    project = tomllib.loads((Path(__file__).resolve().parents[1] / "pyproject.toml").read_text())
+    extra = project["project"]["optional-dependencies"]["bluesky"]
+    names = {re.split(r"[<>=!~\[ ;]", requirement, maxsplit=1)[0].lower() for requirement in extra}
+    assert {"bluesky", "ophyd"} <= names and names & {"pyepics", "caproto"}, extra
