@@ -81,8 +81,9 @@ def test_ecmc_rule_applied_to_our_file_removes_a_known_error(seed):
 
 
 @pytest.mark.parametrize("text, says", [
-    ("PREC=10\n0 0\n\n10 0\n20 0\n", "line 3: expected 'position value'"),  # ecmc refuses a blank line
-    ("0 0 0\n10 0\n20 0\n", "line 1: expected 'position value'"),
+    ("PREC=10\n0 0\n \n10 0\n20 0\n", "line 3: expected 'position value'"),  # a space is not an empty line
+    ("0\n10 0\n20 0\n", "line 1: expected 'position value'"),
+    ("PREC =5\n0 0\n10 0\n20 0\n", "line 1: position 'PREC' is not a number"),  # sscanf("PREC=%d") fails
     ("0 0\n10 x\n20 0\n", "line 2: value 'x' is not a number"),
     ("0 0\n10 0\n", "at least 3 rows"),
     ("0 0\n20 0\n10 0\n", "not in increasing order"),
@@ -91,3 +92,12 @@ def test_ecmc_rule_applied_to_our_file_removes_a_known_error(seed):
 def test_a_bad_ecmc_table_names_the_line(text, says):
     with pytest.raises(BAD_INPUT, match=says):
         parse("ecmc", text, "bad.corr")
+
+
+def test_ecmc_reader_takes_what_ecmcs_loader_takes():
+    """ecmcLookupTable.h: commas as spaces, empty lines skipped, text after the two numbers ignored,
+    PREC=n (also first in the file, where it makes the file recognisable as ecmc's)."""
+    text = "PREC=6\n-10, 0.0012 first row\n\n0 0\n10 -0.0008  # last\nPREC=10\n"
+    assert sniff(text) == "ecmc"
+    assert parse("ecmc", text, "x.corr") == TableRead(-10.0, 10.0, (0.0012, 0.0, -0.0008), (0.0012, 0.0, -0.0008),
+                                                      "uni")

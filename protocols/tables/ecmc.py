@@ -5,8 +5,9 @@ filename:` (ecmccfg manual, motion configuration, "yaml configuration", the enco
 One row per point, `position value`: the encoder position and the correction value there, both in
 the axis's engineering unit (mm or degree), positions increasing, at least 3 rows. ecmc
 interpolates linearly between rows and holds the first or last value outside them, and applies the
-table only to a homed encoder. A line starting with `#` is a comment; a line `PREC=n` sets the
-digits the loader reads. ecmc's loader refuses any other line, a blank one too.
+table only to a homed encoder. A line starting with `#` is a comment, an empty line is skipped, a
+line `PREC=n` sets the digits the loader reads; every other line must start with two numbers
+(comma or space between them), anything after them is ignored (`read_rows`).
 
 Sign (ecmc 10.0.0 and later; its release notes: "Change encoder lookup table correction sign. The
 loaded table will be subtracted instead of added"; ecmcEncoder.cpp; the ecmccfg manual's axis YAML:
@@ -24,6 +25,7 @@ written. One table for both directions: uni mode only.
 from __future__ import annotations
 
 import itertools
+import re
 
 from protocols.errors import FormatError
 from protocols.tables import (
@@ -37,6 +39,8 @@ from protocols.tables import (
 )
 
 MIN_ROWS = 3
+PREC_LINE = re.compile(r"PREC=\s*[+-]?\d")
+"""A precision line as ecmc's loader takes it (sscanf "PREC=%d")."""
 PREC = 10
 """The digits written in `PREC=` (ecmc's loader reads that many; its own default is 10 too)."""
 
@@ -87,19 +91,19 @@ def apply_encoder_table(raw: float, positions: list[float], values: list[float],
 
 
 def read_rows(text: str, path: str) -> list[tuple[float, float]]:
-    """The (position, value) rows as ecmc's loader reads them (comments, PREC=n, two numbers a
-    line), at least MIN_ROWS, positions increasing."""
+    """The (position, value) rows as ecmc's loader (ecmcLookupTable.h, ecmc 10/11) reads them:
+    commas count as spaces; an empty line is skipped; a line starting with `#` is a comment; a line
+    starting with `PREC=n` (no space before `=`) sets the digits read; any other line must start
+    with two numbers, and what follows them is ignored. At least MIN_ROWS rows, positions
+    increasing."""
     rows: list[tuple[float, float]] = []
     for i, line in enumerate(text.splitlines(), start=1):
-        if line.startswith("#"):
+        line = line.replace(",", " ")
+        if not line or line.startswith("#") or (line.startswith("P") and PREC_LINE.match(line)):
             continue
-        if line.startswith("P"):
-            head, _, digits = line.partition("=")
-            if head.strip() == "PREC" and digits.strip().isdigit():
-                continue
         cells = line.split()
-        if len(cells) != 2:
-            raise FormatError(f"{path}: line {i}: expected 'position value' (ecmc's loader refuses any other "
+        if len(cells) < 2:
+            raise FormatError(f"{path}: line {i}: expected 'position value' (ecmc's loader refuses this "
                               f"line), found '{line.strip()[:60]}'")
         rows.append((number(cells[0], path, i, "position"), number(cells[1], path, i)))
     if len(rows) < MIN_ROWS:
