@@ -288,6 +288,31 @@ def test_an_ecmc_table_round_trips_through_verify_over_epics(tmp_path):
     assert np.allclose(written["reverse"], written["forward"])
 
 
+def test_a_comm_alarm_is_a_lost_connection(ioc):
+    """A real motor record shows its controller's comm error as alarm status COMM_ALARM (severity
+    INVALID) and clears the MSTA bit: the driver reports a lost connection (AxisError, error_id 0),
+    which the executor waits out, not a controller fault it would reset."""
+    from caproto import AlarmSeverity, AlarmStatus
+
+    from drivers.epics.axis import EpicsAxis
+    from protocols.hardware import AxisError
+
+    axis = EpicsAxis("SIM:T1", limits=(-5.0, 90.0), timeout_s=2.0)
+    try:
+        assert not axis.status().error
+        rbv = ioc.fields.user_readback_value  # the record's alarm as RBV carries it
+        ioc._call(rbv.write(rbv.value, status=AlarmStatus.COMM, severity=AlarmSeverity.INVALID_ALARM,
+                            verify_value=False))
+        with pytest.raises(AxisError, match="lost its controller") as lost:
+            axis.status()
+        assert lost.value.error_id == 0
+        ioc._call(rbv.write(rbv.value, status=AlarmStatus.NO_ALARM, severity=AlarmSeverity.NO_ALARM,
+                            verify_value=False))
+        assert not axis.status().error  # the connection is back
+    finally:
+        axis.close()
+
+
 def test_a_record_in_another_unit_is_refused_before_anything_moves(ioc):
     """The record's EGU (mm here) must be the config's axis unit: a rotary config (deg) is refused
     with InputError naming axis.unit and the EGU, before any write; the same unit is accepted."""

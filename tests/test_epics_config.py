@@ -95,3 +95,23 @@ def test_the_bluesky_extra_brings_a_channel_access_layer_for_ophyd():
     extra = project["project"]["optional-dependencies"]["bluesky"]
     names = {re.split(r"[<>=!~\[ ;]", requirement, maxsplit=1)[0].lower() for requirement in extra}
     assert {"bluesky", "ophyd"} <= names and names & {"pyepics", "caproto"}, extra
+
+
+def test_a_missing_caproto_is_exit_2_with_one_error_line(tmp_path, monkeypatch, capsys):
+    """Without caproto (the `epics` extra not installed) an EPICS config ends in exit 2 and one
+    `error:` line saying what to install, not a traceback."""
+    import sys
+
+    from campaign.cli import main
+    from campaign.commands.epics_demo import EPICS_DRIVER
+
+    for name in [name for name in sys.modules if name == "caproto" or name.startswith(("caproto.", "drivers.epics"))]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, "caproto", None)  # import caproto raises ImportError
+    config = demo_config_text().replace('[axis_driver]\ntype = "sim"', EPICS_DRIVER).replace("cycles = 5", "cycles = 1")
+    (tmp_path / "epics.toml").write_text(config)
+    (tmp_path / "x.corr").write_text("PREC=10\n0 0\n300 0\n600 0\n")
+    assert main(["verify", str(tmp_path / "epics.toml"), "--comp", str(tmp_path / "x.corr"),
+                 "--out", str(tmp_path / "after")]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and "caproto" in lines[0], lines
