@@ -221,6 +221,30 @@ def capture_spec(given: Mapping[str, Any], where: str) -> CaptureSpec:
     return CaptureSpec(**_keys(CaptureSpec, _section_values("capture", given, where)))
 
 
+RECORD_NAME = re.compile(r"[A-Za-z0-9_\-:;<>\[\]]+")
+RECORD_NAME_MAX = 60
+"""An EPICS record name: the characters EPICS base's database accepts, at most 60 of them
+(PVNAME_STRINGSZ 61 with its terminating zero)."""
+
+
+def _check_record_name(pv: str, simulated: bool, src: str) -> None:
+    """`[axis_driver] pv` names a motor record (not one of its fields)."""
+    where = f"{src}: key 'axis_driver.pv'"
+    if not pv:
+        if simulated:
+            return  # the simulated IOC serves SIM:M1
+        raise InputError(f"{where}: required for a real IOC's motor record (e.g. pv = \"BL01:MOT1\")")
+    if "." in pv:
+        raise InputError(f"{where}: '{pv[:80]}' names a field; give the motor record's name without "
+                         f"'.{pv.partition('.')[2][:20]}' (axiscal reads and writes its fields itself)")
+    if len(pv) > RECORD_NAME_MAX:
+        raise InputError(f"{where}: {len(pv)} characters; an EPICS record name has at most {RECORD_NAME_MAX}")
+    if not RECORD_NAME.fullmatch(pv):
+        bad = next(c for c in pv if not RECORD_NAME.fullmatch(c))
+        raise InputError(f"{where}: {bad!a} is not allowed in an EPICS record name (ASCII letters, "
+                         "digits and _-:;<>[] only, no spaces)")
+
+
 def _check_consistency(s: Mapping[str, Mapping[str, Any]], src: str) -> None:
     axis, plan = s["axis"], s["plan"]
     if (axis["kind"] == "linear") != (axis["unit"] == "mm"):
@@ -242,6 +266,8 @@ def _check_consistency(s: Mapping[str, Mapping[str, Any]], src: str) -> None:
                          "for linear axes; a rotary axis (angles) takes none")
     if driver["type"] == "ads" and instrument["type"] == "sim":
         raise InputError(f"{src}: key 'instrument.type': a real axis needs a real instrument (serial)")
+    if driver["type"] == "epics":
+        _check_record_name(driver["pv"], instrument["type"] == "sim", src)
     if instrument["type"] == "serial" and not instrument["port"]:
         raise InputError(f"{src}: key 'instrument.port': required for a serial instrument")
     parse_faults(s["sim"].get("faults", {}), src)

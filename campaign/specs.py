@@ -183,8 +183,9 @@ class ControllerSpec:
         "a simulated laser, docs/linuxcnc.md) or epics (an EPICS motor record over Channel Access; with "
         "instrument.type sim, the simulated IOC on loopback, docs/epics.md)",
         choices=get_args(ControllerType), resume=True)
-    pv: str = key(str, "SIM:M1", "epics: the motor record's name (prefix of its fields .VAL, .RBV, ...)",
-                  resume=True)
+    pv: str = key(str, "", "epics: the motor record's name (prefix of its fields .VAL, .RBV, ...), ASCII "
+                  "letters, digits and _-:;<>[], at most 60 characters; required for a real IOC; empty with "
+                  "instrument.type sim: SIM:M1 on the simulated IOC", resume=True)
     comp_file: str = key(str, "",
         "linuxcnc: the COMP_FILE (type 0) LinuxCNC loads at start; empty: none", resume=True)
     ams_net_id: str = key(str, "127.0.0.1.1.1", "the PLC's AMS net id", resume=True)

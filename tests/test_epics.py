@@ -10,6 +10,7 @@ running side by side do not meet.
 from __future__ import annotations
 
 import json
+import math
 import os
 import subprocess
 import sys
@@ -285,6 +286,85 @@ def test_an_ecmc_table_round_trips_through_verify_over_epics(tmp_path):
     assert written["enabled"] and written["start"] == 0.0 and written["spacing"] == 60.0
     assert np.allclose(written["forward"], common / 1000.0, atol=1e-9)  # mm, as the file said
     assert np.allclose(written["reverse"], written["forward"])
+
+
+def test_a_comm_alarm_is_a_lost_connection(ioc):
+    """A real motor record shows its controller's comm error as alarm status COMM_ALARM (severity
+    INVALID) and clears the MSTA bit: the driver reports a lost connection (AxisError, error_id 0),
+    which the executor waits out, not a controller fault it would reset."""
+    from caproto import AlarmSeverity, AlarmStatus
+
+    from drivers.epics.axis import EpicsAxis
+    from protocols.hardware import AxisError
+
+    axis = EpicsAxis("SIM:T1", limits=(-5.0, 90.0), timeout_s=2.0)
+    try:
+        assert not axis.status().error
+        rbv = ioc.fields.user_readback_value  # the record's alarm as RBV carries it
+        ioc._call(rbv.write(rbv.value, status=AlarmStatus.COMM, severity=AlarmSeverity.INVALID_ALARM,
+                            verify_value=False))
+        with pytest.raises(AxisError, match="lost its controller") as lost:
+            axis.status()
+        assert lost.value.error_id == 0
+        ioc._call(rbv.write(rbv.value, status=AlarmStatus.NO_ALARM, severity=AlarmSeverity.NO_ALARM,
+                            verify_value=False))
+        assert not axis.status().error  # the connection is back
+    finally:
+        axis.close()
+
+
+def test_a_record_in_another_unit_is_refused_before_anything_moves(ioc):
+    """The record's EGU (mm here) must be the config's axis unit: a rotary config (deg) is refused
+    with InputError naming axis.unit and the EGU, before any write; the same unit is accepted."""
+    from drivers.epics.axis import EpicsAxis
+
+    with pytest.raises(InputError, match=r"axis.unit.*'deg'.*EGU is 'mm'"):
+        EpicsAxis("SIM:T1", limits=(-5.0, 90.0), unit="deg", where="rotary.toml")
+    assert ioc.requests == []  # nothing was asked to move
+    EpicsAxis("SIM:T1", limits=(-5.0, 90.0), unit="mm").close()
+
+
+def test_the_ioc_applies_our_ecmc_file_as_ecmc_does_and_the_error_goes(ioc):
+    """The ecmc file axiscal writes, loaded into the simulated IOC as ecmc loads it and applied as
+    ecmc's encoder applies it (position = raw − scale·value(raw), the loop closed on it): moved
+    through the record to the same targets, the axis's true position (raw + its error) lands on
+    them. The error is known here: a slope and a periodic part of the raw position."""
+    import numpy as np
+
+    from campaign.compensation.grid import ControllerTable
+    from drivers.epics.axis import EpicsAxis
+    from protocols.plc_contract import status_symbols
+    from protocols.tables import render
+
+    def error_mm(x: float) -> float:
+        return (12.0 * x / 100.0 + 4.0 * math.sin(2 * math.pi * x / 40.0)) / 1000.0
+
+    clock = stepped(ioc)
+    axis = EpicsAxis("SIM:T1", limits=(-5.0, 90.0), timeout_s=2.0)
+    targets = np.arange(10.0, 81.0, 10.0)  # (not 0: the axis starts there)
+
+    def run() -> tuple[list[float], list[float]]:
+        deviations, readbacks = [], []
+        for target in targets:
+            axis.start_move(float(target), 5.0)
+            while not axis.status().done:
+                clock.sleep(0.1)
+            raw = float(ioc.plc.value(status_symbols(ioc.plc.axis)["fActPosition"].name))
+            deviations.append(raw + error_mm(raw) - target)
+            readbacks.append(axis.status().actual_position)
+        return deviations, readbacks
+
+    try:
+        before, _ = run()
+        correction_um = -np.array(before) * 1000.0
+        table = ControllerTable("linear", 10.0, 10.0, correction_um, correction_um, correction_um, "uni", None)
+        ioc.load_encoder_table(render("ecmc", table).text, "x.corr")
+        after, readbacks = run()
+    finally:
+        axis.close()
+    assert np.allclose(readbacks, targets, atol=1e-6)  # the record reads the corrected position
+    assert max(map(abs, before)) > 0.005
+    assert max(map(abs, after)) < 0.05 * max(map(abs, before)), (before, after)
 
 
 def test_a_bluesky_run_of_the_campaign_plan_becomes_a_campaign_directory(tmp_path):

@@ -19,8 +19,8 @@ Faults, mapped onto the executor's one fault policy as the ADS axis maps its own
 
 | what the record shows | AxisStatus / exception | the executor |
 |---|---|---|
-| no answer within timeout_s, a disconnected channel, MSTA comm-error bit | AxisError, error_id 0 | waits for the connection (`reconnect_s`), then retries or skips |
-| HLS or LLS, or the MSTA limit bits | error, error_id `LIMIT_SWITCH` | halts, resets, retries from the overrun (which moves away) |
+| no answer within timeout_s, a disconnected channel, MSTA comm-error bit, alarm status COMM | AxisError, error_id 0 | waits for the connection (`reconnect_s`), then retries or skips |
+| the MSTA limit bits, or HLS/LLS with the record in alarm | error, error_id `LIMIT_SWITCH` | halts, resets, retries from the overrun (which moves away) |
 | MSTA problem bit (a drive or stall fault the controller reports) | error, error_id `PROBLEM` | halts, resets, retries |
 | alarm severity MAJOR or INVALID with none of the above | error, error_id `ALARM` | halts, resets, retries |
 | a stall the controller does not report (DMOV stays 0) | busy | `move_timeout_s`, then as a fault |
@@ -35,7 +35,7 @@ import time
 from dataclasses import replace
 from typing import Any
 
-from caproto import AlarmSeverity
+from caproto import AlarmSeverity, AlarmStatus
 from caproto.threading.client import PV, Context
 
 from campaign.errors import InputError
@@ -68,6 +68,8 @@ COMP_PVS = {"afForward": ":Comp:Forward", "afReverse": ":Comp:Reverse", "fStart"
 serves them only where its database and controller logic provide them, docs/epics.md)."""
 
 SPMG_GO = 3
+UNIT_NAMES = {"mm": {"mm"}, "deg": {"deg", "degree", "degrees", "°"}}
+"""The EGU spellings a motor record may use for each axis unit (compared in lower case)."""
 MOVE_ACCEPT_S = 0.5
 """How long start_move waits for the record to show the move (DMOV 0), real s."""
 
@@ -77,13 +79,14 @@ class EpicsAxis:
     say (implements protocols.hardware.Axis).
 
     limits: the config's soft limits (low, high), axis unit: InputError when they reach beyond the
-        record's LLM/HLM. read_only: a dry run: reads work, every write raises AxisError.
+        record's LLM/HLM. unit: the config's axis unit ("mm", "deg"): InputError when the record's
+        EGU names another one. read_only: a dry run: reads work, every write raises AxisError.
     timeout_s: how long each Channel Access read or write may take, real s.
     AxisError (error_id 0) when the record does not answer when opened.
     """
 
     def __init__(self, prefix: str, *, limits: tuple[float, float] | None = None, read_only: bool = False,
-                 timeout_s: float = 2.0, where: str = ""):
+                 timeout_s: float = 2.0, where: str = "", unit: str | None = None):
         self.prefix = prefix
         self.read_only = read_only
         self.timeout_s = timeout_s
@@ -101,7 +104,7 @@ class EpicsAxis:
                 except TimeoutError:
                     raise AxisError(f"motor record {prefix}: {pv.name} did not connect within {timeout_s:g} s; "
                                     "check the IOC is running and EPICS_CA_ADDR_LIST reaches it", 0) from None
-            self._check_record(limits)
+            self._check_record(limits, unit)
         except BaseException:
             self._context.disconnect()
             raise
@@ -110,11 +113,18 @@ class EpicsAxis:
 
     def status(self) -> AxisStatus:
         done, moving, msta = (int(self._read(field)) for field in ("DMOV", "MOVN", "MSTA"))
-        position, severity = self._read_with_severity("RBV")
-        if msta & MSTA_COMM_ERR:
-            raise AxisError(f"motor record {self.prefix}: the IOC lost its controller (MSTA comm error)", 0)
+        position, severity, alarm = self._read_with_severity("RBV")
+        if msta & MSTA_COMM_ERR or alarm == AlarmStatus.COMM:
+            # the motor record raises COMM_ALARM (INVALID) for the controller's comm error and clears
+            # the MSTA bit as it does: either one means the controller is out of reach
+            raise AxisError(f"motor record {self.prefix}: the IOC lost its controller (MSTA comm error or "
+                            "COMM alarm)", 0)
         alarmed = severity >= AlarmSeverity.MAJOR_ALARM
-        switches = alarmed and bool(self._read("HLS") or self._read("LLS"))  # a switch raises a MAJOR alarm
+        # The MSTA limit bits come from the controller and are always there. A switch raises the
+        # record's HIGH/LOW alarm only with severity HLSV, which a database may leave at NO_ALARM:
+        # HLS/LLS are read as a second source when the record is in alarm (the simulated IOC sets
+        # HLSV's equivalent to MAJOR).
+        switches = alarmed and bool(self._read("HLS") or self._read("LLS"))
         limit = switches or bool(msta & (MSTA_PLUS_LS | MSTA_MINUS_LS))
         problem = bool(msta & MSTA_PROBLEM)
         error_id = LIMIT_SWITCH if limit else PROBLEM if problem else ALARM if alarmed else 0
@@ -231,7 +241,14 @@ class EpicsAxis:
 
     # --- Channel Access ----------------------------------------------------------------------
 
-    def _check_record(self, limits: tuple[float, float] | None) -> None:
+    def _check_record(self, limits: tuple[float, float] | None, unit: str | None) -> None:
+        if unit is not None:
+            data = self._get(self._pv["EGU"])  # a DBF_STRING: [b"mm"]
+            first = data[0] if len(data) else b""
+            egu = (first.decode("latin-1") if isinstance(first, bytes) else str(first)).strip("\x00 ")
+            if egu.lower() not in UNIT_NAMES.get(unit, {unit.lower()}):
+                raise InputError(f"{self._where}: key 'axis.unit': '{unit}', but the motor record {self.prefix}'s "
+                                 f"EGU is '{egu[:20]}'; positions would be read in the wrong unit: make them agree")
         low, high = self._read("LLM"), self._read("HLM")
         if limits is not None and high > low and not (low <= limits[0] and limits[1] <= high):
             raise InputError(f"{self._where}: axis soft limits [{limits[0]:g}, {limits[1]:g}] reach beyond the motor "
@@ -251,7 +268,8 @@ class EpicsAxis:
     def _read(self, field: str) -> float:
         return float(self._get(self._pv[field])[0])
 
-    def _read_with_severity(self, field: str) -> tuple[float, int]:
+    def _read_with_severity(self, field: str) -> tuple[float, int, int]:
+        """The field's value, its alarm severity and its alarm status."""
         pv = self._pv[field]
         if self._closed:
             raise AxisError(f"motor record {self.prefix}: connection closed")
@@ -259,7 +277,7 @@ class EpicsAxis:
             reading = pv.read(data_type="status", timeout=self.timeout_s)
         except (TimeoutError, OSError) as exc:
             raise self._lost(pv, exc) from None
-        return float(reading.data[0]), int(reading.metadata.severity)
+        return float(reading.data[0]), int(reading.metadata.severity), int(reading.metadata.status)
 
     def _get(self, pv: PV) -> Any:
         if self._closed:

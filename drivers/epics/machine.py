@@ -23,6 +23,9 @@ from drivers.factory import COMP_SEED_OFFSET, SimParts, _close
 from drivers.serial_interferometer import SerialInterferometer
 from protocols.hardware import Hardware, InstrumentError
 
+SIM_PV = "SIM:M1"
+"""The simulated IOC's motor record when the config names none."""
+
 
 def open_epics(spec: DriverSpec, speed: float | None, model: ErrorModel | None, start_position: float | None,
                start_time: float, compensated: bool) -> tuple[Hardware, SimParts | None]:
@@ -30,7 +33,7 @@ def open_epics(spec: DriverSpec, speed: float | None, model: ErrorModel | None, 
     limits = (axis_spec.soft_limit_min, axis_spec.soft_limit_max)
     if inst.type != "sim":
         axis = EpicsAxis(drv.pv, limits=limits, read_only=drv.read_only, timeout_s=drv.timeout_s,
-                         where=spec.source)
+                         where=spec.source, unit=axis_spec.unit)
         try:
             interferometer = SerialInterferometer(inst.port, inst.baudrate, inst.line, inst.mode, inst.timeout_s)
         except InstrumentError as exc:
@@ -58,7 +61,8 @@ def _open_sim_ioc(spec: DriverSpec, speed: float | None, model: ErrorModel | Non
     seed = spec.sim.seed + (COMP_SEED_OFFSET if compensated else 0)
     physics = SimAxisPhysics(plc, model or sim_model(spec.sim), axis_spec.unit, seed,
                              vacuum_readings=spec.vacuum_readings)
-    ioc = SimMotorIoc(plc, drv.pv, low=axis_spec.soft_limit_min, high=axis_spec.soft_limit_max,
+    pv = drv.pv or SIM_PV
+    ioc = SimMotorIoc(plc, pv, low=axis_spec.soft_limit_min, high=axis_spec.soft_limit_max,
                       velocity=min(axis_spec.max_velocity, 1.0), unit=axis_spec.unit)
     clock.attach(ioc.scan)
     saved = {key: os.environ.get(key) for key in ioc.environment}
@@ -75,8 +79,8 @@ def _open_sim_ioc(spec: DriverSpec, speed: float | None, model: ErrorModel | Non
     try:
         instrument = SimInterferometer(clock, physics.measure, inst.line, inst.rate_hz, inst.mode)
         closers.append(instrument.close)
-        axis = EpicsAxis(drv.pv, limits=(axis_spec.soft_limit_min, axis_spec.soft_limit_max),
-                         read_only=drv.read_only, timeout_s=drv.timeout_s, where=spec.source)
+        axis = EpicsAxis(pv, limits=(axis_spec.soft_limit_min, axis_spec.soft_limit_max),
+                         read_only=drv.read_only, timeout_s=drv.timeout_s, where=spec.source, unit=axis_spec.unit)
         closers.append(axis.close)
         interferometer = SerialInterferometer(instrument.port_name, inst.baudrate, inst.line, inst.mode,
                                               inst.timeout_s)

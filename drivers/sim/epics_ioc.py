@@ -44,7 +44,7 @@ import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
-from caproto import AlarmSeverity, AlarmStatus, ChannelType
+from caproto import AlarmSeverity, AlarmStatus, ChannelType, get_beacon_address_list
 from caproto.asyncio.server import Context
 from caproto.server import PVGroup, pvproperty
 
@@ -55,6 +55,7 @@ from drivers.sim.machine import SimAxisPhysics
 from drivers.sim.plc import SimPLC
 from protocols import plc_contract, plc_layout
 from protocols.plc_contract import Command
+from protocols.tables import ecmc
 
 LOOPBACK = "127.0.0.1"
 
@@ -84,8 +85,12 @@ _ENV_LOCK = threading.Lock()
 
 def _not_a_beacon_failure(record: logging.LogRecord) -> bool:
     """Nobody listens for beacons on loopback (no CA repeater runs here): caproto's server logs every
-    beacon that finds no listener as an error; those lines say nothing about the IOC."""
-    return not record.getMessage().startswith("Failed to send beacon")
+    beacon that finds no listener on loopback as an error; those lines say nothing about the IOC. A
+    failure to send a beacon anywhere else is let through (it would mean one was sent off loopback)."""
+    if not record.getMessage().startswith("Failed to send beacon"):
+        return True
+    address = record.args[0] if isinstance(record.args, tuple) and record.args else None
+    return not (isinstance(address, tuple) and address and address[0] == LOOPBACK)
 
 
 logging.getLogger("caproto.ctx").addFilter(_not_a_beacon_failure)
@@ -101,6 +106,12 @@ def loopback_environment(port: int) -> dict[str, str]:
         "EPICS_CAS_BEACON_ADDR_LIST": LOOPBACK, "EPICS_CAS_AUTO_BEACON_ADDR_LIST": "NO",
         "EPICS_CAS_BEACON_PORT": str(port + 1), "EPICS_CAS_SERVER_PORT": str(port),
     }
+
+
+def beacon_addresses() -> list[tuple[str, int]]:
+    """The (host, port) a caproto server made now would send its beacons to, as this process's
+    EPICS_CAS_* variables say."""
+    return [(str(host), int(port)) for host, port in get_beacon_address_list()]
 
 
 def free_loopback_port() -> int:
@@ -195,6 +206,7 @@ class SimMotorIoc:
         self._problem = False
         self._pending = False  # a move request the PLC has not shown busy for yet
         self._published: dict[str, Any] = {}
+        self._lut: tuple[list[float], list[float], float] | None = None  # ecmc's encoder table
         self._free: threading.Thread | None = None
         self._free_stop = threading.Event()
         self.requests: list[tuple[float, float, str]] = []
@@ -209,14 +221,23 @@ class SimMotorIoc:
         """Serve the PVs (again): the other side of `stop()`."""
         if self._server is not None:
             return
-        async def serve() -> None:
-            with environment(self.environment):
-                context = self._context = Context(self.group.pvdb, interfaces=[LOOPBACK])
-            context.ca_server_port = self.port
-            await context.run()
-
         async def spawn() -> asyncio.Task[None]:
-            return asyncio.get_running_loop().create_task(serve())
+            # caproto reads the EPICS_* variables twice: when the context is made and again inside
+            # run(), where it makes its beacon sockets; the loopback settings stay in os.environ
+            # until those sockets exist (or run() ended), or beacons would go to 255.255.255.255.
+            with environment(self.environment):
+                if (beacons := beacon_addresses()) and any(host != LOOPBACK for host, _ in beacons):
+                    raise OSError(f"the simulated IOC would send beacons off loopback: {beacons}")
+                context = self._context = Context(self.group.pvdb, interfaces=[LOOPBACK])
+                context.ca_server_port = self.port
+                task = asyncio.get_running_loop().create_task(context.run())
+                deadline = time.monotonic() + 5.0
+                while not context.beacon_socks and not task.done():
+                    if time.monotonic() > deadline:
+                        task.cancel()
+                        raise OSError(f"the simulated IOC made no beacon socket on {LOOPBACK}")
+                    await asyncio.sleep(0.001)
+            return task
 
         server = self._server = self._call(spawn())
         deadline = time.monotonic() + 5.0
@@ -334,6 +355,32 @@ class SimMotorIoc:
         self.plc.enabled = False  # the SimPLC stops the axis where it is
         self.plc.enabled = True
 
+    # --- ecmc's encoder lookup table -----------------------------------------------------------
+
+    def load_encoder_table(self, text: str, path: str = "lookup table", scale: float = 1.0) -> None:
+        """Load an ecmc encoder correction file (`encoder: lookuptable: filename:`, with `scale:`) as
+        ecmc does: read as ecmc's loader reads it, then applied as ecmc's encoder applies it, the
+        record's position being raw − scale·value(raw) for the drive's raw position, the loop closed
+        on that (protocols.tables.ecmc). FormatError for a file ecmc's loader refuses."""
+        rows = ecmc.read_rows(text, path)
+        self._lut = ([p for p, _ in rows], [v for _, v in rows], scale)
+
+    def _encoder_position(self, raw: float) -> float:
+        if self._lut is None:
+            return raw
+        positions, values, scale = self._lut
+        return ecmc.apply_encoder_table(raw, positions, values, scale)
+
+    def _raw_target(self, target: float) -> float:
+        """The raw position whose corrected position is `target` (where ecmc's loop stops)."""
+        raw = target
+        for _ in range(50):
+            miss = target - self._encoder_position(raw)
+            raw += miss
+            if abs(miss) < 1e-12:
+                break
+        return raw
+
     # --- the record ----------------------------------------------------------------------------
 
     async def _setup(self) -> None:
@@ -342,7 +389,7 @@ class SimMotorIoc:
         f.stop_pause_move_go.putter = self._put_spmg
         for member, attr in COMP_PVS.items():
             getattr(self.group, attr).putter = self._comp_putter(member)
-        position = self._status()["fActPosition"]
+        position = self._encoder_position(self._status()["fActPosition"])
         await self.group.motor.write(position, verify_value=False)
         # as the motor record: VAL's control and display limits are the soft limits (ophyd reads them)
         await self.group.motor.write_metadata(lower_ctrl_limit=self._low, upper_ctrl_limit=self._high,
@@ -380,7 +427,7 @@ class SimMotorIoc:
         msta |= MSTA_PROBLEM if error else 0
         msta |= MSTA_PLUS_LS if self._limit_switch > 0 else 0
         msta |= MSTA_MINUS_LS if self._limit_switch < 0 else 0
-        position = float(s["fActPosition"])
+        position = self._encoder_position(float(s["fActPosition"]))
         if self.measure is not None:
             await self.group.laser.write(float(self.measure(self._t)["position"]), verify_value=False)
         values = {"user_readback_value": position, "dial_readback_value": position,
@@ -407,7 +454,7 @@ class SimMotorIoc:
         the PLC. Returns what VAL holds afterwards."""
         f = self.fields
         current = float(self.group.motor.value)
-        position = float(self._status()["fActPosition"])
+        position = self._encoder_position(float(self._status()["fActPosition"]))
         low, high = f.user_low_limit.value, f.user_high_limit.value
         if not math.isfinite(target) or (high > low and not low <= target <= high):  # HLM = LLM: no limits
             await f.limit_violation.write(1, verify_value=False)
@@ -425,7 +472,7 @@ class SimMotorIoc:
             self._limit_switch = 0
         self._stalled_at, self._problem = None, False
         velocity = min(float(f.velocity.value), self.plc.max_velocity)
-        self._write_plc({"fPosition": target, "fVelocity": velocity, "eCommand": int(Command.MOVE_ABSOLUTE),
+        self._write_plc({"fPosition": self._raw_target(target), "fVelocity": velocity, "eCommand": int(Command.MOVE_ABSOLUTE),
                          "bExecute": True})
         self._pending = True
         self.requests.append((self._t, target, "moved"))

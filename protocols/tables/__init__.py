@@ -107,6 +107,8 @@ def sniff(text: str) -> str | None:
     head = text.lstrip("\ufeff")[:2000]
     if head.lstrip().startswith("{"):
         return "json"
+    if head.startswith("PREC="):  # ecmc's precision line, first in the file
+        return "ecmc"
     for marker, name in SIGNATURES:
         if marker in head:
             return name
