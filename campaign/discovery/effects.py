@@ -74,6 +74,31 @@ def _thermal_params(c: np.ndarray, shape: Shape, held: Shape) -> dict[str, float
     return {"growth_ppm": float(c[0]), "tau_s": shape["tau_s"], "pivot_mm": pivot}
 
 
+def _hours(data: CampaignData) -> np.ndarray:
+    """Each capture's time, h (per 3600 points without a time column), averaged over its samples."""
+    return _mean_samples(data.t) / 3600
+
+
+def _linear_drift(data: CampaignData, shape: Shape, held: Shape) -> np.ndarray:
+    h = _hours(data)
+    if "pivot_mm" in held:
+        return ((data.x - held["pivot_mm"]) * 1e-3 * h)[:, None]
+    return np.column_stack([data.x * 1e-3 * h, -1e-3 * h])
+
+
+def _linear_drift_params(c: np.ndarray, shape: Shape, held: Shape) -> dict[str, float]:
+    if "pivot_mm" in held:
+        return {"rate_ppm_per_h": float(c[0]), "pivot_mm": held["pivot_mm"]}
+    pivot = float(c[1] / c[0]) if abs(c[0]) > 1e-12 else 0.0
+    return {"rate_ppm_per_h": float(c[0]), "pivot_mm": pivot}
+
+
+def _linear_drift_ranges(data: CampaignData) -> dict[str, tuple[float, float]]:
+    """A slope change over the campaign within GROWTH_PPM; the pivot as thermal drift's."""
+    hours = _duration(data) / 3600
+    return {"rate_ppm_per_h": (-GROWTH_PPM / hours, GROWTH_PPM / hours), "pivot_mm": _thermal_ranges(data)["pivot_mm"]}
+
+
 def _nonlinear(data: CampaignData, shape: Shape, held: Shape) -> np.ndarray:
     start, end = _span(data, held)
     p2, p3 = _legendre(2 * (data.x - start) / (end - start) - 1)
@@ -178,6 +203,15 @@ class EffectForm:
     columns: Callable[[CampaignData, Shape, Shape], np.ndarray]
     to_params: Callable[[np.ndarray, Shape, Shape], dict[str, float]] | None = None
     shape_grid: Callable[[CampaignData, Shape], list[Shape]] | None = None
+    sizes: tuple[str, ...] = ()
+    """The parameters (or derived quantities, campaign.discovery.fit.DERIVED) that say how large the
+    effect is: each must be at least SIZE_SIGMAS standard errors for the effect to be named."""
+    ranges: Callable[[CampaignData], dict[str, tuple[float, float]]] | None = None
+    """Each parameter's documented physical range on this campaign (docs/error-model.md): an effect
+    with a parameter outside is not named, however well it fits."""
+
+    def physical_ranges(self, data: CampaignData) -> dict[str, tuple[float, float]]:
+        return {} if self.ranges is None else self.ranges(data)
 
     def grid(self, data: CampaignData, held: Shape) -> list[Shape]:
         """The starting values of the searched shape parameters; ValueError for an effect with none."""
@@ -191,18 +225,94 @@ class EffectForm:
         return {**{k: float(v) for k, v in zip(self.coefficients, coefs)}, **shape}
 
 
+SIZE_SIGMAS = 2.0
+"""An effect is named only when each of its sizes is at least this many of its standard errors."""
+SCALE_PPM = 2000.0
+"""The largest slope of a scale or of a reversal along the travel, µm/m (the vertical axis of Li et
+al. 2022 has -1147 µm/m of scale and -641 µm/m of backlash growth)."""
+GROWTH_PPM = 500.0
+"""The largest thermal growth (or slope change over a campaign), µm/m: a steel screw 20 K warm grows
+230 µm/m."""
+SIZE_UM = 1000.0
+"""The largest reversal, settling, periodic amplitude or bow coefficient, µm."""
+
+
+def _travel(data: CampaignData) -> float:
+    return float(np.ptp(data.x)) or 1.0
+
+
+def _dwell(data: CampaignData) -> float:
+    """The typical wait before a capture, s (in points without a time column: one point)."""
+    if data.time_source != "time_s":
+        return 1.0
+    if data.w is not None and np.any(np.isfinite(data.w)):
+        return float(np.nanmedian(np.nanmean(data.w, axis=1)))
+    ends = np.sort(np.nanmax(data.t, axis=1))
+    return float(np.median(np.diff(ends))) / 2 if len(ends) > 1 else 0.0
+
+
+def _scale_ranges(data: CampaignData) -> dict[str, tuple[float, float]]:
+    return {"ppm": (-SCALE_PPM, SCALE_PPM)}
+
+
+def _backlash_ranges(data: CampaignData) -> dict[str, tuple[float, float]]:
+    return {"b_um": (-SIZE_UM, SIZE_UM)}
+
+
+def _periodic_ranges(data: CampaignData) -> dict[str, tuple[float, float]]:
+    return {"amplitude_um": (0.0, SIZE_UM), "period_mm": period_limits(data)}
+
+
+def _thermal_ranges(data: CampaignData) -> dict[str, tuple[float, float]]:
+    """Growth within GROWTH_PPM; a time constant between the dwell and ten times the campaign; a
+    pivot within two travels of the targets (further, it is the datum drifting, not the screw)."""
+    lo, hi, travel = float(data.x.min()), float(data.x.max()), _travel(data)
+    return {"growth_ppm": (-GROWTH_PPM, GROWTH_PPM), "tau_s": (_dwell(data), 10 * _duration(data)),
+            "pivot_mm": (lo - 2 * travel, hi + 2 * travel)}
+
+
+def _bow_ranges(data: CampaignData) -> dict[str, tuple[float, float]]:
+    return {"p2_um": (-SIZE_UM, SIZE_UM), "p3_um": (-SIZE_UM, SIZE_UM)}
+
+
+def _pd_backlash_ranges(data: CampaignData) -> dict[str, tuple[float, float]]:
+    return {"b0_um": (-SIZE_UM, SIZE_UM), "k_ppm": (-SCALE_PPM, SCALE_PPM)}
+
+
+def _settling_ranges(data: CampaignData) -> dict[str, tuple[float, float]]:
+    """A size within SIZE_UM and a time constant from 1 ms to ten times the longest wait."""
+    waits = _waits(data)
+    return {"e0_um": (-SIZE_UM, SIZE_UM), "tau_s": (1e-3, 10 * float(np.nanmax(waits)))}
+
+
+ENVIRONMENT_RANGES = {"air_factor": (-0.5, 1.5), "alpha_ppm_per_k": (-5.0, 30.0)}
+"""Physically plausible environment coefficients: the share of the air index change the reading
+carries (0 to 1, with room for noise), and an expansion coefficient, µm/m per K (invar to
+aluminium and beyond)."""
+
+
+def _environment_ranges(data: CampaignData) -> dict[str, tuple[float, float]]:
+    return dict(ENVIRONMENT_RANGES)
+
+
 FORMS: dict[str, EffectForm] = {f.name: f for f in (
-    EffectForm("linear_scale", ("ppm",), (), "target", _linear_scale),
-    EffectForm("backlash", ("b_um",), (), "target", _backlash),
+    EffectForm("linear_scale", ("ppm",), (), "target", _linear_scale, sizes=("ppm",), ranges=_scale_ranges),
+    EffectForm("backlash", ("b_um",), (), "target", _backlash, sizes=("b_um",), ranges=_backlash_ranges),
     EffectForm("periodic_lead", ("sin_um", "cos_um"), ("period_mm",), "target", _periodic,
-               _periodic_params),
+               _periodic_params, sizes=("amplitude_um",), ranges=_periodic_ranges),
     EffectForm("thermal_drift", ("growth_ppm", "growth_pivot"), ("tau_s",), "run", _thermal,
-               _thermal_params, _thermal_grid),
-    EffectForm("nonlinear_lead", ("p2_um", "p3_um"), (), "target", _nonlinear, _nonlinear_params),
-    EffectForm("position_dependent_backlash", ("b0_um", "k_ppm"), (), "target", _pd_backlash),
-    EffectForm("settling", ("e0_um",), ("tau_s",), "target", _settling, None, _settling_grid),
+               _thermal_params, _thermal_grid, sizes=("growth_ppm",), ranges=_thermal_ranges),
+    EffectForm("linear_drift", ("rate_ppm_per_h", "rate_pivot"), (), "run", _linear_drift, _linear_drift_params,
+               sizes=("rate_ppm_per_h",), ranges=_linear_drift_ranges),
+    EffectForm("nonlinear_lead", ("p2_um", "p3_um"), (), "target", _nonlinear, _nonlinear_params,
+               sizes=("bow_rms_um",), ranges=_bow_ranges),
+    EffectForm("position_dependent_backlash", ("b0_um", "k_ppm"), (), "target", _pd_backlash,
+               sizes=("k_ppm",), ranges=_pd_backlash_ranges),
+    EffectForm("settling", ("e0_um",), ("tau_s",), "target", _settling, None, _settling_grid,
+               sizes=("e0_um",), ranges=_settling_ranges),
     EffectForm("environment", ("air_factor", "alpha_ppm_per_k"), (), "run", _environment,
-               _environment_params, _environment_grid),
+               _environment_params, _environment_grid, sizes=("air_factor", "alpha_ppm_per_k"),
+               ranges=_environment_ranges),
 )}
 """Effect name -> its form, in the order candidates are listed."""
 

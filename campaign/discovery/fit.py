@@ -254,10 +254,11 @@ def f_test_p(before: Fit, after: Fit, n: int) -> float:
     return float(stats.f.sf(f_value, q, dof)) if f_value > 0 else 1.0
 
 
-DERIVED = {"thermal_drift": lambda p: {"initial_rate_ppm_per_h": p["growth_ppm"] / p["tau_s"] * 3600}}
+DERIVED = {"thermal_drift": lambda p: {"initial_rate_ppm_per_h": p["growth_ppm"] / p["tau_s"] * 3600},
+           "nonlinear_lead": lambda p: {"bow_rms_um": math.sqrt(p["p2_um"] ** 2 / 5 + p["p3_um"] ** 2 / 7)}}
 """Quantities reported beside an effect's parameters, computed from them (and given an error the
 same way): thermal drift's initial rate of slope change, µm/m per hour (per 3600 points without a
-time column)."""
+time column); the bow's RMS over its span, µm (its size: P2 and P3 have RMS 1/√5 and 1/√7)."""
 ANGLES = ("phase_rad",)
 """Parameters that are angles: their differences are wrapped to (-π, π]."""
 

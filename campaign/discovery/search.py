@@ -29,13 +29,22 @@ from typing import Any
 import numpy as np
 
 from campaign.discovery.data import CampaignData
-from campaign.discovery.effects import FORMS, LASER_DATUM_MM, SHAPE_KEYS, environment_logs, fixed_shape
+from campaign.discovery.effects import (
+    ENVIRONMENT_RANGES,
+    FORMS,
+    LASER_DATUM_MM,
+    SHAPE_KEYS,
+    SIZE_SIGMAS,
+    environment_logs,
+    fixed_shape,
+)
 from campaign.discovery.fit import (
     Fit,
     Term,
     bic,
     confounders,
     cv_rms_um,
+    derived,
     drop_collinear,
     f_test_p,
     independent_periods,
@@ -47,7 +56,7 @@ from campaign.discovery.fit import (
 )
 from campaign.discovery.local import LocalError, find_local, look_elsewhere, passes, refit_local
 from campaign.errors import InputError
-from campaign.model import EFFECT_PARAMS, ErrorModel
+from campaign.model import DEFAULTS, EFFECT_PARAMS, ErrorModel
 
 ALPHA = 0.001
 """Largest p-value of the F-test (after the look-elsewhere factor) for an effect to be named."""
@@ -193,11 +202,12 @@ def start_terms(model: ErrorModel, given: dict[str, set[str]], data: CampaignDat
                          "arrival is unknown (the captures are taken as settled)")
             continue
         if name not in FORMS:  # an effect the simulator has and discovery does not (local_defect)
-            if not fixed:
-                missing = sorted(set(EFFECT_PARAMS[name]) - keys)
+            defaults = DEFAULTS.get(name, {})
+            missing = sorted(set(EFFECT_PARAMS[name]) - keys - set(defaults))
+            if missing:
                 raise InputError(f"the starting model's effects.{name} is not one discovery can fit (it is not in "
                                  f"its vocabulary): give all its parameters to hold it ({', '.join(missing)} missing)")
-            terms.append(Term(name, dict(params), True, {}))
+            terms.append(Term(name, {**defaults, **params}, True, {}))
             continue
         held = {k: v for k, v in params.items() if fixed or k in SHAPE_KEYS}
         shape = {**fixed_shape(name, data, held), **{k: held[k] for k in FORMS[name].shape if k in held}}
@@ -270,9 +280,10 @@ def candidate_names(data: CampaignData, terms: list[Term], notes: list[str]) -> 
         names.remove("environment")
         _note(notes, "environment is not looked for: the table has no air or material log that varies "
                      "(air_temp_c, air_pressure_hpa, humidity_pct, material_temp_c)")
-    if "thermal_drift" in names and len(np.unique(data.run)) < 2:
-        names.remove("thermal_drift")
-        _note(notes, "thermal_drift is not looked for: one run cannot show a run-to-run change")
+    for drift in ("thermal_drift", "linear_drift"):
+        if drift in names and len(np.unique(data.run)) < 2:
+            names.remove(drift)
+            _note(notes, f"{drift} is not looked for: one run cannot show a run-to-run change")
     return names
 
 
@@ -338,12 +349,39 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
     cand.cv_after_um = cv_rms_um(data, best.terms, groups)
     failed = [why for ok, why in ((cand.delta_bic < -BIC_MARGIN, "BIC"), (cand.p_value < ALPHA, "F-test"),
                                   (cand.cv_after_um < cand.cv_before_um, "cross-validation")) if not ok]
-    cand.verdict = "accepted" if not failed else "not significant (" + ", ".join(failed) + ")"
+    gates = [] if failed else gate_failures(data, best, name)
+    cand.verdict = ("not significant (" + ", ".join(failed) + ")" if failed else
+                    "not named (" + "; ".join(gates) + ")" if gates else "accepted")
+    failed += gates
     if not failed and len(periods) > 1 and periods[1][1] < RIVAL_MARGIN:
         cand.verdict = "period not identifiable"
     if env_note and not failed:  # which log it follows matters only when it explains something
         _note(notes, *env_note)
     return cand
+
+
+def gate_failures(data: CampaignData, fit: Fit, name: str) -> list[str]:
+    """Why `name`, fitted in `fit`, may not be named however well it fits (empty: it may): a size
+    below SIZE_SIGMAS of its standard error, or a parameter outside its documented physical range
+    (EffectForm.sizes, EffectForm.ranges; docs/error-model.md)."""
+    term = next(t for t in fit.terms if t.name == name)
+    if term.fixed:
+        return []
+    params = fit.params()[name]
+    values = {**params, **derived(name, params)}
+    errors = standard_errors(data, fit).get(name, {})
+    form = FORMS[name]
+    out = []
+    small = [f"{k} {values[k]:.3g} ± {errors[k]:.2g}" for k in form.sizes
+             if k in values and k in errors and abs(values[k]) < SIZE_SIGMAS * errors[k]]
+    if small:
+        out.append(f"size under {SIZE_SIGMAS:g}σ: {', '.join(small)}")
+    outside = [f"{k} = {params[k]:.4g} outside {lo:.4g} to {hi:.4g}" for k, (lo, hi)
+               in form.physical_ranges(data).items() if k in params and k not in term.held
+               and not lo <= params[k] <= hi]
+    if outside:
+        out.append(f"not physical: {', '.join(outside)}")
+    return out
 
 
 def period_optima(data: CampaignData, fits: list[Fit]) -> tuple[Fit, list[tuple[float, float]]]:
@@ -383,12 +421,6 @@ def period_spread_mm(periods: list[tuple[float, float]]) -> float:
     return float(np.sqrt(np.sum(weights * (values - values[0]) ** 2) / np.sum(weights)))
 
 
-PLAUSIBLE = {"air_factor": (-0.5, 1.5), "alpha_ppm_per_k": (-5.0, 30.0)}
-"""Physically plausible environment coefficients: the share of the air index change the reading
-carries (0 to 1, with room for noise), and an expansion coefficient, µm/m per K (invar to
-aluminium and beyond)."""
-
-
 def environment_variant(fits: list[Fit], n: int) -> tuple[Fit, tuple[str, str] | None]:
     """Of the environment fits with each log alone and both together, the one with the lowest BIC
     among those with plausible coefficients (all of them if none is). When the air and material
@@ -398,7 +430,7 @@ def environment_variant(fits: list[Fit], n: int) -> tuple[Fit, tuple[str, str] |
         return fit.params()["environment"]
 
     def plausible(fit: Fit) -> bool:
-        return all(lo <= coefs(fit)[k] <= hi for k, (lo, hi) in PLAUSIBLE.items() if k in coefs(fit))
+        return all(lo <= coefs(fit)[k] <= hi for k, (lo, hi) in ENVIRONMENT_RANGES.items() if k in coefs(fit))
 
     ranked = sorted(fits, key=lambda f: bic(f, n))
     chosen = next((f for f in ranked if plausible(f)), ranked[0])
@@ -561,12 +593,16 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
             # something is there that cannot be named (rivals, or a period not known): test the
             # others beside the best of it as a stand-in, so that its residual does not hide them
             stand_in = min(held, key=lambda c: c.delta_bic)
+            # its own group stays out; another unresolved group is tried again beside it (a drift
+            # seen beside an aliased period may tell its shape once the period's residual is held)
+            own = {stand_in.name} | {c.name for c in held if stand_in.name in c.verdict.split("from ", 1)[-1]
+                                     or c.verdict == f"held with {stand_in.name}, which is unresolved"}
             others = [try_candidate(data, stand_in.fitted, name, notes)
-                      for name in candidate_names(data, stand_in.fitted.terms, notes)
-                      if name not in {c.name for c in held}]
+                      for name in candidate_names(data, stand_in.fitted.terms, notes) if name not in own]
+            held = [c for c in held if c.name in own]
             others.sort(key=lambda c: (c.fit is None, c.delta_bic))
             chosen, more = choose(data, stand_in.fitted, others, notes)
-            unresolved += more
+            unresolved = [u for u in unresolved if set(u["effects"]) & own] + more
             ranking = [*held, *others]
             if chosen is not None:
                 _note(notes, f"{chosen.name} was tested beside the unresolved {stand_in.name} (as a stand-in, "
@@ -610,6 +646,7 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
                 "observable": f"a reversal of {abs(b_um):.1f} {dev} between the directions (x̄↑ − x̄↓ = "
                               f"{-b_um:+.1f} {dev}): backlash, or settling not died out; cannot tell which",
                 "params": current.params()["backlash"], "gap_without_um": without}
+    current = drop_failing(data, current, steps, notes)
     all_errors = standard_errors(data, current)
     for name in all_errors:
         add_period_spread(all_errors[name], name, spreads)
@@ -620,6 +657,19 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
                      disagreement(data, data.y - start.prediction), disagreement(data, residual), choices,
                      unresolved, errors=all_errors, remaining=remaining, remaining_beside=remaining_beside,
                      stand_in=kept, starting=starting_report(data, start, current, all_errors, given))
+
+
+def drop_failing(data: CampaignData, fit: Fit, steps: list[Step], notes: list[str]) -> Fit:
+    """The final model without any named effect that, beside what was named after it, no longer
+    passes the naming gates (gate_failures): its step is removed from `steps` and a note says why."""
+    while failing := next(((s, why) for s in steps if s.effect != "local_error"
+                           and (why := gate_failures(data, fit, s.effect))), None):
+        step, why = failing
+        steps.remove(step)
+        fit = refine(data, [t for t in fit.terms if t.name != step.effect])
+        _note(notes, f"{step.effect} is not named: beside the other effects of the final model it fails the "
+                     f"naming gates ({'; '.join(why)})")
+    return fit
 
 
 def add_period_spread(errors: dict[str, float], name: str, spreads: dict[str, float]) -> None:
@@ -668,6 +718,9 @@ HOW_TO_TELL = {
         "more targets (at least 4 per screw lead over part of the travel, offsets = \"golden\"), or the known "
         "screw lead in the model (periodic_lead.period_mm) so that only its amplitude is fitted"),
     frozenset({"thermal_drift", "linear_scale"}): "more runs over a longer time: a drift changes from run to run",
+    frozenset({"thermal_drift", "linear_drift"}): (
+        "a longer campaign (several of the drift's time constants, or a second campaign later): an exponential "
+        "growth levels off, a linear one does not"),
 }
 """What campaign separates two effects that explain the same residual."""
 HOW_TO_TELL_DEFAULT = ("a campaign that varies what separates them: more runs over a longer time for time "
@@ -677,7 +730,7 @@ PERIOD_HOW_TO_TELL = ("more targets (at least 4 per screw lead over part of the 
                       "(periodic_lead.period_mm): with the period given, only the amplitude is fitted")
 UNRESOLVED_VERDICTS = ("not told apart", "held with", "period not identifiable")
 """Verdicts of candidates that are neither named nor rejected: the data cannot resolve them."""
-CONFOUNDED_PAIRS = {frozenset({"environment", "thermal_drift"})}
+CONFOUNDED_PAIRS = {frozenset({"environment", "thermal_drift"}), frozenset({"environment", "linear_drift"})}
 """Pairs with their own way of choosing (air_or_screw), not treated as rivals."""
 
 
@@ -697,7 +750,7 @@ def choose(data: CampaignData, current: Fit, ranking: list[Candidate],
             held += hold_reversal(best, ranking, data, n, unresolved)
             continue
         rivals = [c for c in ranking if c is not best and c.fit is not None and c not in held
-                  and are_rivals(data, best, c, n)]
+                  and not c.verdict.startswith("not named") and are_rivals(data, best, c, n)]
         if not rivals:
             return best, unresolved
         group = [best, *rivals]
@@ -839,7 +892,7 @@ def air_or_screw(data: CampaignData, ranking: list[Candidate], chosen: Candidate
         return None
     other_name = "thermal_drift" if chosen.name == "environment" else "environment"
     other = next((c for c in ranking if c.name == other_name and c.fit is not None), None)
-    if other is None or not (other.accepted or other.verdict.startswith("significant")
+    if other is None or not (other.accepted or other.verdict.startswith(("significant", "not named"))
                              or other.explained_pct >= PLAUSIBLE_SHARE * chosen.explained_pct):
         return None
     env, thermal = (chosen, other) if chosen.name == "environment" else (other, chosen)
@@ -867,8 +920,9 @@ def air_or_screw(data: CampaignData, ranking: list[Candidate], chosen: Candidate
                      "about its fixed bearing" if not at_datum else
                      f"but it pivots at {pivot:.0f} mm, at the laser datum, as an air index change would: "
                      "check the air log and the laser's air compensation")
+    gated = f"; {other.name} is {other.verdict}" if other.verdict.startswith("not named") else ""
     why = (f"environment and thermal_drift both explain the run-to-run slope change (step {step}); "
-           f"chose {chosen.name}: {fit_why}, by {margin:.1f} in BIC; {pivot_why}")
+           f"chose {chosen.name}: {fit_why}, by {margin:.1f} in BIC; {pivot_why}{gated}")
     return {"step": step, "chosen": chosen.name, "other": other.name, "pivot_mm": round(pivot, 1),
             "pivot_at_laser_datum": bool(at_datum), "environment_explained_pct": round(env.explained_pct, 2),
             "thermal_drift_explained_pct": round(thermal.explained_pct, 2),
