@@ -183,10 +183,29 @@ def _environment_grid(data: CampaignData, held: Shape) -> list[Shape]:
     return variants + ([{log: 1.0 for log in logs}] if len(logs) > 1 else [])
 
 
+NYQUIST_MARGIN = 1.02
+"""On evenly spaced targets the shortest period looked for is this many times twice the spacing (at
+exactly twice the spacing a sine can sit on its zeros at every target)."""
+
+
+def even_spacing(data: CampaignData) -> float | None:
+    """The spacing of evenly spaced targets, mm (None when they are not evenly spaced: any
+    pattern of offsets breaks the aliases of a regular grid, which the period search then lists)."""
+    targets = np.unique(np.round(data.x, 6))
+    if len(targets) < 3:
+        return None
+    steps = np.diff(targets)
+    return float(np.mean(steps)) if np.ptp(steps) < 1e-3 * np.ptp(targets) else None
+
+
 def period_limits(data: CampaignData) -> tuple[float, float]:
-    """The range of periods searched, mm."""
+    """The range of periods searched, mm: the plausible screw leads (PERIOD_RANGE_MM), at most half
+    the travel, and on evenly spaced targets above twice their spacing (shorter periods alias onto
+    longer ones there). The low end may be above the high one: nothing is looked for."""
     travel = float(np.ptp(data.x)) or 1.0
-    return PERIOD_RANGE_MM[0], min(PERIOD_RANGE_MM[1], travel / 2)
+    spacing = even_spacing(data)
+    low = PERIOD_RANGE_MM[0] if spacing is None else max(PERIOD_RANGE_MM[0], 2 * NYQUIST_MARGIN * spacing)
+    return low, min(PERIOD_RANGE_MM[1], travel / 2)
 
 
 @dataclass(frozen=True)

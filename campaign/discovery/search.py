@@ -33,10 +33,13 @@ from campaign.discovery.effects import (
     ENVIRONMENT_RANGES,
     FORMS,
     LASER_DATUM_MM,
+    PERIOD_RANGE_MM,
     SHAPE_KEYS,
     SIZE_SIGMAS,
     environment_logs,
+    even_spacing,
     fixed_shape,
+    period_limits,
 )
 from campaign.discovery.fit import (
     Fit,
@@ -271,11 +274,18 @@ def candidate_names(data: CampaignData, terms: list[Term], notes: list[str]) -> 
             names.remove("settling")
             _note(notes, "settling is confounded with backlash: the dwell does not vary, so settling "
                          "is not looked for (vary the dwell to separate them)")
-    targets = np.unique(np.round(data.x, 6))
-    if "periodic_lead" in names and len(targets) > 2 and np.ptp(np.diff(targets)) < 1e-3 * np.ptp(targets):
+    low, high = period_limits(data)
+    if "periodic_lead" in names and low >= high:
         names.remove("periodic_lead")
-        _note(notes, "periodic_lead is not looked for: the targets are evenly spaced, so a screw-lead period "
-                     "aliases into a smooth bow or vanishes (plan with offsets = \"golden\" or \"random\")")
+        spacing = even_spacing(data)
+        _note(notes, f"periodic_lead is not looked for: the targets are evenly spaced {spacing:.4g} "
+                     f"{data.position_unit} apart, so a period shorter than twice that ({2 * (spacing or 0):.4g} "
+                     f"{data.position_unit}) aliases into a smooth bow or vanishes, and the screw leads looked for "
+                     f"end at {high:.4g} {data.position_unit} (plan with offsets = \"golden\" or \"random\", or "
+                     "targets closer together)")
+    elif "periodic_lead" in names and even_spacing(data) is not None and low > PERIOD_RANGE_MM[0]:
+        _note(notes, f"periodic_lead is looked for at periods from {low:.4g} to {high:.4g} {data.position_unit}: "
+                     "the targets are evenly spaced, so shorter periods alias onto longer ones")
     if "environment" in names and not environment_logs(data):
         names.remove("environment")
         _note(notes, "environment is not looked for: the table has no air or material log that varies "
