@@ -337,34 +337,47 @@ FORMS: dict[str, EffectForm] = {f.name: f for f in (
 
 
 
-def local_shape(x: np.ndarray, centre_mm: float | np.ndarray, width_mm: float) -> np.ndarray:
-    """A smooth local bump of height 1 at centre_mm, width_mm wide at half its height (a Gaussian):
-    the shape discovery gives an error outside its vocabulary (campaign.discovery.local)."""
+STEP_RISE = 2 * math.log(9)
+"""A logistic 1/(1 + e^(-z)) rises from 10 % to 90 % over this many units of z."""
+
+
+def local_shape(x: np.ndarray, centre_mm: float | np.ndarray, width_mm: float, kind: str = "bump") -> np.ndarray:
+    """A local shape of height 1 at centre_mm: a smooth bump width_mm wide at half its height (a
+    Gaussian), or a step (kind "step") rising from 0 to 1 over width_mm (10 % to 90 %, a logistic)
+    about centre_mm: the shapes discovery gives an error outside its vocabulary
+    (campaign.discovery.local)."""
+    if kind == "step":
+        z = np.clip((x - centre_mm) * STEP_RISE / max(width_mm, 1e-9), -60.0, 60.0)
+        return 1.0 / (1.0 + np.exp(-z))
     return np.exp(-4 * math.log(2) * ((x - centre_mm) / width_mm) ** 2)
 
 
-def _local(data: CampaignData, shape: Shape, held: Shape) -> np.ndarray:
-    return local_shape(data.x, shape["centre_mm"], shape["width_mm"])[:, None]
-
-
-def _local_by_direction(data: CampaignData, shape: Shape, held: Shape) -> np.ndarray:
-    bump = local_shape(data.x, shape["centre_mm"], shape["width_mm"])
-    return np.column_stack([bump * (data.d > 0), bump * (data.d < 0)])
+def _local_columns(kind: str, by_direction: bool) -> Callable[[CampaignData, Shape, Shape], np.ndarray]:
+    def columns(data: CampaignData, shape: Shape, held: Shape) -> np.ndarray:
+        g = local_shape(data.x, shape["centre_mm"], shape["width_mm"], kind)
+        if by_direction:
+            return np.column_stack([g * (data.d > 0), g * (data.d < 0)])
+        return g[:, None]
+    return columns
 
 
 LOCAL_FORMS: dict[str, EffectForm] = {f.name: f for f in (
-    EffectForm("local_error", ("amplitude_um",), (), "target", _local),
-    EffectForm("local_error_by_direction", ("plus_um", "minus_um"), (), "target", _local_by_direction),
+    EffectForm("local_error", ("amplitude_um",), (), "target", _local_columns("bump", False)),
+    EffectForm("local_error_by_direction", ("plus_um", "minus_um"), (), "target", _local_columns("bump", True)),
+    EffectForm("local_error_step", ("amplitude_um",), (), "target", _local_columns("step", False)),
+    EffectForm("local_error_step_by_direction", ("plus_um", "minus_um"), (), "target", _local_columns("step", True)),
 )}
-"""Not in the vocabulary: the smooth local term discovery adds for an error no effect of the model
-has the shape of (a screw defect, a worn zone). Its centre and width (mm) are found by its own search
-(campaign.discovery.local) and held in the term's shape; only its amplitudes are fitted with the
-model. Never a candidate, never in the saved model."""
+"""Not in the vocabulary: the local terms discovery adds for an error no effect of the model has the
+shape of (a screw defect, a worn zone, a joint between two sections): a bump or a step, in both
+directions or one amplitude per direction. Their centre and width (mm) are found by their own search
+(campaign.discovery.local) and held in the term's shape; only the amplitudes are fitted with the
+model. A second or third one on the same axis is named with "#2", "#3". Never a candidate, never in
+the saved model."""
 
 
 def form_of(name: str) -> EffectForm:
     """The least-squares form of a term in the model: a vocabulary effect or a local error."""
-    return FORMS[name] if name in FORMS else LOCAL_FORMS[name]
+    return FORMS[name] if name in FORMS else LOCAL_FORMS[name.split("#")[0]]
 
 
 SHAPE_KEYS = ("period_mm", "tau_s", "pivot_mm", "start_mm", "end_mm")

@@ -57,7 +57,7 @@ from campaign.discovery.fit import (
     shape_bounds,
     standard_errors,
 )
-from campaign.discovery.local import LocalError, find_local, look_elsewhere, passes, refit_local
+from campaign.discovery.local import LocalError, find_locals, look_elsewhere, passes, refit_local
 from campaign.errors import InputError
 from campaign.model import DEFAULTS, EFFECT_PARAMS, ErrorModel
 
@@ -165,12 +165,17 @@ class Discovery:
     averaged: dict[str, dict[str, float]] = field(default_factory=dict)
     """Beside a periodic error whose period is not identifiable: the other effects' parameters,
     averaged over its candidate periods (beside_unresolved_period); they replace the fitted ones."""
-    local: LocalError | None = None
-    """An error outside the vocabulary, in the final model as a smooth local term (not named as an
-    effect of the model, not saved with it)."""
+    local_errors: list[LocalError] = field(default_factory=list)
+    """Errors outside the vocabulary, in the final model as local terms (bumps, steps; not named as
+    effects of the model, not saved with it), along the axis."""
     starting: dict[str, dict] = field(default_factory=dict)
     """The starting model's effects, as fitted at the end: params, errors, given (the keys the
     model gave), fixed, p_value (F-test of the effect against none of it) and significant."""
+
+    @property
+    def local(self) -> LocalError | None:
+        """The first error outside the vocabulary (the one that explains most), if any."""
+        return self.local_errors[0] if self.local_errors else None
 
     def params(self) -> dict[str, dict[str, float]]:
         """The final model's parameters per effect (averaged over an unresolved period's candidates
@@ -479,49 +484,83 @@ def prefer_simpler(best: Candidate, accepted: list[Candidate], n: int, notes: li
 
 def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) -> Discovery:
     """Run discovery on a campaign from a starting model (`given`: the parameters the user gave
-    per effect; the others are fitted): the vocabulary first; then, beside what it named, an error
-    outside it (campaign.discovery.local). When one is found the vocabulary is searched again with
-    it in the model, so that no effect is named that merely soaked it up."""
-    result = search_vocabulary(data, model, given)
-    periodic = any("periodic_lead" in u["effects"] for u in result.unresolved)
-    found = find_local(data, result.final)
-    for name in [n for n in reversed(result.added) if n in MAY_SOAK] if found is None else ():
+    per effect; the others are fitted). Three routes, the one that explains the campaign best
+    (route_score) kept: the vocabulary alone; the vocabulary, then errors outside it located
+    beside what it named (campaign.discovery.local); and errors outside it located first, beside
+    the starting model, then the vocabulary beside them. A vocabulary effect is thus named only when
+    it explains the campaign better than local terms over the regions located: an effect that merely
+    soaked up a local error (a bow, a short period, a reversal) is not named."""
+    vocabulary = search_vocabulary(data, model, given)
+    periodic = any("periodic_lead" in u["effects"] for u in vocabulary.unresolved)
+    beside = find_locals(data, vocabulary.final)
+    for name in [n for n in reversed(vocabulary.added) if n in MAY_SOAK] if not beside else ():
         # a short period or a reversal may have soaked up most of it: look beside the rest
-        found = find_local(data, linear_fit(data, [t for t in result.final.terms if t.name != name]))
-        if found is not None:
+        beside = find_locals(data, linear_fit(data, [t for t in vocabulary.final.terms if t.name != name]))
+        if beside:
             break
-    if found is None:
-        return beside_unresolved_period(data, result)
-    again = search_vocabulary(data, model, given, [found.term])
-    if periodic and any("periodic_lead" in u["effects"] for u in again.unresolved):
-        _note(result.notes, f"{found.sentence()} would fit too, but the unresolved periodic error is still there "
-                            "beside it: it may be that error seen at few targets, so it is not added")
-        return beside_unresolved_period(data, result)
-    final, local = refit_local(data, again.final, found)
-    if local.term.shape != found.term.shape:  # its shape beside what is named now: search once more with it
-        third = search_vocabulary(data, model, given, [local.term])
-        if not (periodic and any("periodic_lead" in u["effects"] for u in third.unresolved)):
-            again = third
-            final, local = refit_local(data, again.final, local)
-    others = linear_fit(data, [t for t in final.terms if not t.name.startswith("local_error")])
+    first = find_locals(data, vocabulary.start) if vocabulary.added else []
+    routes = [vocabulary]
+    for found in (beside, first):
+        if found and not any(_same_places(found, r.local_errors) for r in routes[1:]):
+            route = with_locals(data, model, given, vocabulary, found, periodic)
+            if route is not None:
+                routes.append(route)
+    scores = [route_score(data, r) for r in routes]
+    best = min(range(len(routes)), key=lambda i: scores[i] + (0.0 if i == 0 else BIC_MARGIN))
+    if best and routes[0].added:
+        dropped = [name for name in routes[0].added if name not in routes[best].added]
+        for name in dropped:
+            _note(routes[best].notes, f"{name} explained part of the residual before the local errors were located; "
+                                      "beside them it is not significant: not named (it soaked up a local error)")
+    return beside_unresolved_period(data, routes[best])
+
+
+def _same_places(a: list[LocalError], b: list[LocalError]) -> bool:
+    return len(a) == len(b) and all(abs(x.params["centre_mm"] - y.params["centre_mm"]) < 1e-6 for x, y in zip(a, b))
+
+
+def route_score(data: CampaignData, result: Discovery) -> float:
+    """How well a route explains the campaign: the BIC of its final model, each local term's centre
+    and width counted with its search's look-elsewhere factor, a searched period with its own."""
     n = len(data)
-    # its centre and width count as parameters, its search as in its tests
-    with_local = bic(final, n) + 2 * math.log(n) + 2 * math.log(look_elsewhere(data))
-    if not passes(data, others, final) or with_local > bic(result.final, n) - BIC_MARGIN:
-        # beside what is named now it explains nothing more, or the vocabulary alone explains the
-        # campaign better than with it (a real period is no bump)
-        return beside_unresolved_period(data, result)
-    soaked = [name for name in result.added if name not in again.added]
-    for name in soaked:
-        _note(again.notes, f"{name} explained part of the residual before the local error was found; beside the "
-                           "local error it is not significant: not named (it soaked up the local error)")
-    again.final, again.local = final, local
-    again.start, again.gap_before_um = result.start, result.gap_before_um
-    again.disagreement_before = result.disagreement_before
+    score = bic(result.final, n)
+    score += len(result.local_errors) * (2 * math.log(n) + 2 * math.log(look_elsewhere(data)))
+    if any(t.name == "periodic_lead" and t.searched for t in result.final.terms):
+        score += 2 * math.log(independent_periods(data))
+    return score
+
+
+def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]], vocabulary: Discovery,
+                found: list[LocalError], periodic: bool) -> Discovery | None:
+    """The vocabulary searched again with the local errors `found` in the model, then each local
+    term refitted beside what is named; a local term that no longer passes its tests beside the
+    rest is left out. None when none is left, or when an unresolved period stays beside them (the
+    local error may be that period seen at few targets: said in a note)."""
+    again = search_vocabulary(data, model, given, [local.term for local in found])
+    if periodic and any("periodic_lead" in u["effects"] for u in again.unresolved):
+        _note(vocabulary.notes, f"{found[0].sentence()} would fit too, but the unresolved periodic error is still "
+                                "there beside it: it may be that error seen at few targets, so it is not added")
+        return None
+    final, kept = again.final, []
+    for local in found:
+        final, refined = refit_local(data, final, local)
+        kept.append(refined)
+    for local in list(kept):
+        without = linear_fit(data, [t for t in final.terms if t.name != local.term.name])
+        if not passes(data, without, final):
+            kept.remove(local)
+            final = without
+    if not kept:
+        return None
+    kept.sort(key=lambda e: e.params["centre_mm"])
+    again.final, again.local_errors = final, kept
+    again.start, again.gap_before_um = vocabulary.start, vocabulary.gap_before_um
+    again.disagreement_before = vocabulary.disagreement_before
     again.gap_after_um = final.rms_um(data.y)
     again.noise_um = pooled_scatter_um(data, data.y - final.prediction)
     again.disagreement_after = disagreement(data, data.y - final.prediction)
-    return beside_unresolved_period(data, again)
+    again.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_error")}
+    return again
 
 
 def beside_unresolved_period(data: CampaignData, result: Discovery) -> Discovery:
