@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from campaign.config import Config, parse_config
+from campaign.discovery.local import zones
 from campaign.discovery.search import Discovery
 from campaign.plan import build_plan
 
@@ -157,7 +158,8 @@ class Judged:
 
 
 def judge(result: Discovery, truth: Truth) -> Judged:
-    found = [(e.params["centre_mm"], e.params["width_mm"] / 2) for e in result.local_errors]
+    found = [(z.centre_mm, (z.region_mm[1] - z.region_mm[0]) / 2) for z in zones(result.local_errors)]
+    found += [(e.params["centre_mm"], e.params["width_mm"] / 2) for e in result.local_errors]
     located = truth.shape == "linear_growth" and "linear_drift" in result.added
     for centre, half in truth.regions:
         tolerance = 10.0 if truth.shape == "step" else max(half, 10.0)

@@ -52,3 +52,13 @@ def test_the_json_is_unchanged_by_the_summary(cli, tmp_path):
     out = json.loads(cli("discover", eleven_targets(tmp_path), "--json").out)
     assert {"added", "gap_before_um", "gap_after_um", "noise_um", "steps", "remaining", "unresolved", "notes",
             "model", "stand_in"} <= set(out)
+
+
+def test_a_cross_validation_that_cannot_predict_is_said_not_printed():
+    """Issue 31 item 7: `--verbose` printed `CV 0.789 -> 490191.637 µm` (a fold that cannot determine
+    an effect without its left-out points); such a number is now said in words."""
+    from campaign.commands.discover import cv_text
+
+    said = cv_text(0.789, 490191.637)
+    assert "490191" not in said and "cannot be predicted" in said and said.startswith("CV 0.789 µm -> over 10×")
+    assert cv_text(0.789, 0.654) == "CV 0.789 -> 0.654 µm"

@@ -17,7 +17,7 @@ from campaign.config import Config, load_config
 from campaign.discovery.data import CampaignData, join_campaigns, keep_rows, read_campaign, read_start_model
 from campaign.discovery.fit import derived
 from campaign.discovery.followup import FollowUp, plan_follow_up
-from campaign.discovery.local import LocalError
+from campaign.discovery.local import LocalError, Zone, zones
 from campaign.discovery.search import Candidate, Discovery, discover
 from campaign.errors import InputError
 from campaign.model import EFFECT_PARAMS, ErrorModel
@@ -188,6 +188,8 @@ def as_json(result: Discovery) -> dict:
         "unresolved": result.unresolved,
         "local": None if result.local is None else result.local.as_dict(),
         "local_errors": [local.as_dict() for local in result.local_errors],
+        "zones": [{"sentence": z.sentence, "region_mm": [round(v, 3) for v in z.region_mm],
+                   "size_um": round(z.size_um, 4)} for z in zones(result.local_errors)],
         "notes": result.notes,
     }
 
@@ -288,6 +290,11 @@ def first_clause(text: str, most: int = 70) -> str:
     return text
 
 
+def zone_said(zone: Zone) -> str:
+    """A zone in words: a local error with the error of its size and place, or a pair of steps."""
+    return local_said(zone.members[0]) if len(zone.members) == 1 else zone.sentence
+
+
 def local_said(local: LocalError) -> str:
     """A local error in words, with the error of its size and place (the axis's units)."""
     e = local.errors
@@ -311,8 +318,8 @@ def summary_lines(result: Discovery, incomplete: list[str], time_unit: str = "s"
     if not result.steps:
         lines.append("named: nothing" + (" (something is there: see unresolved)" if result.unresolved else "")
                      + (" from the model's effects" if result.local is not None else ""))
-    for local in result.local_errors:
-        lines.append(f"found outside the model: [bold]{local_said(local)}[/]; no effect of the model has this shape")
+    for zone in zones(result.local_errors):
+        lines.append(f"found outside the model: [bold]{zone_said(zone)}[/]; no effect of the model has this shape")
     if result.stand_in is not None:
         b = abs(result.stand_in["params"]["b_um"])
         lines.append(f"in the model as a stand-in: a reversal of {b:.1f} {dev} (backlash or settling)")
@@ -567,7 +574,7 @@ def write_follow_up(path: Path, text: str) -> None:
 def regions_to_measure(result: Discovery) -> list[tuple[float, float]]:
     """Where a follow-up should measure densely: the located local errors' regions when what is left
     (or what they explain) is more than noise."""
-    return [local.region_mm for local in result.local_errors]
+    return [zone.region_mm for zone in zones(result.local_errors)]
 
 
 def follow_up_lines(follow: FollowUp | None, path: str) -> list[str]:

@@ -380,3 +380,50 @@ def refit_local(data: CampaignData, fit: Fit, found: LocalError) -> tuple[Fit, L
                      p_value=found.p_value, cv_before_um=found.cv_before_um, cv_after_um=found.cv_after_um,
                      gap_without_um=linear_fit(data, others).rms_um(data.y))
     return best, again
+
+
+@dataclass(frozen=True)
+class Zone:
+    """Where one error outside the vocabulary is, in words: a local term alone, or a step up and a
+    step down of about the same size (a raised or sunken zone with a flat top, which two steps
+    follow better than one bump). region_mm: from, to; size_um: its height; sentence: what it is."""
+
+    region_mm: tuple[float, float]
+    size_um: float
+    sentence: str
+    members: tuple[LocalError, ...]
+
+    @property
+    def centre_mm(self) -> float:
+        return (self.region_mm[0] + self.region_mm[1]) / 2
+
+
+PAIRED_STEPS = 0.5
+"""Two neighbouring steps of opposite sign whose heights differ by at most this share of the larger
+are one zone."""
+
+
+def zones(errors: list[LocalError]) -> list[Zone]:
+    """The local errors along the axis as zones: neighbouring steps of opposite sign and about the same
+    height (PAIRED_STEPS) are one raised or sunken zone; every other local error is its own."""
+    ordered = sorted(errors, key=lambda e: e.params["centre_mm"])
+    out: list[Zone] = []
+    i = 0
+    while i < len(ordered):
+        a = ordered[i]
+        b = ordered[i + 1] if i + 1 < len(ordered) else None
+        if (b is not None and a.kind == b.kind == "step" and a.size_um * b.size_um < 0
+                and abs(a.size_um + b.size_um) <= PAIRED_STEPS * max(abs(a.size_um), abs(b.size_um))):
+            start, end = a.region_mm[0], b.region_mm[1]
+            size = (a.size_um - b.size_um) / 2
+            unit, dev = a.position_unit, a.deviation_unit
+            said = (f"a {'raised' if size > 0 else 'sunken'} zone of {size:+.2g} {dev} from "
+                    f"{a.params['centre_mm']:.4g} to {b.params['centre_mm']:.4g} {unit} (a step of {a.size_um:+.2g} "
+                    f"{dev} rising over {a.params['width_mm']:.2g} {unit}, one of {b.size_um:+.2g} {dev} over "
+                    f"{b.params['width_mm']:.2g} {unit}), {a._sides()}")
+            out.append(Zone((start, end), size, said, (a, b)))
+            i += 2
+            continue
+        out.append(Zone(a.region_mm, a.size_um, a.sentence(), (a,)))
+        i += 1
+    return out
