@@ -41,6 +41,10 @@ MIN_SIDE = 2
 """A step is looked for only where at least this many targets lie on each side of its rise."""
 STEP_MIN_SPACINGS = 0.2
 """The sharpest step looked for, in target spacings (its place is then known to about a spacing)."""
+MAX_CENTRES = 600
+"""The most centres on the grid (a quarter of the target spacing apart, or the travel over this)."""
+GRID_CELLS = 4_000_000
+"""Rows × centres evaluated at a time by the grid (about 32 MB per array)."""
 STEP_MAX_SHARE = 8.0
 """The widest step looked for rises over this share of the travel (wider, it is a slope change that
 the scale and the bow hold)."""
@@ -158,15 +162,18 @@ def width_range(data: CampaignData, kind: str = "bump") -> tuple[float, float] |
 
 
 def seen_at(targets: np.ndarray, centre_mm: np.ndarray, width_mm: float) -> np.ndarray:
-    """How many targets each bump sees at half its height or more (within width/2 of its centre)."""
-    return (np.abs(targets[None, :] - np.asarray(centre_mm)[..., None]) <= width_mm / 2).sum(axis=-1)
+    """How many targets (sorted) each bump sees at half its height or more (within width/2 of its
+    centre)."""
+    c = np.asarray(centre_mm, dtype=float)
+    return (np.searchsorted(targets, c + width_mm / 2, side="right")
+            - np.searchsorted(targets, c - width_mm / 2, side="left"))
 
 
 def sides(targets: np.ndarray, centre_mm: np.ndarray, width_mm: float) -> np.ndarray:
-    """The fewer of the targets below and above each step's rise."""
-    c = np.asarray(centre_mm)[..., None]
-    below = (targets[None, :] < c - width_mm / 2).sum(axis=-1)
-    above = (targets[None, :] > c + width_mm / 2).sum(axis=-1)
+    """The fewer of the targets (sorted) below and above each step's rise."""
+    c = np.asarray(centre_mm, dtype=float)
+    below = np.searchsorted(targets, c - width_mm / 2, side="left")
+    above = len(targets) - np.searchsorted(targets, c + width_mm / 2, side="right")
     return np.minimum(below, above)
 
 
@@ -207,20 +214,24 @@ def _grid_best(data: CampaignData, fit: Fit) -> tuple[str, float, float] | None:
     """The (shape, centre, width) on the grid whose term explains most of the residual beside the
     model; None when the targets can see none."""
     targets = _targets(data)
-    step = float(np.median(np.diff(targets))) / 4
+    step = max(float(np.median(np.diff(targets))) / 4, float(np.ptp(targets)) / MAX_CENTRES)
     centres = np.arange(targets[0], targets[-1] + step / 2, step)
     q, _ = np.linalg.qr(design(data, fit.terms)[0])
     r = data.y - fit.prediction
     best, power_best = None, -1.0
+    block = max(1, GRID_CELLS // max(len(data), 1))  # centres at a time: memory linear in the rows
     for kind in KINDS:
         widths = width_range(data, kind)
         if widths is None:
             continue
         for width in np.geomspace(*widths, WIDTHS):
-            g = local_shape(data.x[:, None], centres[None, :], width, kind)
-            g -= q @ (q.T @ g)
-            norm = (g * g).sum(0)
-            power = np.where(norm > 1e-12 * len(data), (r @ g) ** 2 / np.maximum(norm, 1e-300), 0.0)
+            power = np.zeros(len(centres))
+            for lo in range(0, len(centres), block):
+                c = centres[lo:lo + block]
+                g = local_shape(data.x[:, None], c[None, :], width, kind)
+                g -= q @ (q.T @ g)
+                norm = (g * g).sum(0)
+                power[lo:lo + block] = np.where(norm > 1e-12 * len(data), (r @ g) ** 2 / np.maximum(norm, 1e-300), 0.0)
             power[~_seen(targets, kind, centres, width)] = 0.0
             i = int(np.argmax(power))
             if power[i] > power_best:

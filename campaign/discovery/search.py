@@ -237,8 +237,8 @@ def default_shape(name: str, key: str, data: CampaignData) -> float:
 def disagreement(data: CampaignData, residual: np.ndarray) -> dict:
     """Where the residual (µm) lives: per target the mean; per direction the mean; per run the mean
     and the slope (µm/m); RMS values µm."""
-    targets = np.unique(np.round(data.x, 6))
-    by_target = [float(residual[np.isclose(data.x, t)].mean()) for t in targets]
+    targets, where = np.unique(np.round(data.x, 6), return_inverse=True)
+    by_target = list(np.bincount(where, residual) / np.bincount(where))
     by_run = {}
     for r in np.unique(data.run):
         pick = data.run == r
@@ -258,11 +258,11 @@ def disagreement(data: CampaignData, residual: np.ndarray) -> dict:
 def pooled_scatter_um(data: CampaignData, residual: np.ndarray) -> float:
     """Run-to-run scatter of the residual, pooled over (campaign, target, direction) groups, µm."""
     keys = (data.campaign_index * (data.target_index.max() + 1) + data.target_index) * 2 + (data.d > 0)
-    ss, dof = 0.0, 0
-    for k in np.unique(keys):
-        r = residual[keys == k]
-        ss += float(np.sum((r - r.mean()) ** 2))
-        dof += len(r) - 1
+    _, group = np.unique(keys, return_inverse=True)
+    count = np.bincount(group)
+    mean = np.bincount(group, residual) / count
+    ss = float(np.sum((residual - mean[group]) ** 2))
+    dof = int(np.sum(count - 1))
     return float(np.sqrt(ss / dof)) if dof > 0 else float(np.sqrt(np.mean(residual**2)))
 
 
@@ -530,6 +530,11 @@ def route_score(data: CampaignData, result: Discovery) -> float:
     return score
 
 
+LOCAL_LARGEST = 2.0
+"""A local term is kept only while its size is at most this many times the largest deviation of the
+campaign from the starting model (larger, it only cancels another term)."""
+
+
 def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]], vocabulary: Discovery,
                 found: list[LocalError], periodic: bool) -> Discovery | None:
     """The vocabulary searched again with the local errors `found` in the model, then each local
@@ -545,9 +550,14 @@ def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]
     for local in found:
         final, refined = refit_local(data, final, local)
         kept.append(refined)
+    largest = float(np.max(np.abs(data.y - vocabulary.start.prediction)))
     for local in list(kept):
         without = linear_fit(data, [t for t in final.terms if t.name != local.term.name])
-        if not passes(data, without, final):
+        key = next(k for k in ("amplitude_um", "plus_um", "minus_um") if k in local.params
+                   and local.params[k] == local.size_um)  # the larger direction's, when one each
+        small = abs(local.size_um) < SIZE_SIGMAS * local.errors.get(key, 0.0)
+        # a term larger than anything the campaign shows only cancels another one: not physical
+        if not passes(data, without, final) or small or abs(local.size_um) > LOCAL_LARGEST * largest:
             kept.remove(local)
             final = without
     if not kept:
