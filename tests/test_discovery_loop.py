@@ -187,8 +187,10 @@ def test_the_follow_up_pins_an_aliased_period(cli, tmp_path, seed):
     config = load_config(tmp_path / "follow.toml")
     from campaign.plan import build_plan
 
-    targets = build_plan(config).targets
-    assert max(np.diff(targets)) <= min(candidates) / 4 and np.ptp(targets) >= 2 * 10.0
+    targets = np.array(build_plan(config).targets)
+    # the cluster (a local error that fits as well beside the period gets its own dense targets, issue 34)
+    runs = np.split(targets, np.flatnonzero(np.diff(targets) > min(candidates) / 4) + 1)
+    assert max(np.ptp(run) for run in runs) >= 2 * 10.0, runs
     second = simulate_campaign(config, ErrorModel({**BOW, **lead}), seed=seed + 100)
     write_points(tmp_path / "second.csv", second)
     both = json.loads(cli("discover", first, tmp_path / "second.csv", "--json").out)

@@ -324,7 +324,9 @@ def summary_lines(result: Discovery, incomplete: list[str], time_unit: str = "s"
         b = abs(result.stand_in["params"]["b_um"])
         lines.append(f"in the model as a stand-in: a reversal of {b:.1f} {dev} (backlash or settling)")
     for entry in result.unresolved:
-        lines.append(f"[yellow]unresolved:[/] {' or '.join(entry['effects'])}; to tell: "
+        rivals = "".join(f" or a local error at {r['region_mm'][0]:g}–{r['region_mm'][1]:g}"
+                         for r in entry.get("local_rivals", []))
+        lines.append(f"[yellow]unresolved:[/] {' or '.join(entry['effects'])}{rivals}; to tell: "
                      f"{first_clause(entry['how_to_tell'])}")
     verdict = noise_verdict(result.gap_after_um, result.noise_um)
     lines.append(f"gap {result.gap_before_um:.2f} -> {result.gap_after_um:.2f} {dev} RMS, noise "
@@ -574,7 +576,8 @@ def write_follow_up(path: Path, text: str) -> None:
 def regions_to_measure(result: Discovery) -> list[tuple[float, float]]:
     """Where a follow-up should measure densely: the located local errors' regions when what is left
     (or what they explain) is more than noise."""
-    return [zone.region_mm for zone in zones(result.local_errors)]
+    rivals = [tuple(r["region_mm"]) for u in result.unresolved for r in u.get("local_rivals", [])]
+    return [zone.region_mm for zone in zones(result.local_errors)] + [(a, b) for a, b in rivals]
 
 
 def follow_up_lines(follow: FollowUp | None, path: str) -> list[str]:

@@ -530,6 +530,27 @@ def route_score(data: CampaignData, result: Discovery) -> float:
     return score
 
 
+def add_local_rivals(result: Discovery, found: list[LocalError]) -> None:
+    """The unresolved period's group gets the local errors that would fit as well as rivals
+    (`local_rivals`: sentence and region, mm): what the campaign shows there is either."""
+    entry = next((u for u in result.unresolved if "periodic_lead" in u["effects"]), None)
+    if entry is None:
+        return
+    rivals = entry.setdefault("local_rivals", [])
+    for local in found:
+        region = [round(v, 1) for v in local.region_mm]
+        if all(r["region_mm"] != region for r in rivals):
+            rivals.append({"sentence": local.sentence(), "region_mm": region})
+    said = ", ".join(f"{r['region_mm'][0]:g}–{r['region_mm'][1]:g} {result_unit(found)}" for r in rivals)
+    if "denser targets over" not in entry["how_to_tell"]:
+        entry["how_to_tell"] = (f"{entry['how_to_tell']}; or a local error at {said}: denser targets over it tell "
+                                "a wave from a local error")
+
+
+def result_unit(found: list[LocalError]) -> str:
+    return found[0].position_unit if found else "mm"
+
+
 LOCAL_LARGEST = 2.0
 """A local term is kept only while its size is at most this many times the largest deviation of the
 campaign from the starting model (larger, it only cancels another term)."""
@@ -545,6 +566,7 @@ def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]
     if periodic and any("periodic_lead" in u["effects"] for u in again.unresolved):
         _note(vocabulary.notes, f"{found[0].sentence()} would fit too, but the unresolved periodic error is still "
                                 "there beside it: it may be that error seen at few targets, so it is not added")
+        add_local_rivals(vocabulary, found)
         return None
     final, kept = again.final, []
     for local in found:
