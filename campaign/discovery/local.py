@@ -5,7 +5,7 @@ at half height, or a logistic step, width its 10-90 % rise).
 
 The search: a grid of shapes (bump, step), centres (a quarter of the target spacing apart) and
 widths (a bump from twice the target spacing, so that at least three targets see it at half its
-height or more, to half the travel; a step from a fifth of the spacing to an eighth of the travel,
+height or more, to a quarter of the travel; a step from a fifth of the spacing to an eighth of the travel,
 with at least two targets on each side), each fitted beside the model with the model projected out; the best is refined
 (scipy.optimize.least_squares on centre and width). It is added only when it passes the tests every
 effect passes (campaign.discovery.search: BIC, F-test, leave-one-target-out cross-validation), with
@@ -45,6 +45,8 @@ MAX_CENTRES = 600
 """The most centres on the grid (a quarter of the target spacing apart, or the travel over this)."""
 GRID_CELLS = 4_000_000
 """Rows × centres evaluated at a time by the grid (about 32 MB per array)."""
+BUMP_MAX_SHARE = 4.0
+"""The widest bump looked for is this share of the travel (wider, it is a bow, not a local error)."""
 STEP_MAX_SHARE = 8.0
 """The widest step looked for rises over this share of the travel (wider, it is a slope change that
 the scale and the bow hold)."""
@@ -157,7 +159,7 @@ def width_range(data: CampaignData, kind: str = "bump") -> tuple[float, float] |
         return None
     spacing = float(np.median(np.diff(targets)))
     low = (MIN_WIDTH_SPACINGS if kind == "bump" else STEP_MIN_SPACINGS) * spacing
-    high = float(np.ptp(targets)) / (2 if kind == "bump" else STEP_MAX_SHARE)
+    high = float(np.ptp(targets)) / (BUMP_MAX_SHARE if kind == "bump" else STEP_MAX_SHARE)
     return (low, high) if high > low else None
 
 

@@ -167,7 +167,8 @@ class Discovery:
     averaged over its candidate periods (beside_unresolved_period); they replace the fitted ones."""
     local_errors: list[LocalError] = field(default_factory=list)
     """Errors outside the vocabulary, in the final model as local terms (bumps, steps; not named as
-    effects of the model, not saved with it), along the axis."""
+    effects of the model, not saved with it), in the order found (the one that explains most
+    first; campaign.discovery.local.zones gives them along the axis)."""
     starting: dict[str, dict] = field(default_factory=dict)
     """The starting model's effects, as fitted at the end: params, errors, given (the keys the
     model gave), fixed, p_value (F-test of the effect against none of it) and significant."""
@@ -584,7 +585,6 @@ def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]
             final = without
     if not kept:
         return None
-    kept.sort(key=lambda e: e.params["centre_mm"])
     again.final, again.local_errors = final, kept
     again.start, again.gap_before_um = vocabulary.start, vocabulary.gap_before_um
     again.disagreement_before = vocabulary.disagreement_before
@@ -831,7 +831,7 @@ def choose(data: CampaignData, current: Fit, ranking: list[Candidate],
             held += hold_reversal(best, ranking, data, n, unresolved)
             continue
         rivals = [c for c in ranking if c is not best and c.fit is not None and c not in held
-                  and not c.verdict.startswith("not named") and are_rivals(data, best, c, n)]
+                  and not gated_out(c, best) and are_rivals(data, best, c, n)]
         if not rivals:
             return best, unresolved
         group = [best, *rivals]
@@ -845,6 +845,21 @@ def choose(data: CampaignData, current: Fit, ranking: list[Candidate],
                 group.append(cand)
         held += group
     return None, unresolved
+
+
+LIMIT_OF = {"thermal_drift": "linear_drift"}
+"""Effect -> the effect that is its limit (an exponential growth whose time constant is far beyond
+the campaign is a linear drift)."""
+
+
+def gated_out(cand: Candidate, best: Candidate) -> bool:
+    """Is `cand`, which fits, no rival of `best` because it fails the naming gates: a parameter
+    outside its physical range, or only its size under 2σ where `best` is its limit (a thermal
+    growth whose time constant the campaign cannot tell is the linear drift)? A rival whose size is
+    merely uncertain (settling beside backlash at waits that vary a little) stays a rival."""
+    if not cand.verdict.startswith("not named"):
+        return False
+    return "not physical" in cand.verdict or LIMIT_OF.get(cand.name) == best.name
 
 
 def hold_reversal(backlash: Candidate, ranking: list[Candidate], data: CampaignData, n: int,
