@@ -83,3 +83,22 @@ def test_a_local_bump_outside_the_vocabulary(cli, tmp_path):
     assert found["gap_after_um"] <= 1.3 * found["noise_um"] < local["gap_without_um"]
     text = cli("discover", first / "points.csv").out
     assert "no effect of the model has this shape" in " ".join(text.split())
+
+
+@pytest.mark.machine
+def test_the_follow_up_measures_a_located_local_error_densely(cli, tmp_path):
+    """Issue 34 item 6: a located local error gets denser targets over its region (not beside it),
+    within the first campaign's machine time; fitted together, it is located within its width,
+    nothing is named for it and nothing is unresolved."""
+    bump = "[effects.local_defect]\namplitude_um = 3.0\ncentre_mm = 250.0\nwidth_mm = 100.0\n"
+    first = first_campaign(cli, tmp_path, bump, seed=3, count=21)
+    alone, both = the_loop(cli, tmp_path, first)
+    follow = alone["follow_up"]
+    assert follow["duration_s"] <= follow["first_duration_s"]
+    regions = [z["region_mm"] for z in alone["zones"]]
+    assert any(low <= 250.0 <= high for low, high in regions), regions
+    inside = [t for t in follow["targets"] if any(low - 10 <= t <= high + 10 for low, high in regions)]
+    assert len(inside) == len(follow["targets"]) > 8, (regions, follow["targets"])
+    assert both["local"] is not None and abs(both["local"]["params"]["centre_mm"] - 250.0) <= 50.0
+    assert set(both["added"]) <= {"nonlinear_lead"} and not both["unresolved"], both["added"]
+    assert both["gap_after_um"] <= 1.3 * both["noise_um"]

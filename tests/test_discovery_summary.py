@@ -32,8 +32,10 @@ def test_the_summary_comes_first_within_ten_lines_at_80_columns(cli, monkeypatch
     assert re.search(r"in the model as a stand-in: a reversal of (3\.[89]|4\.[01]) µm", head)
     assert re.search(r"gap \d+\.\d\d -> \d+\.\d\d µm RMS, noise \d+\.\d\d µm", head)
     assert "explains" not in head  # the candidate tables are under --verbose
+    # issue 31 item 7: the first screen ends with the next command (the follow-up that would tell)
+    assert re.search(r"next: axiscal discover \S+p\.csv --follow-up -o FOLLOW\.toml; --verbose", head), head
     verbose = cli("discover", table, "--verbose")
-    assert verbose.out.startswith(short.out.rsplit("\n", 2)[0])  # the same summary first
+    assert verbose.out.startswith(short.out.split("\nnext:")[0])  # the same summary first
     assert "ΔBIC" in verbose.out and "final gap" in verbose.out and "note:" in verbose.out
     assert max(cell_len(line) for line in verbose.out.splitlines()) <= 80  # wrapped, never cut
 
@@ -50,3 +52,13 @@ def test_the_json_is_unchanged_by_the_summary(cli, tmp_path):
     out = json.loads(cli("discover", eleven_targets(tmp_path), "--json").out)
     assert {"added", "gap_before_um", "gap_after_um", "noise_um", "steps", "remaining", "unresolved", "notes",
             "model", "stand_in"} <= set(out)
+
+
+def test_a_cross_validation_that_cannot_predict_is_said_not_printed():
+    """Issue 31 item 7: `--verbose` printed `CV 0.789 -> 490191.637 µm` (a fold that cannot determine
+    an effect without its left-out points); such a number is now said in words."""
+    from campaign.commands.discover import cv_text
+
+    said = cv_text(0.789, 490191.637)
+    assert "490191" not in said and "cannot be predicted" in said and said.startswith("CV 0.789 µm -> over 10×")
+    assert cv_text(0.789, 0.654) == "CV 0.789 -> 0.654 µm"

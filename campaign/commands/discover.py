@@ -17,6 +17,7 @@ from campaign.config import Config, load_config
 from campaign.discovery.data import CampaignData, join_campaigns, keep_rows, read_campaign, read_start_model
 from campaign.discovery.fit import derived
 from campaign.discovery.followup import FollowUp, plan_follow_up
+from campaign.discovery.local import LocalError, Zone, zones
 from campaign.discovery.search import Candidate, Discovery, discover
 from campaign.errors import InputError
 from campaign.model import EFFECT_PARAMS, ErrorModel
@@ -49,6 +50,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="write (with -o) a campaign config for the same axis that would separate what is "
                         "unresolved, within its limits, with why each part is there and its machine time")
     p.add_argument("-o", "--output", metavar="FOLLOW.toml", help="--follow-up: where to write the campaign config")
+    p.add_argument("--budget-min", type=float, metavar="MIN",
+                   help="--follow-up: the most machine time the follow-up may take, min (default: the first "
+                        "campaign's)")
     p.add_argument("--config", metavar="CONFIG",
                    help="--follow-up: the first campaign's config (default: config.toml next to the first table)")
     p.set_defaults(func=run)
@@ -183,6 +187,9 @@ def as_json(result: Discovery) -> dict:
         "choices": result.choices,
         "unresolved": result.unresolved,
         "local": None if result.local is None else result.local.as_dict(),
+        "local_errors": [local.as_dict() for local in result.local_errors],
+        "zones": [{"sentence": z.sentence, "region_mm": [round(v, 3) for v in z.region_mm],
+                   "size_um": round(z.size_um, 4)} for z in zones(result.local_errors)],
         "notes": result.notes,
     }
 
@@ -212,9 +219,21 @@ def incomplete_notes(path: str) -> list[str]:
              "short weighs the targets it reached more than the others; resume the campaign for the whole picture.")]
 
 
-def ranking_lines(ranking: list[Candidate]) -> list[str]:
+CV_SAID_UP_TO = 10.0
+"""A cross-validated RMS more than this many times the one before is not printed as a number: a fold
+could not predict its left-out points (the effect is not determined without them)."""
+
+
+def cv_text(before: float, after: float, dev: str = "µm") -> str:
+    """'CV 0.789 -> 0.654 µm', or, when a fold cannot predict, 'CV 0.789 µm -> not predictable ...'."""
+    if after > CV_SAID_UP_TO * max(before, 1e-12):
+        return f"CV {before:.3f} {dev} -> over {CV_SAID_UP_TO:g}× (the left-out points cannot be predicted)"
+    return f"CV {before:.3f} -> {after:.3f} {dev}"
+
+
+def ranking_lines(ranking: list[Candidate], dev: str = "µm") -> list[str]:
     return [f"    {c.name:28s} explains {c.explained_pct:5.1f} %  ΔBIC {c.delta_bic:8.1f}  p {c.p_value:.2g}  "
-            f"CV {c.cv_before_um:.3f} -> {c.cv_after_um:.3f} µm  {c.verdict}" for c in ranking]
+            f"{cv_text(c.cv_before_um, c.cv_after_um, dev)}  {c.verdict}" for c in ranking]
 
 
 def noise_verdict(gap: float, noise: float) -> str:
@@ -271,10 +290,13 @@ def first_clause(text: str, most: int = 70) -> str:
     return text
 
 
-def local_said(result: Discovery) -> str:
-    """The local error in words, with the error of its size and place (the axis's units)."""
-    local = result.local
-    assert local is not None
+def zone_said(zone: Zone) -> str:
+    """A zone in words: a local error with the error of its size and place, or a pair of steps."""
+    return local_said(zone.members[0]) if len(zone.members) == 1 else zone.sentence
+
+
+def local_said(local: LocalError) -> str:
+    """A local error in words, with the error of its size and place (the axis's units)."""
     e = local.errors
     size = "amplitude_um" if "amplitude_um" in e else None
     errs = ", ".join(f"{k.split('_')[0]} ± {e[k]:.2g} "
@@ -296,13 +318,15 @@ def summary_lines(result: Discovery, incomplete: list[str], time_unit: str = "s"
     if not result.steps:
         lines.append("named: nothing" + (" (something is there: see unresolved)" if result.unresolved else "")
                      + (" from the model's effects" if result.local is not None else ""))
-    if result.local is not None:
-        lines.append(f"found outside the model: [bold]{local_said(result)}[/]; no effect of the model has this shape")
+    for zone in zones(result.local_errors):
+        lines.append(f"found outside the model: [bold]{zone_said(zone)}[/]; no effect of the model has this shape")
     if result.stand_in is not None:
         b = abs(result.stand_in["params"]["b_um"])
         lines.append(f"in the model as a stand-in: a reversal of {b:.1f} {dev} (backlash or settling)")
     for entry in result.unresolved:
-        lines.append(f"[yellow]unresolved:[/] {' or '.join(entry['effects'])}; to tell: "
+        rivals = "".join(f" or a local error at {r['region_mm'][0]:g}–{r['region_mm'][1]:g}"
+                         for r in entry.get("local_rivals", []))
+        lines.append(f"[yellow]unresolved:[/] {' or '.join(entry['effects'])}{rivals}; to tell: "
                      f"{first_clause(entry['how_to_tell'])}")
     verdict = noise_verdict(result.gap_after_um, result.noise_um)
     lines.append(f"gap {result.gap_before_um:.2f} -> {result.gap_after_um:.2f} {dev} RMS, noise "
@@ -310,14 +334,31 @@ def summary_lines(result: Discovery, incomplete: list[str], time_unit: str = "s"
     return lines
 
 
-def print_text(result: Discovery, time_unit: str, incomplete: list[str], verbose: bool, kind: str = "linear") -> None:
+def next_command(result: Discovery, files: list[str]) -> str | None:
+    """The command to run next, when something is unresolved, located outside the model or more than
+    noise is left: the follow-up that would tell (within the first campaign's machine time), or a
+    look at where the residual is."""
+    said = " ".join(files)
+    if result.unresolved or result.local_errors:
+        return f"next: axiscal discover {said} --follow-up -o FOLLOW.toml"
+    if noise_verdict(result.gap_after_um, result.noise_um) != "noise":
+        return f"next: axiscal discover {said} --plot residual.png"
+    return None
+
+
+def print_text(result: Discovery, time_unit: str, incomplete: list[str], verbose: bool, kind: str = "linear",
+               files: list[str] | None = None) -> None:
     console = make_console()
     dev = unit_label(UNITS[kind][1])
     slope = "µm/m" if kind == "linear" else "arcsec per 1000 deg"  # the slope's x is taken in units of 1000
     for line in summary_lines(result, incomplete, time_unit, kind):
         console.print(line)
+    following = next_command(result, files) if files else None
     if not verbose:
-        console.print("[dim](--verbose: every candidate with ΔBIC, p and CV, how to tell in full, the notes)[/]")
+        if following:  # the first screen ends with what to run next
+            console.print(f"{following}; [dim]--verbose for every candidate and the notes[/]")
+        else:
+            console.print("[dim](--verbose: every candidate with ΔBIC, p and CV, how to tell in full, the notes)[/]")
         return
     console.print()
     before = result.disagreement_before
@@ -332,13 +373,13 @@ def print_text(result: Discovery, time_unit: str, incomplete: list[str], verbose
         params = params_text(step.effect, step.params, step.errors, (), time_unit, kind)
         gap = f"gap {step.gap_before_um:.3f} -> {step.gap_after_um:.3f} {dev}"
         console.print(f"step {i}: add [bold]{step.effect}[/] ({params}); {gap}")
-        for line in ranking_lines(step.ranking):
+        for line in ranking_lines(step.ranking, dev):
             console.print(line)
     if result.remaining:
         where = (f" (the unresolved ones against the model, the others beside the unresolved {result.remaining_beside} "
                  "as a stand-in)" if result.remaining_beside else "")
         console.print(("then" if result.steps else "candidates") + f"{where}: none is named")
-        for line in ranking_lines(result.remaining):
+        for line in ranking_lines(result.remaining, dev):
             console.print(line)
     if result.starting:
         console.print("starting model, as fitted at the end:")
@@ -349,12 +390,11 @@ def print_text(result: Discovery, time_unit: str, incomplete: list[str], verbose
     if result.stand_in is not None:
         console.print(f"[yellow]in the model as a stand-in:[/] {result.stand_in['observable']}; the model holds it "
                       f"as {result.stand_in['effect']} (gap {result.stand_in['gap_without_um']:.3f} {dev} without it)")
-    if result.local is not None:
-        local = result.local
-        console.print(f"[yellow]found outside the model:[/] {local_said(result)}; no effect of the model has this "
+    for local in result.local_errors:
+        console.print(f"[yellow]found outside the model:[/] {local_said(local)}; no effect of the model has this "
                       f"shape; {local.time_text()}. It explains {local.explained_pct:.1f} % of the residual (ΔBIC "
-                      f"{local.delta_bic:.1f} with its search's look-elsewhere, p {local.p_value:.2g}, CV "
-                      f"{local.cv_before_um:.3f} -> {local.cv_after_um:.3f} {dev}); the model holds it as a smooth local "
+                      f"{local.delta_bic:.1f} with its search's look-elsewhere, p {local.p_value:.2g}, "
+                      f"{cv_text(local.cv_before_um, local.cv_after_um, dev)}); the model holds it as a smooth local "
                       f"term (gap {local.gap_without_um:.3f} {dev} without it), not as an effect, and does not save it")
     if len(result.final.offsets_um) > 1:
         console.print("campaigns fitted together, each with its own datum offset: "
@@ -365,6 +405,8 @@ def print_text(result: Discovery, time_unit: str, incomplete: list[str], verbose
     console.print(line)
     for note in result.notes:
         console.print(f"note: {note}")
+    if following:
+        console.print(following)
 
 
 def saved_model(result: Discovery, model: ErrorModel, source: str, time_source: str) -> str:
@@ -378,8 +420,8 @@ def saved_model(result: Discovery, model: ErrorModel, source: str, time_source: 
     if "environment" in params:
         found = ", ".join(f"{k} = {v:.4g}" for k, v in params["environment"].items())
         lines.append(f"# Left out: environment ({found}), which follows this campaign's air/material log.")
-    if result.local is not None:
-        lines.append(f"# Left out: {result.local.sentence()}, which no effect of the model has the shape of.")
+    for local in result.local_errors:
+        lines.append(f"# Left out: {local.sentence()}, which no effect of the model has the shape of.")
     text = result.final_model(noise).to_toml()
     if time_source != "time_s" and "thermal_drift" in params:
         tau = params["thermal_drift"]["tau_s"]
@@ -474,6 +516,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--follow-up: give the file to write with -o FOLLOW.toml")
     if args.output and not args.follow_up:
         raise InputError(f"-o {args.output}: only with --follow-up")
+    if args.budget_min is not None and (not args.follow_up or not args.budget_min > 0):
+        raise InputError(f"--budget-min {args.budget_min:g}: only with --follow-up, and more than 0 minutes")
     if args.output and Path(args.output).suffix.lower() != ".toml":
         raise InputError(f"-o: {args.output}: the campaign config must end in .toml")
     config = follow_up_config(args) if args.follow_up else None
@@ -488,8 +532,10 @@ def run(args: argparse.Namespace) -> int:
     if config is not None:
         try:  # the findings are printed even when the follow-up cannot be planned or written
             follow = plan_follow_up(result.unresolved, result.remaining, data, result.final, config,
-                                    reversal_um(result), result.noise_um, Path(args.output), args.files)
-            if follow is not None:
+                                    reversal_um(result), result.noise_um, Path(args.output), args.files,
+                                    regions_to_measure(result),
+                                    None if args.budget_min is None else 60 * args.budget_min)
+            if follow is not None and follow.parts:
                 write_follow_up(Path(args.output), follow.text)
         except Exception as exc:  # noqa: BLE001 - raised again once the findings are out
             failed = exc
@@ -505,7 +551,8 @@ def run(args: argparse.Namespace) -> int:
                 extra["follow_up_error"] = str(failed)
         print_json({**as_json(result), **all_outliers_json(outliers, args.files), **extra})
     else:
-        print_text(result, data.time_unit, incomplete, args.verbose, data.kind)
+        print_text(result, data.time_unit, incomplete, args.verbose, data.kind,
+                   None if args.follow_up else [str(f) for f in args.files])
         console = make_console()
         if args.follow_up and failed is None:
             for line in follow_up_lines(follow, args.output):
@@ -526,10 +573,20 @@ def write_follow_up(path: Path, text: str) -> None:
         raise InputError(f"-o {path}: cannot write the follow-up config ({exc.strerror or exc})") from None
 
 
+def regions_to_measure(result: Discovery) -> list[tuple[float, float]]:
+    """Where a follow-up should measure densely: the located local errors' regions when what is left
+    (or what they explain) is more than noise."""
+    rivals = [tuple(r["region_mm"]) for u in result.unresolved for r in u.get("local_rivals", [])]
+    return [zone.region_mm for zone in zones(result.local_errors)] + [(a, b) for a, b in rivals]
+
+
 def follow_up_lines(follow: FollowUp | None, path: str) -> list[str]:
     """What the follow-up campaign is for, part by part, and its machine time against the first's."""
     if follow is None:
         return ["follow-up: nothing is unresolved that another campaign could separate; no file written"]
+    if not follow.parts:
+        return ["follow-up: no part fits within the budget; no file written",
+                *(f"  [yellow]not planned:[/] {u}" for u in follow.unplanned)]
     lines = [(f"follow-up written to {path}: {len(build_plan(follow.config).points)} points, "
              f"{follow.duration_s / 60:.1f} min of machine time (the first campaign: {follow.first_duration_s / 60:.1f} "
              "min); measure it, then discover both tables together")]

@@ -74,6 +74,31 @@ def _thermal_params(c: np.ndarray, shape: Shape, held: Shape) -> dict[str, float
     return {"growth_ppm": float(c[0]), "tau_s": shape["tau_s"], "pivot_mm": pivot}
 
 
+def _hours(data: CampaignData) -> np.ndarray:
+    """Each capture's time, h (per 3600 points without a time column), averaged over its samples."""
+    return _mean_samples(data.t) / 3600
+
+
+def _linear_drift(data: CampaignData, shape: Shape, held: Shape) -> np.ndarray:
+    h = _hours(data)
+    if "pivot_mm" in held:
+        return ((data.x - held["pivot_mm"]) * 1e-3 * h)[:, None]
+    return np.column_stack([data.x * 1e-3 * h, -1e-3 * h])
+
+
+def _linear_drift_params(c: np.ndarray, shape: Shape, held: Shape) -> dict[str, float]:
+    if "pivot_mm" in held:
+        return {"rate_ppm_per_h": float(c[0]), "pivot_mm": held["pivot_mm"]}
+    pivot = float(c[1] / c[0]) if abs(c[0]) > 1e-12 else 0.0
+    return {"rate_ppm_per_h": float(c[0]), "pivot_mm": pivot}
+
+
+def _linear_drift_ranges(data: CampaignData) -> dict[str, tuple[float, float]]:
+    """A slope change over the campaign within GROWTH_PPM; the pivot as thermal drift's."""
+    hours = _duration(data) / 3600
+    return {"rate_ppm_per_h": (-GROWTH_PPM / hours, GROWTH_PPM / hours), "pivot_mm": _thermal_ranges(data)["pivot_mm"]}
+
+
 def _nonlinear(data: CampaignData, shape: Shape, held: Shape) -> np.ndarray:
     start, end = _span(data, held)
     p2, p3 = _legendre(2 * (data.x - start) / (end - start) - 1)
@@ -158,10 +183,29 @@ def _environment_grid(data: CampaignData, held: Shape) -> list[Shape]:
     return variants + ([{log: 1.0 for log in logs}] if len(logs) > 1 else [])
 
 
+NYQUIST_MARGIN = 1.02
+"""On evenly spaced targets the shortest period looked for is this many times twice the spacing (at
+exactly twice the spacing a sine can sit on its zeros at every target)."""
+
+
+def even_spacing(data: CampaignData) -> float | None:
+    """The spacing of evenly spaced targets, mm (None when they are not evenly spaced: any
+    pattern of offsets breaks the aliases of a regular grid, which the period search then lists)."""
+    targets = np.unique(np.round(data.x, 6))
+    if len(targets) < 3:
+        return None
+    steps = np.diff(targets)
+    return float(np.mean(steps)) if np.ptp(steps) < 1e-3 * np.ptp(targets) else None
+
+
 def period_limits(data: CampaignData) -> tuple[float, float]:
-    """The range of periods searched, mm."""
+    """The range of periods searched, mm: the plausible screw leads (PERIOD_RANGE_MM), at most half
+    the travel, and on evenly spaced targets above twice their spacing (shorter periods alias onto
+    longer ones there). The low end may be above the high one: nothing is looked for."""
     travel = float(np.ptp(data.x)) or 1.0
-    return PERIOD_RANGE_MM[0], min(PERIOD_RANGE_MM[1], travel / 2)
+    spacing = even_spacing(data)
+    low = PERIOD_RANGE_MM[0] if spacing is None else max(PERIOD_RANGE_MM[0], 2 * NYQUIST_MARGIN * spacing)
+    return low, min(PERIOD_RANGE_MM[1], travel / 2)
 
 
 @dataclass(frozen=True)
@@ -178,6 +222,15 @@ class EffectForm:
     columns: Callable[[CampaignData, Shape, Shape], np.ndarray]
     to_params: Callable[[np.ndarray, Shape, Shape], dict[str, float]] | None = None
     shape_grid: Callable[[CampaignData, Shape], list[Shape]] | None = None
+    sizes: tuple[str, ...] = ()
+    """The parameters (or derived quantities, campaign.discovery.fit.DERIVED) that say how large the
+    effect is: each must be at least SIZE_SIGMAS standard errors for the effect to be named."""
+    ranges: Callable[[CampaignData], dict[str, tuple[float, float]]] | None = None
+    """Each parameter's documented physical range on this campaign (docs/error-model.md): an effect
+    with a parameter outside is not named, however well it fits."""
+
+    def physical_ranges(self, data: CampaignData) -> dict[str, tuple[float, float]]:
+        return {} if self.ranges is None else self.ranges(data)
 
     def grid(self, data: CampaignData, held: Shape) -> list[Shape]:
         """The starting values of the searched shape parameters; ValueError for an effect with none."""
@@ -191,51 +244,140 @@ class EffectForm:
         return {**{k: float(v) for k, v in zip(self.coefficients, coefs)}, **shape}
 
 
+SIZE_SIGMAS = 2.0
+"""An effect is named only when each of its sizes is at least this many of its standard errors."""
+SCALE_PPM = 2000.0
+"""The largest slope of a scale or of a reversal along the travel, µm/m (the vertical axis of Li et
+al. 2022 has -1147 µm/m of scale and -641 µm/m of backlash growth)."""
+GROWTH_PPM = 500.0
+"""The largest thermal growth (or slope change over a campaign), µm/m: a steel screw 20 K warm grows
+230 µm/m."""
+SIZE_UM = 1000.0
+"""The largest reversal, settling, periodic amplitude or bow coefficient, µm."""
+
+
+def _travel(data: CampaignData) -> float:
+    return float(np.ptp(data.x)) or 1.0
+
+
+def _dwell(data: CampaignData) -> float:
+    """The typical wait before a capture, s (in points without a time column: one point)."""
+    if data.time_source != "time_s":
+        return 1.0
+    if data.w is not None and np.any(np.isfinite(data.w)):
+        return float(np.nanmedian(np.nanmean(data.w, axis=1)))
+    ends = np.sort(np.nanmax(data.t, axis=1))
+    return float(np.median(np.diff(ends))) / 2 if len(ends) > 1 else 0.0
+
+
+def _scale_ranges(data: CampaignData) -> dict[str, tuple[float, float]]:
+    return {"ppm": (-SCALE_PPM, SCALE_PPM)}
+
+
+def _backlash_ranges(data: CampaignData) -> dict[str, tuple[float, float]]:
+    return {"b_um": (-SIZE_UM, SIZE_UM)}
+
+
+def _periodic_ranges(data: CampaignData) -> dict[str, tuple[float, float]]:
+    return {"amplitude_um": (0.0, SIZE_UM), "period_mm": period_limits(data)}
+
+
+def _thermal_ranges(data: CampaignData) -> dict[str, tuple[float, float]]:
+    """Growth within GROWTH_PPM; a time constant between the dwell and ten times the campaign; a
+    pivot within two travels of the targets (further, it is the datum drifting, not the screw)."""
+    lo, hi, travel = float(data.x.min()), float(data.x.max()), _travel(data)
+    return {"growth_ppm": (-GROWTH_PPM, GROWTH_PPM), "tau_s": (_dwell(data), 10 * _duration(data)),
+            "pivot_mm": (lo - 2 * travel, hi + 2 * travel)}
+
+
+def _bow_ranges(data: CampaignData) -> dict[str, tuple[float, float]]:
+    return {"p2_um": (-SIZE_UM, SIZE_UM), "p3_um": (-SIZE_UM, SIZE_UM)}
+
+
+def _pd_backlash_ranges(data: CampaignData) -> dict[str, tuple[float, float]]:
+    return {"b0_um": (-SIZE_UM, SIZE_UM), "k_ppm": (-SCALE_PPM, SCALE_PPM)}
+
+
+def _settling_ranges(data: CampaignData) -> dict[str, tuple[float, float]]:
+    """A size within SIZE_UM and a time constant from 1 ms to ten times the longest wait."""
+    waits = _waits(data)
+    return {"e0_um": (-SIZE_UM, SIZE_UM), "tau_s": (1e-3, 10 * float(np.nanmax(waits)))}
+
+
+ENVIRONMENT_RANGES = {"air_factor": (-0.5, 1.5), "alpha_ppm_per_k": (-5.0, 30.0)}
+"""Physically plausible environment coefficients: the share of the air index change the reading
+carries (0 to 1, with room for noise), and an expansion coefficient, µm/m per K (invar to
+aluminium and beyond)."""
+
+
+def _environment_ranges(data: CampaignData) -> dict[str, tuple[float, float]]:
+    return dict(ENVIRONMENT_RANGES)
+
+
 FORMS: dict[str, EffectForm] = {f.name: f for f in (
-    EffectForm("linear_scale", ("ppm",), (), "target", _linear_scale),
-    EffectForm("backlash", ("b_um",), (), "target", _backlash),
+    EffectForm("linear_scale", ("ppm",), (), "target", _linear_scale, sizes=("ppm",), ranges=_scale_ranges),
+    EffectForm("backlash", ("b_um",), (), "target", _backlash, sizes=("b_um",), ranges=_backlash_ranges),
     EffectForm("periodic_lead", ("sin_um", "cos_um"), ("period_mm",), "target", _periodic,
-               _periodic_params),
+               _periodic_params, sizes=("amplitude_um",), ranges=_periodic_ranges),
     EffectForm("thermal_drift", ("growth_ppm", "growth_pivot"), ("tau_s",), "run", _thermal,
-               _thermal_params, _thermal_grid),
-    EffectForm("nonlinear_lead", ("p2_um", "p3_um"), (), "target", _nonlinear, _nonlinear_params),
-    EffectForm("position_dependent_backlash", ("b0_um", "k_ppm"), (), "target", _pd_backlash),
-    EffectForm("settling", ("e0_um",), ("tau_s",), "target", _settling, None, _settling_grid),
+               _thermal_params, _thermal_grid, sizes=("growth_ppm",), ranges=_thermal_ranges),
+    EffectForm("linear_drift", ("rate_ppm_per_h", "rate_pivot"), (), "run", _linear_drift, _linear_drift_params,
+               sizes=("rate_ppm_per_h",), ranges=_linear_drift_ranges),
+    EffectForm("nonlinear_lead", ("p2_um", "p3_um"), (), "target", _nonlinear, _nonlinear_params,
+               sizes=("bow_rms_um",), ranges=_bow_ranges),
+    EffectForm("position_dependent_backlash", ("b0_um", "k_ppm"), (), "target", _pd_backlash,
+               sizes=("k_ppm",), ranges=_pd_backlash_ranges),
+    EffectForm("settling", ("e0_um",), ("tau_s",), "target", _settling, None, _settling_grid,
+               sizes=("e0_um",), ranges=_settling_ranges),
     EffectForm("environment", ("air_factor", "alpha_ppm_per_k"), (), "run", _environment,
-               _environment_params, _environment_grid),
+               _environment_params, _environment_grid, sizes=("air_factor", "alpha_ppm_per_k"),
+               ranges=_environment_ranges),
 )}
 """Effect name -> its form, in the order candidates are listed."""
 
 
 
-def local_shape(x: np.ndarray, centre_mm: float | np.ndarray, width_mm: float) -> np.ndarray:
-    """A smooth local bump of height 1 at centre_mm, width_mm wide at half its height (a Gaussian):
-    the shape discovery gives an error outside its vocabulary (campaign.discovery.local)."""
+STEP_RISE = 2 * math.log(9)
+"""A logistic 1/(1 + e^(-z)) rises from 10 % to 90 % over this many units of z."""
+
+
+def local_shape(x: np.ndarray, centre_mm: float | np.ndarray, width_mm: float, kind: str = "bump") -> np.ndarray:
+    """A local shape of height 1 at centre_mm: a smooth bump width_mm wide at half its height (a
+    Gaussian), or a step (kind "step") rising from 0 to 1 over width_mm (10 % to 90 %, a logistic)
+    about centre_mm: the shapes discovery gives an error outside its vocabulary
+    (campaign.discovery.local)."""
+    if kind == "step":
+        z = np.clip((x - centre_mm) * STEP_RISE / max(width_mm, 1e-9), -60.0, 60.0)
+        return 1.0 / (1.0 + np.exp(-z))
     return np.exp(-4 * math.log(2) * ((x - centre_mm) / width_mm) ** 2)
 
 
-def _local(data: CampaignData, shape: Shape, held: Shape) -> np.ndarray:
-    return local_shape(data.x, shape["centre_mm"], shape["width_mm"])[:, None]
-
-
-def _local_by_direction(data: CampaignData, shape: Shape, held: Shape) -> np.ndarray:
-    bump = local_shape(data.x, shape["centre_mm"], shape["width_mm"])
-    return np.column_stack([bump * (data.d > 0), bump * (data.d < 0)])
+def _local_columns(kind: str, by_direction: bool) -> Callable[[CampaignData, Shape, Shape], np.ndarray]:
+    def columns(data: CampaignData, shape: Shape, held: Shape) -> np.ndarray:
+        g = local_shape(data.x, shape["centre_mm"], shape["width_mm"], kind)
+        if by_direction:
+            return np.column_stack([g * (data.d > 0), g * (data.d < 0)])
+        return g[:, None]
+    return columns
 
 
 LOCAL_FORMS: dict[str, EffectForm] = {f.name: f for f in (
-    EffectForm("local_error", ("amplitude_um",), (), "target", _local),
-    EffectForm("local_error_by_direction", ("plus_um", "minus_um"), (), "target", _local_by_direction),
+    EffectForm("local_error", ("amplitude_um",), (), "target", _local_columns("bump", False)),
+    EffectForm("local_error_by_direction", ("plus_um", "minus_um"), (), "target", _local_columns("bump", True)),
+    EffectForm("local_error_step", ("amplitude_um",), (), "target", _local_columns("step", False)),
+    EffectForm("local_error_step_by_direction", ("plus_um", "minus_um"), (), "target", _local_columns("step", True)),
 )}
-"""Not in the vocabulary: the smooth local term discovery adds for an error no effect of the model
-has the shape of (a screw defect, a worn zone). Its centre and width (mm) are found by its own search
-(campaign.discovery.local) and held in the term's shape; only its amplitudes are fitted with the
-model. Never a candidate, never in the saved model."""
+"""Not in the vocabulary: the local terms discovery adds for an error no effect of the model has the
+shape of (a screw defect, a worn zone, a joint between two sections): a bump or a step, in both
+directions or one amplitude per direction. Their centre and width (mm) are found by their own search
+(campaign.discovery.local) and held in the term's shape; only the amplitudes are fitted with the
+model. A second or third one on the same axis is named with "#2", "#3". Never a candidate, never in
+the saved model."""
 
 
 def form_of(name: str) -> EffectForm:
     """The least-squares form of a term in the model: a vocabulary effect or a local error."""
-    return FORMS[name] if name in FORMS else LOCAL_FORMS[name]
+    return FORMS[name] if name in FORMS else LOCAL_FORMS[name.split("#")[0]]
 
 
 SHAPE_KEYS = ("period_mm", "tau_s", "pivot_mm", "start_mm", "end_mm")

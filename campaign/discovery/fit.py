@@ -178,6 +178,10 @@ def confounders(data: CampaignData, terms: list[Term], term: Term) -> list[str]:
     return names
 
 
+PERIODOGRAM_CELLS = 4_000_000
+"""Rows × frequencies evaluated at a time by the periodogram (about 32 MB per array)."""
+
+
 def periodogram_periods(data: CampaignData, fit: Fit, top: int = 3) -> list[float]:
     """Periods (mm) where a sine of the residual, fitted beside the model, explains most: a
     Lomb-Scargle-like periodogram over the plausible screw leads with the model projected out."""
@@ -187,16 +191,19 @@ def periodogram_periods(data: CampaignData, fit: Fit, top: int = 3) -> list[floa
     a, _ = design(data, fit.terms)
     q, _ = np.linalg.qr(a)
     r = data.y - fit.prediction
-    angle = 2 * np.pi * np.outer(data.x, freqs)
     power = np.zeros(len(freqs))
-    s, c = np.sin(angle), np.cos(angle)
-    s -= q @ (q.T @ s)
-    c -= q @ (q.T @ c)
-    ss, cc, sc = (s * s).sum(0), (c * c).sum(0), (s * c).sum(0)
-    rs, rc = r @ s, r @ c
-    det = ss * cc - sc * sc
-    ok = det > 1e-9 * np.maximum(ss * cc, 1e-300)
-    power[ok] = (cc * rs**2 - 2 * sc * rs * rc + ss * rc**2)[ok] / det[ok]
+    block = max(1, PERIODOGRAM_CELLS // max(len(data), 1))  # frequencies at a time: memory linear in the rows
+    for lo in range(0, len(freqs), block):
+        f = freqs[lo:lo + block]
+        angle = 2 * np.pi * np.outer(data.x, f)
+        s, c = np.sin(angle), np.cos(angle)
+        s -= q @ (q.T @ s)
+        c -= q @ (q.T @ c)
+        ss, cc, sc = (s * s).sum(0), (c * c).sum(0), (s * c).sum(0)
+        rs, rc = r @ s, r @ c
+        det = ss * cc - sc * sc
+        ok = det > 1e-9 * np.maximum(ss * cc, 1e-300)
+        power[lo:lo + block][ok] = (cc * rs**2 - 2 * sc * rs * rc + ss * rc**2)[ok] / det[ok]
     peaks = [i for i in range(len(power)) if power[i] > 0 and (i == 0 or power[i] >= power[i - 1])
              and (i == len(power) - 1 or power[i] >= power[i + 1])]
     peaks.sort(key=lambda i: -power[i])
@@ -223,6 +230,11 @@ def _fold_solve(a: np.ndarray, y: np.ndarray) -> np.ndarray:
     return np.linalg.lstsq(a / norms, y, rcond=CV_RCOND)[0] / norms
 
 
+CV_FOLDS_REFITTED = 200
+"""Up to this many groups each fold is refitted; beyond (a dense table), the left-out residuals come
+from the whole fit's hat matrix, group by group (e_g = (I - H_gg)⁻¹ r_g), in time linear in the rows."""
+
+
 def cv_rms_um(data: CampaignData, terms: list[Term], groups: np.ndarray) -> float:
     """Cross-validated RMS, µm: each group (a target or a run) predicted from the others, shapes
     held at their fitted values (a direction the fold cannot determine is left out: CV_RCOND)."""
@@ -230,11 +242,33 @@ def cv_rms_um(data: CampaignData, terms: list[Term], groups: np.ndarray) -> floa
     a, _ = design(data, terms)
     y = data.y - base
     errors = np.zeros(len(y))
-    for g in np.unique(groups):
-        out = groups == g
+    names, index = np.unique(groups, return_inverse=True)
+    if len(names) > CV_FOLDS_REFITTED:
+        return _cv_from_hat(a, y, index)
+    for g in range(len(names)):
+        out = index == g
         beta = _fold_solve(a[~out], y[~out])
         errors[out] = y[out] - a[out] @ beta
     return float(np.sqrt(np.mean(errors**2)))
+
+
+def _cv_from_hat(a: np.ndarray, y: np.ndarray, index: np.ndarray) -> float:
+    """The grouped leave-out RMS from the hat matrix of the whole fit (column-normalised, directions
+    below CV_RCOND left out): e_g = (I - H_gg)⁻¹ r_g, a small solve per group."""
+    norms = np.linalg.norm(a, axis=0)
+    norms[norms == 0] = 1.0
+    u, sv, _ = np.linalg.svd(a / norms, full_matrices=False)
+    q = u[:, sv > CV_RCOND * sv[0]] if len(sv) else u[:, :0]
+    r = y - q @ (q.T @ y)
+    order = np.argsort(index, kind="stable")
+    bounds = np.flatnonzero(np.diff(index[order])) + 1
+    total = 0.0
+    for rows in np.split(order, bounds):
+        qg = q[rows]
+        block = np.eye(len(rows)) - qg @ qg.T
+        e = np.linalg.lstsq(block, r[rows], rcond=CV_RCOND)[0]
+        total += float(e @ e)
+    return float(np.sqrt(total / len(y)))
 
 
 def bic(fit: Fit, n: int) -> float:
@@ -254,10 +288,11 @@ def f_test_p(before: Fit, after: Fit, n: int) -> float:
     return float(stats.f.sf(f_value, q, dof)) if f_value > 0 else 1.0
 
 
-DERIVED = {"thermal_drift": lambda p: {"initial_rate_ppm_per_h": p["growth_ppm"] / p["tau_s"] * 3600}}
+DERIVED = {"thermal_drift": lambda p: {"initial_rate_ppm_per_h": p["growth_ppm"] / p["tau_s"] * 3600},
+           "nonlinear_lead": lambda p: {"bow_rms_um": math.sqrt(p["p2_um"] ** 2 / 5 + p["p3_um"] ** 2 / 7)}}
 """Quantities reported beside an effect's parameters, computed from them (and given an error the
 same way): thermal drift's initial rate of slope change, µm/m per hour (per 3600 points without a
-time column)."""
+time column); the bow's RMS over its span, µm (its size: P2 and P3 have RMS 1/√5 and 1/√7)."""
 ANGLES = ("phase_rad",)
 """Parameters that are angles: their differences are wrapped to (-π, π]."""
 

@@ -58,6 +58,8 @@ CLUSTER_STEP = 5
 """Nominal targets per shortest candidate period in the cluster; with golden offsets of
 CLUSTER_OFFSET of the spacing no two targets are more than a quarter of that period apart."""
 CLUSTER_OFFSET = 0.2
+MAX_CYCLES = 1000
+"""The most cycles a plan may have ([plan] cycles)."""
 
 
 @dataclass
@@ -160,7 +162,7 @@ def _dwell_points(reversal_um: float, noise_um: float) -> int:
     explains the reversal at the first campaign's wait is taken to differ from a constant reversal
     by about a quarter of it between the shortest and longest waits, and that quarter should be
     SEPARATION times the noise over the square root of the points."""
-    signal = max(abs(reversal_um), 1e-6) / 4
+    signal = max(abs(reversal_um), 2 * max(noise_um, 1e-3)) / 4  # unknown or small: twice the noise
     return math.ceil((SEPARATION * max(noise_um, 1e-3) / signal) ** 2)
 
 
@@ -191,22 +193,34 @@ def _moved_paths(config: Config, out_dir: Path) -> dict[str, dict[str, Any]]:
     return changes
 
 
-def plan_follow_up(unresolved: list[dict[str, Any]], remaining: list[Any], data: CampaignData, final: Fit,
-                   config: Config, reversal_um: float | None, noise_um: float, out: Path,
-                   sources: list[str]) -> FollowUp | None:
-    """The follow-up campaign for the `unresolved` groups of a discovery on `data`, from the first
-    campaign's `config` (written to `out`), `final` the model fitted; None when nothing is unresolved. `reversal_um`: the size
-    of a reversal kept as a stand-in or named rival (sets the dwell part's points)."""
-    if not unresolved:
-        return None
-    parts: list[Part] = []
+@dataclass
+class _Ask:
+    """What one part asks of the follow-up plan: its targets (None: any few), cycles, the plan and
+    capture keys it sets, the points it needs, and why."""
+
+    part: Part
+    targets: list[float] | None
+    cycles: int = 1
+    plan: dict[str, Any] = field(default_factory=dict)
+    capture: dict[str, Any] = field(default_factory=dict)
+    points: int = 0
+
+
+def _spread(data: CampaignData) -> list[float]:
+    """FEW_TARGETS of the first campaign's targets spread over its whole travel (a slope is seen
+    over the travel; few targets keep the campaign short)."""
+    t = _targets(data)
+    picks = np.unique(np.round(np.linspace(0, len(t) - 1, min(FEW_TARGETS, len(t)))).astype(int))
+    return [round(float(t[i]), 3) for i in picks]
+
+
+def _asks(unresolved: list[dict[str, Any]], remaining: list[Any], data: CampaignData, final: Fit,
+          config: Config, reversal_um: float | None, noise_um: float,
+          regions: list[tuple[float, float]]) -> tuple[list[_Ask], list[str]]:
+    """What each unresolved group (and each located region) asks of the follow-up; the groups none
+    of the parts fits."""
+    asks: list[_Ask] = []
     unplanned: list[str] = []
-    targets: list[float] | None = None
-    capture: dict[str, Any] = {}
-    plan: dict[str, Any] = {"offsets": "none"}  # the targets written are where to measure (the first
-    # campaign's measured targets already hold its offsets); a cluster sets its own below
-    cycles = 1
-    points_needed = 0
     first_cycles = config.plan.cycles
     for group in unresolved:
         names = set(group["effects"])
@@ -214,60 +228,119 @@ def plan_follow_up(unresolved: list[dict[str, Any]], remaining: list[Any], data:
             waits = data.w if data.w is not None else np.array([[config.plan.dwell_s]])
             high = max(WAITS_S[1], 1.25 * float(np.nanmax(waits)))
             low = max(high / 10, WAITS_S[0] * high / WAITS_S[1])
-            dwell = (low + high) / 2
-            capture.update(method="dwell", average_s=DWELL_WINDOW_S)
-            plan.update(dwell_s=round(dwell, 3), dwell_jitter=round((high - low) / (high + low), 3))
-            points_needed = max(points_needed, _dwell_points(reversal_um or 0.0, noise_um))
-            parts.append(Part(sorted(names), (
+            points = _dwell_points(reversal_um or 0.0, noise_um)
+            asks.append(_Ask(Part(sorted(names), (
                 f"a reversal{'' if reversal_um is None else f' of {abs(reversal_um):.2g} µm'} that backlash and "
                 f"settling explain alike: waits before capture from {low:.2g} to {high:.2g} s (a decade, the dwell "
-                f"method with a {DWELL_WINDOW_S:g} s window): settling fades with the wait, backlash does not; at "
-                f"least {points_needed} points (a rule of thumb: a quarter of the reversal {SEPARATION:g} times the "
-                f"noise of {noise_um:.2g} µm over √points)")))
+                f"method with a {DWELL_WINDOW_S:g} s window) at {FEW_TARGETS} targets close together: settling fades "
+                f"with the wait, backlash does not; at least {points} points (a rule of thumb: a quarter of the "
+                f"reversal {SEPARATION:g} times the noise of {noise_um:.2g} µm over √points)")),
+                None, 2, {"dwell_s": round((low + high) / 2, 3), "dwell_jitter": round((high - low) / (high + low), 3)},
+                {"method": "dwell", "average_s": DWELL_WINDOW_S}, points))
         elif "periodic_lead" in names:
             periods = _periods_of(group, remaining)
             if not periods:
                 unplanned.append(f"{' or '.join(group['effects'])}: no candidate period to plan for")
                 continue
             targets, why = _cluster(data, final, periods, group.get("delta_bic") or [], noise_um)
-            plan.update(offsets="golden", offset_fraction=CLUSTER_OFFSET)
-            parts.append(Part(sorted(names), why))
-        elif names & {"thermal_drift", "environment"}:
-            cycles = max(cycles, 2 * first_cycles)
-            targets = _with_travel(targets, data)
-            parts.append(Part(sorted(names), (
+            asks.append(_Ask(Part(sorted(names), why), targets, 1,
+                             {"offsets": "golden", "offset_fraction": CLUSTER_OFFSET}))
+        elif names & {"thermal_drift", "linear_drift", "environment"}:
+            asks.append(_Ask(Part(sorted(names), (
                 f"a slope that changes from run to run or not at all: {2 * first_cycles} runs (the first campaign "
-                f"had {first_cycles}) at its targets over the whole travel, so about twice its time; a drift changes "
-                "the slope from run to run, a scale does not")))
+                f"had {first_cycles}) at {FEW_TARGETS} targets over the whole travel; a drift changes the slope from "
+                "run to run, a scale does not")), _spread(data), 2 * first_cycles))
         elif names <= {"backlash", "position_dependent_backlash"}:
-            targets = _with_travel(targets, data)
-            parts.append(Part(sorted(names), "a reversal that may grow along the travel: both directions at "
-                                             "targets over the whole travel"))
+            asks.append(_Ask(Part(sorted(names), "a reversal that may grow along the travel: both directions at "
+                                                 f"{FEW_TARGETS} targets over the whole travel"), _spread(data), 1))
         else:
             unplanned.append(f"{' or '.join(group['effects'])}: {group.get('how_to_tell', '')}")
-    if not parts:
+    for start, end in regions:
+        spacing = float(np.median(np.diff(_targets(data)))) if len(_targets(data)) > 1 else 1.0
+        step = max(min(spacing / 4, (end - start) / 8), 1e-3)
+        lo, hi = float(_targets(data)[0]), float(_targets(data)[-1])
+        a, b = max(start - step, lo), min(end + step, hi)
+        count = min(int((b - a) / step) + 1, MAX_CLUSTER_TARGETS)
+        targets = [round(a + (b - a) * i / max(count - 1, 1), 4) for i in range(count)]
+        asks.append(_Ask(Part(["local error"], (
+            f"where measurement and model disagree beyond the noise, {start:.4g} to {end:.4g} mm: {count} targets "
+            f"{(b - a) / max(count - 1, 1):.3g} mm apart over it (the first campaign's are {spacing:.3g} mm apart), "
+            "to see its shape")), targets, 1))
+    return asks, unplanned
+
+
+def _merged(asks: list[_Ask], data: CampaignData) -> tuple[list[float], int, dict[str, Any], dict[str, Any]]:
+    """One plan for several parts: the union of their targets, the most cycles (and enough for the
+    points a part needs), their plan and capture keys."""
+    plan: dict[str, Any] = {"offsets": "none"}  # the targets written are where to measure (the first
+    # campaign's measured targets already hold its offsets); a cluster sets its own
+    capture: dict[str, Any] = {}
+    wanted = [a.targets for a in asks if a.targets is not None]
+    targets = sorted({v for t in wanted for v in t}) if wanted else _few(data)
+    cycles = max(a.cycles for a in asks)
+    for a in asks:
+        plan.update(a.plan)
+        capture.update(a.capture)
+        if a.points:
+            cycles = min(max(cycles, math.ceil(a.points / (2 * len(targets)))), MAX_CYCLES)
+    return targets, cycles, plan, capture
+
+
+def plan_follow_up(unresolved: list[dict[str, Any]], remaining: list[Any], data: CampaignData, final: Fit,
+                   config: Config, reversal_um: float | None, noise_um: float, out: Path,
+                   sources: list[str], regions: list[tuple[float, float]] | None = None,
+                   budget_s: float | None = None) -> FollowUp | None:
+    """The follow-up campaign for the `unresolved` groups of a discovery on `data` (and denser
+    targets over the located `regions`, (from, to) mm, where the model and the measurement disagree
+    beyond the noise), from the first campaign's `config` (written to `out`), `final` the model
+    fitted; None when there is nothing to plan for. `reversal_um`: the size of a reversal kept as a
+    stand-in or named rival (sets the dwell part's points).
+
+    Its machine time is at most `budget_s` by construction (default: the first campaign's): the
+    parts are taken cheapest first while the campaign stays within it; a part that does not fit is
+    said, with what it alone would take. The config is marked `[campaign] purpose = "follow-up"`,
+    `follows` the first campaign's directory, so that it is never taken for an acceptance test."""
+    asks, unplanned = _asks(unresolved, remaining, data, final, config, reversal_um, noise_um, regions or [])
+    if not asks:
         return None
-    targets = targets or _few(data)
-    if points_needed:
-        cycles = max(cycles, 2, math.ceil(points_needed / (2 * len(targets))))
-    plan.update(targets=targets, cycles=cycles, length=None, count=None)
-    said = "; ".join(" or ".join(p.effects) for p in parts)
-    changed = config_with(config, {"plan": plan, "capture": capture, **_moved_paths(config, out.parent),
-                                   "campaign": {"description": f"follow-up of {', '.join(sources)}: to tell {said}"}})
-    body = config_toml(changed.data)
-    followed = parse_config(body, str(out))  # as it will be read from where it is written
-    plan_built = build_plan(followed)
-    check_plan(plan_built, followed.axis)
-    duration = estimate_duration_s(plan_built, followed.axis)
     first = estimate_duration_s(build_plan(config), config.axis)
-    longer = (f"it takes longer than the first campaign ({duration / 60:.1f} min against {first / 60:.1f} min)"
-              if duration > first else None)
+    budget = first if budget_s is None else budget_s
+    follows = str(Path(sources[0]).parent) if sources else ""
+
+    def build(chosen: list[_Ask]) -> tuple[Config, float]:
+        targets, cycles, plan, capture = _merged(chosen, data)
+        plan.update(targets=targets, cycles=cycles, length=None, count=None)
+        said = "; ".join(" or ".join(a.part.effects) for a in chosen)
+        changed = config_with(config, {"plan": plan, "capture": capture, **_moved_paths(config, out.parent),
+                                       "campaign": {"description": f"follow-up of {', '.join(sources)}: to tell {said}",
+                                                    "purpose": "follow-up", "follows": follows}})
+        followed = parse_config(config_toml(changed.data), str(out))  # as it will be read from where it is written
+        plan_built = build_plan(followed)
+        check_plan(plan_built, followed.axis)
+        return followed, estimate_duration_s(plan_built, followed.axis)
+
+    alone = [(a, build([a])[1]) for a in asks]
+    chosen: list[_Ask] = []
+    for ask, cost in sorted(alone, key=lambda pair: pair[1]):
+        if build([*chosen, ask])[1] <= budget:
+            chosen.append(ask)
+        else:
+            unplanned.append(f"{' or '.join(ask.part.effects)}: not within the budget of {budget / 60:.1f} min of "
+                             f"machine time (the first campaign took {first / 60:.1f} min); it alone would take "
+                             f"{cost / 60:.1f} min: measure it as a follow-up of its own (--budget-min to allow it)")
+    if not chosen:
+        return FollowUp(config, "", [], unplanned, 0.0, first, None)
+    chosen.sort(key=asks.index)
+    followed, duration = build(chosen)
+    parts = [a.part for a in chosen]
+    body = config_toml(followed.data)
     header = [f"# Follow-up campaign written by `axiscal discover {' '.join(sources)} --follow-up`.",
               "# It would separate what the first campaign left unresolved; measure it on the same axis, then",
               f"# fit both together: axiscal discover {' '.join(sources)} NEW/points.csv",
+              "# It is a follow-up ([campaign] purpose), not an acceptance test: it gets no pass/fail.",
               *(f"# - {', '.join(p.effects)}: {p.why}" for p in parts),
               *(f"# - not planned: {u}" for u in unplanned),
-              f"# Machine time (estimate): {duration / 60:.1f} min; the first campaign's: {first / 60:.1f} min.",
-              *([f"# Warning: {longer}."] if longer else []), ""]
+              (f"# Machine time (estimate): {duration / 60:.1f} min; the first campaign's: {first / 60:.1f} min "
+               f"(budget {budget / 60:.1f} min)."), ""]
     text = "\n".join(header) + "\n" + body
-    return FollowUp(followed, text, parts, unplanned, duration, first, longer)
+    return FollowUp(followed, text, parts, unplanned, duration, first, None)

@@ -1,15 +1,18 @@
-"""An error outside the vocabulary: where the residual is not noise and no effect of the model has its
-shape (a local defect of the screw, a worn zone, a scale joint), locate it and add a smooth local
-term for it (campaign.discovery.effects.local_shape: a Gaussian bump, width at half height).
+"""Errors outside the vocabulary: where the residual is not noise and no effect of the model has its
+shape (a local defect of the screw, a worn zone, a joint between two scale or screw sections), locate
+them and add a local term for each (campaign.discovery.effects.local_shape: a Gaussian bump, width
+at half height, or a logistic step, width its 10-90 % rise).
 
-The search: a grid of centres (a quarter of the target spacing apart) and widths (from twice the
-target spacing, so that at least three targets see it at half its height or more, to half the
-travel), each bump fitted beside the model with the model projected out; the best is refined
+The search: a grid of shapes (bump, step), centres (a quarter of the target spacing apart) and
+widths (a bump from twice the target spacing, so that at least three targets see it at half its
+height or more, to a quarter of the travel; a step from a fifth of the spacing to an eighth of the travel,
+with at least two targets on each side), each fitted beside the model with the model projected out; the best is refined
 (scipy.optimize.least_squares on centre and width). It is added only when it passes the tests every
 effect passes (campaign.discovery.search: BIC, F-test, leave-one-target-out cross-validation), with
 the look-elsewhere factor of its search (LOOK_ELSEWHERE). Then: one amplitude for both directions,
 or one per direction when that is significantly better (nested F-test); and whether it changes with
-time (an F-test of a term that grows linearly in time, reported, not added).
+time (an F-test of a term that grows linearly in time, reported, not added). Up to MAX_REGIONS are
+found, each beside the ones before (two worn zones, a bump of either sign on each side of a joint).
 
 Units: positions mm (deg), deviations µm (arcsec), times s (or point order).
 """
@@ -30,6 +33,23 @@ ALPHA = 0.001
 BIC_MARGIN = 2.0
 WIDTHS = 8
 """Widths tried on the grid, logarithmically spaced."""
+KINDS = ("bump", "step")
+"""The shapes of a local term."""
+MAX_REGIONS = 3
+"""The most local errors looked for on one axis."""
+MIN_SIDE = 2
+"""A step is looked for only where at least this many targets lie on each side of its rise."""
+STEP_MIN_SPACINGS = 0.2
+"""The sharpest step looked for, in target spacings (its place is then known to about a spacing)."""
+MAX_CENTRES = 600
+"""The most centres on the grid (a quarter of the target spacing apart, or the travel over this)."""
+GRID_CELLS = 4_000_000
+"""Rows × centres evaluated at a time by the grid (about 32 MB per array)."""
+BUMP_MAX_SHARE = 4.0
+"""The widest bump looked for is this share of the travel (wider, it is a bow, not a local error)."""
+STEP_MAX_SHARE = 8.0
+"""The widest step looked for rises over this share of the travel (wider, it is a slope change that
+the scale and the bow hold)."""
 MIN_WIDTH_SPACINGS = 2.0
 """The narrowest bump looked for, in target spacings (width at half height): three targets see it."""
 HOPELESS = 10.0
@@ -63,6 +83,17 @@ class LocalError:
     time_change_error_um: float = 0.0
     position_unit: str = "mm"
     deviation_unit: str = "µm"
+    kind: str = "bump"
+    """"bump" (centre_mm its peak, width_mm at half its height) or "step" (centre_mm the middle of
+    the rise, width_mm the rise from 10 % to 90 %, amplitude the step's height)."""
+
+    @property
+    def region_mm(self) -> tuple[float, float]:
+        """Where it acts: a bump from one width below its centre to one above; a step over its
+        rise (at least a millimetre either side)."""
+        c, w = self.params["centre_mm"], self.params["width_mm"]
+        half = w if self.kind == "bump" else max(w / 2, 1.0)
+        return c - half, c + half
 
     @property
     def size_um(self) -> float:
@@ -84,8 +115,12 @@ class LocalError:
                 f"{e.get(key, math.nan):.2g} {dev})")
 
     def sentence(self) -> str:
-        """'a local error of +2.4 µm at 214 mm, width 18 mm, both directions' (the axis's units)."""
+        """'a local error of +2.4 µm at 214 mm, width 18 mm, both directions' or 'a step of -2.6 µm at
+        250 mm, rising over 8 mm, both directions' (the axis's units)."""
         p, unit = self.params, self.position_unit
+        if self.kind == "step":
+            return (f"a step of {self.size_um:+.2g} {self.deviation_unit} at {p['centre_mm']:.4g} {unit}, rising over "
+                    f"{p['width_mm']:.2g} {unit}, {self._sides()}")
         return (f"a local error of {self.size_um:+.2g} {self.deviation_unit} at {p['centre_mm']:.4g} {unit}, width "
                 f"{p['width_mm']:.3g} {unit}, {self._sides()}")
 
@@ -97,7 +132,8 @@ class LocalError:
         return f"no change with time detected ({change})"
 
     def as_dict(self) -> dict:
-        return {"sentence": self.sentence(), "effect": self.term.name,
+        return {"sentence": self.sentence(), "effect": self.term.name, "kind": self.kind,
+                "region_mm": [round(v, 3) for v in self.region_mm],
                 "params": {k: round(v, 4) for k, v in self.params.items()},
                 "standard_errors": {k: float(f"{v:.3g}") for k, v in self.errors.items()},
                 "directions": self.directions, "time_p_value": float(f"{self.time_p:.3g}"),
@@ -114,63 +150,108 @@ def _targets(data: CampaignData) -> np.ndarray:
     return np.unique(np.round(data.x, 6))
 
 
-def width_range(data: CampaignData) -> tuple[float, float] | None:
-    """The widths looked for, mm: from MIN_WIDTH_SPACINGS target spacings (the median spacing) to
-    half the travel; None when the targets are too few for that."""
+def width_range(data: CampaignData, kind: str = "bump") -> tuple[float, float] | None:
+    """The widths looked for, mm: a bump's from MIN_WIDTH_SPACINGS target spacings (the median
+    spacing), a step's from STEP_MIN_SPACINGS, to half the travel; None when the targets are too
+    few for that."""
     targets = _targets(data)
     if len(targets) < 5:
         return None
-    low, high = MIN_WIDTH_SPACINGS * float(np.median(np.diff(targets))), float(np.ptp(targets)) / 2
+    spacing = float(np.median(np.diff(targets)))
+    low = (MIN_WIDTH_SPACINGS if kind == "bump" else STEP_MIN_SPACINGS) * spacing
+    high = float(np.ptp(targets)) / (BUMP_MAX_SHARE if kind == "bump" else STEP_MAX_SHARE)
     return (low, high) if high > low else None
 
 
 def seen_at(targets: np.ndarray, centre_mm: np.ndarray, width_mm: float) -> np.ndarray:
-    """How many targets each bump sees at half its height or more (within width/2 of its centre)."""
-    return (np.abs(targets[None, :] - np.asarray(centre_mm)[..., None]) <= width_mm / 2).sum(axis=-1)
+    """How many targets (sorted) each bump sees at half its height or more (within width/2 of its
+    centre)."""
+    c = np.asarray(centre_mm, dtype=float)
+    return (np.searchsorted(targets, c + width_mm / 2, side="right")
+            - np.searchsorted(targets, c - width_mm / 2, side="left"))
+
+
+def sides(targets: np.ndarray, centre_mm: np.ndarray, width_mm: float) -> np.ndarray:
+    """The fewer of the targets (sorted) below and above each step's rise."""
+    c = np.asarray(centre_mm, dtype=float)
+    below = np.searchsorted(targets, c - width_mm / 2, side="left")
+    above = len(targets) - np.searchsorted(targets, c + width_mm / 2, side="right")
+    return np.minimum(below, above)
+
+
+def _seen(targets: np.ndarray, kind: str, centre_mm: np.ndarray, width_mm: float) -> np.ndarray:
+    """Whether the targets can tell each local term (centres) from the rest of the model."""
+    if kind == "step":
+        return sides(targets, centre_mm, width_mm) >= MIN_SIDE
+    return seen_at(targets, centre_mm, width_mm) >= MIN_SEEN
 
 
 def look_elsewhere(data: CampaignData) -> float:
-    """About how many independent bumps the search tries: one per target and octave of width."""
-    widths = width_range(data)
-    octaves = 1.0 if widths is None else 1 + math.log2(widths[1] / widths[0])
-    return len(_targets(data)) * octaves
+    """About how many independent local terms the search tries: one per target, octave of width and
+    shape."""
+    total = 0.0
+    for kind in KINDS:
+        widths = width_range(data, kind)
+        total += 1.0 if widths is None else 1 + math.log2(widths[1] / widths[0])
+    return len(_targets(data)) * total
 
 
-def local_term(centre_mm: float, width_mm: float, by_direction: bool = False) -> Term:
-    name = "local_error_by_direction" if by_direction else "local_error"
-    return Term(name, {}, False, {"centre_mm": float(centre_mm), "width_mm": float(width_mm)})
+def term_kind(term: Term) -> str:
+    return "step" if "_step" in term.name else "bump"
 
 
-def _grid_best(data: CampaignData, fit: Fit, widths: tuple[float, float]) -> tuple[float, float]:
-    """The (centre, width) on the grid whose bump explains most of the residual beside the model."""
+def local_term(centre_mm: float, width_mm: float, by_direction: bool = False, kind: str = "bump",
+               index: int = 1) -> Term:
+    """A local term; the `index`-th on the axis is named with "#index" from the second on."""
+    name = "local_error" + ("_step" if kind == "step" else "") + ("_by_direction" if by_direction else "")
+    return Term(name + (f"#{index}" if index > 1 else ""), {}, False,
+                {"centre_mm": float(centre_mm), "width_mm": float(width_mm)})
+
+
+def is_local(term: Term) -> bool:
+    return term.name.startswith("local_error")
+
+
+def _grid_best(data: CampaignData, fit: Fit) -> tuple[str, float, float] | None:
+    """The (shape, centre, width) on the grid whose term explains most of the residual beside the
+    model; None when the targets can see none."""
     targets = _targets(data)
-    step = float(np.median(np.diff(targets))) / 4
+    step = max(float(np.median(np.diff(targets))) / 4, float(np.ptp(targets)) / MAX_CENTRES)
     centres = np.arange(targets[0], targets[-1] + step / 2, step)
     q, _ = np.linalg.qr(design(data, fit.terms)[0])
     r = data.y - fit.prediction
-    best, power_best = (float(centres[0]), widths[0]), -1.0
-    for width in np.geomspace(*widths, WIDTHS):
-        g = local_shape(data.x[:, None], centres[None, :], width)
-        g -= q @ (q.T @ g)
-        norm = (g * g).sum(0)
-        power = np.where(norm > 1e-12, (r @ g) ** 2 / np.maximum(norm, 1e-300), 0.0)
-        power[seen_at(targets, centres, width) < MIN_SEEN] = 0.0
-        i = int(np.argmax(power))
-        if power[i] > power_best:
-            best, power_best = (float(centres[i]), float(width)), float(power[i])
-    return best
+    best, power_best = None, -1.0
+    block = max(1, GRID_CELLS // max(len(data), 1))  # centres at a time: memory linear in the rows
+    for kind in KINDS:
+        widths = width_range(data, kind)
+        if widths is None:
+            continue
+        for width in np.geomspace(*widths, WIDTHS):
+            power = np.zeros(len(centres))
+            for lo in range(0, len(centres), block):
+                c = centres[lo:lo + block]
+                g = local_shape(data.x[:, None], c[None, :], width, kind)
+                g -= q @ (q.T @ g)
+                norm = (g * g).sum(0)
+                power[lo:lo + block] = np.where(norm > 1e-12 * len(data), (r @ g) ** 2 / np.maximum(norm, 1e-300), 0.0)
+            power[~_seen(targets, kind, centres, width)] = 0.0
+            i = int(np.argmax(power))
+            if power[i] > power_best:
+                best, power_best = (kind, float(centres[i]), float(width)), float(power[i])
+    return best if power_best > 0 else None
 
 
-def _refine(data: CampaignData, terms: list[Term], start: tuple[float, float], widths: tuple[float, float],
-            by_direction: bool) -> Fit:
+def _refine(data: CampaignData, terms: list[Term], start: tuple[float, float], kind: str, by_direction: bool,
+            index: int) -> Fit:
     """Centre and width of the local term beside `terms`, by least squares from `start`."""
     from scipy import optimize
 
     targets = _targets(data)
+    widths = width_range(data, kind) or (start[1], start[1] * 1.001)
     lower, upper = np.array([targets[0], widths[0]]), np.array([targets[-1], widths[1]])
 
     def fit_at(v: np.ndarray) -> Fit:
-        return linear_fit(data, [*terms, local_term(v[0], v[1], by_direction)])
+        return linear_fit(data, [*terms, local_term(v[0], v[1], by_direction, kind, index)])
 
     x0 = np.clip(np.array(start, dtype=float), lower + 1e-9, upper - 1e-9)
     result = optimize.least_squares(lambda v: data.y - fit_at(v).prediction, x0, bounds=(lower, upper),
@@ -179,11 +260,15 @@ def _refine(data: CampaignData, terms: list[Term], start: tuple[float, float], w
     return best if best.rss <= first.rss else first
 
 
-def _errors(data: CampaignData, fit: Fit, step: float = 1e-3) -> dict[str, float]:
-    """1-σ errors of the local term's amplitudes, centre and width (cov = s²·(JᵀJ)⁻¹ over every
+def _index(fit: Fit, name: str) -> int:
+    return next(k for k, t in enumerate(fit.terms) if t.name == name)
+
+
+def _errors(data: CampaignData, fit: Fit, name: str, step: float = 1e-3) -> dict[str, float]:
+    """1-σ errors of the local term `name`'s amplitudes, centre and width (cov = s²·(JᵀJ)⁻¹ over every
     coefficient of the fit and the two shape parameters, the other shapes held)."""
     a, slices = design(data, fit.terms)
-    i = next(k for k, t in enumerate(fit.terms) if t.name.startswith("local_error"))
+    i = _index(fit, name)
     term, coefs = fit.terms[i], fit.coefs[i]
     extra = []
     for key in ("centre_mm", "width_mm"):
@@ -195,17 +280,17 @@ def _errors(data: CampaignData, fit: Fit, step: float = 1e-3) -> dict[str, float
     if n <= p:
         return {}
     cov = np.linalg.pinv(jac.T @ jac) * fit.rss / (n - p)
-    names = ["amplitude_um"] if term.name == "local_error" else ["plus_um", "minus_um"]
+    names = ["amplitude_um"] if "_by_direction" not in term.name else ["plus_um", "minus_um"]
     out = {name: float(math.sqrt(max(cov[j, j], 0.0))) for name, j in zip(names, range(slices[i].start, slices[i].stop))}
     out["centre_mm"] = float(math.sqrt(max(cov[p - 2, p - 2], 0.0)))
     out["width_mm"] = float(math.sqrt(max(cov[p - 1, p - 1], 0.0)))
     return out
 
 
-def _time_test(data: CampaignData, fit: Fit) -> tuple[float, float, float]:
-    """F-test p of the local error growing linearly in time beside `fit` (its shape held), the
+def _time_test(data: CampaignData, fit: Fit, name: str) -> tuple[float, float, float]:
+    """F-test p of the local term `name` growing linearly in time beside `fit` (its shape held), the
     change that growth would have over the campaign and its 1-σ error (deviation unit)."""
-    term = next(t for t in fit.terms if t.name.startswith("local_error"))
+    term = fit.terms[_index(fit, name)]
     tm = np.nanmean(data.t, axis=1)
     span = float(np.ptp(tm)) or 1.0
     growth = term.columns(data).sum(axis=1) * (tm - tm.mean()) / span
@@ -220,25 +305,28 @@ def _time_test(data: CampaignData, fit: Fit) -> tuple[float, float, float]:
     return f_test_p(fit, grown, len(data)), float(beta[-1]), float(math.sqrt(max(cov[-1, -1], 0.0)))
 
 
-def find_local(data: CampaignData, fit: Fit) -> LocalError | None:
-    """The local error beside `fit`'s model, or None when no bump passes the tests."""
-    widths = width_range(data)
-    if widths is None or fit.rss <= 0:
+def find_local(data: CampaignData, fit: Fit, index: int = 1) -> LocalError | None:
+    """The local error beside `fit`'s model (the `index`-th on the axis), or None when no local term
+    passes the tests."""
+    if width_range(data) is None or fit.rss <= 0:
         return None
     n = len(data)
-    start = _grid_best(data, fit, widths)
+    start = _grid_best(data, fit)
+    if start is None:
+        return None
+    kind, centre, width = start
     factor = look_elsewhere(data)
-    on_grid = linear_fit(data, [*fit.terms, local_term(*start)])
+    on_grid = linear_fit(data, [*fit.terms, local_term(centre, width, False, kind, index)])
     if bic(on_grid, n) - bic(fit, n) + 2 * math.log(factor) > HOPELESS:
         return None  # refining the shape would not bring it near the tests
-    best = _refine(data, fit.terms, start, widths, by_direction=False)
-    term = next(t for t in best.terms if t.name == "local_error")
-    split = linear_fit(data, [*fit.terms, replace(term, name="local_error_by_direction")])
-    by_direction = f_test_p(best, split, n) < ALPHA
-    if by_direction:
-        best = _refine(data, fit.terms, (term.shape["centre_mm"], term.shape["width_mm"]), widths, True)
-    shape = next(t for t in best.terms if t.name.startswith("local_error")).shape
-    if seen_at(_targets(data), np.array(shape["centre_mm"]), shape["width_mm"]) < MIN_SEEN:
+    best = _refine(data, fit.terms, (centre, width), kind, False, index)
+    term = best.terms[-1]
+    split = linear_fit(data, [*fit.terms, local_term(term.shape["centre_mm"], term.shape["width_mm"], True, kind,
+                                                     index)])
+    if f_test_p(best, split, n) < ALPHA:
+        best = _refine(data, fit.terms, (term.shape["centre_mm"], term.shape["width_mm"]), kind, True, index)
+    shape = best.terms[-1].shape
+    if not _seen(_targets(data), kind, np.array(shape["centre_mm"]), shape["width_mm"]):
         return None
     delta_bic = bic(best, n) - bic(fit, n) + 2 * math.log(factor)
     p_value = min(1.0, f_test_p(fit, best, n) * factor)
@@ -246,8 +334,22 @@ def find_local(data: CampaignData, fit: Fit) -> LocalError | None:
     cv_before, cv_after = cv_rms_um(data, fit.terms, groups), cv_rms_um(data, best.terms, groups)
     if not (delta_bic < -BIC_MARGIN and p_value < ALPHA and cv_after < cv_before):
         return None
-    return describe(data, best, explained_pct=100 * (1 - best.rss / fit.rss), delta_bic=delta_bic,
-                    p_value=p_value, cv_before_um=cv_before, cv_after_um=cv_after, gap_without_um=fit.rms_um(data.y))
+    return describe(data, best, best.terms[-1].name, explained_pct=100 * (1 - best.rss / fit.rss),
+                    delta_bic=delta_bic, p_value=p_value, cv_before_um=cv_before, cv_after_um=cv_after,
+                    gap_without_um=fit.rms_um(data.y))
+
+
+def find_locals(data: CampaignData, fit: Fit) -> list[LocalError]:
+    """Up to MAX_REGIONS local errors beside `fit`'s model, each found beside the ones before."""
+    found: list[LocalError] = []
+    current = fit
+    for index in range(1, MAX_REGIONS + 1):
+        local = find_local(data, current, index)
+        if local is None:
+            break
+        found.append(local)
+        current = linear_fit(data, [*current.terms, local.term])
+    return found
 
 
 def passes(data: CampaignData, without: Fit, with_local: Fit) -> bool:
@@ -261,33 +363,80 @@ def passes(data: CampaignData, without: Fit, with_local: Fit) -> bool:
                 and cv_rms_um(data, with_local.terms, groups) < cv_rms_um(data, without.terms, groups))
 
 
-def describe(data: CampaignData, fit: Fit, **tests: float) -> LocalError:
-    """The LocalError of the local term in `fit`: parameters, errors, directions, time."""
-    i = next(k for k, t in enumerate(fit.terms) if t.name.startswith("local_error"))
-    term = fit.terms[i]
+def describe(data: CampaignData, fit: Fit, name: str, **tests: float) -> LocalError:
+    """The LocalError of the local term `name` in `fit`: parameters, errors, directions, time."""
+    term = fit.terms[_index(fit, name)]
     params = fit.params()[term.name]
-    errors = _errors(data, fit)
+    errors = _errors(data, fit, name)
     directions = "both"
-    if term.name == "local_error_by_direction":
+    if "_by_direction" in term.name:
         shows = {side: abs(params[key]) > 3 * errors.get(key, math.inf) for side, key in (("+", "plus_um"),
                                                                                           ("-", "minus_um"))}
         if shows["+"] != shows["-"]:
             directions = "+" if shows["+"] else "-"
-    time_p, change, change_error = _time_test(data, fit)
+    time_p, change, change_error = _time_test(data, fit, name)
     return LocalError(term, params, errors, directions, time_p, change, **tests, time_change_error_um=change_error,
-                      position_unit=data.position_unit, deviation_unit=data.deviation_unit)
+                      position_unit=data.position_unit, deviation_unit=data.deviation_unit, kind=term_kind(term))
 
 
 def refit_local(data: CampaignData, fit: Fit, found: LocalError) -> tuple[Fit, LocalError]:
-    """After the vocabulary was searched again beside the local term: its centre and width refined
-    beside the final model, and its description from that fit (the tests it passed are kept)."""
-    others = [t for t in fit.terms if not t.name.startswith("local_error")]
-    widths = width_range(data) or (found.params["width_mm"], found.params["width_mm"])
+    """After the vocabulary was searched again beside the local terms: this one's centre and width
+    refined beside the final model (the other local terms included), and its description from that
+    fit (the tests it passed are kept)."""
+    others = [t for t in fit.terms if t.name != found.term.name]
     term = found.term
-    refined = _refine(data, others, (term.shape["centre_mm"], term.shape["width_mm"]), widths,
-                      term.name == "local_error_by_direction")
+    index = int(term.name.split("#")[1]) if "#" in term.name else 1
+    refined = _refine(data, others, (term.shape["centre_mm"], term.shape["width_mm"]), term_kind(term),
+                      "_by_direction" in term.name, index)
     best = refined if refined.rss <= fit.rss else fit
-    again = describe(data, best, explained_pct=found.explained_pct, delta_bic=found.delta_bic,
+    again = describe(data, best, term.name, explained_pct=found.explained_pct, delta_bic=found.delta_bic,
                      p_value=found.p_value, cv_before_um=found.cv_before_um, cv_after_um=found.cv_after_um,
                      gap_without_um=linear_fit(data, others).rms_um(data.y))
     return best, again
+
+
+@dataclass(frozen=True)
+class Zone:
+    """Where one error outside the vocabulary is, in words: a local term alone, or a step up and a
+    step down of about the same size (a raised or sunken zone with a flat top, which two steps
+    follow better than one bump). region_mm: from, to; size_um: its height; sentence: what it is."""
+
+    region_mm: tuple[float, float]
+    size_um: float
+    sentence: str
+    members: tuple[LocalError, ...]
+
+    @property
+    def centre_mm(self) -> float:
+        return (self.region_mm[0] + self.region_mm[1]) / 2
+
+
+PAIRED_STEPS = 0.5
+"""Two neighbouring steps of opposite sign whose heights differ by at most this share of the larger
+are one zone."""
+
+
+def zones(errors: list[LocalError]) -> list[Zone]:
+    """The local errors along the axis as zones: neighbouring steps of opposite sign and about the same
+    height (PAIRED_STEPS) are one raised or sunken zone; every other local error is its own."""
+    ordered = sorted(errors, key=lambda e: e.params["centre_mm"])
+    out: list[Zone] = []
+    i = 0
+    while i < len(ordered):
+        a = ordered[i]
+        b = ordered[i + 1] if i + 1 < len(ordered) else None
+        if (b is not None and a.kind == b.kind == "step" and a.size_um * b.size_um < 0
+                and abs(a.size_um + b.size_um) <= PAIRED_STEPS * max(abs(a.size_um), abs(b.size_um))):
+            start, end = a.region_mm[0], b.region_mm[1]
+            size = (a.size_um - b.size_um) / 2
+            unit, dev = a.position_unit, a.deviation_unit
+            said = (f"a {'raised' if size > 0 else 'sunken'} zone of {size:+.2g} {dev} from "
+                    f"{a.params['centre_mm']:.4g} to {b.params['centre_mm']:.4g} {unit} (a step of {a.size_um:+.2g} "
+                    f"{dev} rising over {a.params['width_mm']:.2g} {unit}, one of {b.size_um:+.2g} {dev} over "
+                    f"{b.params['width_mm']:.2g} {unit}), {a._sides()}")
+            out.append(Zone((start, end), size, said, (a, b)))
+            i += 2
+            continue
+        out.append(Zone(a.region_mm, a.size_um, a.sentence(), (a,)))
+        i += 1
+    return out

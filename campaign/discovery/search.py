@@ -29,13 +29,25 @@ from typing import Any
 import numpy as np
 
 from campaign.discovery.data import CampaignData
-from campaign.discovery.effects import FORMS, LASER_DATUM_MM, SHAPE_KEYS, environment_logs, fixed_shape
+from campaign.discovery.effects import (
+    ENVIRONMENT_RANGES,
+    FORMS,
+    LASER_DATUM_MM,
+    PERIOD_RANGE_MM,
+    SHAPE_KEYS,
+    SIZE_SIGMAS,
+    environment_logs,
+    even_spacing,
+    fixed_shape,
+    period_limits,
+)
 from campaign.discovery.fit import (
     Fit,
     Term,
     bic,
     confounders,
     cv_rms_um,
+    derived,
     drop_collinear,
     f_test_p,
     independent_periods,
@@ -45,9 +57,9 @@ from campaign.discovery.fit import (
     shape_bounds,
     standard_errors,
 )
-from campaign.discovery.local import LocalError, find_local, look_elsewhere, passes, refit_local
+from campaign.discovery.local import LocalError, find_locals, look_elsewhere, passes, refit_local
 from campaign.errors import InputError
-from campaign.model import EFFECT_PARAMS, ErrorModel
+from campaign.model import DEFAULTS, EFFECT_PARAMS, ErrorModel
 
 ALPHA = 0.001
 """Largest p-value of the F-test (after the look-elsewhere factor) for an effect to be named."""
@@ -153,12 +165,18 @@ class Discovery:
     averaged: dict[str, dict[str, float]] = field(default_factory=dict)
     """Beside a periodic error whose period is not identifiable: the other effects' parameters,
     averaged over its candidate periods (beside_unresolved_period); they replace the fitted ones."""
-    local: LocalError | None = None
-    """An error outside the vocabulary, in the final model as a smooth local term (not named as an
-    effect of the model, not saved with it)."""
+    local_errors: list[LocalError] = field(default_factory=list)
+    """Errors outside the vocabulary, in the final model as local terms (bumps, steps; not named as
+    effects of the model, not saved with it), in the order found (the one that explains most
+    first; campaign.discovery.local.zones gives them along the axis)."""
     starting: dict[str, dict] = field(default_factory=dict)
     """The starting model's effects, as fitted at the end: params, errors, given (the keys the
     model gave), fixed, p_value (F-test of the effect against none of it) and significant."""
+
+    @property
+    def local(self) -> LocalError | None:
+        """The first error outside the vocabulary (the one that explains most), if any."""
+        return self.local_errors[0] if self.local_errors else None
 
     def params(self) -> dict[str, dict[str, float]]:
         """The final model's parameters per effect (averaged over an unresolved period's candidates
@@ -193,11 +211,12 @@ def start_terms(model: ErrorModel, given: dict[str, set[str]], data: CampaignDat
                          "arrival is unknown (the captures are taken as settled)")
             continue
         if name not in FORMS:  # an effect the simulator has and discovery does not (local_defect)
-            if not fixed:
-                missing = sorted(set(EFFECT_PARAMS[name]) - keys)
+            defaults = DEFAULTS.get(name, {})
+            missing = sorted(set(EFFECT_PARAMS[name]) - keys - set(defaults))
+            if missing:
                 raise InputError(f"the starting model's effects.{name} is not one discovery can fit (it is not in "
                                  f"its vocabulary): give all its parameters to hold it ({', '.join(missing)} missing)")
-            terms.append(Term(name, dict(params), True, {}))
+            terms.append(Term(name, {**defaults, **params}, True, {}))
             continue
         held = {k: v for k, v in params.items() if fixed or k in SHAPE_KEYS}
         shape = {**fixed_shape(name, data, held), **{k: held[k] for k in FORMS[name].shape if k in held}}
@@ -219,8 +238,8 @@ def default_shape(name: str, key: str, data: CampaignData) -> float:
 def disagreement(data: CampaignData, residual: np.ndarray) -> dict:
     """Where the residual (µm) lives: per target the mean; per direction the mean; per run the mean
     and the slope (µm/m); RMS values µm."""
-    targets = np.unique(np.round(data.x, 6))
-    by_target = [float(residual[np.isclose(data.x, t)].mean()) for t in targets]
+    targets, where = np.unique(np.round(data.x, 6), return_inverse=True)
+    by_target = list(np.bincount(where, residual) / np.bincount(where))
     by_run = {}
     for r in np.unique(data.run):
         pick = data.run == r
@@ -240,11 +259,11 @@ def disagreement(data: CampaignData, residual: np.ndarray) -> dict:
 def pooled_scatter_um(data: CampaignData, residual: np.ndarray) -> float:
     """Run-to-run scatter of the residual, pooled over (campaign, target, direction) groups, µm."""
     keys = (data.campaign_index * (data.target_index.max() + 1) + data.target_index) * 2 + (data.d > 0)
-    ss, dof = 0.0, 0
-    for k in np.unique(keys):
-        r = residual[keys == k]
-        ss += float(np.sum((r - r.mean()) ** 2))
-        dof += len(r) - 1
+    _, group = np.unique(keys, return_inverse=True)
+    count = np.bincount(group)
+    mean = np.bincount(group, residual) / count
+    ss = float(np.sum((residual - mean[group]) ** 2))
+    dof = int(np.sum(count - 1))
     return float(np.sqrt(ss / dof)) if dof > 0 else float(np.sqrt(np.mean(residual**2)))
 
 
@@ -261,18 +280,26 @@ def candidate_names(data: CampaignData, terms: list[Term], notes: list[str]) -> 
             names.remove("settling")
             _note(notes, "settling is confounded with backlash: the dwell does not vary, so settling "
                          "is not looked for (vary the dwell to separate them)")
-    targets = np.unique(np.round(data.x, 6))
-    if "periodic_lead" in names and len(targets) > 2 and np.ptp(np.diff(targets)) < 1e-3 * np.ptp(targets):
+    low, high = period_limits(data)
+    if "periodic_lead" in names and low >= high:
         names.remove("periodic_lead")
-        _note(notes, "periodic_lead is not looked for: the targets are evenly spaced, so a screw-lead period "
-                     "aliases into a smooth bow or vanishes (plan with offsets = \"golden\" or \"random\")")
+        spacing = even_spacing(data)
+        _note(notes, f"periodic_lead is not looked for: the targets are evenly spaced {spacing:.4g} "
+                     f"{data.position_unit} apart, so a period shorter than twice that ({2 * (spacing or 0):.4g} "
+                     f"{data.position_unit}) aliases into a smooth bow or vanishes, and the screw leads looked for "
+                     f"end at {high:.4g} {data.position_unit} (plan with offsets = \"golden\" or \"random\", or "
+                     "targets closer together)")
+    elif "periodic_lead" in names and even_spacing(data) is not None and low > PERIOD_RANGE_MM[0]:
+        _note(notes, f"periodic_lead is looked for at periods from {low:.4g} to {high:.4g} {data.position_unit}: "
+                     "the targets are evenly spaced, so shorter periods alias onto longer ones")
     if "environment" in names and not environment_logs(data):
         names.remove("environment")
         _note(notes, "environment is not looked for: the table has no air or material log that varies "
                      "(air_temp_c, air_pressure_hpa, humidity_pct, material_temp_c)")
-    if "thermal_drift" in names and len(np.unique(data.run)) < 2:
-        names.remove("thermal_drift")
-        _note(notes, "thermal_drift is not looked for: one run cannot show a run-to-run change")
+    for drift in ("thermal_drift", "linear_drift"):
+        if drift in names and len(np.unique(data.run)) < 2:
+            names.remove(drift)
+            _note(notes, f"{drift} is not looked for: one run cannot show a run-to-run change")
     return names
 
 
@@ -338,12 +365,39 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
     cand.cv_after_um = cv_rms_um(data, best.terms, groups)
     failed = [why for ok, why in ((cand.delta_bic < -BIC_MARGIN, "BIC"), (cand.p_value < ALPHA, "F-test"),
                                   (cand.cv_after_um < cand.cv_before_um, "cross-validation")) if not ok]
-    cand.verdict = "accepted" if not failed else "not significant (" + ", ".join(failed) + ")"
+    gates = [] if failed else gate_failures(data, best, name)
+    cand.verdict = ("not significant (" + ", ".join(failed) + ")" if failed else
+                    "not named (" + "; ".join(gates) + ")" if gates else "accepted")
+    failed += gates
     if not failed and len(periods) > 1 and periods[1][1] < RIVAL_MARGIN:
         cand.verdict = "period not identifiable"
     if env_note and not failed:  # which log it follows matters only when it explains something
         _note(notes, *env_note)
     return cand
+
+
+def gate_failures(data: CampaignData, fit: Fit, name: str) -> list[str]:
+    """Why `name`, fitted in `fit`, may not be named however well it fits (empty: it may): a size
+    below SIZE_SIGMAS of its standard error, or a parameter outside its documented physical range
+    (EffectForm.sizes, EffectForm.ranges; docs/error-model.md)."""
+    term = next(t for t in fit.terms if t.name == name)
+    if term.fixed:
+        return []
+    params = fit.params()[name]
+    values = {**params, **derived(name, params)}
+    errors = standard_errors(data, fit).get(name, {})
+    form = FORMS[name]
+    out = []
+    small = [f"{k} {values[k]:.3g} ± {errors[k]:.2g}" for k in form.sizes
+             if k in values and k in errors and abs(values[k]) < SIZE_SIGMAS * errors[k]]
+    if small:
+        out.append(f"size under {SIZE_SIGMAS:g}σ: {', '.join(small)}")
+    outside = [f"{k} = {params[k]:.4g} outside {lo:.4g} to {hi:.4g}" for k, (lo, hi)
+               in form.physical_ranges(data).items() if k in params and k not in term.held
+               and not lo <= params[k] <= hi]
+    if outside:
+        out.append(f"not physical: {', '.join(outside)}")
+    return out
 
 
 def period_optima(data: CampaignData, fits: list[Fit]) -> tuple[Fit, list[tuple[float, float]]]:
@@ -383,12 +437,6 @@ def period_spread_mm(periods: list[tuple[float, float]]) -> float:
     return float(np.sqrt(np.sum(weights * (values - values[0]) ** 2) / np.sum(weights)))
 
 
-PLAUSIBLE = {"air_factor": (-0.5, 1.5), "alpha_ppm_per_k": (-5.0, 30.0)}
-"""Physically plausible environment coefficients: the share of the air index change the reading
-carries (0 to 1, with room for noise), and an expansion coefficient, µm/m per K (invar to
-aluminium and beyond)."""
-
-
 def environment_variant(fits: list[Fit], n: int) -> tuple[Fit, tuple[str, str] | None]:
     """Of the environment fits with each log alone and both together, the one with the lowest BIC
     among those with plausible coefficients (all of them if none is). When the air and material
@@ -398,7 +446,7 @@ def environment_variant(fits: list[Fit], n: int) -> tuple[Fit, tuple[str, str] |
         return fit.params()["environment"]
 
     def plausible(fit: Fit) -> bool:
-        return all(lo <= coefs(fit)[k] <= hi for k, (lo, hi) in PLAUSIBLE.items() if k in coefs(fit))
+        return all(lo <= coefs(fit)[k] <= hi for k, (lo, hi) in ENVIRONMENT_RANGES.items() if k in coefs(fit))
 
     ranked = sorted(fits, key=lambda f: bic(f, n))
     chosen = next((f for f in ranked if plausible(f)), ranked[0])
@@ -437,49 +485,114 @@ def prefer_simpler(best: Candidate, accepted: list[Candidate], n: int, notes: li
 
 def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) -> Discovery:
     """Run discovery on a campaign from a starting model (`given`: the parameters the user gave
-    per effect; the others are fitted): the vocabulary first; then, beside what it named, an error
-    outside it (campaign.discovery.local). When one is found the vocabulary is searched again with
-    it in the model, so that no effect is named that merely soaked it up."""
-    result = search_vocabulary(data, model, given)
-    periodic = any("periodic_lead" in u["effects"] for u in result.unresolved)
-    found = find_local(data, result.final)
-    for name in [n for n in reversed(result.added) if n in MAY_SOAK] if found is None else ():
+    per effect; the others are fitted). Three routes, the one that explains the campaign best
+    (route_score) kept: the vocabulary alone; the vocabulary, then errors outside it located
+    beside what it named (campaign.discovery.local); and errors outside it located first, beside
+    the starting model, then the vocabulary beside them. A vocabulary effect is thus named only when
+    it explains the campaign better than local terms over the regions located: an effect that merely
+    soaked up a local error (a bow, a short period, a reversal) is not named."""
+    vocabulary = search_vocabulary(data, model, given)
+    periodic = any("periodic_lead" in u["effects"] for u in vocabulary.unresolved)
+    beside = find_locals(data, vocabulary.final)
+    for name in [n for n in reversed(vocabulary.added) if n in MAY_SOAK] if not beside else ():
         # a short period or a reversal may have soaked up most of it: look beside the rest
-        found = find_local(data, linear_fit(data, [t for t in result.final.terms if t.name != name]))
-        if found is not None:
+        beside = find_locals(data, linear_fit(data, [t for t in vocabulary.final.terms if t.name != name]))
+        if beside:
             break
-    if found is None:
-        return beside_unresolved_period(data, result)
-    again = search_vocabulary(data, model, given, [found.term])
-    if periodic and any("periodic_lead" in u["effects"] for u in again.unresolved):
-        _note(result.notes, f"{found.sentence()} would fit too, but the unresolved periodic error is still there "
-                            "beside it: it may be that error seen at few targets, so it is not added")
-        return beside_unresolved_period(data, result)
-    final, local = refit_local(data, again.final, found)
-    if local.term.shape != found.term.shape:  # its shape beside what is named now: search once more with it
-        third = search_vocabulary(data, model, given, [local.term])
-        if not (periodic and any("periodic_lead" in u["effects"] for u in third.unresolved)):
-            again = third
-            final, local = refit_local(data, again.final, local)
-    others = linear_fit(data, [t for t in final.terms if not t.name.startswith("local_error")])
+    first = find_locals(data, vocabulary.start) if vocabulary.added else []
+    routes = [vocabulary]
+    for found in (beside, first):
+        if found and not any(_same_places(found, r.local_errors) for r in routes[1:]):
+            route = with_locals(data, model, given, vocabulary, found, periodic)
+            if route is not None:
+                routes.append(route)
+    scores = [route_score(data, r) for r in routes]
+    best = min(range(len(routes)), key=lambda i: scores[i] + (0.0 if i == 0 else BIC_MARGIN))
+    if best and routes[0].added:
+        dropped = [name for name in routes[0].added if name not in routes[best].added]
+        for name in dropped:
+            _note(routes[best].notes, f"{name} explained part of the residual before the local errors were located; "
+                                      "beside them it is not significant: not named (it soaked up a local error)")
+    return beside_unresolved_period(data, routes[best])
+
+
+def _same_places(a: list[LocalError], b: list[LocalError]) -> bool:
+    return len(a) == len(b) and all(abs(x.params["centre_mm"] - y.params["centre_mm"]) < 1e-6 for x, y in zip(a, b))
+
+
+def route_score(data: CampaignData, result: Discovery) -> float:
+    """How well a route explains the campaign: the BIC of its final model, each local term's centre
+    and width counted with its search's look-elsewhere factor, a searched period with its own."""
     n = len(data)
-    # its centre and width count as parameters, its search as in its tests
-    with_local = bic(final, n) + 2 * math.log(n) + 2 * math.log(look_elsewhere(data))
-    if not passes(data, others, final) or with_local > bic(result.final, n) - BIC_MARGIN:
-        # beside what is named now it explains nothing more, or the vocabulary alone explains the
-        # campaign better than with it (a real period is no bump)
-        return beside_unresolved_period(data, result)
-    soaked = [name for name in result.added if name not in again.added]
-    for name in soaked:
-        _note(again.notes, f"{name} explained part of the residual before the local error was found; beside the "
-                           "local error it is not significant: not named (it soaked up the local error)")
-    again.final, again.local = final, local
-    again.start, again.gap_before_um = result.start, result.gap_before_um
-    again.disagreement_before = result.disagreement_before
+    score = bic(result.final, n)
+    score += len(result.local_errors) * (2 * math.log(n) + 2 * math.log(look_elsewhere(data)))
+    if any(t.name == "periodic_lead" and t.searched for t in result.final.terms):
+        score += 2 * math.log(independent_periods(data))
+    return score
+
+
+def add_local_rivals(result: Discovery, found: list[LocalError]) -> None:
+    """The unresolved period's group gets the local errors that would fit as well as rivals
+    (`local_rivals`: sentence and region, mm): what the campaign shows there is either."""
+    entry = next((u for u in result.unresolved if "periodic_lead" in u["effects"]), None)
+    if entry is None:
+        return
+    rivals = entry.setdefault("local_rivals", [])
+    for local in found:
+        region = [round(v, 1) for v in local.region_mm]
+        if all(r["region_mm"] != region for r in rivals):
+            rivals.append({"sentence": local.sentence(), "region_mm": region})
+    said = ", ".join(f"{r['region_mm'][0]:g}–{r['region_mm'][1]:g} {result_unit(found)}" for r in rivals)
+    if "denser targets over" not in entry["how_to_tell"]:
+        entry["how_to_tell"] = (f"{entry['how_to_tell']}; or a local error at {said}: denser targets over it tell "
+                                "a wave from a local error")
+
+
+def result_unit(found: list[LocalError]) -> str:
+    return found[0].position_unit if found else "mm"
+
+
+LOCAL_LARGEST = 2.0
+"""A local term is kept only while its size is at most this many times the largest deviation of the
+campaign from the starting model (larger, it only cancels another term)."""
+
+
+def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]], vocabulary: Discovery,
+                found: list[LocalError], periodic: bool) -> Discovery | None:
+    """The vocabulary searched again with the local errors `found` in the model, then each local
+    term refitted beside what is named; a local term that no longer passes its tests beside the
+    rest is left out. None when none is left, or when an unresolved period stays beside them (the
+    local error may be that period seen at few targets: said in a note)."""
+    again = search_vocabulary(data, model, given, [local.term for local in found])
+    if periodic and any("periodic_lead" in u["effects"] for u in again.unresolved):
+        _note(vocabulary.notes, f"{found[0].sentence()} would fit too, but the unresolved periodic error is still "
+                                "there beside it: it may be that error seen at few targets, so it is not added")
+        add_local_rivals(vocabulary, found)
+        return None
+    final, kept = again.final, []
+    for local in found:
+        final, refined = refit_local(data, final, local)
+        kept.append(refined)
+    largest = float(np.max(np.abs(data.y - vocabulary.start.prediction)))
+    for local in list(kept):
+        without = linear_fit(data, [t for t in final.terms if t.name != local.term.name])
+        key = next(k for k in ("amplitude_um", "plus_um", "minus_um") if k in local.params
+                   and local.params[k] == local.size_um)  # the larger direction's, when one each
+        small = abs(local.size_um) < SIZE_SIGMAS * local.errors.get(key, 0.0)
+        # a term larger than anything the campaign shows only cancels another one: not physical
+        if not passes(data, without, final) or small or abs(local.size_um) > LOCAL_LARGEST * largest:
+            kept.remove(local)
+            final = without
+    if not kept:
+        return None
+    again.final, again.local_errors = final, kept
+    again.start, again.gap_before_um = vocabulary.start, vocabulary.gap_before_um
+    again.disagreement_before = vocabulary.disagreement_before
     again.gap_after_um = final.rms_um(data.y)
     again.noise_um = pooled_scatter_um(data, data.y - final.prediction)
     again.disagreement_after = disagreement(data, data.y - final.prediction)
-    return beside_unresolved_period(data, again)
+    again.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_error")}
+    return again
 
 
 def beside_unresolved_period(data: CampaignData, result: Discovery) -> Discovery:
@@ -561,12 +674,16 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
             # something is there that cannot be named (rivals, or a period not known): test the
             # others beside the best of it as a stand-in, so that its residual does not hide them
             stand_in = min(held, key=lambda c: c.delta_bic)
+            # its own group stays out; another unresolved group is tried again beside it (a drift
+            # seen beside an aliased period may tell its shape once the period's residual is held)
+            own = {stand_in.name} | {c.name for c in held if stand_in.name in c.verdict.split("from ", 1)[-1]
+                                     or c.verdict == f"held with {stand_in.name}, which is unresolved"}
             others = [try_candidate(data, stand_in.fitted, name, notes)
-                      for name in candidate_names(data, stand_in.fitted.terms, notes)
-                      if name not in {c.name for c in held}]
+                      for name in candidate_names(data, stand_in.fitted.terms, notes) if name not in own]
+            held = [c for c in held if c.name in own]
             others.sort(key=lambda c: (c.fit is None, c.delta_bic))
             chosen, more = choose(data, stand_in.fitted, others, notes)
-            unresolved += more
+            unresolved = [u for u in unresolved if set(u["effects"]) & own] + more
             ranking = [*held, *others]
             if chosen is not None:
                 _note(notes, f"{chosen.name} was tested beside the unresolved {stand_in.name} (as a stand-in, "
@@ -610,6 +727,7 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
                 "observable": f"a reversal of {abs(b_um):.1f} {dev} between the directions (x̄↑ − x̄↓ = "
                               f"{-b_um:+.1f} {dev}): backlash, or settling not died out; cannot tell which",
                 "params": current.params()["backlash"], "gap_without_um": without}
+    current = drop_failing(data, current, steps, notes)
     all_errors = standard_errors(data, current)
     for name in all_errors:
         add_period_spread(all_errors[name], name, spreads)
@@ -620,6 +738,19 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
                      disagreement(data, data.y - start.prediction), disagreement(data, residual), choices,
                      unresolved, errors=all_errors, remaining=remaining, remaining_beside=remaining_beside,
                      stand_in=kept, starting=starting_report(data, start, current, all_errors, given))
+
+
+def drop_failing(data: CampaignData, fit: Fit, steps: list[Step], notes: list[str]) -> Fit:
+    """The final model without any named effect that, beside what was named after it, no longer
+    passes the naming gates (gate_failures): its step is removed from `steps` and a note says why."""
+    while failing := next(((s, why) for s in steps if s.effect != "local_error"
+                           and (why := gate_failures(data, fit, s.effect))), None):
+        step, why = failing
+        steps.remove(step)
+        fit = refine(data, [t for t in fit.terms if t.name != step.effect])
+        _note(notes, f"{step.effect} is not named: beside the other effects of the final model it fails the "
+                     f"naming gates ({'; '.join(why)})")
+    return fit
 
 
 def add_period_spread(errors: dict[str, float], name: str, spreads: dict[str, float]) -> None:
@@ -668,6 +799,9 @@ HOW_TO_TELL = {
         "more targets (at least 4 per screw lead over part of the travel, offsets = \"golden\"), or the known "
         "screw lead in the model (periodic_lead.period_mm) so that only its amplitude is fitted"),
     frozenset({"thermal_drift", "linear_scale"}): "more runs over a longer time: a drift changes from run to run",
+    frozenset({"thermal_drift", "linear_drift"}): (
+        "a longer campaign (several of the drift's time constants, or a second campaign later): an exponential "
+        "growth levels off, a linear one does not"),
 }
 """What campaign separates two effects that explain the same residual."""
 HOW_TO_TELL_DEFAULT = ("a campaign that varies what separates them: more runs over a longer time for time "
@@ -677,7 +811,7 @@ PERIOD_HOW_TO_TELL = ("more targets (at least 4 per screw lead over part of the 
                       "(periodic_lead.period_mm): with the period given, only the amplitude is fitted")
 UNRESOLVED_VERDICTS = ("not told apart", "held with", "period not identifiable")
 """Verdicts of candidates that are neither named nor rejected: the data cannot resolve them."""
-CONFOUNDED_PAIRS = {frozenset({"environment", "thermal_drift"})}
+CONFOUNDED_PAIRS = {frozenset({"environment", "thermal_drift"}), frozenset({"environment", "linear_drift"})}
 """Pairs with their own way of choosing (air_or_screw), not treated as rivals."""
 
 
@@ -697,7 +831,7 @@ def choose(data: CampaignData, current: Fit, ranking: list[Candidate],
             held += hold_reversal(best, ranking, data, n, unresolved)
             continue
         rivals = [c for c in ranking if c is not best and c.fit is not None and c not in held
-                  and are_rivals(data, best, c, n)]
+                  and not gated_out(c, best) and are_rivals(data, best, c, n)]
         if not rivals:
             return best, unresolved
         group = [best, *rivals]
@@ -711,6 +845,21 @@ def choose(data: CampaignData, current: Fit, ranking: list[Candidate],
                 group.append(cand)
         held += group
     return None, unresolved
+
+
+LIMIT_OF = {"thermal_drift": "linear_drift"}
+"""Effect -> the effect that is its limit (an exponential growth whose time constant is far beyond
+the campaign is a linear drift)."""
+
+
+def gated_out(cand: Candidate, best: Candidate) -> bool:
+    """Is `cand`, which fits, no rival of `best` because it fails the naming gates: a parameter
+    outside its physical range, or only its size under 2σ where `best` is its limit (a thermal
+    growth whose time constant the campaign cannot tell is the linear drift)? A rival whose size is
+    merely uncertain (settling beside backlash at waits that vary a little) stays a rival."""
+    if not cand.verdict.startswith("not named"):
+        return False
+    return "not physical" in cand.verdict or LIMIT_OF.get(cand.name) == best.name
 
 
 def hold_reversal(backlash: Candidate, ranking: list[Candidate], data: CampaignData, n: int,
@@ -839,7 +988,7 @@ def air_or_screw(data: CampaignData, ranking: list[Candidate], chosen: Candidate
         return None
     other_name = "thermal_drift" if chosen.name == "environment" else "environment"
     other = next((c for c in ranking if c.name == other_name and c.fit is not None), None)
-    if other is None or not (other.accepted or other.verdict.startswith("significant")
+    if other is None or not (other.accepted or other.verdict.startswith(("significant", "not named"))
                              or other.explained_pct >= PLAUSIBLE_SHARE * chosen.explained_pct):
         return None
     env, thermal = (chosen, other) if chosen.name == "environment" else (other, chosen)
@@ -867,8 +1016,9 @@ def air_or_screw(data: CampaignData, ranking: list[Candidate], chosen: Candidate
                      "about its fixed bearing" if not at_datum else
                      f"but it pivots at {pivot:.0f} mm, at the laser datum, as an air index change would: "
                      "check the air log and the laser's air compensation")
+    gated = f"; {other.name} is {other.verdict}" if other.verdict.startswith("not named") else ""
     why = (f"environment and thermal_drift both explain the run-to-run slope change (step {step}); "
-           f"chose {chosen.name}: {fit_why}, by {margin:.1f} in BIC; {pivot_why}")
+           f"chose {chosen.name}: {fit_why}, by {margin:.1f} in BIC; {pivot_why}{gated}")
     return {"step": step, "chosen": chosen.name, "other": other.name, "pivot_mm": round(pivot, 1),
             "pivot_at_laser_datum": bool(at_datum), "environment_explained_pct": round(env.explained_pct, 2),
             "thermal_drift_explained_pct": round(thermal.explained_pct, 2),

@@ -1,0 +1,74 @@
+"""Bench: discovery on a dense table (issue 34 item 4): a continuous scan gives tens of thousands of
+positions. A point table of ROWS rows (targets 0.06 mm apart over 600 mm, both directions, 5 runs,
+a time column; a 1 µm, 10 mm screw lead, a bow and 0.3 µm of noise) is written as CSV; then, each
+in a fresh process, the table is read (campaign.pointtable.read_points) and discovered
+(`axiscal discover` on it). Reports the wall time and the peak memory of each and the ratio of the
+discovery's time to the reading's. Writes bench/results/discovery_dense.json.
+
+    .venv/bin/python bench/discovery_dense.py [--rows N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from campaign.pointtable import PointTable, write_points
+
+RESULTS = Path(__file__).parent / "results"
+
+
+def dense_table(rows: int, seed: int = 1) -> PointTable:
+    """`rows` points: targets over 600 mm, both directions, 5 runs, in campaign order."""
+    runs = 5
+    targets = np.linspace(0.0, 600.0, max(rows // (2 * runs), 2))
+    run, direction, target = [], [], []
+    for r in range(1, runs + 1):
+        for d, order in ((1, targets), (-1, targets[::-1])):
+            run += [r] * len(order)
+            direction += [d] * len(order)
+            target += list(order)
+    x, d = np.array(target), np.array(direction)
+    u = 2 * x / 600.0 - 1
+    rng = np.random.default_rng(seed)
+    y = (np.sin(2 * np.pi * x / 10.0 + 0.3) + 0.5 * (3 * u**2 - 1) / 2 - d * 0.75 + rng.normal(0, 0.3, len(x)))
+    return PointTable(kind="linear", run=np.array(run), direction=d, target=x, deviation=y,
+                      optional={"time_s": np.arange(len(x)) * 0.05}, meta={}, source="<dense>")
+
+
+def timed(code: str) -> tuple[float, float, str]:
+    """Wall time (s), peak resident memory (MB, the largest child so far) and output of `code` run in
+    a fresh Python."""
+    started = time.perf_counter()
+    said = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True).stdout
+    wall = time.perf_counter() - started
+    return wall, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024, said
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rows", type=int, default=100_000)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "dense.csv"
+        write_points(path, dense_table(args.rows))
+        read_s, read_mb, _ = timed(f"from campaign.pointtable import read_points; read_points({str(path)!r})")
+        disc_s, disc_mb, said = timed(f"from campaign.cli import main; raise SystemExit(main(['discover', "
+                                      f"{str(path)!r}]))")
+    out = {"rows": args.rows, "read_s": round(read_s, 2), "read_peak_mb": round(read_mb), "discover_s": round(disc_s, 2),
+           "discover_peak_mb": round(disc_mb), "ratio": round(disc_s / read_s, 1), "said": said.splitlines()[:6]}
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "discovery_dense.json").write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
+    print(json.dumps(out, indent=1))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,81 @@
+"""Bench: discovery on errors it was never taught (issue 34 item 8).
+
+Random machines from tests/discovery_draws.py (an out-of-vocabulary error: a step, a symmetric or
+skewed bump, two regions of either sign, a wave over part of the travel, a slope growing linearly in
+time; 2-4 µm, 1-150 mm wide; beside a random bow, backlash and scale; noise 0.3-0.8 µm), on the 600 mm
+test axis at 11, 17 and 21 targets, golden and uniform, 5 runs, recorded with the fast simulator; and
+null machines (the vocabulary part alone). For each shape × plan: how many draws the targets can see
+at all, how many of those are located (a region within its width, a step within 10 mm; a linear
+drift named), how many name an effect the machine lacks, how many end within 1.3 × the noise.
+Writes bench/results/discovery_draws.json and the table quoted in docs/discovery.md.
+
+    .venv/bin/python bench/discovery_draws.py [--draws N] [--seed S]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from campaign.discovery.data import campaign_data
+from campaign.discovery.search import discover
+from campaign.discovery.simulate import simulate_campaign
+from campaign.model import ErrorModel
+from tests.discovery_draws import SHAPES, draw, judge, plan_config
+
+RESULTS = Path(__file__).parent / "results"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--draws", type=int, default=4, help="draws per shape and plan")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+    rows = []
+    started = time.perf_counter()
+    for shape in (*SHAPES, "null"):
+        for count in (11, 17, 21):
+            for offsets in ("golden", "none"):
+                config = plan_config(count, offsets)
+                tally = {"shape": shape, "targets": count, "offsets": offsets, "draws": 0, "visible": 0,
+                         "located": 0, "false_names": 0, "gap_within_1_3": 0, "false": []}
+                for k in range(args.draws):
+                    seed = args.seed + 7919 * k + 31 * count + (0 if offsets == "none" else 1)
+                    truth = draw(np.random.default_rng(seed), shape, config)
+                    table = simulate_campaign(config, ErrorModel(truth.model), seed=seed, dwell_jitter=0.8)
+                    result = discover(campaign_data(table), ErrorModel({"linear_scale": {}}),
+                                      {"linear_scale": set()})
+                    judged = judge(result, truth)
+                    found_local = shape == "null" and bool(result.local_errors)
+                    tally["draws"] += 1
+                    tally["visible"] += truth.visible
+                    tally["located"] += truth.visible and judged.located
+                    tally["false_names"] += bool(judged.false_names) or found_local
+                    tally["gap_within_1_3"] += judged.gap_ratio <= 1.3
+                    if judged.false_names or found_local:
+                        tally["false"].append({"seed": seed, "said": judged.said})
+                rows.append(tally)
+                print(shape, count, offsets, {k: v for k, v in tally.items() if k != "false"}, flush=True)
+    RESULTS.mkdir(exist_ok=True)
+    out = {"draws_per_cell": args.draws, "seconds": round(time.perf_counter() - started, 1), "rows": rows}
+    (RESULTS / "discovery_draws.json").write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
+    print("| shape | targets | golden: visible / located / false names / gap ≤ 1.3σ | uniform: same |")
+    print("|---|---|---|---|")
+    for shape in (*SHAPES, "null"):
+        for count in (11, 17, 21):
+            cells = []
+            for offsets in ("golden", "none"):
+                r = next(r for r in rows if (r["shape"], r["targets"], r["offsets"]) == (shape, count, offsets))
+                cells.append(f"{r['visible']}/{r['draws']} · {r['located']} · {r['false_names']} · {r['gap_within_1_3']}")
+            print(f"| {shape} | {count} | {cells[0]} | {cells[1]} |")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,55 @@
+"""Issue 34 item 8: discovery tried on errors it was never taught, drawn at random the way real axes
+make them (tests/discovery_draws.py), and on null machines. The full table is bench/discovery_draws.py
+(docs/discovery.md); here a sweep in the machine tier."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from campaign.discovery.data import campaign_data
+from campaign.discovery.search import discover
+from campaign.discovery.simulate import simulate_campaign
+from campaign.model import ErrorModel
+from tests.discovery_draws import SHAPES, draw, judge, plan_config
+
+
+def discovered(shape: str, count: int, offsets: str, seed: int):
+    config = plan_config(count, offsets)
+    truth = draw(np.random.default_rng(seed), shape, config)
+    table = simulate_campaign(config, ErrorModel(truth.model), seed=seed + 5000, dwell_jitter=0.8)
+    result = discover(campaign_data(table), ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
+    return truth, result
+
+
+@pytest.mark.machine  # 24 simulated campaigns and discoveries
+def test_null_machines_name_nothing_and_locate_nothing():
+    """The vocabulary part alone (a random bow, backlash and scale, noise 0.3-0.8 µm): no effect the
+    machine lacks is named and no local error is found, in at least 95 % of draws (here: all but one
+    of 24)."""
+    said = []
+    for seed in range(200, 206):
+        for count, offsets in ((11, "golden"), (17, "none"), (21, "golden"), (21, "none")):
+            truth, result = discovered("null", count, offsets, seed)
+            false = [n for n in result.added if n not in truth.vocabulary and n != "linear_scale"]
+            if false or result.local_errors:
+                said.append((seed, count, offsets, false, [e.sentence() for e in result.local_errors]))
+    assert len(said) <= 1, said
+
+
+@pytest.mark.machine  # 36 simulated campaigns and discoveries
+@pytest.mark.xfail(strict=True, reason="issue 34's goal, not met yet: 3 of these 36 draws (8 %) name an effect the "
+                   "machine lacks (the bow for a bump only one or two of 11 targets see; periodic_lead for a wave over "
+                   "part of the travel); bench/discovery_draws.py: 9 of 108")
+def test_out_of_vocabulary_draws_name_no_effect_the_machine_lacks():
+    """Over random out-of-vocabulary draws (every shape, 11 and 21 targets, golden and uniform): no
+    vocabulary effect the machine lacks is named in at least 95 % of draws."""
+    false = []
+    for shape in SHAPES:
+        for count, offsets in ((11, "golden"), (21, "none"), (21, "golden")):
+            for seed in (301, 302):
+                truth, result = discovered(shape, count, offsets, seed)
+                judged = judge(result, truth)
+                if judged.false_names:
+                    false.append((shape, count, offsets, seed, judged.said))
+    assert len(false) <= 0.05 * len(SHAPES) * 3 * 2, false
