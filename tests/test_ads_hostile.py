@@ -227,6 +227,7 @@ def test_every_hostile_probe_is_refused_or_closed_and_a_normal_client_is_served_
 PARTIAL_CLIENTS = 80
 
 
+@pytest.mark.machine
 def test_many_clients_each_holding_most_of_a_packet_cost_the_server_a_bounded_total(server):
     """Each connection may hold one unfinished packet of up to PACKET_LIMIT_BYTES (1 MiB) for
     PACKET_TIMEOUT_S: 80 clients each sending all but the last byte of a 1 MiB packet made the

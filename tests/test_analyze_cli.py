@@ -235,6 +235,7 @@ def display_width(line: str) -> int:
     return sum(0 if unicodedata.combining(c) else 1 for c in line)
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("argv", [("analyze", HORIZONTAL), ("refine", HORIZONTAL), ("discover", HORIZONTAL),
                                   ("compensate", HORIZONTAL, "--format", "csv", "-o", "{tmp}/t.csv")])
 def test_80_columns_cut_no_number_and_print_micrometres(cli, tmp_path, monkeypatch, argv):

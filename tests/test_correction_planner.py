@@ -164,6 +164,7 @@ def test_correction_cli_plot_and_bad_input(cli, tmp_path):
                               "--cycle-ms", "1"), "--max-rate: must be a finite number > 0")
 
 
+@pytest.mark.machine
 def test_st_block_parses_and_mirrors_the_planner_constants():
     """Parse only: no ST runtime exists here, so nothing claims to run the block."""
     from pathlib import Path

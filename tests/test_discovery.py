@@ -94,6 +94,7 @@ def test_simulation_is_deterministic_and_follows_the_plan_timeline():
     assert np.allclose(clean.deviation, quiet.deviation_um(clean.target, clean.direction))
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("hidden", list(HIDDEN))
 def test_one_hidden_effect_is_named_and_recovered(hidden):
     true_params, checked = HIDDEN[hidden]
@@ -110,6 +111,7 @@ def test_one_hidden_effect_is_named_and_recovered(hidden):
     assert result.gap_after_um < result.gap_before_um
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("hidden", list(TIME_CAMPAIGNS))
 @pytest.mark.parametrize("seed", sweep(3, 4))
 def test_time_constants_are_recovered_within_15_percent_on_a_campaign_designed_for_them(hidden, seed):
@@ -147,6 +149,7 @@ def test_time_constants_on_the_short_campaign_are_only_known_to_about_12_percent
         assert max(abs(r) for r in ratios) < 3, ratios
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("pair", [("periodic_lead", "thermal_drift"), ("nonlinear_lead", "settling"),
                                   ("backlash", "periodic_lead")])
 def test_two_hidden_effects_are_both_named(pair):

@@ -108,6 +108,7 @@ def test_an_incomplete_campaign_is_said_first(cli, tmp_path):
     assert not any("incomplete" in note for note in discover_json(cli, PAPER / "horizontal_before.csv")["notes"])
 
 
+@pytest.mark.machine
 def test_text_output_names_steps_units_and_noise(cli, tmp_path):
     config = parse_config(REAL_PLAN + SPATIAL_AND_TIME)
     table = simulate_campaign(config, sim_model(config.sim), seed=2)

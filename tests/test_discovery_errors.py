@@ -57,6 +57,7 @@ def test_the_model_s_given_period_prints_its_amplitude_with_an_error(cli, tmp_pa
     assert "phase_rad = " in line and "rad ± " in line
 
 
+@pytest.mark.machine
 def test_a_named_period_gets_amplitude_and_phase_errors(cli, tmp_path):
     table = simulate_campaign(CONFIG, ErrorModel({**BASE, "periodic_lead": {**LEAD, "amplitude_um": 1.5}}),
                               seed=3, dwell_jitter=0.8)
@@ -70,6 +71,7 @@ def test_a_named_period_gets_amplitude_and_phase_errors(cli, tmp_path):
     assert abs(step["params"]["amplitude_um"] - 1.5) < 4 * step["standard_errors"]["amplitude_um"]
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("seed", [1, 2])
 def test_cross_validation_does_not_blow_up_where_a_fold_loses_a_column(seed):
     """Leaving out the run in which a short thermal time constant acts made thermal_drift's columns

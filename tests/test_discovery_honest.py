@@ -27,6 +27,7 @@ def bow_table(tmp_path, glitch_um=0.0, extra=None, seed=5, dwell_jitter=0.0):
     return path, table
 
 
+@pytest.mark.machine
 def test_a_glitch_is_flagged_left_out_and_the_noise_given_with_and_without(cli, tmp_path):
     path, table = bow_table(tmp_path, glitch_um=12.0)
     result = cli("discover", path, "--json")
@@ -44,12 +45,14 @@ def test_a_glitch_is_flagged_left_out_and_the_noise_given_with_and_without(cli, 
     assert "left out of the fit" in text.out and "µm without" in text.out
 
 
+@pytest.mark.machine
 def test_without_a_glitch_nothing_is_flagged(cli, tmp_path):
     path, _ = bow_table(tmp_path)
     found = json.loads(cli("discover", path, "--json").out)
     assert found["outliers"] == [] and not any("left out of the fit" in n for n in found["notes"])
 
 
+@pytest.mark.machine
 def test_each_parameter_once_with_its_unit(cli, tmp_path):
     assert unit_of("backlash", "b_um", "s") == "µm"
     assert unit_of("settling", "e0_um", "s") == "µm"
@@ -60,6 +63,7 @@ def test_each_parameter_once_with_its_unit(cli, tmp_path):
     assert said.startswith("b_um = ") and said.count("µm") == 2 and "e = " not in said  # value and error
 
 
+@pytest.mark.machine
 def test_notes_are_said_once(cli, tmp_path):
     path, _ = bow_table(tmp_path, extra={"backlash": {"b_um": 6.0}})
     found = json.loads(cli("discover", path, "--json").out)

@@ -47,6 +47,7 @@ def test_the_simulators_bump_is_not_in_the_vocabulary():
     assert "local_defect" in EFFECT_PARAMS and "local_defect" not in FORMS
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("seed", sweep(1, 2, 3))
 def test_a_local_bump_is_located_and_nothing_soaks_it_up(seed):
     """21 targets (30 mm apart), a +3 µm bump 100 mm wide at 250 mm (three targets see it at half its height or more) beside the bow: located within
@@ -65,6 +66,7 @@ def test_a_local_bump_is_located_and_nothing_soaks_it_up(seed):
                             result.local.sentence())
 
 
+@pytest.mark.machine
 def test_a_bump_in_one_direction_says_so():
     result = found(user_config(count=21), {**BOW, "local_defect": {**BUMP, "direction": -1.0}}, 2)
     assert result.local is not None and result.local.directions == "-"
@@ -75,6 +77,7 @@ def test_a_bump_in_one_direction_says_so():
     assert "backlash" not in result.added and "position_dependent_backlash" not in result.added
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("seed", sweep(1, *range(2, 9)))
 def test_no_local_error_where_there_is_none(seed):
     """The null case: the bow alone, 11 and 21 targets; the local search adds nothing."""
@@ -82,6 +85,7 @@ def test_no_local_error_where_there_is_none(seed):
         assert found(user_config(count=count), BOW, seed).local is None
 
 
+@pytest.mark.machine
 def test_a_start_model_with_the_simulators_bump(cli, tmp_path):
     table = simulate_campaign(user_config(count=21), ErrorModel({**BOW, "local_defect": BUMP}), seed=1)
     write_points(tmp_path / "p.csv", table)
@@ -109,6 +113,7 @@ def test_the_bow_beside_an_unresolved_period_is_not_biased(seed):
     assert "periodic_lead" not in result.params()  # nothing added for the period itself
 
 
+@pytest.mark.machine
 def test_campaigns_fitted_together_share_effects_and_each_has_its_offset(cli, tmp_path):
     config = user_config()
     machine = {**BOW, "backlash": {"b_um": 2.0}}
@@ -152,6 +157,7 @@ def written_follow_up(cli, tmp_path, config_text: str, machine: dict, seed: int 
     return directory / "points.csv", config, json.loads(said.out)
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("seed", sweep(1, 2))
 @pytest.mark.parametrize("truth", ["backlash", "settling"])
 def test_the_follow_up_tells_backlash_from_settling(cli, tmp_path, truth, seed):
@@ -177,6 +183,7 @@ def test_the_follow_up_tells_backlash_from_settling(cli, tmp_path, truth, seed):
     assert set(both["added"]) <= {truth, "nonlinear_lead"}
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("seed", sweep(1, 2))
 def test_the_follow_up_pins_an_aliased_period(cli, tmp_path, seed):
     """A 10 mm lead at 11 targets: periods fit alike; the follow-up is a cluster of targets at most a
@@ -314,6 +321,7 @@ def test_the_bow_is_averaged_when_a_bump_is_not_added_beside_an_unresolved_perio
     assert result.params()["linear_scale"] == result.averaged["linear_scale"]
 
 
+@pytest.mark.machine
 def test_a_thermal_time_constant_in_point_order_is_not_printed_in_seconds(cli, tmp_path):
     """Without a time column thermal_drift's τ is fitted in points; the summary said 's' (old code)."""
     config = parse_config(user_config().text.replace("cycles = 5", "cycles = 10"))
@@ -355,6 +363,7 @@ def planned_follow_up(tmp_path, groups: list[dict], budget_s: float | None = Non
     return follow, sorted(set(np.round(data.x, 3)))
 
 
+@pytest.mark.machine
 def test_the_thermal_part_spans_the_travel_with_twice_the_runs_and_is_not_planned_beyond_the_budget(tmp_path):
     """Scale against thermal drift: a slope is seen over the travel and a drift over time, so twice
     the runs at targets over the whole travel. That takes longer than the first campaign (its moves
@@ -388,6 +397,7 @@ def test_the_growing_backlash_part_spans_the_travel(tmp_path):
     assert follow.duration_s <= follow.first_duration_s and "whole travel" in follow.parts[0].why
 
 
+@pytest.mark.machine
 def test_a_follow_up_is_marked_as_one_and_never_longer_than_the_first_campaign(tmp_path):
     """Issue 34 item 6: every part together (settling against backlash, an aliased period, a growing
     reversal) fits the first campaign's machine time by construction; the config says it is a

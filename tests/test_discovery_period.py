@@ -41,6 +41,7 @@ def fine_discovery(effects: dict, seed: int):
     return discover(campaign_data(table), ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("seed", sweep(1, 2, 3))
 def test_a_10_mm_lead_on_61_uniform_targets_1_mm_apart_is_named_with_its_period_within_1_percent(seed):
     """The old search did not look for a period on evenly spaced targets at all ("named: nothing")."""

@@ -29,6 +29,7 @@ def iso_table(path, deviation, kind="linear", runs=5, targets=11, spacing=60.0, 
     return path
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_a_constant_reversal_without_a_wait_column_is_a_stand_in(cli, tmp_path, seed):
     table = iso_table(tmp_path / "p.csv", lambda x, d, rng: 0.012 * x - d * 3.0 + rng.normal(0, 0.5), seed=seed)
@@ -87,6 +88,7 @@ def test_no_stand_in_where_the_waits_vary(seed):
     assert result.stand_in is None and "backlash" not in result.params() and "settling" not in result.params()
 
 
+@pytest.mark.machine
 def test_the_stand_in_is_the_backlash_even_when_settling_is_tried_beside():
     """A wait column that does not vary (the fixed dwell, recorded): the stand-in is the backlash."""
     from campaign.discovery.data import campaign_data

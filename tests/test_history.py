@@ -131,6 +131,7 @@ def test_simulated_history_trend_finds_the_truth(cli, db, tmp_path):
     assert earliest > dates[-1]  # the axis is still within its tolerance at the last re-check
 
 
+@pytest.mark.machine
 def test_trend_table_plot_and_list(cli, db, tmp_path):
     made = json.loads(cli("demo", "--history", "5", "--out", tmp_path / "h", "--json").out)
     shown = cli("history", "trend", made["machine"], "X", "--plot", tmp_path / "trend.png")
@@ -391,6 +392,7 @@ def test_trend_rate_interval_covers_the_truth_most_of_the_time():
     assert covered >= 180 and found >= 190, (covered, found)
 
 
+@pytest.mark.machine
 def test_report_shows_the_axis_history(cli, db, tmp_path, monkeypatch):
     made = json.loads(cli("demo", "--history", "3", "--out", tmp_path / "h", "--json").out)
     last = max((tmp_path / "h").iterdir())
@@ -420,6 +422,7 @@ def dated_tables(tmp_path, dates: list[str], machine: str = "m1") -> list:
     return tables
 
 
+@pytest.mark.machine
 def test_campaigns_sharing_one_time_give_no_drift(cli, db, tmp_path):
     """Three campaigns dated alike: the drift is not determined (the campaigns span no time) and
     the crossing not predictable, in the trend and in the report (an internal error before)."""

@@ -37,6 +37,7 @@ def small_plant(url: str) -> dict[str, object]:
     return made
 
 
+@pytest.mark.machine
 def test_plant_lists_every_axis_with_its_due_date(cli, db, tmp_path):  # noqa: F811
     from campaign.history.location import store_url
 

@@ -37,6 +37,7 @@ def history_with_purposes(root):
     return dirs, follow, diag
 
 
+@pytest.mark.machine
 def test_follow_ups_and_diagnostics_are_listed_never_trended(cli, db, tmp_path):  # noqa: F811
     dirs, _, _ = history_with_purposes(tmp_path)
     assert cli("history", "import", tmp_path).code == 0
@@ -55,6 +56,7 @@ def test_follow_ups_and_diagnostics_are_listed_never_trended(cli, db, tmp_path):
     assert trend["drift"]["A"]["significant"], trend["drift"]["A"]
 
 
+@pytest.mark.machine
 def test_a_verification_after_a_compensation_is_a_known_step(cli, db, tmp_path):  # noqa: F811
     """Six re-checks with a growing lead error, then a compensation (verified: the lead error
     nearly gone), then four more re-checks growing again at the same rate: the verification
@@ -100,6 +102,7 @@ def test_history_list_fits_the_terminal(cli, tmp_path, monkeypatch, width):
     assert "3 campaign(s) in h.sqlite" in shown.out and "sqlite:" not in shown.out
 
 
+@pytest.mark.machine
 def test_the_store_is_named_by_a_short_label(cli, tmp_path, monkeypatch):
     """After a campaign and in the report: the file name, never sqlite:////..."""
     from campaign.history.location import store_label

@@ -173,6 +173,7 @@ def test_bad_arguments_give_one_error_line(tmp_path, cli):
 CSVISH = st.text(alphabet=st.sampled_from("time_s,reading_mm0123456789.-+eE#\n\r\t ;nainf\"'"), max_size=300)
 
 
+@pytest.mark.machine
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.one_of(st.binary(max_size=300), CSVISH.map(str.encode),
                  CSVISH.map(lambda s: ("time_s,reading_mm\n" + s).encode())))

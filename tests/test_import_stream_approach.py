@@ -65,6 +65,7 @@ def true_summary(table: PointTable, truth: np.ndarray) -> dict:
     return evaluate(true).summary
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("still_tolerance", TOLERANCES)
 @pytest.mark.parametrize("noise", NOISES)
 @pytest.mark.parametrize("approach", APPROACHES)

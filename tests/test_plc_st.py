@@ -135,6 +135,7 @@ def test_the_plc_sources_are_there():
     assert {"GVL_Axiscal.st", "FB_AxiscalAxis.st", "E_AxiscalCommand.st"} <= names
 
 
+@pytest.mark.machine
 @pytest.mark.parametrize("path", ST_FILES, ids=[p.name for p in ST_FILES])
 def test_st_file_parses_with_blark(path):
     parse_st(path)

@@ -172,6 +172,7 @@ def test_verify_force_loads_another_axis_table_and_says_so(cli, tmp_path, monkey
     assert machine.openings and machine.openings[0].axis.comp is not None
 
 
+@pytest.mark.machine
 def test_the_report_of_a_verification_names_its_table_and_campaigns(cli, tmp_path, monkeypatch):
     """The verification campaign keeps the table it wrote and records its file, format, checksum and
     source campaign; the report names them, and the before and after campaigns by id and relative to
