@@ -19,7 +19,7 @@ demo: $(STAMP)
 test: $(STAMP)
 	bash tests/setup_system.sh
 	$(VENV)/bin/mypy campaign drivers protocols
-	$(PY) -m pytest -q -n 2
+	$(PY) -m pytest -q -n 2 --dist loadgroup
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
