@@ -19,7 +19,8 @@ demo: $(STAMP)
 test: $(STAMP)
 	bash tests/setup_system.sh
 	$(VENV)/bin/mypy campaign drivers protocols
-	$(PY) -m pytest -q -n 2 --dist loadgroup
+	$(PY) -m pytest -q -n 2 -m 'not linuxcnc'
+	$(PY) -m pytest -q -m linuxcnc
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .

@@ -29,7 +29,7 @@ from tests.test_demo_e2e import axiscal
 INSTALLED = all(shutil.which(tool) for tool in ("linuxcnc", "linuxcncrsh", "halcmd"))
 
 
-@pytest.mark.xdist_group("linuxcnc")  # one LinuxCNC per machine: these run on one worker, one after another
+@pytest.mark.linuxcnc  # a real-time LinuxCNC: run alone, after the parallel suite (make test)
 @pytest.mark.machine
 @pytest.mark.skipif(not INSTALLED, reason="LinuxCNC is not installed (tests/setup_system.sh installs "
                                           "linuxcnc-uspace where apt is available)")
@@ -215,7 +215,7 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-@pytest.mark.xdist_group("linuxcnc")  # one LinuxCNC per machine: these run on one worker, one after another
+@pytest.mark.linuxcnc  # a real-time LinuxCNC: run alone, after the parallel suite (make test)
 @pytest.mark.machine
 @pytest.mark.skipif(not INSTALLED, reason="LinuxCNC is not installed (tests/setup_system.sh installs "
                                           "linuxcnc-uspace where apt is available)")
@@ -354,7 +354,7 @@ def test_a_directory_at_the_records_path_is_refused_before_linuxcnc_starts(files
         process._check_record_path(record_file)
 
 
-@pytest.mark.xdist_group("linuxcnc")  # one LinuxCNC per machine: these run on one worker, one after another
+@pytest.mark.linuxcnc  # a real-time LinuxCNC: run alone, after the parallel suite (make test)
 @pytest.mark.machine
 @pytest.mark.skipif(not INSTALLED, reason="LinuxCNC is not installed (tests/setup_system.sh installs "
                     "linuxcnc-uspace)")
