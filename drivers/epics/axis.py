@@ -41,6 +41,14 @@ from caproto.threading.client import PV, Context
 from campaign.errors import InputError
 from protocols import plc_contract
 from protocols.hardware import AxisError, AxisStatus
+from protocols.motor_record import (
+    MSTA_COMM_ERR,
+    MSTA_HOMED,
+    MSTA_MINUS_LS,
+    MSTA_PLUS_LS,
+    MSTA_PROBLEM,
+    SPMG_GO,
+)
 from protocols.plc_contract import CompTable
 
 LIMIT_SWITCH = 0xE001
@@ -52,13 +60,6 @@ ALARM = 0xE003
 REFUSED = 0xE004
 """error_id: the record refused a move (LVIO, or a target outside HLM/LLM)."""
 
-MSTA_DONE = 1 << 1
-MSTA_PLUS_LS = 1 << 2
-MSTA_PROBLEM = 1 << 9
-MSTA_MOVING = 1 << 10
-MSTA_COMM_ERR = 1 << 12
-MSTA_MINUS_LS = 1 << 13
-MSTA_HOMED = 1 << 14
 
 RECORD_FIELDS = ("DMOV", "MOVN", "RBV", "MSTA", "HLS", "LLS", "VAL", "VELO", "HLM", "LLM", "STOP", "SPMG", "BDST", "LVIO", "EGU")
 COMP_PVS = {"afForward": ":Comp:Forward", "afReverse": ":Comp:Reverse", "fStart": ":Comp:Start",
@@ -67,7 +68,6 @@ COMP_PVS = {"afForward": ":Comp:Forward", "afReverse": ":Comp:Reverse", "fStart"
 """The compensation table's PVs under the record's prefix (served by the simulated IOC; a real IOC
 serves them only where its database and controller logic provide them, docs/epics.md)."""
 
-SPMG_GO = 3
 UNIT_NAMES = {"mm": {"mm"}, "deg": {"deg", "degree", "degrees", "°"}}
 """The EGU spellings a motor record may use for each axis unit (compared in lower case)."""
 MOVE_ACCEPT_S = 0.5

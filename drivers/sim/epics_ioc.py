@@ -54,6 +54,20 @@ from drivers.sim.interferometer import SimInterferometer
 from drivers.sim.machine import SimAxisPhysics
 from drivers.sim.plc import SimPLC
 from protocols import plc_contract, plc_layout
+from protocols.motor_record import (
+    MSTA_DIRECTION,
+    MSTA_DONE,
+    MSTA_HOMED,
+    MSTA_MINUS_LS,
+    MSTA_MOVING,
+    MSTA_PLUS_LS,
+    MSTA_POSITION,
+    MSTA_PRESENT,
+    MSTA_PROBLEM,
+    SPMG_GO,
+    SPMG_PAUSE,
+    SPMG_STOP,
+)
 from protocols.plc_contract import Command
 from protocols.tables import ecmc
 
@@ -62,21 +76,6 @@ LOOPBACK = "127.0.0.1"
 STALL_DETECT_S = 1.0
 """How long a stalled motor stands before the simulated controller reports the problem, s."""
 
-MSTA_DIRECTION = 1 << 0
-MSTA_DONE = 1 << 1
-MSTA_PLUS_LS = 1 << 2
-MSTA_HOME_LS = 1 << 3
-MSTA_POSITION = 1 << 5
-MSTA_PRESENT = 1 << 8
-MSTA_PROBLEM = 1 << 9
-MSTA_MOVING = 1 << 10
-MSTA_COMM_ERR = 1 << 12
-MSTA_MINUS_LS = 1 << 13
-MSTA_HOMED = 1 << 14
-"""The motor record's MSTA bits (bit 0 = direction, as the motor record's documentation numbers
-them from 1: DIRECTION, DONE, PLUS_LS, HOMELS, ...)."""
-
-SPMG_STOP, SPMG_PAUSE, SPMG_MOVE, SPMG_GO = 0, 1, 2, 3
 
 _FORMATS = {"BOOL": "?", "INT": "h", "UINT": "H", "UDINT": "I", "LREAL": "d"}
 
