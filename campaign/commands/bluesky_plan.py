@@ -23,6 +23,7 @@ Times: the RunEngine's (real) seconds.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Generator, Iterable
 from pathlib import Path
 from typing import Any
@@ -82,27 +83,40 @@ class DocumentLog:
 def campaign_from_documents(documents: Iterable[tuple[str, dict]], out: str | Path, laser: str = "laser") -> Path:
     """Write the run of `axiscal_plan` in `documents` as a campaign directory `out`. `laser`: the
     laser's data key in the events. InputError when the documents are not such a run."""
-    docs = list(documents)
-    starts = [doc for name, doc in docs if name == "start"]
-    if len(starts) != 1 or CONFIG_KEY not in starts[0]:
+    docs = _checked(documents)
+    starts = [(i, doc) for i, name, doc in docs if name == "start"]
+    if len(starts) != 1 or CONFIG_KEY not in starts[0][1]:
         raise InputError("the documents hold no single run of axiscal_plan (no start document with the config)")
-    start = starts[0]
+    where, start = f"document {starts[0][0]} (start)", starts[0][1]
+    if not isinstance(start[CONFIG_KEY], str):
+        raise InputError(f"{where}: '{CONFIG_KEY}' is {type(start[CONFIG_KEY]).__name__}, not the config's text")
     config = parse_config(start[CONFIG_KEY], str(start.get("axiscal_source", "bluesky start document")))
+    t0 = _number(start, "time", where)
     plan = build_plan(config)
-    streams = {doc["uid"]: doc.get("name", "") for name, doc in docs if name == "descriptor"}
+    streams: dict[str, str] = {}
+    for i, name, doc in docs:
+        if name == "descriptor":
+            where = f"document {i} (descriptor)"
+            streams[str(_field(doc, "uid", where))] = str(doc.get("name", ""))
     readings: dict[int, list[tuple[float, float]]] = {}
-    for name, doc in docs:
-        if name != "event" or not streams.get(doc["descriptor"], "").startswith(STREAM):
+    for i, name, doc in docs:
+        if name != "event":
             continue
-        if laser not in doc["data"]:
-            raise InputError(f"event {doc['seq_num']} of {streams[doc['descriptor']]} has no '{laser}' reading")
-        index = int(streams[doc["descriptor"]][len(STREAM):])
-        readings.setdefault(index, []).append((float(doc["time"]), float(doc["data"][laser])))
+        where = f"document {i} (event)"
+        stream = streams.get(str(_field(doc, "descriptor", where)), "")
+        if not stream.startswith(STREAM):
+            continue
+        data = _field(doc, "data", where)
+        if not isinstance(data, dict) or laser not in data:
+            raise InputError(f"{where}, event {doc.get('seq_num', '?')} of {stream}: has no '{laser}' reading")
+        suffix = stream[len(STREAM):]
+        if not suffix.isdigit():
+            raise InputError(f"{where}: stream '{stream}' names no point (expected {STREAM}<index>)")
+        readings.setdefault(int(suffix), []).append((_number(doc, "time", where), _number(data, laser, where)))
     points = {visit.point.index: visit for visit in plan.visits()}
     unknown = sorted(set(readings) - set(points))
     if unknown:
         raise InputError(f"the documents hold readings of points {unknown} the config's plan does not have")
-    t0 = float(start["time"])
     sections = recorded_sections(config)
     meta = {"machine": config.campaign.machine, "axis": config.axis.name, "operator": config.campaign.operator,
             "kind": config.axis.kind, "unit": config.axis.unit, "plan_seed": plan.seed,
@@ -138,3 +152,33 @@ def campaign_from_documents(documents: Iterable[tuple[str, dict]], out: str | Pa
     finally:
         recorder.close()
     return Path(out)
+
+
+def _checked(documents: Iterable[object]) -> list[tuple[int, str, dict]]:
+    """(position from 1, name, document) of each (name, document) pair; InputError naming the first
+    that is no such pair."""
+    docs = []
+    for i, item in enumerate(documents, 1):
+        if not (isinstance(item, (tuple, list)) and len(item) == 2 and isinstance(item[0], str)
+                and isinstance(item[1], dict)):
+            raise InputError(f"document {i}: not a (name, document) pair of a bluesky run")
+        docs.append((i, item[0], item[1]))
+    return docs
+
+
+def _field(doc: dict, key: str, where: str) -> Any:
+    if key not in doc:
+        raise InputError(f"{where}: no '{key}'")
+    return doc[key]
+
+
+def _number(doc: dict, key: str, where: str) -> float:
+    """doc[key] as a finite float; InputError saying which field of which document is not one."""
+    value = _field(doc, key, where)
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        number = math.nan
+    if isinstance(value, bool) or not math.isfinite(number):
+        raise InputError(f"{where}: '{key}' is {value!r}, not a finite number")
+    return number
