@@ -18,9 +18,9 @@ from campaign.errors import InputError
 from campaign.model import ErrorModel, read_model, sim_model
 from campaign.specs import DriverSpec, plain
 from drivers.ads_axis import AdsAxis
-from drivers.clock import RealClock
+from drivers.clock import ListenedClock, RealClock
 from drivers.serial_interferometer import SerialInterferometer
-from protocols.hardware import Hardware, InstrumentError
+from protocols.hardware import Axis, Hardware, InstrumentError
 from protocols.plc_contract import CompTable
 
 if TYPE_CHECKING:
@@ -98,16 +98,10 @@ def open_hardware(spec: DriverSpec, speed: float | None = None, model: ErrorMode
 
 def _open(spec: DriverSpec, speed: float | None, model: ErrorModel | None, start_position: float | None,
           start_time: float, compensated: bool) -> tuple[Hardware, SimParts | None]:
-    inst, drv = spec.instrument, spec.controller
+    drv = spec.controller
     if drv.type == "ads":
-        axis = AdsAxis(drv.ams_net_id, drv.ip, drv.axis_index, drv.ams_port, read_only=drv.read_only,
-                       timeout_s=drv.timeout_s)
-        try:
-            interferometer = SerialInterferometer(inst.port, inst.baudrate, inst.line, inst.mode, inst.timeout_s)
-        except InstrumentError as exc:
-            axis.close()
-            raise InputError(f"{spec.source}: instrument.port: cannot open {inst.port}: {exc}") from None
-        return Hardware(axis, interferometer, RealClock(), [axis.close, interferometer.close]), None
+        return with_serial_laser(spec, AdsAxis(drv.ams_net_id, drv.ip, drv.axis_index, drv.ams_port,
+                                               read_only=drv.read_only, timeout_s=drv.timeout_s)), None
     if drv.type == "linuxcnc":
         return _open_linuxcnc(spec, model)
     if drv.type == "epics":
@@ -120,40 +114,89 @@ def _open(spec: DriverSpec, speed: float | None, model: ErrorModel | None, start
     return _open_sim(spec, speed, model, start_position, start_time, compensated)
 
 
-def _open_linuxcnc(spec: DriverSpec, model: ErrorModel | None) -> tuple[Hardware, None]:
-    """A headless LinuxCNC (with `axis_driver.comp_file` loaded by its own COMP_FILE loader), its
-    axis over linuxcncrsh, and the simulated laser reading the joint's motor position from HAL
-    through the error model, on the wall clock (LinuxCNC runs in real time)."""
-
-    from drivers.clock import ListenedClock
-    from drivers.linuxcnc.axis import LinuxCncAxis, LinuxCncShell
-    from drivers.linuxcnc.motor import LinuxCncMotor
-    from drivers.linuxcnc.process import LinuxCnc
-    from drivers.sim.interferometer import SimInterferometer
-    from drivers.sim.machine import SimAxisPhysics
-
-    axis_spec, drv, inst = spec.axis, spec.controller, spec.instrument
-    if axis_spec.unit != "mm":
-        raise InputError(f"{spec.source}: axis_driver.type = linuxcnc drives one linear joint (mm)")
-    comp = Path(drv.comp_file) if drv.comp_file else None
-    if comp is not None and not comp.is_file():
-        raise InputError(f"{spec.source}: axis_driver.comp_file: {comp}: no such file")
-    linuxcnc = LinuxCnc(axis_spec, comp)
-    clock = ListenedClock()
-    closers: list[Callable[[], None]] = [linuxcnc.stop]
+def with_serial_laser(spec: DriverSpec, axis: Axis) -> Hardware:
+    """A real controller's `axis` with the laser on the config's serial port, on the wall clock;
+    `axis` is closed again when the port cannot be opened (InputError)."""
+    inst = spec.instrument
     try:
-        axis = LinuxCncAxis(LinuxCncShell())
-        closers.append(axis.close)
-        physics = SimAxisPhysics(LinuxCncMotor(linuxcnc), model or sim_model(spec.sim), "mm", spec.sim.seed)
+        interferometer = SerialInterferometer(inst.port, inst.baudrate, inst.line, inst.mode, inst.timeout_s)
+    except InstrumentError as exc:
+        axis.close()
+        raise InputError(f"{spec.source}: instrument.port: cannot open {inst.port}: {exc}") from None
+    return Hardware(axis, interferometer, RealClock(), [axis.close, interferometer.close])
+
+
+def sim_machine(spec: DriverSpec, speed: float | None, model: ErrorModel | None, start_position: float | None,
+                start_time: float, compensated: bool, axis_index: int) -> tuple[SimClock, SimPLC, SimAxisPhysics]:
+    """The simulated machine behind whatever serves it: its clock (`speed` or sim.speed times real
+    time, from `start_time` s), its PLC axis `axis_index` at `start_position` (or the config's)
+    with its compensation function block (idle until a table is enabled), and its physics (the
+    error model `model` or the config's; noise from sim.seed, + COMP_SEED_OFFSET when
+    `compensated`)."""
+    from drivers.sim.compensation import SimCompensation
+    from drivers.sim.machine import SimAxisPhysics, make_clock
+    from drivers.sim.plc import SimPLC
+
+    axis_spec = spec.axis
+    clock = make_clock(speed if speed is not None else spec.sim.speed, start_time)
+    start = spec.start_position if start_position is None else start_position
+    plc = SimPLC(axis_index, axis_spec.max_velocity, axis_spec.max_acceleration, position=start,
+                 start_time=start_time)
+    clock.attach(plc.scan)
+    clock.attach(SimCompensation(plc, clock.now()).tick)  # FB_AxiscalCompensation: idle until a table is enabled
+    seed = spec.sim.seed + (COMP_SEED_OFFSET if compensated else 0)
+    physics = SimAxisPhysics(plc, model or sim_model(spec.sim), axis_spec.unit, seed,
+                             vacuum_readings=spec.vacuum_readings)
+    return clock, plc, physics
+
+
+def sim_hardware(spec: DriverSpec, clock: SimClock | ListenedClock, physics: SimAxisPhysics, open_axis: Callable[[], Axis],
+                 closers: list[Callable[[], None]]) -> tuple[Hardware, SimInterferometer]:
+    """The hardware of a simulated laser on `clock` (simulated, or the wall clock beside a real-time
+    controller) once the controller runs: the simulated laser on its pty, the axis `open_axis()`
+    opens, and the serial interferometer reading that pty. `closers` (what already runs, e.g. the
+    server) are closed in reverse order when a part fails to open."""
+    from drivers.sim.interferometer import SimInterferometer
+
+    inst = spec.instrument
+    try:
         instrument = SimInterferometer(clock, physics.measure, inst.line, inst.rate_hz, inst.mode)
         closers.append(instrument.close)
+        axis = open_axis()
+        closers.append(axis.close)
         interferometer = SerialInterferometer(instrument.port_name, inst.baudrate, inst.line, inst.mode,
                                               inst.timeout_s)
         closers.append(interferometer.close)
     except BaseException:
         _close(closers)
         raise
-    return Hardware(axis, interferometer, clock, closers), None
+    return Hardware(axis, interferometer, clock, closers), instrument
+
+
+def _open_linuxcnc(spec: DriverSpec, model: ErrorModel | None) -> tuple[Hardware, None]:
+    """A headless LinuxCNC (with `axis_driver.comp_file` loaded by its own COMP_FILE loader), its
+    axis over linuxcncrsh, and the simulated laser reading the joint's motor position from HAL
+    through the error model, on the wall clock (LinuxCNC runs in real time)."""
+
+    from drivers.linuxcnc.axis import LinuxCncAxis, LinuxCncShell
+    from drivers.linuxcnc.motor import LinuxCncMotor
+    from drivers.linuxcnc.process import LinuxCnc
+    from drivers.sim.machine import SimAxisPhysics
+
+    axis_spec, drv = spec.axis, spec.controller
+    if axis_spec.unit != "mm":
+        raise InputError(f"{spec.source}: axis_driver.type = linuxcnc drives one linear joint (mm)")
+    comp = Path(drv.comp_file) if drv.comp_file else None
+    if comp is not None and not comp.is_file():
+        raise InputError(f"{spec.source}: axis_driver.comp_file: {comp}: no such file")
+    linuxcnc = LinuxCnc(axis_spec, comp)
+    try:
+        physics = SimAxisPhysics(LinuxCncMotor(linuxcnc), model or sim_model(spec.sim), "mm", spec.sim.seed)
+    except BaseException:
+        linuxcnc.stop()
+        raise
+    hw, _ = sim_hardware(spec, ListenedClock(), physics, lambda: LinuxCncAxis(LinuxCncShell()), [linuxcnc.stop])
+    return hw, None
 
 
 def _close(closers: list[Callable[[], None]]) -> None:
@@ -184,43 +227,19 @@ def serve_on_free_loopback(plc: SimPLC) -> SimAdsServer:
 def _open_sim(spec: DriverSpec, speed: float | None, model: ErrorModel | None, start_position: float | None,
               start_time: float, compensated: bool) -> tuple[Hardware, SimParts]:
     from campaign.faults import parse_faults
-    from drivers.sim.compensation import SimCompensation
     from drivers.sim.faults import FaultScheduler
-    from drivers.sim.interferometer import SimInterferometer
-    from drivers.sim.machine import SimAxisPhysics, make_clock
-    from drivers.sim.plc import SimPLC
 
-    axis_spec, drv, inst = spec.axis, spec.controller, spec.instrument
+    drv = spec.controller
     faults = parse_faults(plain(spec.sim.faults), spec.source)
     if epics_only := sorted({f.name for f in faults} & {"ca_lost", "limit_switch", "stall"}):
         raise InputError(f"{spec.source}: sim.faults: {', '.join(epics_only)} rehearse the EPICS axis "
                          "(axis_driver.type = \"epics\"); the simulated PLC over ADS has no such fault")
-    clock = make_clock(speed if speed is not None else spec.sim.speed, start_time)
-    start = spec.start_position if start_position is None else start_position
-    plc = SimPLC(drv.axis_index, axis_spec.max_velocity, axis_spec.max_acceleration, position=start,
-                 start_time=start_time)
-    clock.attach(plc.scan)
-    clock.attach(SimCompensation(plc, clock.now()).tick)  # FB_AxiscalCompensation: idle until a table is enabled
-    seed = spec.sim.seed + (COMP_SEED_OFFSET if compensated else 0)
-    physics = SimAxisPhysics(plc, model or sim_model(spec.sim), axis_spec.unit, seed,
-                             vacuum_readings=spec.vacuum_readings)
+    clock, plc, physics = sim_machine(spec, speed, model, start_position, start_time, compensated, drv.axis_index)
     server = serve_on_free_loopback(plc)
-    closers: list[Callable[[], None]] = [server.stop]
-    try:
-        instrument = SimInterferometer(clock, physics.measure, inst.line, inst.rate_hz, inst.mode)
-        closers.append(instrument.close)
-        axis = AdsAxis(server.net_id, server.ip, drv.axis_index, drv.ams_port, timeout_s=drv.timeout_s,
-                       read_only=drv.read_only)
-        closers.append(axis.close)
-        interferometer = SerialInterferometer(instrument.port_name, inst.baudrate, inst.line, inst.mode,
-                                              inst.timeout_s)
-        closers.append(interferometer.close)
-    except BaseException:
-        _close(closers)
-        raise
-    hw = Hardware(axis, interferometer, clock, closers)
-    scheduler = FaultScheduler(faults, plc, server,
-                               instrument, physics)
+    hw, instrument = sim_hardware(spec, clock, physics, lambda: AdsAxis(
+        server.net_id, server.ip, drv.axis_index, drv.ams_port, timeout_s=drv.timeout_s, read_only=drv.read_only),
+        [server.stop])
+    scheduler = FaultScheduler(faults, plc, server, instrument, physics)
     clock.attach(scheduler.tick)
     return hw, SimParts(clock, plc, server, instrument, physics, scheduler)
 
