@@ -29,7 +29,8 @@ from tests.test_demo_e2e import axiscal
 INSTALLED = all(shutil.which(tool) for tool in ("linuxcnc", "linuxcncrsh", "halcmd"))
 
 
-@pytest.mark.linuxcnc  # a real-time LinuxCNC: run alone, after the parallel suite (make test)
+@pytest.mark.linuxcnc  # a real-time LinuxCNC: one per machine, so one after another on one worker
+@pytest.mark.xdist_group("linuxcnc")
 @pytest.mark.machine
 @pytest.mark.skipif(not INSTALLED, reason="LinuxCNC is not installed (tests/setup_system.sh installs "
                                           "linuxcnc-uspace where apt is available)")
@@ -215,7 +216,8 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-@pytest.mark.linuxcnc  # a real-time LinuxCNC: run alone, after the parallel suite (make test)
+@pytest.mark.linuxcnc  # a real-time LinuxCNC: one per machine, so one after another on one worker
+@pytest.mark.xdist_group("linuxcnc")
 @pytest.mark.machine
 @pytest.mark.skipif(not INSTALLED, reason="LinuxCNC is not installed (tests/setup_system.sh installs "
                                           "linuxcnc-uspace where apt is available)")
@@ -232,11 +234,13 @@ def test_after_kill_9_of_the_demo_the_next_run_stops_the_linuxcnc_it_left_and_co
         """Start `command` (or take `proc`), SIGKILL it once its point table has two points (it is
         measuring on LinuxCNC's axis: no cleanup of its own runs); its pid."""
         proc = proc or subprocess.Popen(command, cwd=ROOT, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                        stderr=subprocess.DEVNULL)
+                                        stderr=open(table.parent.with_suffix(".stderr"), "w"))  # noqa: SIM115
         try:
             deadline = time.monotonic() + 180
             while not (table.exists() and data_rows(table) >= 2):
-                assert proc.poll() is None and time.monotonic() < deadline, "the demo did not measure"
+                if proc.poll() is not None or time.monotonic() > deadline:
+                    said = table.parent.with_suffix(".stderr").read_text()[-2000:]
+                    pytest.fail(f"the demo did not measure (exit {proc.poll()}): {said}")
                 time.sleep(0.5)
         finally:
             proc.kill()
@@ -245,7 +249,7 @@ def test_after_kill_9_of_the_demo_the_next_run_stops_the_linuxcnc_it_left_and_co
 
     first = subprocess.Popen([*AXISCAL, "demo", "--controller", "linuxcnc", "--cycles", "1", "--out",
                               str(tmp_path / "first")], cwd=ROOT, stdin=subprocess.DEVNULL,
-                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                             stdout=subprocess.DEVNULL, stderr=open(tmp_path / "first.stderr", "w"))  # noqa: SIM115
     leftover = None
     try:
         killed_when_measuring([], tmp_path / "first" / "points.csv", first)
@@ -300,6 +304,17 @@ def test_after_kill_9_of_the_demo_the_next_run_stops_the_linuxcnc_it_left_and_co
         assert other.returncode == 3 and other.stderr.startswith(
             "error: a LinuxCNC that axiscal did not start is running here"), other.stderr[-2000:]
         assert foreign.proc.poll() is None  # left running
+        # the simulated laser's HAL reads go through one halcmd session (a halcmd started per read cost
+        # ~10 ms, more on a loaded machine): one process answers every read; a name HAL refuses is an
+        # AxisError saying so, and the reads after it answer from a new session
+        assert foreign.getp("joint.0.motor-pos-cmd") == "0"  # not homed, not moved
+        session = foreign._hal
+        assert session is not None and {foreign.getp("joint.0.motor-pos-cmd") for _ in range(200)} == {"0"}
+        assert foreign._hal is session and session.poll() is None
+        with pytest.raises(AxisError, match="halcmd getp no.such.pin: pin or parameter 'no.such.pin' not found"):
+            foreign.getp("no.such.pin")
+        assert foreign.getp("joint.0.homed") == "FALSE" and foreign.getp("joint.0.motor-pos-cmd") == "0"
+        assert foreign._hal is not session and session.poll() is not None
     finally:
         foreign.stop()
 
@@ -354,7 +369,8 @@ def test_a_directory_at_the_records_path_is_refused_before_linuxcnc_starts(files
         process._check_record_path(record_file)
 
 
-@pytest.mark.linuxcnc  # a real-time LinuxCNC: run alone, after the parallel suite (make test)
+@pytest.mark.linuxcnc  # a real-time LinuxCNC: one per machine, so one after another on one worker
+@pytest.mark.xdist_group("linuxcnc")
 @pytest.mark.machine
 @pytest.mark.skipif(not INSTALLED, reason="LinuxCNC is not installed (tests/setup_system.sh installs "
                     "linuxcnc-uspace)")

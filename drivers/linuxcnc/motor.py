@@ -23,7 +23,7 @@ class LinuxCncMotor:
         self._last: float | None = None
 
     def setpoint_position(self, t: float) -> float:
-        x = float(self.linuxcnc.halcmd("getp", "joint.0.motor-pos-cmd"))
+        x = float(self.linuxcnc.getp("joint.0.motor-pos-cmd"))
         if self._last is not None and abs(x - self._last) > STILL_MM:
             self.last_direction = 1 if x > self._last else -1
             self.arrival_time = None
