@@ -382,8 +382,10 @@ def test_a_bluesky_run_of_the_campaign_plan_becomes_a_campaign_directory(tmp_pat
     from drivers.sim.machine import SimAxisPhysics
 
     text = demo_config_text().replace('[axis_driver]\ntype = "sim"', EPICS_DRIVER.replace("SIM:M1", "SIM:B1"))
+    # moves at the axis's max_velocity (the demo's 8 mm/s took 1220 mm of travel about 10 s of the
+    # test's real time; the RunEngine still sets the motor's velocity before the first move)
     for old, new in (("count = 11", "count = 3"), ("cycles = 5", "cycles = 1"), ("dwell_s = 4.0", "dwell_s = 0.5"),
-                     ("average_s = 1.0", "average_s = 0.2")):
+                     ("average_s = 1.0", "average_s = 0.2"), ("velocity = 8.0", "velocity = 50.0")):
         assert old in text
         text = text.replace(old, new)
     config = parse_config(text, "bluesky.toml")
