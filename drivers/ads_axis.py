@@ -32,6 +32,7 @@ from typing import Any, TypeVar
 
 import pyads
 
+from drivers.halting import HaltsOnClose
 from protocols import plc_contract
 from protocols.hardware import AxisError, AxisStatus
 from protocols.plc_contract import Command, CompTable, Symbol
@@ -105,7 +106,7 @@ class _BadAnswer(Exception):
     """A read gave None or an error text instead of a value (port not open, broken connection)."""
 
 
-class AdsAxis:
+class AdsAxis(HaltsOnClose):
     """Axis n of `GVL_Axiscal` on the PLC at ams_net_id / ip_address (implements campaign's Axis).
 
     read_only: a dry run against a real PLC. Status and table reads work, every write (including
@@ -186,17 +187,6 @@ class AdsAxis:
     def reset(self) -> None:
         """Ask the PLC to clear the axis error (bReset)."""
         self._write_member("bReset", True)
-
-    def close(self) -> None:
-        """Halt the axis if it is moving (not in read-only mode), then close the connection."""
-        if self._closed:
-            return
-        try:
-            if not self.read_only and self.status().busy:
-                self.halt()
-        finally:
-            self._disconnect()
-            self._closed = True
 
     # --- compensation tables -----------------------------------------------------------------
 

@@ -40,6 +40,7 @@ from caproto import AlarmSeverity, AlarmStatus
 from caproto.threading.client import PV, Context
 
 from campaign.errors import InputError
+from drivers.halting import HaltsOnClose
 from protocols import plc_contract
 from protocols.hardware import AxisError, AxisStatus
 from protocols.motor_record import (
@@ -75,7 +76,7 @@ MOVE_ACCEPT_S = 0.5
 """How long start_move waits for the record to show the move (DMOV 0), real s."""
 
 
-class EpicsAxis:
+class EpicsAxis(HaltsOnClose):
     """The motor record `prefix` (e.g. "SIM:M1"), found by Channel Access as EPICS_CA_ADDR_LIST etc.
     say (implements protocols.hardware.Axis).
 
@@ -175,16 +176,6 @@ class EpicsAxis:
     def reset(self) -> None:
         self._refuse_writes("SPMG")
         self._write("SPMG", SPMG_GO, notify=True)
-
-    def close(self) -> None:
-        if self._closed:
-            return
-        try:
-            if not self.read_only and self.status().busy:
-                self.halt()
-        finally:
-            self._closed = True
-            self._disconnect()
 
     def _disconnect(self) -> None:
         """End the Channel Access context. caproto's disconnect closes the circuits first, then joins
