@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from campaign import capture_methods
 from campaign.config import Config, capture_spec
 from campaign.errors import InputError, SafetyError
 from campaign.specs import AxisSpec, CaptureSpec, PlanSpec
@@ -212,12 +213,11 @@ def target_offsets(nominal: list[float], kind: str, fraction: float, seed: int) 
 
 def capture_at(point: Point, dwell_s: float, spec: CaptureSpec) -> tuple[float, Capture]:
     """How `point` is captured in a dwell of `dwell_s` (s) with `spec`: (the settle before the
-    capture, s; the Capture step). The dwell method averages the last `average_s` of the dwell (at
-    most the dwell); the stable method starts at arrival and waits at most `stable_timeout_s`."""
-    if spec.method == "dwell":
-        window = min(spec.average_s, dwell_s)
-        return max(dwell_s - window, 0.0), Capture(point, window, window, spec)
-    return 0.0, Capture(point, spec.stable_window_s, spec.stable_timeout_s, spec)
+    capture, s; the Capture step), as its method says (campaign.capture_methods: the dwell method
+    averages the last `average_s` of the dwell, at most the dwell; the stable method starts at
+    arrival and waits at most `stable_timeout_s`)."""
+    w = capture_methods.method(spec.method).window(spec, dwell_s)
+    return w.settle_s, Capture(point, w.window_s, w.timeout_s, spec)
 
 
 def build_plan(config: Config) -> Plan:
@@ -226,7 +226,11 @@ def build_plan(config: Config) -> Plan:
 
 
 def make_plan(p: PlanSpec, capture: CaptureSpec) -> Plan:
-    """The plan of the test cycle `p`, every capture step carrying `capture`. Does not check limits."""
+    """The plan of the test cycle `p`, every capture step carrying `capture`. Does not check limits.
+    InputError for a capture method that is not run live (the stream import's own)."""
+    if not capture_methods.method(capture.method).live:
+        raise InputError(f"capture.method = \"{capture.method}\" is not run by axiscal itself (the stream import's "
+                         f"own: axiscal import-stream); axiscal runs {', '.join(capture_methods.names(live=True))}")
     nominal = nominal_targets(p)
     offsets = target_offsets(nominal, p.offsets, p.offset_fraction, p.seed)
     targets = [round(t + o, 9) for t, o in zip(nominal, offsets)]
@@ -344,7 +348,8 @@ def plan_records(plan: Plan, config: dict[str, Any] | None = None) -> list[dict[
             records.append({"step": "settle", "seconds": step.seconds})
         elif isinstance(step, Capture):
             records.append({"step": "capture", "point": asdict(step.point), "window_s": step.window_s,
-                            "timeout_s": step.timeout_s, "capture": asdict(step.spec)})
+                            "timeout_s": step.timeout_s,
+                            "capture": {k: v for k, v in asdict(step.spec).items() if v is not None}})
         else:
             records.append({"step": "checkpoint", "point": step.point.index})
     return records

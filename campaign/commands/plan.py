@@ -7,6 +7,8 @@ from typing import Literal
 
 from rich.table import Table
 
+from campaign import capture_methods
+from campaign.capture_methods import Window
 from campaign.commands import SUMMARY
 from campaign.config import Config, load_config
 from campaign.plan import (
@@ -70,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
 def steps_table(plan: Plan, config: Config) -> Table:
     """Every step of the plan as a table: what it does, where, how fast, for which point (counted
     from 1, as on the dashboard; plan index = point - 1) and how long."""
-    unit, dwell = config.axis.unit, config.capture.method == "dwell"
+    unit = config.axis.unit
     table = Table(title="Steps", header_style="bold")
     columns: tuple[tuple[str, Literal["left", "center", "right"]], ...] = (
         ("step", "right"), ("action", "left"), (f"position {unit}", "right"), (f"speed {unit}/s", "right"),
@@ -85,8 +87,8 @@ def steps_table(plan: Plan, config: Config) -> Table:
             table.add_row(str(i), "settle", "", "", "", "", "", f"{step.seconds:g}")
         elif isinstance(step, Capture):
             p = step.point
-            how = "capture (average)" if dwell else "capture (when stable)"
-            time = f"{step.window_s:g}" if dwell else f"≤ {step.timeout_s:g}"
+            how, time = capture_methods.method(step.spec.method).step_label(
+                Window(0.0, step.window_s, step.timeout_s))
             table.add_row(str(i), how, f"{p.target:.3f}", "", str(p.index + 1), str(p.run),
                           "+" if p.direction > 0 else "-", time)
         else:

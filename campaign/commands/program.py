@@ -8,7 +8,7 @@ import hashlib
 import json
 from datetime import date
 
-from campaign import __version__
+from campaign import __version__, capture_methods
 from campaign.commands import SUMMARY
 from campaign.config import Config, load_config
 from campaign.convert import write_whole
@@ -42,7 +42,7 @@ def nc_program(config: Config, plan: Plan) -> NcProgram:
     """The plan as moves: each stop of the plan in order, the feed from its velocity (per
     minute), at a target the dwell: the planned dwell with the dwell capture, the config's
     dwell_s with the stable one (the laser software decides when to capture)."""
-    fixed = config.capture.method == "dwell"
+    fixed = capture_methods.method(config.capture.method).fixed_dwell
     moves, last = [], None
     for stop in plan.stops():
         comment = ""

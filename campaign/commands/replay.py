@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 from rich.table import Table
 
+from campaign import capture_methods
 from campaign.commands import SUMMARY, positive_number
 from campaign.errors import InputError
 from campaign.iso230 import evaluate
@@ -28,7 +29,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                                    "what would change.")
     p.add_argument("dir", help="campaign directory")
     p.add_argument("--speed", type=positive_number, metavar="N", help="pace the timeline at N times real time")
-    p.add_argument("--capture", choices=("dwell", "stable"), help="capture method (default: as recorded)")
+    p.add_argument("--capture", choices=capture_methods.names(live=True, sweeps=False),
+                   help="capture method (default: as recorded)")
     p.add_argument("--average-s", type=positive_number, help="dwell: averaging window, s")
     p.add_argument("--stable-tolerance", type=positive_number, help="stable: band, µm (arcsec)")
     p.add_argument("--stable-drift", type=positive_number, help="stable: drift between the window's halves, µm (arcsec)")
@@ -57,7 +59,7 @@ def check_window(directory: Path, overrides: dict) -> None:
     config = open_campaign(directory).config()
     method = overrides.get("method", config.capture.method)
     dwell = config.plan.dwell_s
-    if method == "dwell" and average > dwell:
+    if capture_methods.method(method).fixed_dwell and average > dwell:
         raise InputError(f"--average-s {average:g}: longer than the recorded dwell of {dwell:g} s at each point "
                          f"({directory}): a dwell capture averages within the dwell (at most --average-s {dwell:g})")
 

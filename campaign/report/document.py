@@ -19,6 +19,7 @@ from html import escape
 from pathlib import Path
 from typing import Any
 
+from campaign import capture_methods
 from campaign.assess import Assessment, assess_path
 from campaign.errors import InputError
 from campaign.iso230 import Evaluation
@@ -230,9 +231,7 @@ def _plan_facts(a: Assessment) -> list[tuple[str, str]]:
             ("Directions", " and ".join("+" if d > 0 else "−" for d in a.table.directions))]
     if a.config:
         p, cap = a.config.plan, a.config.capture
-        method = (f"fixed dwell, mean of the last {cap.average_s:g} s" if cap.method == "dwell" else
-                  f"stability trigger, {cap.stable_tolerance:g} {unit_label(a.evaluation.unit)} band and "
-                  f"{cap.stable_drift:g} {unit_label(a.evaluation.unit)} drift over {cap.stable_window_s:g} s")
+        method = capture_methods.method(cap.method).describe(cap, unit, unit_label(a.evaluation.unit))
         rows += [("Cycle", f"{p.cycle}, overrun {p.overrun:g} {unit}"),
                  ("Dwell", f"{p.dwell_s:g} s"), ("Velocity", f"{p.velocity:g} {unit}/s"),
                  ("Capture", method), ("Target offsets", p.offsets)]
