@@ -311,6 +311,16 @@ class SimSpec:
 
     speed: float | None = key(float, None,
         "run N times faster than real time; absent = as fast as possible", min=0.001, resume=True)
+    instrument_offset_s: float = key(float, 0.0,
+        "the simulated instrument's own clock: its reading when the controller's reads 0, s (a scan "
+        "must find it, docs/scan.md)", min=-1e6, max=1e6)
+    instrument_rate_ppm: float = key(float, 0.0,
+        "the simulated instrument's clock runs this much fast (negative: slow), ppm", min=-1000, max=1000)
+    instrument_jitter_s: float = key(float, 0.0,
+        "RMS of the instant a simulated sample is really taken about its stamp, s", min=0, max=0.01)
+    instrument_latency_s: float = key(float, 0.0,
+        "the simulated instrument's transport latency: a sample reaches the PC this much later, s",
+        min=0, max=1)
     seed: int = key(int, 1, "seed of the simulated noise", min=0)
     model: str = key(str, "", "error model: a shipped one by name (seed000-horizontal, seed000-vertical: data/models), a TOML file (relative to this config), or [sim.effects.NAME]")
     effects: Mapping[str, Any] | None = field(default=None, metadata={"table": "the error model"})

@@ -32,6 +32,7 @@ if TYPE_CHECKING:
     from drivers.sim.interferometer import SimInterferometer
     from drivers.sim.machine import SimAxisPhysics
     from drivers.sim.plc import SimPLC
+    from drivers.sim.scan_streams import InstrumentClock
 
 
 SIM_MODEL_FILE = "sim-model.toml"
@@ -163,6 +164,17 @@ def _close(closers: list[Callable[[], None]]) -> None:
             close()
 
 
+def instrument_clock(spec: DriverSpec) -> InstrumentClock | None:
+    """The simulated instrument's own clock ([sim] instrument_*), None when it has none."""
+    from drivers.sim.scan_streams import InstrumentClock
+
+    s = spec.sim
+    if not (s.instrument_offset_s or s.instrument_rate_ppm or s.instrument_jitter_s or s.instrument_latency_s):
+        return None
+    return InstrumentClock(offset_s=s.instrument_offset_s, rate_error_ppm=s.instrument_rate_ppm,
+                           sample_jitter_s=s.instrument_jitter_s, latency_s=s.instrument_latency_s)
+
+
 def serve_on_free_loopback(plc: SimPLC) -> SimAdsServer:
     """Serve `plc` over ADS on a free loopback address 127.0.x.y (every ADS client connects to TCP
     port 48898, so simulated machines running side by side, e.g. CI and a demo, each get their own
@@ -207,7 +219,8 @@ def _open_sim(spec: DriverSpec, speed: float | None, model: ErrorModel | None, s
     server = serve_on_free_loopback(plc)
     closers: list[Callable[[], None]] = [server.stop]
     try:
-        instrument = SimInterferometer(clock, physics.measure, inst.line, inst.rate_hz, inst.mode)
+        instrument = SimInterferometer(clock, physics.measure, inst.line, inst.rate_hz, inst.mode,
+                                       own_clock=instrument_clock(spec), seed=seed)
         closers.append(instrument.close)
         axis = AdsAxis(server.net_id, server.ip, drv.axis_index, drv.ams_port, timeout_s=drv.timeout_s,
                        read_only=drv.read_only)
