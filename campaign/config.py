@@ -23,6 +23,7 @@ from campaign.errors import InputError, read_input_text
 from campaign.faults import parse_faults
 from campaign.model import model_from_dict
 from campaign.specs import (
+    JUDGED_PURPOSES,
     REQUIRED,
     AxisSpec,
     CampaignSpec,
@@ -250,7 +251,12 @@ def _check_record_name(pv: str, simulated: bool, src: str) -> None:
 def _check_scan(s: Mapping[str, Mapping[str, Any]], src: str) -> None:
     """A method that sweeps (campaign.capture_methods) needs its velocity, within the axis's."""
     capture, axis, plan = s["capture"], s["axis"], s["plan"]
-    if not capture_methods.method(capture["method"]).sweeps:
+    method = capture_methods.method(capture["method"])
+    if not method.iso_230_2 and s["campaign"]["purpose"] in JUDGED_PURPOSES:
+        raise InputError(f"{src}: key 'campaign.purpose': capture.method = \"{method.name}\" is not an ISO 230-2 "
+                         f"test and gets no pass/fail: set purpose = \"diagnostic\" (or \"follow-up\"), not "
+                         f"\"{s['campaign']['purpose']}\"")
+    if not method.sweeps:
         return
     v, unit = capture["scan_velocity"], axis["unit"]
     if v is None:

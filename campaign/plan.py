@@ -234,6 +234,8 @@ def make_plan(p: PlanSpec, capture: CaptureSpec) -> Plan:
     nominal = nominal_targets(p)
     offsets = target_offsets(nominal, p.offsets, p.offset_fraction, p.seed)
     targets = [round(t + o, 9) for t, o in zip(nominal, offsets)]
+    if capture_methods.method(capture.method).sweeps:
+        return Plan(scan_steps(p, capture, targets), tuple(targets), tuple(offsets), p.seed)
     v, l1 = p.velocity, p.overrun
     dwell_rng = np.random.default_rng([p.seed, 1])  # its own stream: the offsets do not change
     steps: list[Step] = []
@@ -266,6 +268,27 @@ def make_plan(p: PlanSpec, capture: CaptureSpec) -> Plan:
                 steps.append(Move(t + l1, v, overrun=True))
                 visit(run, -1, i)
     return Plan(tuple(steps), tuple(targets), tuple(offsets), p.seed)
+
+
+def scan_steps(p: PlanSpec, capture: CaptureSpec, targets: list[float]) -> tuple[Step, ...]:
+    """A scan's steps: to the low end of the travel (the first target less the overrun) at the plan's
+    velocity and a rest there, then `cycles` passes, each a sweep up to the high end and one back
+    down at `capture.scan_velocity`, each sweep followed by a rest of `dwell_s` at its end (the rests
+    refer the moving deviation to the one at rest, docs/scan.md). A sweep is a plan point: its
+    Capture step (method scan) and Checkpoint record the sweep (resume continues at the next); the
+    point table at the targets comes from the streams afterwards."""
+    if capture.scan_velocity is None:
+        raise ValueError("a scan needs capture.scan_velocity (campaign.config checks it)")
+    low, high = targets[0] - p.overrun, targets[-1] + p.overrun
+    steps: list[Step] = [Move(low, p.velocity, overrun=True), Settle(p.dwell_s)]
+    index = 0
+    for run in range(1, p.cycles + 1):
+        for direction, end, target_index in ((+1, high, len(targets) - 1), (-1, low, 0)):
+            point = Point(index, run, direction, target_index, end)
+            steps += [Move(end, capture.scan_velocity), Settle(p.dwell_s), Capture(point, 0.0, 0.0, capture),
+                      Checkpoint(point)]
+            index += 1
+    return tuple(steps)
 
 
 def check_motion(position: float, velocity: float, axis: AxisSpec) -> None:

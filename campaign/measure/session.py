@@ -17,6 +17,7 @@ from campaign.config import Config, config_with, recorded_sections
 from campaign.errors import CampaignInterrupted, InputError
 from campaign.iso230 import Evaluation, evaluate
 from campaign.measure.executor import CampaignStopped, Control, Executor, Observer
+from campaign.measure.scan import finish_scan
 from campaign.model import ErrorModel
 from campaign.plan import Plan, build_plan, check_plan, estimate_duration_s, plan_records
 from campaign.pointtable import read_points
@@ -134,6 +135,8 @@ def execute(config: Config, plan: Plan, recorder: Recorder, todo: int | list[int
         first = todo if isinstance(todo, int) else min(todo)
         recorder.start(executor.now(), first, len(plan.points))
         executor.run(todo)
+        if executor.sweeps and not missing_points(recorder.dir, plan):  # a scan: its table from the streams
+            finish_scan(recorder, config, plan)
         status, message = "completed", ""
     except CampaignStopped as exc:
         status, message = "interrupted", str(exc)

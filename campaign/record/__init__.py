@@ -39,6 +39,7 @@ from campaign.record.events import (
     StartData,
     StateData,
     StopData,
+    SweepData,
     check_record,
 )
 from campaign.record.recorder import Recorder, RecordingError
@@ -73,6 +74,7 @@ __all__ = [
     "StartData",
     "StateData",
     "StopData",
+    "SweepData",
     "check_record",
     "last_raw_state",
     "last_reading_offset",

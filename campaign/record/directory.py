@@ -244,6 +244,10 @@ def recorded_point_indices(directory: Path) -> list[int]:
     file holds no row yet."""
     from campaign.pointtable import read_points
 
+    sweeps = Path(directory) / "sweeps.csv"
+    if sweeps.exists():  # a scan: the sweeps done (points.csv is its table at the targets, written at the end)
+        lines = sweeps.read_text(encoding="utf-8").splitlines()[1:]
+        return [int(line.split(",")[0]) for line in lines if line[:1].isdigit()]
     path = Path(directory) / "points.csv"
     if not path.exists() or not any(ln[:1].isdigit() for ln in path.read_text(encoding="utf-8").splitlines()):
         return []

@@ -321,6 +321,7 @@ def analyse_scan(ctrl: ControllerStream, inst: InstrumentStream, targets: tuple[
                   "scan": f"{len(moves)} moves at {v:g} {pos}/s, window {window:g} {pos}",
                   "clock_offset_ms": f"{a['offset_ms']} ± {a['offset_uncertainty_ms']}",
                   "clock_rate_error_ppm": f"{a['rate_error_ppm']} ± {a['rate_uncertainty_ppm']}",
+                  "clock_reference_s": f"{a['t_ref_s']} (the controller time the offset is given at)",
                   "timing_u": f"{budget.deviation_u:.3f} {dev} per target and pass at {v:g} {pos}/s",
                   "speed_limit": f"{limit:.3g} {pos}/s for {wanted_u:g} {dev}",
                   "deviation": (f"on the move, less each direction's rest step ({rest})" if steps

@@ -1,0 +1,113 @@
+"""A scan through `axiscal run` on the simulated machine (issue 33 item 1): the axis sweeps the
+plan's travel at scan_velocity in both directions for the plan's cycles; the instrument streams
+over the pty with its own clock ([sim] instrument_*), the controller's actual position arrives as
+ADS device notifications through the real pyads client; both streams are recorded (raw.csv,
+positions.csv, each sweep made durable in sweeps.csv), then aligned into profile.csv and the point
+table, which says it is a diagnostic. Each case draws its instrument clock; the truth is the
+simulated axis's own error model at rest."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from campaign.config import parse_config
+from campaign.measure import start_campaign
+from campaign.model import sim_model
+from campaign.pointtable import read_points
+from drivers.factory import open_hardware
+
+SCAN = """
+[campaign]
+machine = "sim-scan"
+purpose = "diagnostic"
+[axis]
+soft_limit_min = -10.0
+soft_limit_max = 110.0
+max_velocity = 50.0
+max_acceleration = 200.0
+[plan]
+start = 0.0
+length = 60.0
+count = 7
+overrun = 4.0
+cycles = 2
+dwell_s = 2.5
+velocity = 20.0
+[instrument]
+rate_hz = 500.0
+[capture]
+method = "scan"
+scan_velocity = {velocity}
+[sim]
+seed = {seed}
+instrument_offset_s = {offset}
+instrument_rate_ppm = {rate}
+instrument_latency_s = {latency}
+instrument_jitter_s = {jitter}
+[sim.effects.linear_scale]
+ppm = {ppm}
+[sim.effects.backlash]
+b_um = {backlash}
+[sim.effects.periodic_lead]
+amplitude_um = 0.4
+period_mm = 10.0
+phase_rad = {phase}
+[sim.effects.noise]
+sigma_um = 0.2
+reading_sigma_um = 0.05
+"""
+
+
+def draw(seed: int) -> dict:
+    rng = np.random.default_rng([seed, 330])
+    sign = rng.choice([-1.0, 1.0], 2)
+    return {"seed": seed, "velocity": round(float(rng.uniform(8.0, 20.0)), 3),
+            "offset": round(float(sign[0] * rng.uniform(0.01, 0.08)), 6),
+            "rate": round(float(sign[1] * rng.uniform(10, 80)), 3), "latency": round(float(rng.uniform(0.002, 0.03)), 6),
+            "jitter": round(float(rng.uniform(0, 20e-6)), 8), "ppm": round(float(rng.uniform(-20, 20)), 3),
+            "backlash": round(float(rng.uniform(0, 3)), 3), "phase": round(float(rng.uniform(0, 6.28)), 3)}
+
+
+@pytest.mark.machine
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_scan_through_the_executor_aligns_its_streams_and_tabulates_the_targets(tmp_path, seed):
+    d = draw(seed)
+    config = parse_config(SCAN.format(**d), "scan.toml")
+    epochs: list[float] = []
+
+    def seen(hardware, parts, executor):
+        epochs.append(parts.plc.handler.notifications.epoch_s)  # the PLC's clock: its stamps are epoch + t
+
+    out = start_campaign(config, tmp_path / "c", opener=open_hardware, on_open=seen)
+    assert out.status == "completed" and out.points == out.planned == 4  # 2 passes, up and down
+    sweeps = (tmp_path / "c" / "sweeps.csv").read_text().splitlines()
+    assert sweeps[0] == "point,run,direction,end,t_s,samples,positions" and len(sweeps) == 5
+    positions = np.loadtxt(tmp_path / "c" / "positions.csv", delimiter=",", skiprows=1)
+    assert np.all(np.diff(positions[:, 2]) > 0) and len(positions) > 0.9 * out.duration_s / 0.002
+
+    table = read_points(tmp_path / "c" / "points.csv")
+    assert table.meta["purpose"] == "diagnostic" and table.meta["capture"] == "scan"
+    assert sorted(set(table.run.tolist())) == [1, 2] and set(table.direction.tolist()) == {1, -1}
+    assert len(table) == 2 * 2 * 7
+
+    # the clock offset found against the truth: instrument = offset + (1 + rate)·t, t the machine's
+    # time; the analysis refers the controller's stamps to its first one
+    t0 = positions[0, 2] - epochs[0]
+    found = float(table.meta["clock_offset_ms"].split("±")[0]) / 1e3
+    stated_u = float(table.meta["clock_offset_ms"].split("±")[1]) / 1e3
+    t_ref = float(table.meta["clock_reference_s"].split()[0])
+    truth = d["offset"] + d["rate"] * 1e-6 * (t_ref + t0) + t0
+    assert abs(found - truth) < max(4 * stated_u, 20e-6), (found, truth, stated_u)
+
+    # the mean deviation at each target and direction against the simulated axis at rest
+    model = sim_model(config.sim)
+    errors = []
+    for direction in (1, -1):
+        for target in sorted(set(table.target.tolist())):
+            mine = (table.direction == direction) & (table.target == target)
+            truth_um = float(model.deviation_um(np.array([target]), direction, 0.0, np.inf)[0])
+            errors.append(float(np.mean(table.deviation[mine])) - truth_um)
+    assert float(np.sqrt(np.mean(np.square(errors)))) < 0.35, errors
+    profile = (tmp_path / "c" / "profile.csv").read_text().splitlines()
+    assert any(line.startswith("position_mm,direction,pass,deviation_um,time_s") for line in profile)
