@@ -170,6 +170,11 @@ class Plan:
     def points(self) -> list[Point]:
         return [v.point for v in self._visits]
 
+    @cached_property
+    def sweeps(self) -> bool:
+        """The plan is a scan: its points are sweeps of the travel (campaign.capture_methods)."""
+        return any(capture_methods.method(v.capture.spec.method).sweeps for v in self._visits)
+
     def ends(self) -> tuple[float, float]:
         """The lowest and highest position the plan moves to (overruns included), axis unit."""
         positions = [s.position for s in self._stops]

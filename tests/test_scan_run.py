@@ -8,6 +8,8 @@ simulated axis's own error model at rest."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -111,3 +113,61 @@ def test_a_scan_through_the_executor_aligns_its_streams_and_tabulates_the_target
     assert float(np.sqrt(np.mean(np.square(errors)))) < 0.35, errors
     profile = (tmp_path / "c" / "profile.csv").read_text().splitlines()
     assert any(line.startswith("position_mm,direction,pass,deviation_um,time_s") for line in profile)
+
+
+def _lines(path) -> list[bytes]:
+    """The whole lines of an appended file (a torn last line left out)."""
+    data = path.read_bytes() if path.exists() else b""
+    return data[:data.rfind(b"\n") + 1].splitlines(keepends=True)
+
+
+@pytest.mark.machine
+def test_kill_9_during_a_pass_loses_nothing_recorded_and_resume_continues_at_that_pass(tmp_path):
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from tests.conftest import ROOT
+    from tests.test_demo_e2e import axiscal
+
+    d = draw(4)
+    (tmp_path / "scan.toml").write_text(SCAN.format(**d))
+    out = tmp_path / "k"
+    proc = subprocess.Popen([sys.executable, "-m", "campaign", "run", str(tmp_path / "scan.toml"), "--out", str(out)],
+                            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    end = time.monotonic() + 120
+    while len(_lines(out / "sweeps.csv")) < 4:  # the header and 3 sweeps: pass 2 is under way
+        assert proc.poll() is None and time.monotonic() < end, proc.stderr.read() if proc.stderr else ""
+        time.sleep(0.02)
+    time.sleep(0.5)  # into the down sweep of pass 2 (about 0.3 s of machine time per 0.1 s here)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait(timeout=10)
+    assert len(_lines(out / "sweeps.csv")) == 4  # killed before pass 2 was recorded whole
+    kept = {name: _lines(out / name) for name in ("raw.csv", "positions.csv", "sweeps.csv", "events.jsonl")}
+
+    resumed = axiscal("resume", out, "--json", timeout=300)
+    assert resumed.returncode == 0, resumed.stderr
+    for name, lines in kept.items():  # append-only: everything recorded before the kill is still there
+        assert _lines(out / name)[:len(lines)] == lines, name
+    events = [json.loads(line) for line in (out / "events.jsonl").read_text().splitlines()]
+    resume = next(e for e in events if e["kind"] == "resume")
+    assert resume["data"]["first_point"] == 2  # pass 2's up sweep: a resumed scan measures whole passes
+    sweeps = [line.split(",")[:3] for line in (out / "sweeps.csv").read_text().splitlines()[1:]]
+    assert sweeps == [["0", "1", "+"], ["1", "1", "-"], ["2", "2", "+"], ["2", "2", "+"], ["3", "2", "-"]]
+
+    table = read_points(out / "points.csv")
+    assert sorted(set(table.run.tolist())) == [1, 2] and len(table) == 2 * 2 * 7
+    assert "pass 2" in table.meta["left_out_1"] and "segments" in table.meta  # each run aligned by itself
+    model = sim_model(parse_config(SCAN.format(**d), "scan.toml").sim)
+    errors = [float(np.mean(table.deviation[(table.direction == s) & (table.target == t)]))
+              - float(model.deviation_um(np.array([t]), s, 0.0, np.inf)[0])
+              for s in (1, -1) for t in sorted(set(table.target.tolist()))]
+    assert float(np.sqrt(np.mean(np.square(errors)))) < 0.35, errors
+
+    # replay: the recorded streams give the same table, and another one with other settings
+    same = json.loads(axiscal("replay", out, "--json").stdout)
+    assert same["identical"] and same["points"] == len(table)
+    other = json.loads(axiscal("replay", out, "--json", "--scan-window", "3", "--moving").stdout)
+    assert not other["identical"] and other["window"] == 3 and other["rest_reference"] is False
+    assert len(other["differences"]) == len(table)

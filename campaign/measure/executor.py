@@ -237,7 +237,7 @@ class Executor:
         self.arrival_s = 0.0
         self.readings: list[Reading] = []
         self.halted = False
-        self.sweeps = any(capture_methods.method(v.capture.spec.method).sweeps for v in plan.visits())
+        self.sweeps = plan.sweeps
         """The plan is a scan: the controller streams its position while the axis sweeps."""
         self.position_stream: PositionStream | None = None
         self.sweep_samples = 0  # instrument readings since the last move started

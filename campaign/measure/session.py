@@ -276,6 +276,8 @@ def continue_campaign(r: Resumption, **kwargs: Any) -> Outcome:
     in plan order, appending to the same files. The keywords go to `execute` (`opener` or
     `opened`)."""
     if not r.todo:  # stopped after its last point, before its stop record
+        if r.plan.sweeps and not (r.path / "profile.csv").exists():  # a scan killed before its table
+            finish_scan(r.recorder, r.config, r.plan)
         publish_stopped(r.recorder, r.t_last, "completed")
         r.recorder.emit(Event(r.t_last, "stop", "campaign completed: nothing left to measure", None,
                               StopData(status="completed", points=r.recorder.points_written)))
@@ -308,9 +310,16 @@ def resume_campaign(directory: str | Path, faults: dict[str, Any] | None = None,
 
 
 def missing_points(directory: Path, plan: Plan) -> list[int]:
-    """The plan indices of the points not recorded in the directory's points.csv, ascending."""
+    """The plan indices of the points not recorded in the directory's points.csv, ascending. A
+    scan's (its sweeps.csv): every sweep from the start of the first pass not recorded whole, so
+    that a resumed scan measures whole passes (each run of the executor is aligned by itself:
+    campaign.measure.scan)."""
     done = set(recorded_point_indices(directory))
-    return [i for i in range(len(plan.points)) if i not in done]
+    missing = [i for i in range(len(plan.points)) if i not in done]
+    if plan.sweeps and missing:
+        first_run = plan.points[missing[0]].run
+        return [i for i, p in enumerate(plan.points) if p.run >= first_run]
+    return missing
 
 
 def analyse_dir(directory: str | Path) -> tuple[object, Evaluation]:
