@@ -56,8 +56,14 @@ def run(args: argparse.Namespace) -> int:
     console = make_console()
     u = info["unit"]
     table = Table(title=f"Plan: {args.config}", show_header=False)
-    table.add_row("points", f"{info['points']} ({len(plan.targets)} targets × 2 directions × {counted(info['runs'], 'run')})"
-                  if info["cycle"] == "linear" else str(info["points"]))
+    if plan.sweeps:
+        v = config.capture.scan_velocity
+        table.add_row("scan", f"{info['points']} sweeps ({info['runs']} {'pass' if info['runs'] == 1 else 'passes'} up and down at {v:g} {u}/s, "
+                              f"a rest of {config.plan.dwell_s:g} s at each end); the table at {len(plan.targets)} "
+                              "targets × 2 directions per pass comes from the streams: a diagnostic (docs/scan.md)")
+    else:
+        table.add_row("points", f"{info['points']} ({len(plan.targets)} targets × 2 directions × "
+                                f"{counted(info['runs'], 'run')})" if info["cycle"] == "linear" else str(info["points"]))
     table.add_row("targets", ", ".join(f"{t:g}" for t in plan.targets) + f" {u}")
     table.add_row("travel", f"{info['travel']:.1f} {u}")
     table.add_row("estimated duration", f"{info['estimated_duration_s'] / 60:.1f} min")
