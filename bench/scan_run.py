@@ -67,7 +67,7 @@ def scan_config(tmp: Path, seed: int, velocity: float) -> tuple[Path, dict[str, 
     clock = draw_clock(seed)
     text = SCAN.read_text().replace("scan_velocity = 10.0", f"scan_velocity = {velocity:g}")
     for key, value in clock.items():
-        text = re.sub(rf"^{key} = .*$", f"{key} = {value!r}", text, flags=re.M)
+        text = re.sub(rf"^{key} = .*$", f"{key} = {value!r}", text, flags=re.MULTILINE)
     path = tmp / f"scan-{seed}-{velocity:g}.toml"
     path.write_text(text)
     return path, clock
