@@ -50,6 +50,7 @@ def test_before_it_is_registered_nothing_knows_the_method(cli, tmp_path):
     assert cli("demo", "--fake", "--capture", "median").code == 2  # argparse: not a choice
 
 
+@pytest.mark.machine  # a campaign on the fake machine and two replays: about 1 s
 def test_a_registered_method_reaches_the_choices_the_config_the_executor_and_replay(cli, tmp_path, with_median):
     noisy = '[sim.effects.noise]\nsigma_um = 0.3\nreading_sigma_um = 0.5\n'
     config = parse_config(SMALL + 'method = "median"\n' + noisy, "small.toml")
