@@ -91,3 +91,10 @@ def test_the_shipped_methods_and_what_each_consumer_reads():
 def test_a_method_not_run_live_is_refused_by_the_plan():
     with pytest.raises(InputError, match="stream.*import-stream"):
         build_plan(parse_config(SMALL + 'method = "stream"\n', "small.toml"))
+
+
+def test_the_program_writer_refuses_a_scan(cli):
+    from tests.conftest import ROOT, assert_one_line_error
+
+    assert_one_line_error(cli("program", ROOT / "data/configs/scan-demo.toml", "--dialect", "linuxcnc", "-o",
+                              "/nonexistent/p.ngc"), "a scan is aligned with the controller's time-stamped")

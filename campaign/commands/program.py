@@ -12,6 +12,7 @@ from campaign import __version__, capture_methods
 from campaign.commands import SUMMARY
 from campaign.config import Config, load_config
 from campaign.convert import write_whole
+from campaign.errors import InputError
 from campaign.plan import Plan, build_plan, check_plan, plan_records
 from campaign.views import make_console
 from protocols.nc import DIALECTS, NcMove, NcProgram, render
@@ -64,6 +65,10 @@ def nc_program(config: Config, plan: Plan) -> NcProgram:
 
 def run(args: argparse.Namespace) -> int:
     config = load_config(args.config)
+    if capture_methods.method(config.capture.method).sweeps:
+        raise InputError(f"{args.config}: capture.method = \"{config.capture.method}\": a scan is aligned with the "
+                         "controller's time-stamped position stream, which axiscal takes only while it drives the "
+                         "axis itself (axiscal run); a part program writes a stop-and-go plan")
     plan = build_plan(config)
     check_plan(plan, config.axis)
     program = nc_program(config, plan)
