@@ -98,3 +98,27 @@ def test_the_program_writer_refuses_a_scan(cli):
 
     assert_one_line_error(cli("program", ROOT / "data/configs/scan-demo.toml", "--dialect", "linuxcnc", "-o",
                               "/nonexistent/p.ngc"), "a scan is aligned with the controller's time-stamped")
+
+
+def test_a_scan_on_an_axis_that_cannot_stream_its_position_is_refused_before_anything_moves(tmp_path):
+    from campaign.errors import InputError as Refused
+
+    scan = SMALL.replace("[campaign]\n", '[campaign]\npurpose = "diagnostic"\n') + 'method = "scan"\nscan_velocity = 10.0\n'
+    machine = FakeMachine()
+    with pytest.raises(Refused, match="cannot stream its actual position"):
+        start_campaign(parse_config(scan, "scan.toml"), tmp_path / "c", opener=machine)
+    assert machine.openings[0].axis.position == parse_config(scan, "scan.toml").driver.start_position  # never moved
+
+
+def test_a_scan_config_is_checked_before_anything_runs():
+    scan = SMALL + 'method = "scan"\n'
+    with pytest.raises(InputError, match="campaign.purpose.*not an ISO 230-2 test"):
+        parse_config(scan + "scan_velocity = 10.0\n", "scan.toml")
+    diagnostic = scan.replace("[campaign]\n", '[campaign]\npurpose = "diagnostic"\n')
+    with pytest.raises(InputError, match="capture.scan_velocity.*required"):
+        parse_config(diagnostic, "scan.toml")
+    with pytest.raises(InputError, match="capture.scan_velocity.*above axis.max_velocity"):
+        parse_config(diagnostic + "scan_velocity = 60.0\n", "scan.toml")
+    plan = build_plan(parse_config(diagnostic + "scan_velocity = 10.0\n", "scan.toml"))
+    assert plan.sweeps and [(p.run, p.direction, p.target) for p in plan.points] == [
+        (1, 1, 102.0), (1, -1, -2.0), (2, 1, 102.0), (2, -1, -2.0)]  # the targets ± the overrun, up and down
