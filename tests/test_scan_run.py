@@ -171,3 +171,10 @@ def test_kill_9_during_a_pass_loses_nothing_recorded_and_resume_continues_at_tha
     other = json.loads(axiscal("replay", out, "--json", "--scan-window", "3", "--moving").stdout)
     assert not other["identical"] and other["window"] == 3 and other["rest_reference"] is False
     assert len(other["differences"]) == len(table)
+
+    # the report says what it is: a scan, its clocks, its speed limit, what was left out, no verdict
+    assert axiscal("report", out, "-o", tmp_path / "r.html").returncode == 0
+    html = (tmp_path / "r.html").read_text()
+    for words in ("NOT JUDGED", "captured with the scan method, not an ISO 230-2 test", "Clock offset, ms",
+                  "Speed limit", "Left out", "pass 2"):
+        assert words in html, words

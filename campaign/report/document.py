@@ -237,6 +237,22 @@ def _plan_facts(a: Assessment) -> list[tuple[str, str]]:
                  ("Capture", method), ("Target offsets", p.offsets)]
     seed = (a.meta or {}).get("plan_seed", a.table.meta.get("plan_seed", "not recorded"))
     rows.append(("Plan seed", str(seed)))
+    return rows + _scan_facts(a.table.meta)
+
+
+SCAN_FACTS = (("scan", "Scan"), ("clock_offset_ms", "Clock offset, ms"), ("clock_rate_error_ppm", "Clock rate error, ppm"),
+              ("timing_u", "Timing uncertainty"), ("speed_limit", "Speed limit"), ("deviation", "Deviation"),
+              ("segments", "Segments"))
+"""What a scan's table says of itself (campaign.stream.scan, campaign.measure.scan), as the report shows it."""
+
+
+def _scan_facts(meta: dict[str, str]) -> list[tuple[str, str]]:
+    """A scan's alignment, timing budget, speed limit, rest steps, warnings and what was left out."""
+    if meta.get("capture") != "scan":
+        return []
+    rows = [(label, meta[key]) for key, label in SCAN_FACTS if key in meta]
+    rows += [("Warning", v) for k, v in meta.items() if k.startswith("warning_")]
+    rows += [("Left out", v) for k, v in meta.items() if k.startswith("left_out_")]
     return rows
 
 
