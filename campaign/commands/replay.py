@@ -44,6 +44,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--wanted-u", type=positive_number, help="scan: wanted timing uncertainty per target and pass, µm (arcsec)")
     p.add_argument("--moving", action="store_true",
                    help="scan: keep the deviation on the move (do not refer it to the rests at the ends)")
+    p.add_argument("--no-rate", action="store_true",
+                   help="scan: align the clocks by their offset only (as if they ran at the same rate)")
     p.add_argument("--json", action="store_true", help="one JSON object")
     p.set_defaults(func=run)
 
@@ -77,10 +79,11 @@ def replay_scan(args: argparse.Namespace, directory: Path, config: Config, plan:
     reproduced) or others (--scan-window, --wanted-u, --moving)."""
     if args.capture or any(getattr(args, k) is not None for k in ("average_s", "stable_tolerance", "stable_drift",
                                                                    "stable_window_s", "stable_timeout_s")):
-        raise InputError(f"{directory}: a scan is replayed with --scan-window, --wanted-u and --moving, not with "
+        raise InputError(f"{directory}: a scan is replayed with --scan-window, --wanted-u, --moving and --no-rate, not with "
                          "the options of a capture at rest")
     own = settings_of(config)
-    settings = ScanSettings(args.scan_window or own.window, args.wanted_u or own.wanted_u, not args.moving)
+    settings = ScanSettings(args.scan_window or own.window, args.wanted_u or own.wanted_u, not args.moving,
+                            not args.no_rate)
     got = analyse_recorded_scan(directory, config, plan, settings).table
     old = {(int(r), int(d), f"{t:.6f}"): float(v) for r, d, t, v in
            zip(recorded.run, recorded.direction, recorded.target, recorded.deviation)}
@@ -96,6 +99,7 @@ def replay_scan(args: argparse.Namespace, directory: Path, config: Config, plan:
             if k.startswith(("clock", "timing", "speed", "deviation", "warning", "left_out", "segments"))}
     result: dict[str, Any] = {"dir": str(directory), "capture": "scan", "points": len(got), "recorded_points": len(recorded),
               "window": settings.window, "wanted_u": settings.wanted_u, "rest_reference": settings.rest_reference,
+              "rate": settings.rate,
               "identical": not diffs, "differences": diffs, "summary_recorded": old_summary,
               "summary_replayed": new_summary, "meta": meta}
     if args.json:
@@ -131,8 +135,8 @@ def run(args: argparse.Namespace) -> int:
     plan = campaign.plan_for(config)
     if plan.sweeps:
         return replay_scan(args, directory, config, plan, recorded)
-    if args.scan_window or args.wanted_u or args.moving:
-        raise InputError(f"{directory}: not a scan: --scan-window, --wanted-u and --moving replay a scan")
+    if args.scan_window or args.wanted_u or args.moving or args.no_rate:
+        raise InputError(f"{directory}: not a scan: --scan-window, --wanted-u, --moving and --no-rate replay a scan")
     check_window(directory, overrides)
     capture, _, points = replay_campaign(directory, overrides, args.speed)
     if "point" not in recorded.extra:

@@ -34,11 +34,13 @@ RUNS_FILE = "runs.jsonl"
 @dataclass(frozen=True)
 class ScanSettings:
     """How a recorded scan is evaluated: the window about each target (axis unit), the wanted
-    timing uncertainty (deviation unit), and whether the rest steps are removed."""
+    timing uncertainty (deviation unit), whether the rest steps are removed, and whether the
+    alignment estimates the clocks' rate ratio (False: the offset only)."""
 
     window: float
     wanted_u: float
     rest_reference: bool = True
+    rate: bool = True
 
 
 def settings_of(config: Config) -> ScanSettings:
@@ -164,7 +166,7 @@ def analyse_recorded_scan(directory: str | Path, config: Config, plan: Plan,
         try:
             result = analyse_scan(ctrl, inst, plan.targets, config.instrument.rate_hz, window=s.window,
                                   wanted_u=s.wanted_u, kind=config.axis.kind, rest_reference=s.rest_reference,
-                                  average_s=config.capture.average_s)
+                                  average_s=config.capture.average_s, rate=s.rate)
         except (InputError, ValueError, np.linalg.LinAlgError) as exc:
             left_out.append(f"passes {', '.join(map(str, segment.runs))}: the clocks could not be aligned ({exc})")
             continue
