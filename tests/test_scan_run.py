@@ -171,7 +171,7 @@ def test_kill_9_during_a_pass_loses_nothing_recorded_and_resume_continues_at_tha
     other = json.loads(axiscal("replay", out, "--json", "--scan-window", "3", "--moving").stdout)
     assert not other["identical"] and other["window"] == 3 and other["rest_reference"] is False
     assert len(other["differences"]) == len(table)
-    offset_only = json.loads(axiscal("replay", out, "--json", "--no-rate").stdout)  # what the rate estimate buys:
+    offset_only = json.loads(axiscal("replay", out, "--json", "--offset-only").stdout)  # what the rate estimate buys:
     assert offset_only["rate"] is False and not offset_only["identical"]  # tens of ppm over a pass are µm here
     assert max(abs(x["difference"]) for x in offset_only["differences"]) > 0.5
 

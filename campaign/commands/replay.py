@@ -44,7 +44,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--wanted-u", type=positive_number, help="scan: wanted timing uncertainty per target and pass, µm (arcsec)")
     p.add_argument("--moving", action="store_true",
                    help="scan: keep the deviation on the move (do not refer it to the rests at the ends)")
-    p.add_argument("--no-rate", action="store_true",
+    p.add_argument("--offset-only", action="store_true",
                    help="scan: align the clocks by their offset only (as if they ran at the same rate)")
     p.add_argument("--json", action="store_true", help="one JSON object")
     p.set_defaults(func=run)
@@ -79,11 +79,11 @@ def replay_scan(args: argparse.Namespace, directory: Path, config: Config, plan:
     reproduced) or others (--scan-window, --wanted-u, --moving)."""
     if args.capture or any(getattr(args, k) is not None for k in ("average_s", "stable_tolerance", "stable_drift",
                                                                    "stable_window_s", "stable_timeout_s")):
-        raise InputError(f"{directory}: a scan is replayed with --scan-window, --wanted-u, --moving and --no-rate, not with "
+        raise InputError(f"{directory}: a scan is replayed with --scan-window, --wanted-u, --moving and --offset-only, not with "
                          "the options of a capture at rest")
     own = settings_of(config)
     settings = ScanSettings(args.scan_window or own.window, args.wanted_u or own.wanted_u, not args.moving,
-                            not args.no_rate)
+                            not args.offset_only)
     got = analyse_recorded_scan(directory, config, plan, settings).table
     old = {(int(r), int(d), f"{t:.6f}"): float(v) for r, d, t, v in
            zip(recorded.run, recorded.direction, recorded.target, recorded.deviation)}
@@ -135,8 +135,8 @@ def run(args: argparse.Namespace) -> int:
     plan = campaign.plan_for(config)
     if plan.sweeps:
         return replay_scan(args, directory, config, plan, recorded)
-    if args.scan_window or args.wanted_u or args.moving or args.no_rate:
-        raise InputError(f"{directory}: not a scan: --scan-window, --wanted-u, --moving and --no-rate replay a scan")
+    if args.scan_window or args.wanted_u or args.moving or args.offset_only:
+        raise InputError(f"{directory}: not a scan: --scan-window, --wanted-u, --moving and --offset-only replay a scan")
     check_window(directory, overrides)
     capture, _, points = replay_campaign(directory, overrides, args.speed)
     if "point" not in recorded.extra:

@@ -250,7 +250,7 @@ def in_order(inst: InstrumentStream) -> InstrumentStream:
 def align(ctrl: ControllerStream, inst: InstrumentStream, max_iterations: int = 20, rate: bool = True) -> Alignment:
     """The instrument clock against the controller's, from the scan's own moves (module docstring).
     `rate` False: the offset only, the clocks taken to run at the same rate (to see what the rate
-    estimate changes: `axiscal replay --no-rate`)."""
+    estimate changes: `axiscal replay --offset-only`)."""
     inst = in_order(inst)
     if len(inst.time_s) < 10:
         raise InputError("the instrument stream has fewer than 10 samples with a reading")
