@@ -37,7 +37,7 @@ cycles = 2
 dwell_s = 2.5
 velocity = 20.0
 [instrument]
-rate_hz = 250.0
+rate_hz = 500.0
 [capture]
 method = "scan"
 scan_velocity = {velocity}
@@ -181,3 +181,22 @@ def test_kill_9_during_a_pass_loses_nothing_recorded_and_resume_continues_at_tha
     for words in ("NOT JUDGED", "captured with the scan method, not an ISO 230-2 test", "Clock offset, ms",
                   "Speed limit", "Left out", "pass 2"):
         assert words in html, words
+
+
+@pytest.mark.machine
+def test_a_fault_during_a_sweep_measures_the_pass_again_and_aligns_the_rest_by_itself(tmp_path):
+    d = {**draw(5), "velocity": 10.0}
+    # the drive faults during the first move after 14 s: the down sweep of pass 1 (it starts at about 12.4 s)
+    config = parse_config(SCAN.format(**d) + "[sim.faults.axis_error]\nat_s = 14.0\n", "scan.toml")
+    out = start_campaign(config, tmp_path / "c", opener=open_hardware)
+    assert out.status == "completed" and out.points == out.planned == 4
+    sweeps = [line.split(",")[:3] for line in (tmp_path / "c" / "sweeps.csv").read_text().splitlines()[1:]]
+    assert sweeps == [["0", "1", "+"], ["0", "1", "+"], ["1", "1", "-"], ["2", "2", "+"], ["3", "2", "-"]]
+    table = read_points(tmp_path / "c" / "points.csv")
+    assert sorted(set(table.run.tolist())) == [1, 2] and len(table) == 2 * 2 * 7
+    assert "pass 1" in table.meta["left_out_1"]
+    model = sim_model(config.sim)
+    errors = [float(np.mean(table.deviation[(table.direction == s) & (table.target == t)]))
+              - float(model.deviation_um(np.array([t]), s, 0.0, np.inf)[0])
+              for s in (1, -1) for t in sorted(set(table.target.tolist()))]
+    assert float(np.sqrt(np.mean(np.square(errors)))) < 0.35, errors

@@ -388,10 +388,18 @@ class Executor:
         if decision == "abort":
             raise CampaignStopped(str(exc)) from exc
         self._recover(exc)  # CampaignStopped when the axis is not ready again: run() stops
+        if self.sweeps:  # a lost connection took the position stream with it; the next sweeps need one
+            if self.position_stream is not None:
+                self.position_stream.close()
+            self._open_position_stream()
         if decision == "skip":
             self.emit("skip", f"point {point + 1} skipped (resume measures it later)", point)
             return [p for p in todo if p > point]
         self.emit("retry", f"point {point + 1} measured again", point)
+        if self.sweeps:  # a scan measures whole passes: the interrupted one again from its first sweep
+            run = self.plan.points[point].run
+            again = [i for i, p in enumerate(self.plan.points) if p.run == run and i < point]
+            return sorted({*again, *(p for p in todo if p >= point)})
         return [p for p in todo if p >= point]
 
     def _decide(self, exc: Exception, total: int) -> FaultAnswer:

@@ -29,6 +29,7 @@ from campaign.stream.scan import Profile, ScanResult, analyse_scan, point_table
 POSITIONS_FILE = "positions.csv"
 SWEEPS_FILE = "sweeps.csv"
 RUNS_FILE = "runs.jsonl"
+EVENTS_FILE = "events.jsonl"
 
 
 @dataclass(frozen=True)
@@ -86,11 +87,15 @@ def read_sweeps(directory: Path) -> list[tuple[int, int, int, float]]:
 
 
 def segments(directory: Path, plan: Plan, rest_s: float) -> tuple[list[Segment], list[str]]:
-    """The scan's segments (one per run of the executor, runs.jsonl) with their whole passes; the
-    sweeps of a pass a segment did not finish are left out (resume measured that pass again)."""
+    """The scan's segments (one per run of the executor, runs.jsonl, and one after each fault within
+    a run, events.jsonl) with their whole passes; the sweeps of a pass a segment did not finish are
+    left out (a retry or a resume measures that pass again)."""
     import pandas as pd
 
     starts = [float(r["t_s"]) for r in read_json_lines(directory / RUNS_FILE) if r.get("record") == "start"]
+    # a fault within a run interrupts the streams too: the sweeps after it are aligned by themselves
+    faults = [float(e["t_s"]) for e in read_json_lines(directory / EVENTS_FILE) if e.get("kind") == "fault"]
+    starts = sorted({*starts, *faults})
     sweeps = read_sweeps(directory)
     per_run: dict[int, set[int]] = {}
     for p in plan.points:
@@ -104,8 +109,8 @@ def segments(directory: Path, plan: Plan, rest_s: float) -> tuple[list[Segment],
         runs = sorted({s[1] for s in mine if per_run[s[1]] <= {m[0] for m in mine if m[1] == s[1]}})
         partial = sorted({s[1] for s in mine} - set(runs))
         if partial:
-            left.append(f"pass {', '.join(map(str, partial))} of the run started at {lo:g} s was not finished "
-                        "in that run (measured again after the resume)")
+            left.append(f"pass {', '.join(map(str, partial))}: the sweeps recorded from {lo:g} s on did not finish "
+                        "it before the run stopped or a fault (a retry or the resume measured it again)")
         if not runs:
             continue
         indices = tuple(s[0] for s in mine if s[1] in runs)

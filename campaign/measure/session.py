@@ -317,8 +317,8 @@ def missing_points(directory: Path, plan: Plan) -> list[int]:
     done = set(recorded_point_indices(directory))
     missing = [i for i in range(len(plan.points)) if i not in done]
     if plan.sweeps and missing:
-        first_run = plan.points[missing[0]].run
-        return [i for i, p in enumerate(plan.points) if p.run >= first_run]
+        runs = {plan.points[i].run for i in missing}
+        return [i for i, p in enumerate(plan.points) if p.run in runs]
     return missing
 
 

@@ -168,6 +168,7 @@ class Recorder:
             raise
         self._positions: TextIO | None = None  # opened by the first position sample (a scan)
         self._sweeps_fd = -1
+        self._sweeps_done: set[int] = set()
         self.env_columns: tuple[str, ...] | None = None
         self.points_written = 0
         self.fail_next_point_write = False
@@ -232,7 +233,9 @@ class Recorder:
             rec.points_written = len(lines) - 1
         sweeps = path / SWEEPS_FILE
         if sweeps.exists():  # a scan: its points are its sweeps until the table is written
-            rec.points_written = max(0, len(sweeps.read_text(encoding="utf-8").splitlines()) - 1)
+            rec._sweeps_done = {int(line.split(",")[0]) for line in sweeps.read_text(encoding="utf-8").splitlines()[1:]
+                                if line[:1].isdigit()}
+            rec.points_written = len(rec._sweeps_done)
         return rec
 
     def sample(self, t_s: float, step: int, point: int | None, axis_position: float | None,
@@ -279,7 +282,8 @@ class Recorder:
             self._sync(self._sweeps_fd)
         except OSError as exc:
             raise RecordingError(f"{self.dir}: {exc.strerror or exc}") from exc
-        self.points_written += 1
+        self._sweeps_done.add(point)
+        self.points_written = len(self._sweeps_done)  # a sweep measured again (a retry, a resume) counts once
 
     def point(self, run: int, direction: int, target: float, deviation: float, time_s: float,
               env: dict[str, float | None], extra: dict[str, float]) -> None:
