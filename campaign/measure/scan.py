@@ -5,9 +5,9 @@ scan's settings or others (replay).
 The streams: raw.csv holds the instrument's readings with the instrument's own stamps
 (`instrument_time_s`); positions.csv the controller's actual position with the controller's own
 stamps (`controller_time_s`, s since 1970 from the PLC's FILETIME). A resumed scan holds one
-segment per run of the executor (runs.jsonl): after a restart neither clock need continue where
-it stopped, so each segment is aligned by itself and its passes numbered on from the last
-segment's. Times in s, positions in the axis unit, deviations in µm (arcsec on a rotary axis).
+segment per run of the executor (runs.jsonl), and one after each fault within a run: after a
+restart neither clock need continue where it stopped, so each segment is aligned by itself over
+its whole passes, numbered as the plan's. Times in s, positions in the axis unit, deviations in µm (arcsec on a rotary axis).
 """
 
 from __future__ import annotations
@@ -22,13 +22,10 @@ from campaign.config import Config
 from campaign.errors import InputError
 from campaign.plan import Plan
 from campaign.pointtable import PointTable, write_points_text
-from campaign.record import Recorder, load_raw, read_json_lines
+from campaign.record import POSITIONS_FILE, RUNS_FILE, SWEEPS_FILE, Recorder, load_raw, read_json_lines
 from campaign.stream.align import ControllerStream, InstrumentStream
 from campaign.stream.scan import Profile, ScanResult, analyse_scan, point_table
 
-POSITIONS_FILE = "positions.csv"
-SWEEPS_FILE = "sweeps.csv"
-RUNS_FILE = "runs.jsonl"
 EVENTS_FILE = "events.jsonl"
 
 

@@ -39,19 +39,16 @@ from campaign.record.directory import (
     FORMAT_VERSION,
     META_FILE,
     PLAN_FILE,
+    POSITIONS_FILE,
+    PROFILE_FILE,
     RUNS_FILE,
+    SWEEPS_FILE,
     open_campaign,
     read_json_lines,
 )
 from campaign.record.events import Event
 from protocols.hardware import ENV_FIELDS, Reading
 
-POSITIONS_FILE = "positions.csv"
-"""A scan's controller stream: the actual position at the controller's own times."""
-PROFILE_FILE = "profile.csv"
-"""A scan's dense deviation profile (campaign.stream.scan)."""
-SWEEPS_FILE = "sweeps.csv"
-"""A scan's sweeps, one row per sweep done (what resume continues after)."""
 APPENDED = ("raw.csv", "points.csv", "events.jsonl", "events.log", RUNS_FILE, POSITIONS_FILE, SWEEPS_FILE)
 """The files a campaign appends to (a torn last line of each is cut off on reopen)."""
 POSITION_COLUMNS = ("t_s", "step", "controller_time_s", "actual_position")
