@@ -391,7 +391,10 @@ class Executor:
         if self.sweeps:  # a lost connection took the position stream with it; the next sweeps need one
             if self.position_stream is not None:
                 self.position_stream.close()
-            self._open_position_stream()
+            try:
+                self._open_position_stream()
+            except AxisError as refused:
+                raise CampaignStopped(f"the position stream could not be started again: {refused}") from refused
         if decision == "skip":
             self.emit("skip", f"point {point + 1} skipped (resume measures it later)", point)
             return [p for p in todo if p > point]
