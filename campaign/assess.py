@@ -10,9 +10,10 @@ with the uncertainty inputs' defaults, named as such.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
+from campaign import capture_methods
 from campaign.config import Config
 from campaign.errors import InputError
 from campaign.iso230 import STANDARDS, Evaluation, Standard, evaluate
@@ -75,6 +76,11 @@ def assess(table: PointTable, config: Config | None = None, planned: Planned | N
     purpose, follows = ((config.campaign.purpose, config.campaign.follows) if config is not None
                         else table_purpose(table))
     verdict = judge(table, ev, tolerances, unc, outliers, planned, purpose, follows)
+    method = config.capture.method if config is not None else table.meta.get("capture", "")
+    if method in capture_methods.METHODS and not capture_methods.method(method).iso_230_2:
+        why = (f"captured with the {method} method, not an ISO 230-2 test: the axis never stops at a target, "
+               "so A, E, B and R are indicative")
+        verdict = replace(verdict, reasons=(why, *verdict.reasons))
     simulated = is_simulated(table, config, meta)
     return Assessment(source or table.source, table, ev, outliers, unc, verdict, tolerances, config, planned,
                       directory, meta, simulated)

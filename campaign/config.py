@@ -18,10 +18,12 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
+from campaign import capture_methods
 from campaign.errors import InputError, read_input_text
 from campaign.faults import parse_faults
 from campaign.model import model_from_dict
 from campaign.specs import (
+    JUDGED_PURPOSES,
     REQUIRED,
     AxisSpec,
     CampaignSpec,
@@ -120,8 +122,9 @@ def _check_value(name: str, key: Key, value: Any, where: str) -> Any:
     if key.min is not None and value < key.min or key.max is not None and value > key.max:
         raise InputError(f"{where}: key '{name}': {value!r} is out of range "
                          f"[{key.min if key.min is not None else '-inf'}, {key.max if key.max is not None else 'inf'}]")
-    if key.choices and value not in key.choices:
-        raise InputError(f"{where}: key '{name}': '{value}' is not one of {', '.join(key.choices)}")
+    choices = key.options()
+    if choices and value not in choices:
+        raise InputError(f"{where}: key '{name}': '{value}' is not one of {', '.join(choices)}")
     return value
 
 
@@ -245,6 +248,28 @@ def _check_record_name(pv: str, simulated: bool, src: str) -> None:
                          "digits and _-:;<>[] only, no spaces)")
 
 
+def _check_scan(s: Mapping[str, Mapping[str, Any]], src: str) -> None:
+    """A method that sweeps (campaign.capture_methods) needs its velocity, within the axis's."""
+    capture, axis, plan = s["capture"], s["axis"], s["plan"]
+    method = capture_methods.method(capture["method"])
+    if not method.iso_230_2 and s["campaign"]["purpose"] in JUDGED_PURPOSES:
+        raise InputError(f"{src}: key 'campaign.purpose': capture.method = \"{method.name}\" is not an ISO 230-2 "
+                         f"test and gets no pass/fail: set purpose = \"diagnostic\" (or \"follow-up\"), not "
+                         f"\"{s['campaign']['purpose']}\"")
+    if not method.sweeps:
+        return
+    v, unit = capture["scan_velocity"], axis["unit"]
+    if v is None:
+        raise InputError(f"{src}: key 'capture.scan_velocity': required with capture.method = "
+                         f"\"{capture['method']}\" ({unit}/s)")
+    if v > axis["max_velocity"]:
+        raise InputError(f"{src}: key 'capture.scan_velocity': {v:g} {unit}/s is above axis.max_velocity = "
+                         f"{axis['max_velocity']:g} {unit}/s")
+    if plan["cycle"] != "linear":
+        raise InputError(f"{src}: key 'plan.cycle': a scan sweeps the whole travel (linear), not the pilgrim "
+                         "step cycle")
+
+
 def _check_consistency(s: Mapping[str, Mapping[str, Any]], src: str) -> None:
     axis, plan = s["axis"], s["plan"]
     if (axis["kind"] == "linear") != (axis["unit"] == "mm"):
@@ -260,6 +285,7 @@ def _check_consistency(s: Mapping[str, Mapping[str, Any]], src: str) -> None:
         t = plan["targets"]
         if len(t) < 2 or any(b <= a for a, b in itertools.pairwise(t)):
             raise InputError(f"{src}: key 'plan.targets': needs at least 2 strictly increasing targets")
+    _check_scan(s, src)
     env, driver, instrument = s["environment"], s["axis_driver"], s["instrument"]
     if axis["kind"] == "rotary" and (env["air_correction"] != "none" or env["normalise_to_20c"]):
         raise InputError(f"{src}: key 'environment.air_correction': air and temperature corrections are "
@@ -331,7 +357,7 @@ def schema_markdown() -> str:
         out += [f"## [{section}]", "", "| key | type | default | meaning |", "|---|---|---|---|"]
         for name, key in keys.items():
             default = "required" if key.default is REQUIRED else ("—" if key.default is None else repr(key.default))
-            extra = f" One of: {', '.join(key.choices)}." if key.choices else ""
+            extra = f" One of: {', '.join(key.options())}." if key.options() else ""
             rng = ""
             if key.min is not None or key.max is not None:
                 rng = f" Range [{key.min if key.min is not None else '−∞'}, {key.max if key.max is not None else '∞'}]."

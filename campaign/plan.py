@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from campaign import capture_methods
 from campaign.config import Config, capture_spec
 from campaign.errors import InputError, SafetyError
 from campaign.specs import AxisSpec, CaptureSpec, PlanSpec
@@ -169,6 +170,11 @@ class Plan:
     def points(self) -> list[Point]:
         return [v.point for v in self._visits]
 
+    @cached_property
+    def sweeps(self) -> bool:
+        """The plan is a scan: its points are sweeps of the travel (campaign.capture_methods)."""
+        return any(capture_methods.method(v.capture.spec.method).sweeps for v in self._visits)
+
     def ends(self) -> tuple[float, float]:
         """The lowest and highest position the plan moves to (overruns included), axis unit."""
         positions = [s.position for s in self._stops]
@@ -212,12 +218,11 @@ def target_offsets(nominal: list[float], kind: str, fraction: float, seed: int) 
 
 def capture_at(point: Point, dwell_s: float, spec: CaptureSpec) -> tuple[float, Capture]:
     """How `point` is captured in a dwell of `dwell_s` (s) with `spec`: (the settle before the
-    capture, s; the Capture step). The dwell method averages the last `average_s` of the dwell (at
-    most the dwell); the stable method starts at arrival and waits at most `stable_timeout_s`."""
-    if spec.method == "dwell":
-        window = min(spec.average_s, dwell_s)
-        return max(dwell_s - window, 0.0), Capture(point, window, window, spec)
-    return 0.0, Capture(point, spec.stable_window_s, spec.stable_timeout_s, spec)
+    capture, s; the Capture step), as its method says (campaign.capture_methods: the dwell method
+    averages the last `average_s` of the dwell, at most the dwell; the stable method starts at
+    arrival and waits at most `stable_timeout_s`)."""
+    w = capture_methods.method(spec.method).window(spec, dwell_s)
+    return w.settle_s, Capture(point, w.window_s, w.timeout_s, spec)
 
 
 def build_plan(config: Config) -> Plan:
@@ -226,10 +231,16 @@ def build_plan(config: Config) -> Plan:
 
 
 def make_plan(p: PlanSpec, capture: CaptureSpec) -> Plan:
-    """The plan of the test cycle `p`, every capture step carrying `capture`. Does not check limits."""
+    """The plan of the test cycle `p`, every capture step carrying `capture`. Does not check limits.
+    InputError for a capture method that is not run live (the stream import's own)."""
+    if not capture_methods.method(capture.method).live:
+        raise InputError(f"capture.method = \"{capture.method}\" is not run by axiscal itself (the stream import's "
+                         f"own: axiscal import-stream); axiscal runs {', '.join(capture_methods.names(live=True))}")
     nominal = nominal_targets(p)
     offsets = target_offsets(nominal, p.offsets, p.offset_fraction, p.seed)
     targets = [round(t + o, 9) for t, o in zip(nominal, offsets)]
+    if capture_methods.method(capture.method).sweeps:
+        return Plan(scan_steps(p, capture, targets), tuple(targets), tuple(offsets), p.seed)
     v, l1 = p.velocity, p.overrun
     dwell_rng = np.random.default_rng([p.seed, 1])  # its own stream: the offsets do not change
     steps: list[Step] = []
@@ -262,6 +273,27 @@ def make_plan(p: PlanSpec, capture: CaptureSpec) -> Plan:
                 steps.append(Move(t + l1, v, overrun=True))
                 visit(run, -1, i)
     return Plan(tuple(steps), tuple(targets), tuple(offsets), p.seed)
+
+
+def scan_steps(p: PlanSpec, capture: CaptureSpec, targets: list[float]) -> tuple[Step, ...]:
+    """A scan's steps: to the low end of the travel (the first target less the overrun) at the plan's
+    velocity and a rest there, then `cycles` passes, each a sweep up to the high end and one back
+    down at `capture.scan_velocity`, each sweep followed by a rest of `dwell_s` at its end (the rests
+    refer the moving deviation to the one at rest, docs/scan.md). A sweep is a plan point: its
+    Capture step (method scan) and Checkpoint record the sweep (resume continues at the next); the
+    point table at the targets comes from the streams afterwards."""
+    if capture.scan_velocity is None:
+        raise ValueError("a scan needs capture.scan_velocity (campaign.config checks it)")
+    low, high = targets[0] - p.overrun, targets[-1] + p.overrun
+    steps: list[Step] = [Move(low, p.velocity, overrun=True), Settle(p.dwell_s)]
+    index = 0
+    for run in range(1, p.cycles + 1):
+        for direction, end, target_index in ((+1, high, len(targets) - 1), (-1, low, 0)):
+            point = Point(index, run, direction, target_index, end)
+            steps += [Move(end, capture.scan_velocity), Settle(p.dwell_s), Capture(point, 0.0, 0.0, capture),
+                      Checkpoint(point)]
+            index += 1
+    return tuple(steps)
 
 
 def check_motion(position: float, velocity: float, axis: AxisSpec) -> None:
@@ -344,7 +376,8 @@ def plan_records(plan: Plan, config: dict[str, Any] | None = None) -> list[dict[
             records.append({"step": "settle", "seconds": step.seconds})
         elif isinstance(step, Capture):
             records.append({"step": "capture", "point": asdict(step.point), "window_s": step.window_s,
-                            "timeout_s": step.timeout_s, "capture": asdict(step.spec)})
+                            "timeout_s": step.timeout_s,
+                            "capture": {k: v for k, v in asdict(step.spec).items() if v is not None}})
         else:
             records.append({"step": "checkpoint", "point": step.point.index})
     return records

@@ -13,11 +13,12 @@ which validates again. Nothing writes into a spec.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, Literal, get_args
 
+from campaign import capture_methods
 from protocols import plc_contract
 from protocols.serial_line import LineFormat
 
@@ -39,12 +40,19 @@ class Key:
     resume: bool = False
     """True when the key may change between a campaign's start and its resume (a connection, a
     limit, a name); any other change would mix two measurements in one table."""
+    choices_of: Callable[[], tuple[Any, ...]] | None = None
+    """The choices read from a registry each time they are asked for (`options`), instead of `choices`."""
+
+    def options(self) -> tuple[Any, ...]:
+        """The values the key may take (empty: any of its type)."""
+        return self.choices_of() if self.choices_of is not None else self.choices
 
 
 def key(type_: type, default: Any, doc: str, *, min: float | None = None,
-        max: float | None = None, choices: tuple[Any, ...] = (), resume: bool = False) -> Any:
+        max: float | None = None, choices: tuple[Any, ...] = (), resume: bool = False,
+        choices_of: Callable[[], tuple[Any, ...]] | None = None) -> Any:
     """A spec field that is a config key (see `Key`)."""
-    meta = {"key": Key(type_, default, doc, min, max, choices, resume)}
+    meta = {"key": Key(type_, default, doc, min, max, choices, resume, choices_of)}
     if default is REQUIRED:
         return field(metadata=meta)
     return field(default=default, metadata=meta)
@@ -89,7 +97,8 @@ ControllerType = Literal["sim", "ads", "linuxcnc", "epics"]
 InstrumentType = Literal["sim", "serial"]
 InstrumentMode = Literal["stream", "query"]
 AirCorrection = Literal["none", "edlen"]
-CaptureMethod = Literal["dwell", "stable"]
+CaptureMethod = str
+"""A name of `campaign.capture_methods.METHODS` (the registry decides the choices)."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -272,8 +281,9 @@ class CaptureSpec:
     """How a point is captured at its target ([capture]); each capture step of a plan carries it."""
 
     method: CaptureMethod = key(str, "dwell",
-        "dwell (average the end of a fixed dwell) or stable (capture when the reading is stable)",
-        choices=get_args(CaptureMethod))
+        "how points are captured (the registry campaign/capture_methods.py): dwell (average the end of a fixed "
+        "dwell), stable (capture when the reading is stable), scan (on the move at scan_velocity, a diagnostic: "
+        "docs/scan.md); stream is the stream import's own", choices_of=capture_methods.names)
     average_s: float = key(float, 1.0, "dwell method: averaging window at the end of the dwell, s", min=0.01)
     stable_tolerance: float = key(float, 0.5,
         "stable method: band the reading must stay in, deviation unit", min=0)
@@ -285,6 +295,14 @@ class CaptureSpec:
     stable_timeout_s: float = key(float, 10.0, "stable method: longest wait after arrival, s", min=0.1)
     retries: int = key(int, 2,
         "captures retried at a point after beam loss before the campaign stops", min=0, max=20)
+    scan_velocity: float | None = key(float, None,
+        "scan method: the constant velocity of every sweep, axis unit/s (mm/s or deg/s; at most "
+        "axis.max_velocity); required with method = scan", min=1e-06)
+    scan_window: float = key(float, 1.0,
+        "scan method: the stretch about each target a line is fitted through, axis unit", min=1e-06)
+    scan_wanted_u: float = key(float, 0.2,
+        "scan method: the deviation uncertainty per target and pass the timing may cost, deviation unit "
+        "(µm or arcsec); a faster scan is warned about", min=1e-06)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -293,6 +311,16 @@ class SimSpec:
 
     speed: float | None = key(float, None,
         "run N times faster than real time; absent = as fast as possible", min=0.001, resume=True)
+    instrument_offset_s: float = key(float, 0.0,
+        "the simulated instrument's own clock: its reading when the controller's reads 0, s (a scan "
+        "must find it, docs/scan.md)", min=-1e6, max=1e6)
+    instrument_rate_ppm: float = key(float, 0.0,
+        "the simulated instrument's clock runs this much fast (negative: slow), ppm", min=-1000, max=1000)
+    instrument_jitter_s: float = key(float, 0.0,
+        "RMS of the instant a simulated sample is really taken about its stamp, s", min=0, max=0.01)
+    instrument_latency_s: float = key(float, 0.0,
+        "the simulated instrument's transport latency: a sample reaches the PC this much later, s",
+        min=0, max=1)
     seed: int = key(int, 1, "seed of the simulated noise", min=0)
     model: str = key(str, "", "error model: a shipped one by name (seed000-horizontal, seed000-vertical: data/models), a TOML file (relative to this config), or [sim.effects.NAME]")
     effects: Mapping[str, Any] | None = field(default=None, metadata={"table": "the error model"})

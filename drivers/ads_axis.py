@@ -143,6 +143,7 @@ class AdsAxis(HaltsOnClose):
             s.name: s for s in (*self._control.values(), *self._comp.values()) if s.name in writable
         }
         self._connection: pyads.Connection | None = None
+        self._streams: list[AdsPositionStream] = []
         self._closed = False
         self._call(lambda connection: None, "open the connection")
 
@@ -188,6 +189,37 @@ class AdsAxis(HaltsOnClose):
         """Ask the PLC to clear the axis error (bReset)."""
         self._write_member("bReset", True)
 
+<<<<<<< HEAD
+=======
+    def stream_positions(self, cycle_s: float = 0.0, max_delay_s: float = 0.05) -> AdsPositionStream:
+        """The controller's actual position (fActPosition) as ADS device notifications: sampled by
+        the PLC every `cycle_s` (0: every PLC cycle), each sample stamped with the PLC's time and
+        sent at most `max_delay_s` later. Read them with `take()`; `close()` ends the notification
+        (so does closing the axis). A reconnection ends it too: a scan that loses the connection
+        stops (AxisError from `take`)."""
+        if self._connection is None:
+            self._call(lambda connection: None, "open the connection")
+        connection = self._connection
+        if connection is None:
+            raise AxisError(f"axis {self.axis}: no connection to stream the position on")
+        stream = AdsPositionStream(self, connection, self._status["fActPosition"].name, cycle_s, max_delay_s)
+        self._streams.append(stream)
+        return stream
+
+    def close(self) -> None:
+        """Halt the axis if it is moving (not in read-only mode), then close the connection."""
+        if self._closed:
+            return
+        for stream in list(self._streams):
+            stream.close()
+        try:
+            if not self.read_only and self.status().busy:
+                self.halt()
+        finally:
+            self._disconnect()
+            self._closed = True
+
+>>>>>>> scanrun
     # --- compensation tables -----------------------------------------------------------------
 
     def write_comp_table(self, table: CompTable) -> None:
@@ -320,10 +352,79 @@ class AdsAxis(HaltsOnClose):
         self._connection = connection
 
     def _disconnect(self) -> None:
+        for stream in list(self._streams):
+            stream.lost()
         connection, self._connection = self._connection, None
         if connection is not None:
             try:
                 with _native_stderr_silenced():
                     connection.close()
+            except pyads.ADSError:
+                pass
+
+
+FILETIME_AT_UNIX_EPOCH = 116_444_736_000_000_000
+"""100-ns intervals from 1601-01-01 (a FILETIME's origin, the stamps of ADS notifications) to 1970-01-01."""
+
+
+class AdsPositionStream:
+    """One ADS device notification of the axis's actual position (see `AdsAxis.stream_positions`).
+
+    The ADS library calls `_received` on its own thread, once per sample; `take` hands the samples
+    over: (the PLC's time of the sample, s since 1970 from its FILETIME stamp, actual position in
+    axis unit), in the order the PLC took them."""
+
+    def __init__(self, axis: AdsAxis, connection: pyads.Connection, name: str, cycle_s: float,
+                 max_delay_s: float) -> None:
+        import ctypes
+
+        self._axis, self._connection = axis, connection
+        self._lock = threading.Lock()
+        self._samples: list[tuple[float, float]] = []
+        self._lost = False
+        self._data_offset = pyads.structs.SAdsNotificationHeader.data.offset
+        self._double = ctypes.POINTER(ctypes.c_double)
+        attr = pyads.NotificationAttrib(8, trans_mode=pyads.constants.ADSTRANS_SERVERCYCLE,
+                                        max_delay=max(0.0, max_delay_s * 1000.0), cycle_time=max(0.0, cycle_s * 1000.0))
+        try:
+            handles = connection.add_device_notification(name, attr, self._received)
+        except pyads.ADSError as exc:
+            raise AxisError(f"axis {axis.axis}: cannot stream {name}: {str(exc).strip()}") from exc
+        if handles is None:
+            raise AxisError(f"axis {axis.axis}: cannot stream {name}: no notification handle")
+        self._handles: tuple[int, int] | None = handles
+
+    def _received(self, notification: Any, _name: str) -> None:
+        import ctypes
+
+        header = notification.contents
+        value = ctypes.cast(ctypes.addressof(header) + self._data_offset, self._double).contents.value
+        stamp_s = (int(header.nTimeStamp) - FILETIME_AT_UNIX_EPOCH) / 10_000_000
+        with self._lock:
+            self._samples.append((stamp_s, float(value)))
+
+    def take(self) -> list[tuple[float, float]]:
+        """The samples received since the last call, oldest first. AxisError after the connection
+        was lost (the notification is gone with it)."""
+        with self._lock:
+            samples, self._samples = self._samples, []
+        if self._lost and not samples:
+            raise AxisError(f"axis {self._axis.axis}: the position stream ended with the connection", 0)
+        return samples
+
+    def lost(self) -> None:
+        """The connection it came on is about to close: delete the notification while it may still
+        be open (the ADS library must call no callback after), no more samples."""
+        self.close()
+        self._lost = True
+
+    def close(self) -> None:
+        """Delete the notification (before the connection closes: the library calls no callback after)."""
+        handles, self._handles = self._handles, None
+        if self in self._axis._streams:
+            self._axis._streams.remove(self)
+        if handles is not None:
+            try:
+                self._connection.del_device_notification(*handles)
             except pyads.ADSError:
                 pass

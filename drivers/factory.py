@@ -32,6 +32,7 @@ if TYPE_CHECKING:
     from drivers.sim.interferometer import SimInterferometer
     from drivers.sim.machine import SimAxisPhysics
     from drivers.sim.plc import SimPLC
+    from drivers.sim.scan_streams import InstrumentClock
 
 
 SIM_MODEL_FILE = "sim-model.toml"
@@ -151,16 +152,19 @@ def sim_machine(spec: DriverSpec, speed: float | None, model: ErrorModel | None,
 
 
 def sim_hardware(spec: DriverSpec, clock: SimClock | ListenedClock, physics: SimAxisPhysics, open_axis: Callable[[], Axis],
-                 closers: list[Callable[[], None]]) -> tuple[Hardware, SimInterferometer]:
+                 closers: list[Callable[[], None]], compensated: bool = False) -> tuple[Hardware, SimInterferometer]:
     """The hardware of a simulated laser on `clock` (simulated, or the wall clock beside a real-time
     controller) once the controller runs: the simulated laser on its pty, the axis `open_axis()`
     opens, and the serial interferometer reading that pty. `closers` (what already runs, e.g. the
-    server) are closed in reverse order when a part fails to open."""
+    server) are closed in reverse order when a part fails to open. The laser samples on its own clock
+    when [sim] gives it one, its jitter drawn from the noise seed (another after a compensation)."""
     from drivers.sim.interferometer import SimInterferometer
 
     inst = spec.instrument
     try:
-        instrument = SimInterferometer(clock, physics.measure, inst.line, inst.rate_hz, inst.mode)
+        seed = spec.sim.seed + (COMP_SEED_OFFSET if compensated else 0)
+        instrument = SimInterferometer(clock, physics.measure, inst.line, inst.rate_hz, inst.mode,
+                                       own_clock=instrument_clock(spec), seed=seed)
         closers.append(instrument.close)
         axis = open_axis()
         closers.append(axis.close)
@@ -206,6 +210,17 @@ def _close(closers: list[Callable[[], None]]) -> None:
             close()
 
 
+def instrument_clock(spec: DriverSpec) -> InstrumentClock | None:
+    """The simulated instrument's own clock ([sim] instrument_*), None when it has none."""
+    from drivers.sim.scan_streams import InstrumentClock
+
+    s = spec.sim
+    if not (s.instrument_offset_s or s.instrument_rate_ppm or s.instrument_jitter_s or s.instrument_latency_s):
+        return None
+    return InstrumentClock(offset_s=s.instrument_offset_s, rate_error_ppm=s.instrument_rate_ppm,
+                           sample_jitter_s=s.instrument_jitter_s, latency_s=s.instrument_latency_s)
+
+
 def serve_on_free_loopback(plc: SimPLC) -> SimAdsServer:
     """Serve `plc` over ADS on a free loopback address 127.0.x.y (every ADS client connects to TCP
     port 48898, so simulated machines running side by side, e.g. CI and a demo, each get their own
@@ -238,7 +253,7 @@ def _open_sim(spec: DriverSpec, speed: float | None, model: ErrorModel | None, s
     server = serve_on_free_loopback(plc)
     hw, instrument = sim_hardware(spec, clock, physics, lambda: AdsAxis(
         server.net_id, server.ip, drv.axis_index, drv.ams_port, timeout_s=drv.timeout_s, read_only=drv.read_only),
-        [server.stop])
+        [server.stop], compensated)
     scheduler = FaultScheduler(faults, plc, server, instrument, physics)
     clock.attach(scheduler.tick)
     return hw, SimParts(clock, plc, server, instrument, physics, scheduler)

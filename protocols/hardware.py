@@ -123,6 +123,29 @@ class Axis(Protocol):
         ...
 
 
+class PositionStream(Protocol):
+    """The controller's actual position sampled by the controller itself, with its own time stamps
+    (ADS device notifications of the actual position; the samples a scan aligns against)."""
+
+    def take(self) -> list[tuple[float, float]]:
+        """The samples since the last call, oldest first: (the controller's time of the sample, s on
+        its own clock; actual position, axis unit). AxisError when the stream ended (connection lost)."""
+        ...
+
+    def close(self) -> None:
+        """End the stream. Safe to call twice."""
+        ...
+
+
+class StreamingAxis(Axis, Protocol):
+    """An axis whose controller can stream its actual position (a scan needs one)."""
+
+    def stream_positions(self, cycle_s: float = 0.0, max_delay_s: float = 0.05) -> PositionStream:
+        """Start streaming: a sample every `cycle_s` of the controller (0: every controller cycle),
+        each sent at most `max_delay_s` after it was taken. AxisError when the controller refuses."""
+        ...
+
+
 class Interferometer(Protocol):
     """A laser interferometer on a serial line (or its simulation)."""
 

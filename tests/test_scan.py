@@ -113,8 +113,9 @@ def test_the_scan_table_reads_back_and_is_not_judged(tmp_path):
     a = assess(table, tolerance=100.0)
     assert a.verdict.verdict == "not judged"
     assert any("not an acceptance test" in r for r in a.verdict.reasons)
+    assert a.verdict.reasons[0].startswith("captured with the scan method, not an ISO 230-2 test")  # its table says so
     assert evaluate(table).summary["A"] is not None
-    console = Console(record=True, width=200)
+    console = Console(record=True, width=400)  # one line: the sentence is long
     console.print(verdict_line(a.verdict))  # rich markup must not eat the key's "[campaign]"
     assert '[campaign] purpose = "diagnostic"' in console.export_text()
 

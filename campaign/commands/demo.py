@@ -13,6 +13,7 @@ import argparse
 from importlib import resources
 from typing import Any
 
+from campaign import capture_methods
 from campaign.commands import SUMMARY, YES_HELP, hardware_opener, positive_integer
 from campaign.commands.run import add_run_options, finish, run_config, with_on_fault
 from campaign.config import Config, parse_config
@@ -31,7 +32,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("demo", help=SUMMARY["demo"],
                        description="Run the horizontal-axis campaign of Li et al. 2022 on the simulated machine.")
     add_run_options(p)
-    p.add_argument("--capture", choices=("dwell", "stable"), help="capture method (default dwell)")
+    p.add_argument("--capture", choices=capture_methods.names(live=True, sweeps=False),
+                   help="capture method (default dwell)")
     p.add_argument("--controller", choices=("sim", "linuxcnc", "epics"), default="sim",
                    help="sim (default): the simulated PLC over ADS; linuxcnc: a headless LinuxCNC (real time) "
                         "with a simulated laser on its joint (docs/linuxcnc.md); epics: the simulated axis as an "

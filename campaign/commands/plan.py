@@ -7,6 +7,8 @@ from typing import Literal
 
 from rich.table import Table
 
+from campaign import capture_methods
+from campaign.capture_methods import Window
 from campaign.commands import SUMMARY
 from campaign.config import Config, load_config
 from campaign.plan import (
@@ -54,8 +56,14 @@ def run(args: argparse.Namespace) -> int:
     console = make_console()
     u = info["unit"]
     table = Table(title=f"Plan: {args.config}", show_header=False)
-    table.add_row("points", f"{info['points']} ({len(plan.targets)} targets × 2 directions × {counted(info['runs'], 'run')})"
-                  if info["cycle"] == "linear" else str(info["points"]))
+    if plan.sweeps:
+        v = config.capture.scan_velocity
+        table.add_row("scan", f"{info['points']} sweeps ({info['runs']} {'pass' if info['runs'] == 1 else 'passes'} up and down at {v:g} {u}/s, "
+                              f"a rest of {config.plan.dwell_s:g} s at each end); the table at {len(plan.targets)} "
+                              "targets × 2 directions per pass comes from the streams: a diagnostic (docs/scan.md)")
+    else:
+        table.add_row("points", f"{info['points']} ({len(plan.targets)} targets × 2 directions × "
+                                f"{counted(info['runs'], 'run')})" if info["cycle"] == "linear" else str(info["points"]))
     table.add_row("targets", ", ".join(f"{t:g}" for t in plan.targets) + f" {u}")
     table.add_row("travel", f"{info['travel']:.1f} {u}")
     table.add_row("estimated duration", f"{info['estimated_duration_s'] / 60:.1f} min")
@@ -70,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
 def steps_table(plan: Plan, config: Config) -> Table:
     """Every step of the plan as a table: what it does, where, how fast, for which point (counted
     from 1, as on the dashboard; plan index = point - 1) and how long."""
-    unit, dwell = config.axis.unit, config.capture.method == "dwell"
+    unit = config.axis.unit
     table = Table(title="Steps", header_style="bold")
     columns: tuple[tuple[str, Literal["left", "center", "right"]], ...] = (
         ("step", "right"), ("action", "left"), (f"position {unit}", "right"), (f"speed {unit}/s", "right"),
@@ -85,8 +93,8 @@ def steps_table(plan: Plan, config: Config) -> Table:
             table.add_row(str(i), "settle", "", "", "", "", "", f"{step.seconds:g}")
         elif isinstance(step, Capture):
             p = step.point
-            how = "capture (average)" if dwell else "capture (when stable)"
-            time = f"{step.window_s:g}" if dwell else f"≤ {step.timeout_s:g}"
+            how, time = capture_methods.method(step.spec.method).step_label(
+                Window(0.0, step.window_s, step.timeout_s))
             table.add_row(str(i), how, f"{p.target:.3f}", "", str(p.index + 1), str(p.run),
                           "+" if p.direction > 0 else "-", time)
         else:

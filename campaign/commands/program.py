@@ -8,10 +8,11 @@ import hashlib
 import json
 from datetime import date
 
-from campaign import __version__
+from campaign import __version__, capture_methods
 from campaign.commands import SUMMARY
 from campaign.config import Config, load_config
 from campaign.convert import write_whole
+from campaign.errors import InputError
 from campaign.plan import Plan, build_plan, check_plan, plan_records
 from campaign.views import make_console
 from protocols.nc import DIALECTS, NcMove, NcProgram, render
@@ -42,7 +43,7 @@ def nc_program(config: Config, plan: Plan) -> NcProgram:
     """The plan as moves: each stop of the plan in order, the feed from its velocity (per
     minute), at a target the dwell: the planned dwell with the dwell capture, the config's
     dwell_s with the stable one (the laser software decides when to capture)."""
-    fixed = config.capture.method == "dwell"
+    fixed = capture_methods.method(config.capture.method).fixed_dwell
     moves, last = [], None
     for stop in plan.stops():
         comment = ""
@@ -64,6 +65,10 @@ def nc_program(config: Config, plan: Plan) -> NcProgram:
 
 def run(args: argparse.Namespace) -> int:
     config = load_config(args.config)
+    if capture_methods.method(config.capture.method).sweeps:
+        raise InputError(f"{args.config}: capture.method = \"{config.capture.method}\": a scan is aligned with the "
+                         "controller's time-stamped position stream, which axiscal takes only while it drives the "
+                         "axis itself (axiscal run); a part program writes a stop-and-go plan")
     plan = build_plan(config)
     check_plan(plan, config.axis)
     program = nc_program(config, plan)

@@ -9,11 +9,15 @@ from typing import Any
 import numpy as np
 from rich.table import Table
 
+from campaign import capture_methods
 from campaign.commands import SUMMARY, positive_number
+from campaign.config import Config
 from campaign.errors import InputError
 from campaign.iso230 import evaluate
-from campaign.measure import replay_campaign
+from campaign.measure import ScanSettings, analyse_recorded_scan, replay_campaign, settings_of
+from campaign.plan import Plan
 from campaign.pointtable import PointTable, read_points
+from campaign.record import open_campaign
 from campaign.views import fmt, make_console, print_json
 from protocols.units import unit_label
 
@@ -28,12 +32,20 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                                    "what would change.")
     p.add_argument("dir", help="campaign directory")
     p.add_argument("--speed", type=positive_number, metavar="N", help="pace the timeline at N times real time")
-    p.add_argument("--capture", choices=("dwell", "stable"), help="capture method (default: as recorded)")
+    p.add_argument("--capture", choices=capture_methods.names(live=True, sweeps=False),
+                   help="capture method (default: as recorded)")
     p.add_argument("--average-s", type=positive_number, help="dwell: averaging window, s")
     p.add_argument("--stable-tolerance", type=positive_number, help="stable: band, µm (arcsec)")
     p.add_argument("--stable-drift", type=positive_number, help="stable: drift between the window's halves, µm (arcsec)")
     p.add_argument("--stable-window-s", type=positive_number, help="stable: window, s")
     p.add_argument("--stable-timeout-s", type=positive_number, help="stable: timeout after arrival, s")
+    p.add_argument("--scan-window", type=positive_number, metavar="W",
+                   help="scan: the stretch about each target a line is fitted through, axis unit")
+    p.add_argument("--wanted-u", type=positive_number, help="scan: wanted timing uncertainty per target and pass, µm (arcsec)")
+    p.add_argument("--moving", action="store_true",
+                   help="scan: keep the deviation on the move (do not refer it to the rests at the ends)")
+    p.add_argument("--offset-only", action="store_true",
+                   help="scan: align the clocks by their offset only (as if they ran at the same rate)")
     p.add_argument("--json", action="store_true", help="one JSON object")
     p.set_defaults(func=run)
 
@@ -57,9 +69,59 @@ def check_window(directory: Path, overrides: dict) -> None:
     config = open_campaign(directory).config()
     method = overrides.get("method", config.capture.method)
     dwell = config.plan.dwell_s
-    if method == "dwell" and average > dwell:
+    if capture_methods.method(method).fixed_dwell and average > dwell:
         raise InputError(f"--average-s {average:g}: longer than the recorded dwell of {dwell:g} s at each point "
                          f"({directory}): a dwell capture averages within the dwell (at most --average-s {dwell:g})")
+
+
+def replay_scan(args: argparse.Namespace, directory: Path, config: Config, plan: Plan, recorded: PointTable) -> int:
+    """A scan: its recorded streams aligned and tabulated again, with its settings (the table is
+    reproduced) or others (--scan-window, --wanted-u, --moving)."""
+    if args.capture or any(getattr(args, k) is not None for k in ("average_s", "stable_tolerance", "stable_drift",
+                                                                   "stable_window_s", "stable_timeout_s")):
+        raise InputError(f"{directory}: a scan is replayed with --scan-window, --wanted-u, --moving and --offset-only, not with "
+                         "the options of a capture at rest")
+    own = settings_of(config)
+    settings = ScanSettings(args.scan_window or own.window, args.wanted_u or own.wanted_u, not args.moving,
+                            not args.offset_only)
+    got = analyse_recorded_scan(directory, config, plan, settings).table
+    old = {(int(r), int(d), f"{t:.6f}"): float(v) for r, d, t, v in
+           zip(recorded.run, recorded.direction, recorded.target, recorded.deviation)}
+    new = {(int(r), int(d), f"{t:.6f}"): float(v) for r, d, t, v in
+           zip(got.run, got.direction, got.target, got.deviation)}
+    diffs: list[dict[str, Any]] = [{"run": k[0], "direction": "+" if k[1] > 0 else "-", "target": float(k[2]), "recorded": old.get(k),
+              "replayed": new.get(k),
+              "difference": None if k not in old or k not in new else round(new[k] - old[k], DIGITS)}
+             for k in sorted(set(old) | set(new))
+             if k not in old or k not in new or f"{old[k]:.{DIGITS}f}" != f"{new[k]:.{DIGITS}f}"]
+    old_summary, new_summary = evaluate(recorded).summary, evaluate(got).summary
+    meta = {k: v for k, v in got.meta.items()
+            if k.startswith(("clock", "timing", "speed", "deviation", "warning", "left_out", "segments"))}
+    result: dict[str, Any] = {"dir": str(directory), "capture": "scan", "points": len(got), "recorded_points": len(recorded),
+              "window": settings.window, "wanted_u": settings.wanted_u, "rest_reference": settings.rest_reference,
+              "rate": settings.rate,
+              "identical": not diffs, "differences": diffs, "summary_recorded": old_summary,
+              "summary_replayed": new_summary, "meta": meta}
+    if args.json:
+        print_json(result)
+        return 0
+    console = make_console()
+    for key, value in meta.items():
+        console.print(f"{key}: {value}", markup=False, highlight=False)
+    if not diffs:
+        console.print(f"replay of the scan reproduces the recorded point table: {len(got)}/{len(recorded)} "
+                      f"values identical to {DIGITS} decimals")
+    else:
+        console.print(f"{len(diffs)} of {len(recorded)} values change (window {settings.window:g}, "
+                      f"{'at rest' if settings.rest_reference else 'on the move'}); largest "
+                      f"{max(abs(d['difference'] or 0.0) for d in diffs):.4f} {unit_label(recorded.deviation_unit)}")
+    summary = Table(title=f"ISO 230-2 summary ({unit_label(recorded.deviation_unit)}), indicative: a scan")
+    for head in ("parameter", "recorded", "replayed"):
+        summary.add_column(head, justify="right")
+    for key in ("A", "E", "M", "B", "R"):
+        summary.add_row(key, fmt(old_summary.get(key)), fmt(new_summary.get(key)))
+    console.print(summary)
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
@@ -68,6 +130,13 @@ def run(args: argparse.Namespace) -> int:
     if not (directory / "meta.json").is_file():
         raise InputError(f"{directory}: not a campaign directory (no meta.json)")
     recorded = read_points(directory / "points.csv")
+    campaign = open_campaign(directory)
+    config = campaign.config()
+    plan = campaign.plan_for(config)
+    if plan.sweeps:
+        return replay_scan(args, directory, config, plan, recorded)
+    if args.scan_window or args.wanted_u or args.moving or args.offset_only:
+        raise InputError(f"{directory}: not a scan: --scan-window, --wanted-u, --moving and --offset-only replay a scan")
     check_window(directory, overrides)
     capture, _, points = replay_campaign(directory, overrides, args.speed)
     if "point" not in recorded.extra:

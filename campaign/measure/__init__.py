@@ -18,6 +18,7 @@ from campaign.measure.live import live_text
 from campaign.measure.progress import RichProgress
 from campaign.measure.replay import ReplayedPoint
 from campaign.measure.replay import replay as replay_campaign  # not `replay`: that names the module
+from campaign.measure.scan import RecordedScan, ScanSettings, analyse_recorded_scan, settings_of
 from campaign.measure.session import (
     MachineParts,
     Opened,
@@ -58,9 +59,12 @@ __all__ = [
     "Opened",
     "Opener",
     "Outcome",
+    "RecordedScan",
     "ReplayedPoint",
     "Resumption",
     "RichProgress",
+    "ScanSettings",
+    "analyse_recorded_scan",
     "baseline_points",
     "capture_point",
     "continue_campaign",
@@ -76,6 +80,7 @@ __all__ = [
     "replay_campaign",
     "resume_campaign",
     "run_verification",
+    "settings_of",
     "start_campaign",
     "table_fits",
     "write_report",

@@ -17,6 +17,8 @@ from collections.abc import Callable, Iterator
 from dataclasses import replace
 from typing import Literal
 
+from campaign import capture_methods
+from campaign.capture_methods import mean_env
 from campaign.config import Config
 from campaign.errors import InputError
 from campaign.measure.capture import BeamLost, Captured, NotStable, capture_point
@@ -42,25 +44,41 @@ from campaign.record import (
     SerialData,
     StartData,
     StateData,
+    SweepData,
 )
 from campaign.specs import AxisSpec
-from protocols.hardware import Axis, AxisError, AxisStatus, Clock, Hardware, InstrumentError, Reading
+from protocols.hardware import (
+    Axis,
+    AxisError,
+    AxisStatus,
+    Clock,
+    Hardware,
+    InstrumentError,
+    PositionStream,
+    Reading,
+    StreamingAxis,
+)
 from protocols.units import DEVIATION_SCALE, deviation_label
 
 
 def move_and_wait(axis: Axis, clock: Clock, tick: Callable[[], None], position: float, velocity: float,
                   limits: AxisSpec, move_timeout_s: float,
-                  on_status: Callable[[AxisStatus], None] | None = None) -> AxisStatus:
+                  on_status: Callable[[AxisStatus], None] | None = None, poll_s: float = 0.0) -> AxisStatus:
     """The one way axiscal moves an axis: check the soft limits and the velocity limit, command the
     move, then call `tick()` (let a sample period pass) and poll the status until the axis is done
     and in position (`limits.in_position_window`). AxisError on an axis error or after `move_timeout_s`.
-    `on_status(status)` sees every status read. Positions in axis unit, velocity axis unit/s."""
+    `on_status(status)` sees every status read. `poll_s`: read the status only every `poll_s` s
+    (0: every tick; a scan ticks at the instrument's rate, faster than a status read is worth).
+    Positions in axis unit, velocity axis unit/s."""
     check_motion(position, velocity, limits)
     axis.start_move(position, velocity)
-    start = clock.now()
+    start = polled = clock.now()
     window, timeout = limits.in_position_window, move_timeout_s
     while True:
         tick()
+        if poll_s and clock.now() - polled < poll_s - 1e-9:
+            continue
+        polled = clock.now()
         status = axis.status()
         if on_status is not None:
             on_status(status)
@@ -71,6 +89,10 @@ def move_and_wait(axis: Axis, clock: Clock, tick: Callable[[], None], position: 
             return status
         if clock.now() - start > timeout:
             raise AxisError(f"move to {position:g} not done after {timeout:g} s")
+
+
+SCAN_STATUS_POLL_S = 0.05
+"""A scan reads the axis status every this many s while moving (its position comes as a stream)."""
 
 
 class CampaignStopped(Exception):
@@ -168,6 +190,11 @@ def stretch_steps(plan: Plan, first: int, last: int, overrun: float) -> list[tup
         return steps[:end]
     visit = visits[first]
     point = visit.point
+    if capture_methods.method(visit.capture.spec.method).sweeps:  # back to where the sweep starts, and rest
+        low, high = plan.ends()
+        start = low if point.direction > 0 else high
+        return [(visit.step, Move(start, visit.move.velocity, overrun=True)), (visit.step, Settle(visit.settle_s)),
+                *steps[visit.step:end]]
     approach = Move(point.target - point.direction * overrun, visit.move.velocity, overrun=True)
     return [(visit.step, approach)] + steps[visit.step:end]
 
@@ -210,6 +237,11 @@ class Executor:
         self.arrival_s = 0.0
         self.readings: list[Reading] = []
         self.halted = False
+        self.sweeps = plan.sweeps
+        """The plan is a scan: the controller streams its position while the axis sweeps."""
+        self.position_stream: PositionStream | None = None
+        self.sweep_samples = 0  # instrument readings since the last move started
+        self.sweep_positions = 0  # controller samples since the last move started
         self.state = RunState.IDLE
         self.stop_reason = ""
         self._display_failed = False
@@ -278,6 +310,8 @@ class Executor:
         self._show(lambda obs: obs.started(self.plan, points))
         todo = points
         try:
+            if todo and self.sweeps:
+                self._open_position_stream()
             if todo:
                 self.emit("start", f"measuring {len(todo)} of {total} points, from point {todo[0] + 1}", todo[0],
                           StartData(first_point=todo[0], points=len(todo), planned=total))
@@ -304,6 +338,20 @@ class Executor:
         except BaseException as exc:  # a bug, or an error no fault policy covers: stopped all the same
             self.stop(f"failed: {type(exc).__name__}: {exc}")
             raise
+        finally:
+            if self.position_stream is not None:
+                self.position_stream.close()
+                self.position_stream = None
+
+    def _open_position_stream(self) -> None:
+        """A scan: the controller streams its actual position with its own time stamps at every
+        cycle (ADS device notifications); an axis that cannot is refused before anything moves."""
+        if not hasattr(self.hw.axis, "stream_positions"):
+            raise InputError(f"axis_driver.type = \"{self.controller.type}\": this axis cannot stream its actual "
+                             "position with the controller's time stamps, which a scan needs (ADS device "
+                             "notifications: the ads and sim drivers)")
+        axis: StreamingAxis = self.hw.axis  # type: ignore[assignment]  # it has stream_positions
+        self.position_stream = axis.stream_positions(0.0, 0.05)
 
     def _run_points(self, todo: list[int]) -> list[int]:
         """Measure `todo`, one stretch of consecutive points at a time; returns the points still to
@@ -340,10 +388,21 @@ class Executor:
         if decision == "abort":
             raise CampaignStopped(str(exc)) from exc
         self._recover(exc)  # CampaignStopped when the axis is not ready again: run() stops
+        if self.sweeps:  # a lost connection took the position stream with it; the next sweeps need one
+            if self.position_stream is not None:
+                self.position_stream.close()
+            try:
+                self._open_position_stream()
+            except AxisError as refused:
+                raise CampaignStopped(f"the position stream could not be started again: {refused}") from refused
         if decision == "skip":
             self.emit("skip", f"point {point + 1} skipped (resume measures it later)", point)
             return [p for p in todo if p > point]
         self.emit("retry", f"point {point + 1} measured again", point)
+        if self.sweeps:  # a scan measures whole passes: the interrupted one again from its first sweep
+            run = self.plan.points[point].run
+            again = [i for i, p in enumerate(self.plan.points) if p.run == run and i < point]
+            return sorted({*again, *(p for p in todo if p >= point)})
         return [p for p in todo if p >= point]
 
     def _decide(self, exc: Exception, total: int) -> FaultAnswer:
@@ -456,12 +515,18 @@ class Executor:
         for reading in self.hw.interferometer.poll():
             self.rec.sample(t, self.step_index, self.point_index, self.axis_position, reading)
             self.readings.append(reading)
+            self.sweep_samples += 1
             self._show_reading(t, reading)
             if reading.signal_ok != self.beam_ok:
                 self.beam_ok = reading.signal_ok
                 signal = "" if reading.signal_pct is None else f" (signal {reading.signal_pct:g} %)"
                 self.emit("beam", ("beam back" if reading.signal_ok else "beam lost") + signal, self.point_index,
                           BeamData(ok=reading.signal_ok, signal_pct=reading.signal_pct))
+        if self.position_stream is not None:
+            positions = self.position_stream.take()
+            if positions:
+                self.rec.positions(t, self.step_index, positions)
+                self.sweep_positions += len(positions)
 
     def _show_reading(self, t: float, reading: Reading) -> None:
         self._show(lambda obs: obs.reading(t, reading, self.target))
@@ -474,12 +539,13 @@ class Executor:
     def _move(self, step: Move) -> None:
         self.target = None if step.overrun else step.position
         self.point_index = None if step.overrun else self.next_point
+        self.sweep_samples = self.sweep_positions = 0
 
         def seen(status: AxisStatus) -> None:
             self.axis_position = status.actual_position
 
         move_and_wait(self.hw.axis, self.hw.clock, self._tick, step.position, step.velocity, self.axis,
-                      self.controller.move_timeout_s, seen)
+                      self.controller.move_timeout_s, seen, SCAN_STATUS_POLL_S if self.sweeps else 0.0)
         self.arrival_s = self.now()
         self.readings = []
 
@@ -487,6 +553,9 @@ class Executor:
         """Capture the point as its step says; after beam loss wait for the beam and capture again,
         up to the spec's `retries` times."""
         self.point_index = step.point.index
+        if capture_methods.method(step.spec.method).sweeps:  # the sweep and its rest are in the streams
+            last = self.readings[-1].position if self.readings else float("nan")
+            return Captured(last, self.sweep_samples, self.now() - self.arrival_s, mean_env(self.readings))
         for attempt in range(step.spec.retries + 1):
             try:
                 return capture_point(step, self.scale, self._capture_ticks(), self.now() - self.arrival_s)
@@ -512,10 +581,22 @@ class Executor:
                 return
         raise BeamLost(f"beam not back within {timeout_s:g} s")
 
+    def _sweep_done(self, index: int, run: int, direction: int, end: float, t: float, samples: int) -> None:
+        """Record a scan's sweep (its streams first, durably) and say so."""
+        self.rec.sweep(index, run, direction, end, t, samples, self.sweep_positions)
+        sign = "+" if direction > 0 else "-"
+        self.emit("sweep", f"sweep {index + 1} of {len(self.plan.points)}: pass {run} {sign} to {end:g} "
+                           f"{self.axis.unit}, {samples} readings and {self.sweep_positions} controller samples",
+                  index, SweepData(run=run, direction=direction, end=end, samples=samples,
+                                   positions=self.sweep_positions))
+
     def _checkpoint(self, step: Checkpoint, captured: Captured | None) -> None:
         point, t = step.point, self.now()
         if captured is None:
             raise ValueError(f"plan step {self.step_index}: a checkpoint without a capture before it")
+        if self.sweeps:
+            self._sweep_done(point.index, point.run, point.direction, point.target, t, captured.samples)
+            return
         env, messages = self.env_guard.check(captured.env, t)
         got = replace(captured, env=env)
         for field, problem, message in messages:

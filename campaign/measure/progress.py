@@ -79,7 +79,7 @@ class RichProgress(Observer):
         self.progress.update(self.run_task, live=text)
 
     def emit(self, event: Event) -> None:
-        if event.kind == "point" and event.point is not None and self.overall is not None \
+        if event.kind in ("point", "sweep") and event.point is not None and self.overall is not None \
                 and self.run_task is not None:
             run = event.data["run"]
             self.done.add(event.point)

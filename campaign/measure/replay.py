@@ -16,6 +16,7 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from campaign import capture_methods
 from campaign.config import capture_spec
 from campaign.measure.capture import BeamLost, Captured, capture_point
 from campaign.measure.deviation import point_deviation
@@ -74,7 +75,7 @@ def _capture(step: Capture, deviation_scale: float, rows: pd.DataFrame, capture_
     """Capture one point from its samples after arrival (`rows`) with capture_point, as the executor
     did. A dwell capture ends where the recorded capture window (`capture_step`'s samples) ended and
     averages the last `step.window_s` before it."""
-    if step.spec.method != "dwell":
+    if not capture_methods.method(step.spec.method).fixed_dwell:
         return capture_point(step, deviation_scale, _ticks(rows, arrival), 0.0)
     recorded = rows[rows.step == capture_step]
     if recorded.empty:
@@ -107,11 +108,12 @@ def replay(directory: str | Path, capture_overrides: dict[str, Any] | None = Non
     for visit in plan.visits():
         point, move_step, capture_step = visit.point, visit.step, visit.capture_step
         recorded = visit.capture.spec
-        spec = capture_spec({**asdict(recorded), **(capture_overrides or {})}, "replay") \
+        given = {k: v for k, v in asdict(recorded).items() if v is not None}  # None: a key not given
+        spec = capture_spec({**given, **(capture_overrides or {})}, "replay") \
             if capture_overrides else recorded
         used = used or spec
         # a dwell capture's dwell is the recorded one; a stable capture's steps do not hold it
-        dwell_s = visit.dwell_s if recorded.method == "dwell" else config.plan.dwell_s
+        dwell_s = visit.dwell_s if capture_methods.method(recorded.method).fixed_dwell else config.plan.dwell_s
         _, step = capture_at(point, dwell_s, spec)
         rows = raw[raw.point == point.index]
         moves = rows[rows.step == move_step]

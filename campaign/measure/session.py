@@ -17,10 +17,12 @@ from campaign.config import Config, config_with, recorded_sections
 from campaign.errors import CampaignInterrupted, InputError
 from campaign.iso230 import Evaluation, evaluate
 from campaign.measure.executor import CampaignStopped, Control, Executor, Observer
+from campaign.measure.scan import finish_scan
 from campaign.model import ErrorModel
 from campaign.plan import Plan, build_plan, check_plan, estimate_duration_s, plan_records
 from campaign.pointtable import read_points
 from campaign.record import (
+    PROFILE_FILE,
     Event,
     Recorder,
     RecordingError,
@@ -134,6 +136,8 @@ def execute(config: Config, plan: Plan, recorder: Recorder, todo: int | list[int
         first = todo if isinstance(todo, int) else min(todo)
         recorder.start(executor.now(), first, len(plan.points))
         executor.run(todo)
+        if executor.sweeps and not missing_points(recorder.dir, plan):  # a scan: its table from the streams
+            finish_scan(recorder, config, plan)
         status, message = "completed", ""
     except CampaignStopped as exc:
         status, message = "interrupted", str(exc)
@@ -273,6 +277,8 @@ def continue_campaign(r: Resumption, **kwargs: Any) -> Outcome:
     in plan order, appending to the same files. The keywords go to `execute` (`opener` or
     `opened`)."""
     if not r.todo:  # stopped after its last point, before its stop record
+        if r.plan.sweeps and not (r.path / PROFILE_FILE).exists():  # a scan killed before its table
+            finish_scan(r.recorder, r.config, r.plan)
         publish_stopped(r.recorder, r.t_last, "completed")
         r.recorder.emit(Event(r.t_last, "stop", "campaign completed: nothing left to measure", None,
                               StopData(status="completed", points=r.recorder.points_written)))
@@ -305,9 +311,16 @@ def resume_campaign(directory: str | Path, faults: dict[str, Any] | None = None,
 
 
 def missing_points(directory: Path, plan: Plan) -> list[int]:
-    """The plan indices of the points not recorded in the directory's points.csv, ascending."""
+    """The plan indices of the points not recorded in the directory's points.csv, ascending. A
+    scan's (its sweeps.csv): every sweep from the start of the first pass not recorded whole, so
+    that a resumed scan measures whole passes (each run of the executor is aligned by itself:
+    campaign.measure.scan)."""
     done = set(recorded_point_indices(directory))
-    return [i for i in range(len(plan.points)) if i not in done]
+    missing = [i for i in range(len(plan.points)) if i not in done]
+    if plan.sweeps and missing:
+        runs = {plan.points[i].run for i in missing}
+        return [i for i, p in enumerate(plan.points) if p.run in runs]
+    return missing
 
 
 def analyse_dir(directory: str | Path) -> tuple[object, Evaluation]:

@@ -40,6 +40,8 @@ FORMAT_VERSION = 2
 
 CONFIG_FILE, META_FILE, PLAN_FILE, RUNS_FILE = "config.toml", "meta.json", "plan.jsonl", "runs.jsonl"
 POINTS_FILE = "points.csv"
+POSITIONS_FILE, SWEEPS_FILE, PROFILE_FILE = "positions.csv", "sweeps.csv", "profile.csv"
+"""A scan's controller stream, its sweeps done (what resume continues after), its dense profile."""
 """The campaign's point table (campaign.pointtable's format), appended point by point."""
 
 COMP_FILE = "plc-compensation.json"
@@ -244,6 +246,10 @@ def recorded_point_indices(directory: Path) -> list[int]:
     file holds no row yet."""
     from campaign.pointtable import read_points
 
+    sweeps = Path(directory) / SWEEPS_FILE
+    if sweeps.exists():  # a scan: the sweeps done (points.csv is its table at the targets, written at the end)
+        lines = sweeps.read_text(encoding="utf-8").splitlines()[1:]
+        return [int(line.split(",")[0]) for line in lines if line[:1].isdigit()]
     path = Path(directory) / "points.csv"
     if not path.exists() or not any(ln[:1].isdigit() for ln in path.read_text(encoding="utf-8").splitlines()):
         return []

@@ -46,7 +46,7 @@ TRANSITIONS: Mapping[RunState, frozenset[RunState]] = types.MappingProxyType({
     RunState.IDLE: frozenset({RunState.MOVING, RunState.STOPPED}),
     RunState.MOVING: frozenset({RunState.SETTLING, RunState.CAPTURING, RunState.FAULTED, RunState.STOPPED,
                                 RunState.IDLE}),
-    RunState.SETTLING: frozenset({RunState.CAPTURING, RunState.FAULTED, RunState.STOPPED}),
+    RunState.SETTLING: frozenset({RunState.CAPTURING, RunState.MOVING, RunState.FAULTED, RunState.STOPPED}),
     RunState.CAPTURING: frozenset({RunState.MOVING, RunState.PAUSED, RunState.FAULTED, RunState.STOPPED,
                                    RunState.IDLE}),
     RunState.PAUSED: frozenset({RunState.MOVING, RunState.IDLE, RunState.STOPPED}),
@@ -55,12 +55,13 @@ TRANSITIONS: Mapping[RunState, frozenset[RunState]] = types.MappingProxyType({
 })
 """Where each run state may go: the one state machine of a run (a point is captured after a move,
 with a settle between when the plan has one; a pause and a fault hold between points; any state
-may stop, and stopped is the end). A move that follows a move (an overrun, then the target) stays
+may stop, and stopped is the end; a scan rests at the end of the travel before its first sweep: a
+settle, then a move). A move that follows a move (an overrun, then the target) stays
 `moving`: no transition."""
 
 
 Kind = Literal["start", "point", "fault", "halt", "interrupt", "retry", "skip", "beam", "capture_retry",
-               "environment", "serial", "pause", "unpause", "reconnect", "resume", "state", "stop", "display"]
+               "environment", "serial", "pause", "unpause", "reconnect", "resume", "state", "stop", "display", "sweep"]
 
 
 class StartData(TypedDict):
@@ -129,8 +130,16 @@ class DisplayData(TypedDict):
     error: str
 
 
+class SweepData(TypedDict):
+    run: int
+    direction: int
+    end: float
+    samples: int
+    positions: int
+
+
 EventData = Union[StartData, PointData, FaultData, HaltData, InterruptData, NoData, BeamData,  # noqa: UP007
-                  EnvironmentData, SerialData, ResumeData, StateData, StopData, DisplayData]
+                  EnvironmentData, SerialData, ResumeData, StateData, StopData, DisplayData, SweepData]
 """The payload of some event kind (see PAYLOADS)."""
 
 PAYLOADS: Mapping[str, tuple[type, str]] = types.MappingProxyType({
@@ -155,6 +164,8 @@ PAYLOADS: Mapping[str, tuple[type, str]] = types.MappingProxyType({
                          "faulted, stopped), reason (why it stopped, or what it does now)")),
     "stop": (StopData, "the executor stopped; data: status (completed, interrupted, failed), points"),
     "display": (DisplayData, "a display sink failed; the campaign goes on (data: error)"),
+    "sweep": (SweepData, ("a scan's sweep is recorded (both streams durable); data: run (the pass), direction, end "
+                         "(where it ended, axis unit), samples (instrument readings), positions (controller samples)")),
 })
 """Every event kind: its payload's TypedDict and what its `data` holds."""
 

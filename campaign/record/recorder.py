@@ -39,15 +39,20 @@ from campaign.record.directory import (
     FORMAT_VERSION,
     META_FILE,
     PLAN_FILE,
+    POSITIONS_FILE,
+    PROFILE_FILE,
     RUNS_FILE,
+    SWEEPS_FILE,
     open_campaign,
     read_json_lines,
 )
 from campaign.record.events import Event
 from protocols.hardware import ENV_FIELDS, Reading
 
-APPENDED = ("raw.csv", "points.csv", "events.jsonl", "events.log", RUNS_FILE)
+APPENDED = ("raw.csv", "points.csv", "events.jsonl", "events.log", RUNS_FILE, POSITIONS_FILE, SWEEPS_FILE)
 """The files a campaign appends to (a torn last line of each is cut off on reopen)."""
+POSITION_COLUMNS = ("t_s", "step", "controller_time_s", "actual_position")
+SWEEP_COLUMNS = ("point", "run", "direction", "end", "t_s", "samples", "positions")
 
 RAW_COLUMNS = ("t_s", "step", "point", "axis_position", "reading", "signal_ok", "signal_pct",
                "instrument_time_s", *ENV_FIELDS)
@@ -158,6 +163,9 @@ class Recorder:
         except OSError:
             self.close()
             raise
+        self._positions: TextIO | None = None  # opened by the first position sample (a scan)
+        self._sweeps_fd = -1
+        self._sweeps_done: set[int] = set()
         self.env_columns: tuple[str, ...] | None = None
         self.points_written = 0
         self.fail_next_point_write = False
@@ -220,6 +228,11 @@ class Recorder:
             header = lines[0].split(",")
             rec.env_columns = tuple(c for c in header if c in ENV_FIELDS)
             rec.points_written = len(lines) - 1
+        sweeps = path / SWEEPS_FILE
+        if sweeps.exists():  # a scan: its points are its sweeps until the table is written
+            rec._sweeps_done = {int(line.split(",")[0]) for line in sweeps.read_text(encoding="utf-8").splitlines()[1:]
+                                if line[:1].isdigit()}
+            rec.points_written = len(rec._sweeps_done)
         return rec
 
     def sample(self, t_s: float, step: int, point: int | None, axis_position: float | None,
@@ -231,6 +244,43 @@ class Recorder:
             self._raw.write(",".join(_cell(c) for c in cells) + "\n")
         except OSError as exc:  # the buffer flushed onto a full disk
             raise RecordingError(f"{self.dir / 'raw.csv'}: {exc.strerror or exc}") from exc
+
+    def positions(self, t_s: float, step: int, samples: list[tuple[float, float]]) -> None:
+        """Append the controller's stream (a scan): each (controller time s, actual position), taken
+        in by the PC at campaign time `t_s` during plan step `step` (buffered; durable at the next sweep)."""
+        try:
+            if self._positions is None:
+                path = self.dir / POSITIONS_FILE
+                new = not path.exists() or path.stat().st_size == 0
+                self._positions = self._open(path, newline="")
+                if new:
+                    self._positions.write(",".join(POSITION_COLUMNS) + "\n")
+            self._positions.write("".join(f"{t_s!r},{step},{tc!r},{x!r}\n" for tc, x in samples))
+        except OSError as exc:
+            raise RecordingError(f"{self.dir / POSITIONS_FILE}: {exc.strerror or exc}") from exc
+
+    def sweep(self, point: int, run: int, direction: int, end: float, t_s: float, samples: int, positions: int,
+              ) -> None:
+        """Record a scan's sweep as done, durably: both streams fsynced first, then its row in
+        sweeps.csv in one write + fsync (a sweep whose row is missing is scanned again on resume)."""
+        try:
+            for f in (self._raw, self._positions):
+                if f is not None:
+                    f.flush()
+                    self._sync(f.fileno())
+            if self._sweeps_fd < 0:
+                path = self.dir / SWEEPS_FILE
+                new = not path.exists() or path.stat().st_size == 0
+                self._sweeps_fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+                if new:
+                    _write_all(self._sweeps_fd, (",".join(SWEEP_COLUMNS) + "\n").encode())
+            row = f"{point},{run},{'+' if direction > 0 else '-'},{end!r},{t_s:.6f},{samples},{positions}\n"
+            _write_all(self._sweeps_fd, row.encode())
+            self._sync(self._sweeps_fd)
+        except OSError as exc:
+            raise RecordingError(f"{self.dir}: {exc.strerror or exc}") from exc
+        self._sweeps_done.add(point)
+        self.points_written = len(self._sweeps_done)  # a sweep measured again (a retry, a resume) counts once
 
     def point(self, run: int, direction: int, target: float, deviation: float, time_s: float,
               env: dict[str, float | None], extra: dict[str, float]) -> None:
@@ -265,6 +315,23 @@ class Recorder:
         _write_all(self._points_fd, row)
         self._sync(self._points_fd)
         self.points_written += 1
+
+    def scan_results(self, table_text: str, profile_text: str) -> None:
+        """A scan's results, once its sweeps are recorded: the point table at the targets into the
+        (empty) points.csv in one write + fsync, and profile.csv written whole (`write_once`). The
+        table's comments get the campaign's machine, axis, operator, plan seed and simulated mark."""
+        comments = "".join(f"# {k}: {self.meta[k]}\n" for k in ("machine", "axis", "operator", "plan_seed")
+                           if k in self.meta)
+        if self.meta.get("simulated"):
+            comments += "# simulated: yes (not a measurement of a real axis)\n"
+        try:
+            if os.fstat(self._points_fd).st_size:
+                raise RecordingError(f"{self.dir / 'points.csv'}: holds a table already")
+            _write_all(self._points_fd, (comments + table_text).encode())
+            self._sync(self._points_fd)
+            write_once(self.dir / PROFILE_FILE, comments + profile_text)
+        except OSError as exc:
+            raise RecordingError(f"{self.dir}: {exc.strerror or exc}") from exc
 
     def inject_disk_full(self) -> None:
         """Fault injection: the next point row is cut short by ENOSPC, as on a full disk."""
@@ -322,7 +389,7 @@ class Recorder:
                     f.close()
                 except OSError as exc:  # close flushes again: the same full disk
                     failure = failure or exc
-        for name in ("_points_fd", "_runs_fd"):
+        for name in ("_points_fd", "_runs_fd", "_sweeps_fd"):
             if getattr(self, name) >= 0:
                 os.close(getattr(self, name))
                 setattr(self, name, -1)

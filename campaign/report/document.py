@@ -19,6 +19,7 @@ from html import escape
 from pathlib import Path
 from typing import Any
 
+from campaign import capture_methods
 from campaign.assess import Assessment, assess_path
 from campaign.errors import InputError
 from campaign.iso230 import Evaluation
@@ -230,14 +231,28 @@ def _plan_facts(a: Assessment) -> list[tuple[str, str]]:
             ("Directions", " and ".join("+" if d > 0 else "−" for d in a.table.directions))]
     if a.config:
         p, cap = a.config.plan, a.config.capture
-        method = (f"fixed dwell, mean of the last {cap.average_s:g} s" if cap.method == "dwell" else
-                  f"stability trigger, {cap.stable_tolerance:g} {unit_label(a.evaluation.unit)} band and "
-                  f"{cap.stable_drift:g} {unit_label(a.evaluation.unit)} drift over {cap.stable_window_s:g} s")
+        method = capture_methods.method(cap.method).describe(cap, unit, unit_label(a.evaluation.unit))
         rows += [("Cycle", f"{p.cycle}, overrun {p.overrun:g} {unit}"),
                  ("Dwell", f"{p.dwell_s:g} s"), ("Velocity", f"{p.velocity:g} {unit}/s"),
                  ("Capture", method), ("Target offsets", p.offsets)]
     seed = (a.meta or {}).get("plan_seed", a.table.meta.get("plan_seed", "not recorded"))
     rows.append(("Plan seed", str(seed)))
+    return rows + _scan_facts(a.table.meta)
+
+
+SCAN_FACTS = (("scan", "Scan"), ("clock_offset_ms", "Clock offset, ms"), ("clock_rate_error_ppm", "Clock rate error, ppm"),
+              ("timing_u", "Timing uncertainty"), ("speed_limit", "Speed limit"), ("deviation", "Deviation"),
+              ("segments", "Segments"))
+"""What a scan's table says of itself (campaign.stream.scan, campaign.measure.scan), as the report shows it."""
+
+
+def _scan_facts(meta: dict[str, str]) -> list[tuple[str, str]]:
+    """A scan's alignment, timing budget, speed limit, rest steps, warnings and what was left out."""
+    if meta.get("capture") != "scan":
+        return []
+    rows = [(label, meta[key]) for key, label in SCAN_FACTS if key in meta]
+    rows += [("Warning", v) for k, v in meta.items() if k.startswith("warning_")]
+    rows += [("Left out", v) for k, v in meta.items() if k.startswith("left_out_")]
     return rows
 
 

@@ -192,9 +192,10 @@ def _instrument_moves(inst: InstrumentStream, moves: list[Move]) -> list[tuple[i
     return found
 
 
-def coarse_alignment(ctrl: ControllerStream, inst: InstrumentStream, moves: list[Move]) -> tuple[float, float]:
+def coarse_alignment(ctrl: ControllerStream, inst: InstrumentStream, moves: list[Move],
+                     rate: bool = True) -> tuple[float, float]:
     """(a, b) of controller time = a + b · instrument time, from the instants each move crosses its
-    middle in both streams."""
+    middle in both streams (`rate` False: b = 1, the clocks taken to run at the same rate)."""
     pairs = []
     for m, (i, j) in zip(moves, _instrument_moves(inst, moves)):
         middle = (m.start_position + m.end_position) / 2
@@ -205,8 +206,8 @@ def coarse_alignment(ctrl: ControllerStream, inst: InstrumentStream, moves: list
         tau = float(np.interp(middle * m.direction, (r * m.direction)[order], ti[order]))
         pairs.append((tc, tau))
     p = np.array(pairs)
-    if len(p) == 1:
-        return float(p[0, 0] - p[0, 1]), 1.0
+    if len(p) == 1 or not rate:
+        return float(np.mean(p[:, 0] - p[:, 1])), 1.0
     b, a = np.polyfit(p[:, 1], p[:, 0], 1)
     return float(a), float(b)
 
@@ -246,15 +247,17 @@ def in_order(inst: InstrumentStream) -> InstrumentStream:
     return InstrumentStream(t[order], r[order])
 
 
-def align(ctrl: ControllerStream, inst: InstrumentStream, max_iterations: int = 20) -> Alignment:
-    """The instrument clock against the controller's, from the scan's own moves (module docstring)."""
+def align(ctrl: ControllerStream, inst: InstrumentStream, max_iterations: int = 20, rate: bool = True) -> Alignment:
+    """The instrument clock against the controller's, from the scan's own moves (module docstring).
+    `rate` False: the offset only, the clocks taken to run at the same rate (to see what the rate
+    estimate changes: `axiscal replay --offset-only`)."""
     inst = in_order(inst)
     if len(inst.time_s) < 10:
         raise InputError("the instrument stream has fewer than 10 samples with a reading")
     moves = find_moves(ctrl)
     cycle = float(np.median(np.diff(ctrl.time_s)))
     v_ctrl = velocity(ctrl)
-    a, b = coarse_alignment(ctrl, inst, moves)
+    a, b = coarse_alignment(ctrl, inst, moves, rate)
     t_ref = float(np.mean([np.mean(r) for m in moves for r in m.ramps]))
     cov = ((math.inf, 0.0), (0.0, math.inf))
     residual, iterations = math.nan, 0
@@ -271,22 +274,25 @@ def align(ctrl: ControllerStream, inst: InstrumentStream, max_iterations: int = 
         r = inst.reading[idx] - x
         v = np.interp(ti, ctrl.time_s, v_ctrl)
         # per ramp: its own constant, the cruise beside it its own, one slope in position for both
-        design = np.zeros((len(idx), 3 * n_ramps + 2))
+        design = np.zeros((len(idx), 3 * n_ramps + (2 if rate else 1)))
         rows = np.arange(len(idx))
         design[rows, ramp + n_ramps * cruise] = 1.0
         centre = np.array([np.mean(x[ramp == k]) for k in range(n_ramps)])
         design[rows, 2 * n_ramps + ramp] = x - centre[ramp]
         col = 3 * n_ramps
         design[:, col] = v
-        design[:, col + 1] = v * (ti - t_ref)
+        if rate:
+            design[:, col + 1] = v * (ti - t_ref)
         coef, *_ = np.linalg.lstsq(design, r, rcond=None)
         fit_residual = r - design @ coef
         dof = max(len(idx) - design.shape[1], 1)
         sigma2 = float(fit_residual @ fit_residual) / dof
         inv = np.linalg.pinv(design.T @ design)
-        alpha, beta = float(coef[col]), float(coef[col + 1])
-        cov = ((sigma2 * inv[col, col], sigma2 * inv[col, col + 1]),
-               (sigma2 * inv[col + 1, col], sigma2 * inv[col + 1, col + 1]))
+        alpha = float(coef[col])
+        beta = float(coef[col + 1]) if rate else 0.0
+        cov = (((sigma2 * inv[col, col], sigma2 * inv[col, col + 1]),
+                (sigma2 * inv[col + 1, col], sigma2 * inv[col + 1, col + 1])) if rate else
+               ((sigma2 * inv[col, col], 0.0), (0.0, 0.0)))
         residual = math.sqrt(sigma2)
         # true controller time = t + alpha + beta (t - t_ref)
         a, b = (1 + beta) * a + alpha - beta * t_ref, (1 + beta) * b

@@ -293,15 +293,16 @@ def scan_warnings(budget: TimingBudget, limit: float, wanted_u: float, moves: li
 def analyse_scan(ctrl: ControllerStream, inst: InstrumentStream, targets: tuple[float, ...] | list[float],
                  rate_hz: float, window: float = 1.0, wanted_u: float = 0.2, noise: float = 0.0,
                  kind: str = "linear", meta: dict[str, str] | None = None, rest_reference: bool = True,
-                 average_s: float = 1.0) -> ScanResult:
+                 average_s: float = 1.0, rate: bool = True) -> ScanResult:
     """Align, profile and tabulate a scan. rate_hz: the instrument's nominal sample rate, Hz;
     window: the window around each target, axis unit; wanted_u: the wanted standard uncertainty of a
     target's value per pass from timing, deviation unit; noise: the instrument's own reading noise,
     deviation unit RMS (what the profile's scatter is beyond timing; 0 when unknown: all scatter is
     then taken as jitter, on the safe side). rest_reference: when the axis rested at the ends (at
     least 2 × `average_s`), remove each direction's rest step (`rest_steps`) from the profile and
-    the table, so that they compare with a stop-and-go campaign; the steps are in the metadata."""
-    alignment = align(ctrl, inst)
+    the table, so that they compare with a stop-and-go campaign; the steps are in the metadata.
+    rate: estimate the clocks' rate ratio (False: the offset only)."""
+    alignment = align(ctrl, inst, rate=rate)
     moves = find_moves(ctrl)
     inst = in_order(inst)
     prof = profile(ctrl, inst, alignment, moves, kind)
@@ -321,6 +322,7 @@ def analyse_scan(ctrl: ControllerStream, inst: InstrumentStream, targets: tuple[
                   "scan": f"{len(moves)} moves at {v:g} {pos}/s, window {window:g} {pos}",
                   "clock_offset_ms": f"{a['offset_ms']} ± {a['offset_uncertainty_ms']}",
                   "clock_rate_error_ppm": f"{a['rate_error_ppm']} ± {a['rate_uncertainty_ppm']}",
+                  "clock_reference_s": f"{a['t_ref_s']} (the controller time the offset is given at)",
                   "timing_u": f"{budget.deviation_u:.3f} {dev} per target and pass at {v:g} {pos}/s",
                   "speed_limit": f"{limit:.3g} {pos}/s for {wanted_u:g} {dev}",
                   "deviation": (f"on the move, less each direction's rest step ({rest})" if steps

@@ -56,7 +56,8 @@ def _open_sim_ioc(spec: DriverSpec, speed: float | None, model: ErrorModel | Non
 
     hw, instrument = sim_hardware(spec, clock, physics, lambda: EpicsAxis(
         pv, limits=(axis_spec.soft_limit_min, axis_spec.soft_limit_max), read_only=drv.read_only,
-        timeout_s=drv.timeout_s, where=spec.source, unit=axis_spec.unit), [restore_environment, ioc.close])
+        timeout_s=drv.timeout_s, where=spec.source, unit=axis_spec.unit), [restore_environment, ioc.close],
+        compensated)
     scheduler = IocFaultScheduler(parse_faults(plain(spec.sim.faults), spec.source), plc, ioc, instrument, physics)
     clock.attach(scheduler.tick)
     return hw, SimParts(clock, plc, ioc, instrument, physics, scheduler)

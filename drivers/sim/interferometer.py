@@ -20,9 +20,13 @@ import select
 import threading
 import tty
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
+import numpy as np
+
 from drivers.sim.clock import ListeningClock
+from drivers.sim.scan_streams import InstrumentClock
 from protocols.hardware import Reading
 from protocols.serial_line import LineFormat, format_line
 
@@ -42,6 +46,8 @@ class SimInterferometer:
         fmt: LineFormat | None = None,
         rate_hz: float = 10.0,
         mode: str = "stream",
+        own_clock: InstrumentClock | None = None,
+        seed: int = 0,
     ):
         if mode not in ("stream", "query"):
             raise ValueError(f"mode must be 'stream' or 'query', not {mode!r}")
@@ -66,8 +72,14 @@ class SimInterferometer:
         self.port_name = os.ttyname(self._slave_fd)
         self._open = True
         self._thread: threading.Thread | None = None
+        self.own_clock = own_clock
+        """Stream mode: the instrument's own sample clock (its stamps, their jitter, the latency to
+        the PC); None: it samples and stamps on the controller's clock, with no latency."""
+        self._rng = np.random.default_rng([seed, 33])
+        self._in_flight: list[tuple[float, bytes]] = []  # (arrival at the PC s, line)
         if mode == "stream":
-            self._next_sample = math.floor(clock.now() * rate_hz + _EPSILON_S) + 1
+            start = clock.now() if own_clock is None else float(own_clock.reading(clock.now()))
+            self._next_sample = math.floor(start * rate_hz + _EPSILON_S) + 1
             clock.attach(self._on_advance)
         else:
             self._wake_r, self._wake_w = os.pipe()
@@ -113,10 +125,30 @@ class SimInterferometer:
         )
 
     def _on_advance(self, t: float) -> None:
+        if self.own_clock is not None:
+            self._on_advance_own_clock(t, self.own_clock)
+            return
         while self._open and self._next_sample / self.rate_hz <= t + _EPSILON_S:
             sample_t = self._next_sample / self.rate_hz
             self._next_sample += 1
             self._send(format_line(self.reading_at(sample_t), self.fmt).encode("ascii"))
+
+    def _on_advance_own_clock(self, t: float, own: InstrumentClock) -> None:
+        """Samples at the instrument clock's ticks up to t (s, controller time), each measured
+        where the axis was when it was really taken and stamped with the instrument's time; each
+        reaches the pty its latency later."""
+        while self._open:
+            stamp = self._next_sample / self.rate_hz
+            taken = float(own.controller_time(stamp))
+            if taken > t + _EPSILON_S:
+                break
+            self._next_sample += 1
+            if own.sample_jitter_s:
+                taken = min(t, taken + float(self._rng.normal(0.0, own.sample_jitter_s)))
+            reading = replace(self.reading_at(taken), time_s=stamp)
+            self._in_flight.append((taken + own.latency_s, format_line(reading, self.fmt).encode("ascii")))
+        while self._open and self._in_flight and self._in_flight[0][0] <= t + _EPSILON_S:
+            self._send(self._in_flight.pop(0)[1])
 
     def _send(self, line: bytes) -> None:
         data = self._pending_garbage + self._held_back + line

@@ -1,0 +1,215 @@
+"""A recorded scan's results: its two streams read back from the campaign directory, aligned and
+turned into the profile and the point table at the plan's targets (campaign.stream.scan), with the
+scan's settings or others (replay).
+
+The streams: raw.csv holds the instrument's readings with the instrument's own stamps
+(`instrument_time_s`); positions.csv the controller's actual position with the controller's own
+stamps (`controller_time_s`, s since 1970 from the PLC's FILETIME). A resumed scan holds one
+segment per run of the executor (runs.jsonl), and one after each fault within a run: after a
+restart neither clock need continue where it stopped, so each segment is aligned by itself over
+its whole passes, numbered as the plan's. Times in s, positions in the axis unit, deviations in µm (arcsec on a rotary axis).
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from campaign.config import Config
+from campaign.errors import InputError
+from campaign.plan import Plan
+from campaign.pointtable import PointTable, write_points_text
+from campaign.record import POSITIONS_FILE, RUNS_FILE, SWEEPS_FILE, Recorder, load_raw, read_json_lines
+from campaign.stream.align import ControllerStream, InstrumentStream
+from campaign.stream.scan import Profile, ScanResult, analyse_scan, point_table
+
+EVENTS_FILE = "events.jsonl"
+
+
+@dataclass(frozen=True)
+class ScanSettings:
+    """How a recorded scan is evaluated: the window about each target (axis unit), the wanted
+    timing uncertainty (deviation unit), whether the rest steps are removed, and whether the
+    alignment estimates the clocks' rate ratio (False: the offset only)."""
+
+    window: float
+    wanted_u: float
+    rest_reference: bool = True
+    rate: bool = True
+
+
+def settings_of(config: Config) -> ScanSettings:
+    return ScanSettings(config.capture.scan_window, config.capture.scan_wanted_u)
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One run of the executor's share of a scan: its whole passes (runs), the sweeps they are
+    (plan indices) and the campaign times (s) their streams span, from the rest before the first
+    sweep to the last sweep's record."""
+
+    runs: tuple[int, ...]
+    sweeps: tuple[int, ...]
+    from_s: float
+    to_s: float
+
+
+@dataclass
+class RecordedScan:
+    """A recorded scan evaluated: the table at the targets and the profile of every whole pass,
+    each segment's own result (alignment, moves, rest steps, timing budget) and what was left out."""
+
+    table: PointTable
+    profile: Profile
+    segments: list[tuple[Segment, ScanResult]]
+    left_out: list[str]
+
+
+def read_sweeps(directory: Path) -> list[tuple[int, int, int, float]]:
+    """sweeps.csv: (plan index, run, direction, campaign time s of its record) per sweep recorded."""
+    path = directory / SWEEPS_FILE
+    if not path.is_file():
+        raise InputError(f"{directory}: not a recorded scan (no {SWEEPS_FILE})")
+    out = []
+    for number, line in enumerate(path.read_text(encoding="utf-8").splitlines()[1:], start=2):
+        cells = line.split(",")
+        try:
+            out.append((int(cells[0]), int(cells[1]), 1 if cells[2] == "+" else -1, float(cells[4])))
+        except (IndexError, ValueError):
+            raise InputError(f"{path}: line {number}: not a sweep record") from None
+    return out
+
+
+def segments(directory: Path, plan: Plan, rest_s: float) -> tuple[list[Segment], list[str]]:
+    """The scan's segments (one per run of the executor, runs.jsonl, and one after each fault within
+    a run, events.jsonl) with their whole passes; the sweeps of a pass a segment did not finish are
+    left out (a retry or a resume measures that pass again)."""
+    import pandas as pd
+
+    starts = [float(r["t_s"]) for r in read_json_lines(directory / RUNS_FILE) if r.get("record") == "start"]
+    # a fault within a run interrupts the streams too: the sweeps after it are aligned by themselves
+    faults = [float(e["t_s"]) for e in read_json_lines(directory / EVENTS_FILE) if e.get("kind") == "fault"]
+    starts = sorted({*starts, *faults})
+    sweeps = read_sweeps(directory)
+    per_run: dict[int, set[int]] = {}
+    for p in plan.points:
+        per_run.setdefault(p.run, set()).add(p.index)
+    raw = load_raw(directory)
+    out: list[Segment] = []
+    left: list[str] = []
+    bounds = [*starts, float("inf")]
+    for lo, hi in itertools.pairwise(bounds):
+        mine = [s for s in sweeps if lo <= s[3] < hi]
+        runs = sorted({s[1] for s in mine if per_run[s[1]] <= {m[0] for m in mine if m[1] == s[1]}})
+        partial = sorted({s[1] for s in mine} - set(runs))
+        if partial:
+            left.append(f"pass {', '.join(map(str, partial))}: the sweeps recorded from {lo:g} s on did not finish "
+                        "it before the run stopped or a fault (a retry or the resume measured it again)")
+        if not runs:
+            continue
+        indices = tuple(s[0] for s in mine if s[1] in runs)
+        first = raw[(raw.point == min(indices)) & (raw.t_s >= lo)].t_s
+        first_s = float(first.min()) if len(first) and not pd.isna(first.min()) else lo
+        out.append(Segment(tuple(runs), indices, max(lo, first_s - 0.9 * rest_s),
+                           max(s[3] for s in mine if s[1] in runs)))
+    return out, left
+
+
+def scan_streams(directory: Path, segment: Segment | None = None) -> tuple[ControllerStream, InstrumentStream]:
+    """Both recorded streams of a scan (within `segment`'s campaign times, or all)."""
+    import pandas as pd
+
+    path = directory / POSITIONS_FILE
+    if not path.is_file():
+        raise InputError(f"{directory}: not a recorded scan (no {POSITIONS_FILE})")
+    try:
+        ctrl = pd.read_csv(path)
+    except (ValueError, pd.errors.ParserError) as exc:
+        raise InputError(f"{path}: cannot read the controller's stream ({exc})") from None
+    raw = load_raw(directory)
+    good = raw[(raw.signal_ok == 1) & raw.reading.notna() & raw.instrument_time_s.notna()]
+    if segment is not None:
+        ctrl = ctrl[(ctrl.t_s >= segment.from_s) & (ctrl.t_s <= segment.to_s)]
+        good = good[(good.t_s >= segment.from_s) & (good.t_s <= segment.to_s)]
+    ctrl = ctrl.drop_duplicates("controller_time_s").sort_values("controller_time_s")
+    return (ControllerStream(ctrl.controller_time_s.to_numpy(float), ctrl.actual_position.to_numpy(float)),
+            InstrumentStream(good.instrument_time_s.to_numpy(float), good.reading.to_numpy(float)))
+
+
+def first_controller_time(directory: Path) -> float:
+    """The controller's time of the first sample recorded (s since 1970): the origin of a scan's
+    controller times (its alignment's `clock_reference_s`)."""
+    with open(directory / POSITIONS_FILE, encoding="utf-8") as f:
+        f.readline()
+        try:
+            return float(f.readline().split(",")[2])
+        except (IndexError, ValueError):
+            raise InputError(f"{directory / POSITIONS_FILE}: holds no sample") from None
+
+
+def analyse_recorded_scan(directory: str | Path, config: Config, plan: Plan,
+                          settings: ScanSettings | None = None) -> RecordedScan:
+    """Align, profile and tabulate the scan recorded in `directory` (`settings`: the config's, or
+    others), one segment at a time. InputError when no whole pass can be aligned."""
+    path = Path(directory)
+    s = settings or settings_of(config)
+    parts, left_out = segments(path, plan, config.plan.dwell_s)
+    results: list[tuple[Segment, ScanResult]] = []
+    t0 = first_controller_time(path)  # the controller's stamps are s since 1970: referred to its first
+    for segment in parts:
+        ctrl, inst = scan_streams(path, segment)
+        if len(ctrl.time_s) < 10 or len(inst.time_s) < 10:
+            left_out.append(f"passes {segment.runs}: too few samples recorded to align")
+            continue
+        ctrl = ControllerStream(ctrl.time_s - t0, ctrl.position)
+        try:
+            result = analyse_scan(ctrl, inst, plan.targets, config.instrument.rate_hz, window=s.window,
+                                  wanted_u=s.wanted_u, kind=config.axis.kind, rest_reference=s.rest_reference,
+                                  average_s=config.capture.average_s, rate=s.rate)
+        except (InputError, ValueError, np.linalg.LinAlgError) as exc:
+            left_out.append(f"passes {', '.join(map(str, segment.runs))}: the clocks could not be aligned ({exc})")
+            continue
+        expected = [(p.run, p.direction) for p in plan.points if p.index in segment.sweeps]
+        if len(result.moves) != len(expected):
+            left_out.append(f"passes {', '.join(map(str, segment.runs))}: {len(result.moves)} sweeps seen in the "
+                            f"controller's stream, {len(expected)} recorded")
+            continue
+        results.append((segment, _renumbered(result, expected)))
+    if not results:
+        raise InputError(f"{path}: no whole pass of the scan could be aligned"
+                         + (f" ({'; '.join(left_out)})" if left_out else ""))
+    profile = Profile(results[0][1].profile.kind,
+                      *(np.concatenate([getattr(r.profile, f) for _, r in results])
+                        for f in ("position", "direction", "pass_", "deviation", "time_s")))
+    meta = dict(results[0][1].table.meta)
+    if len(results) > 1:
+        meta["segments"] = "; ".join(
+            f"passes {', '.join(map(str, seg.runs))}: clock offset {r.alignment.offset_s * 1e3:.4f} ± "
+            f"{r.alignment.offset_uncertainty_s * 1e3:.4f} ms" for seg, r in results)
+    for i, why in enumerate(left_out, 1):
+        meta[f"left_out_{i}"] = why
+    table = point_table(profile, plan.targets, s.window, meta)
+    return RecordedScan(table, profile, results, left_out)
+
+
+def _renumbered(result: ScanResult, expected: list[tuple[int, int]]) -> ScanResult:
+    """`result` with its passes numbered as the plan's runs (`expected`: (run, direction) of each
+    sweep in order): a segment after a resume starts at a later pass."""
+    prof = result.profile
+    runs = np.zeros(len(prof), dtype=int)
+    for move, (run, direction) in zip(result.moves, expected):
+        if move.direction != direction:
+            raise InputError(f"a sweep of pass {run} moved {'up' if move.direction > 0 else 'down'}, "
+                             f"the plan {'up' if direction > 0 else 'down'}")
+        runs[(prof.time_s >= move.start_s) & (prof.time_s <= move.end_s)] = run
+    return replace(result, profile=replace(prof, pass_=runs))
+
+
+def finish_scan(recorder: Recorder, config: Config, plan: Plan) -> RecordedScan:
+    """Every sweep recorded: the point table and the profile, written into the campaign directory."""
+    result = analyse_recorded_scan(recorder.dir, config, plan)
+    recorder.scan_results(write_points_text(result.table), result.profile.csv_text())
+    return result

@@ -1,0 +1,124 @@
+"""The capture-method registry (issue 33 item 5): one place decides the capture method. A method
+registered here, in this file alone, is seen by the command line's choices, the config's
+validation, the plan, the executor and replay; the shipped ones by the report and the program
+writer through the same registry."""
+
+from dataclasses import replace
+from statistics import median
+
+import pytest
+
+from campaign import capture_methods
+from campaign.capture_methods import METHODS, BeamLost, Captured, CaptureMethod, Window, mean_env, register
+from campaign.config import parse_config
+from campaign.errors import InputError
+from campaign.measure import start_campaign
+from campaign.plan import Capture, build_plan
+from campaign.pointtable import read_points
+from campaign.record import load_raw
+from tests.fakes import SMALL, FakeMachine
+
+
+def _median_capture(spec, w: Window, scale, ticks, start_s, point) -> Captured:
+    readings = []
+    for wait_s, new in ticks:
+        readings.extend(new)
+        if wait_s >= start_s + w.window_s - 1e-9:
+            if not readings or not all(r.signal_ok for r in readings):
+                raise BeamLost("beam not OK")
+            return Captured(median(r.position for r in readings), len(readings), wait_s, mean_env(readings))
+    raise BeamLost("no more readings")
+
+
+MEDIAN = CaptureMethod(
+    "median", "the median of the last average_s of a fixed dwell", live=True, sweeps=False, iso_230_2=True,
+    fixed_dwell=True, window=METHODS["dwell"].window, capture=_median_capture,
+    describe=lambda spec, pos, dev: f"median of the last {spec.average_s:g} s",
+    step_label=lambda w: ("capture (median)", f"{w.window_s:g}"))
+
+
+@pytest.fixture
+def with_median():
+    register(MEDIAN)
+    yield MEDIAN
+    METHODS.pop("median")
+
+
+def test_before_it_is_registered_nothing_knows_the_method(cli, tmp_path):
+    with pytest.raises(InputError, match="capture.method.*'median' is not one of dwell, stable, scan, stream"):
+        parse_config(SMALL + 'method = "median"\n', "small.toml")
+    assert cli("demo", "--fake", "--capture", "median").code == 2  # argparse: not a choice
+
+
+@pytest.mark.machine  # a campaign on the fake machine and two replays: about 1 s
+def test_a_registered_method_reaches_the_choices_the_config_the_executor_and_replay(cli, tmp_path, with_median):
+    noisy = '[sim.effects.noise]\nsigma_um = 0.3\nreading_sigma_um = 0.5\n'
+    config = parse_config(SMALL + 'method = "median"\n' + noisy, "small.toml")
+    assert config.capture.method == "median"
+    plan = build_plan(config)
+    captures = [s for s in plan.steps if isinstance(s, Capture)]
+    assert len(captures) == 12 and all(s.spec.method == "median" for s in captures)
+    assert captures[0].window_s == 0.5  # the window the registered method gives
+
+    start_campaign(config, tmp_path / "c", opener=FakeMachine(error_um=None))  # the model's noise
+    table, raw = read_points(tmp_path / "c" / "points.csv"), load_raw(tmp_path / "c")
+    readings = table.extra["reading"]
+    differs = 0
+    for visit in plan.visits():
+        window = raw[(raw.point == visit.point.index) & (raw.step == visit.capture_step)].reading
+        assert readings[visit.point.index] == pytest.approx(median(window), abs=1e-8)  # as recorded
+        differs += abs(median(window) - window.mean()) > 1e-7
+    assert differs > 0  # the median, not the dwell's mean
+
+    # the command line's choices read the registry when the parser is built
+    result = cli("replay", tmp_path / "c", "--capture", "median", "--json")
+    assert result.code == 0 and '"identical": true' in result.out
+    assert cli("replay", tmp_path / "c", "--capture", "dwell", "--json").code == 0
+
+
+def test_the_shipped_methods_and_what_each_consumer_reads():
+    assert capture_methods.names() == ("dwell", "stable", "scan", "stream")
+    assert capture_methods.names(live=True, sweeps=False) == ("dwell", "stable")  # replay --capture
+    assert [m for m in METHODS.values() if not m.iso_230_2] == [METHODS["scan"]]
+    assert not METHODS["stream"].live and METHODS["scan"].sweeps
+    dwell = parse_config(SMALL, "small.toml").capture
+    assert METHODS["dwell"].describe(dwell, "mm", "µm") == "fixed dwell, mean of the last 0.5 s"
+    stable = replace(dwell, method="stable")
+    assert METHODS["stable"].window(stable, 4.0) == Window(0.0, stable.stable_window_s, stable.stable_timeout_s)
+    assert METHODS["dwell"].window(dwell, 4.0) == Window(3.5, 0.5, 0.5)
+
+
+def test_a_method_not_run_live_is_refused_by_the_plan():
+    with pytest.raises(InputError, match="stream.*import-stream"):
+        build_plan(parse_config(SMALL + 'method = "stream"\n', "small.toml"))
+
+
+def test_the_program_writer_refuses_a_scan(cli):
+    from tests.conftest import ROOT, assert_one_line_error
+
+    assert_one_line_error(cli("program", ROOT / "data/configs/scan-demo.toml", "--dialect", "linuxcnc", "-o",
+                              "/nonexistent/p.ngc"), "a scan is aligned with the controller's time-stamped")
+
+
+def test_a_scan_on_an_axis_that_cannot_stream_its_position_is_refused_before_anything_moves(tmp_path):
+    from campaign.errors import InputError as Refused
+
+    scan = SMALL.replace("[campaign]\n", '[campaign]\npurpose = "diagnostic"\n') + 'method = "scan"\nscan_velocity = 10.0\n'
+    machine = FakeMachine()
+    with pytest.raises(Refused, match="cannot stream its actual position"):
+        start_campaign(parse_config(scan, "scan.toml"), tmp_path / "c", opener=machine)
+    assert machine.openings[0].axis.position == parse_config(scan, "scan.toml").driver.start_position  # never moved
+
+
+def test_a_scan_config_is_checked_before_anything_runs():
+    scan = SMALL + 'method = "scan"\n'
+    with pytest.raises(InputError, match="campaign.purpose.*not an ISO 230-2 test"):
+        parse_config(scan + "scan_velocity = 10.0\n", "scan.toml")
+    diagnostic = scan.replace("[campaign]\n", '[campaign]\npurpose = "diagnostic"\n')
+    with pytest.raises(InputError, match="capture.scan_velocity.*required"):
+        parse_config(diagnostic, "scan.toml")
+    with pytest.raises(InputError, match="capture.scan_velocity.*above axis.max_velocity"):
+        parse_config(diagnostic + "scan_velocity = 60.0\n", "scan.toml")
+    plan = build_plan(parse_config(diagnostic + "scan_velocity = 10.0\n", "scan.toml"))
+    assert plan.sweeps and [(p.run, p.direction, p.target) for p in plan.points] == [
+        (1, 1, 102.0), (1, -1, -2.0), (2, 1, 102.0), (2, -1, -2.0)]  # the targets ± the overrun, up and down

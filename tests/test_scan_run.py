@@ -1,0 +1,202 @@
+"""A scan through `axiscal run` on the simulated machine (issue 33 item 1): the axis sweeps the
+plan's travel at scan_velocity in both directions for the plan's cycles; the instrument streams
+over the pty with its own clock ([sim] instrument_*), the controller's actual position arrives as
+ADS device notifications through the real pyads client; both streams are recorded (raw.csv,
+positions.csv, each sweep made durable in sweeps.csv), then aligned into profile.csv and the point
+table, which says it is a diagnostic. Each case draws its instrument clock; the truth is the
+simulated axis's own error model at rest."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from campaign.config import parse_config
+from campaign.measure import start_campaign
+from campaign.model import sim_model
+from campaign.pointtable import read_points
+from drivers.factory import open_hardware
+
+SCAN = """
+[campaign]
+machine = "sim-scan"
+purpose = "diagnostic"
+[axis]
+soft_limit_min = -10.0
+soft_limit_max = 110.0
+max_velocity = 50.0
+max_acceleration = 200.0
+[plan]
+start = 0.0
+length = 60.0
+count = 7
+overrun = 4.0
+cycles = 2
+dwell_s = 2.5
+velocity = 20.0
+[instrument]
+rate_hz = 500.0
+[capture]
+method = "scan"
+scan_velocity = {velocity}
+[sim]
+seed = {seed}
+instrument_offset_s = {offset}
+instrument_rate_ppm = {rate}
+instrument_latency_s = {latency}
+instrument_jitter_s = {jitter}
+[sim.effects.linear_scale]
+ppm = {ppm}
+[sim.effects.backlash]
+b_um = {backlash}
+[sim.effects.periodic_lead]
+amplitude_um = 0.4
+period_mm = 10.0
+phase_rad = {phase}
+[sim.effects.noise]
+sigma_um = 0.2
+reading_sigma_um = 0.05
+"""
+
+
+def draw(seed: int) -> dict:
+    rng = np.random.default_rng([seed, 330])
+    sign = rng.choice([-1.0, 1.0], 2)
+    return {"seed": seed, "velocity": round(float(rng.uniform(8.0, 20.0)), 3),
+            "offset": round(float(sign[0] * rng.uniform(0.01, 0.08)), 6),
+            "rate": round(float(sign[1] * rng.uniform(10, 80)), 3), "latency": round(float(rng.uniform(0.002, 0.03)), 6),
+            "jitter": round(float(rng.uniform(0, 20e-6)), 8), "ppm": round(float(rng.uniform(-20, 20)), 3),
+            "backlash": round(float(rng.uniform(0, 3)), 3), "phase": round(float(rng.uniform(0, 6.28)), 3)}
+
+
+@pytest.mark.machine
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_scan_through_the_executor_aligns_its_streams_and_tabulates_the_targets(tmp_path, seed):
+    d = draw(seed)
+    config = parse_config(SCAN.format(**d), "scan.toml")
+    epochs: list[float] = []
+
+    def seen(hardware, parts, executor):
+        epochs.append(parts.plc.handler.notifications.epoch_s)  # the PLC's clock: its stamps are epoch + t
+
+    out = start_campaign(config, tmp_path / "c", opener=open_hardware, on_open=seen)
+    assert out.status == "completed" and out.points == out.planned == 4  # 2 passes, up and down
+    sweeps = (tmp_path / "c" / "sweeps.csv").read_text().splitlines()
+    assert sweeps[0] == "point,run,direction,end,t_s,samples,positions" and len(sweeps) == 5
+    positions = np.loadtxt(tmp_path / "c" / "positions.csv", delimiter=",", skiprows=1)
+    assert np.all(np.diff(positions[:, 2]) > 0) and len(positions) > 0.9 * out.duration_s * config.instrument.rate_hz  # one per tick (PLC scan)
+
+    table = read_points(tmp_path / "c" / "points.csv")
+    assert table.meta["purpose"] == "diagnostic" and table.meta["capture"] == "scan"
+    assert sorted(set(table.run.tolist())) == [1, 2] and set(table.direction.tolist()) == {1, -1}
+    assert len(table) == 2 * 2 * 7
+
+    # the clock offset found against the truth: instrument = offset + (1 + rate)·t, t the machine's
+    # time; the analysis refers the controller's stamps to its first one
+    t0 = positions[0, 2] - epochs[0]
+    found = float(table.meta["clock_offset_ms"].split("±")[0]) / 1e3
+    stated_u = float(table.meta["clock_offset_ms"].split("±")[1]) / 1e3
+    t_ref = float(table.meta["clock_reference_s"].split()[0])
+    truth = d["offset"] + d["rate"] * 1e-6 * (t_ref + t0) + t0
+    assert abs(found - truth) < max(4 * stated_u, 20e-6), (found, truth, stated_u)
+
+    # the mean deviation at each target and direction against the simulated axis at rest
+    model = sim_model(config.sim)
+    errors = []
+    for direction in (1, -1):
+        for target in sorted(set(table.target.tolist())):
+            mine = (table.direction == direction) & (table.target == target)
+            truth_um = float(model.deviation_um(np.array([target]), direction, 0.0, np.inf)[0])
+            errors.append(float(np.mean(table.deviation[mine])) - truth_um)
+    assert float(np.sqrt(np.mean(np.square(errors)))) < 0.35, errors
+    profile = (tmp_path / "c" / "profile.csv").read_text().splitlines()
+    assert any(line.startswith("position_mm,direction,pass,deviation_um,time_s") for line in profile)
+
+
+def _lines(path) -> list[bytes]:
+    """The whole lines of an appended file (a torn last line left out)."""
+    data = path.read_bytes() if path.exists() else b""
+    return data[:data.rfind(b"\n") + 1].splitlines(keepends=True)
+
+
+@pytest.mark.machine
+def test_kill_9_during_a_pass_loses_nothing_recorded_and_resume_continues_at_that_pass(tmp_path):
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from tests.conftest import ROOT
+    from tests.test_demo_e2e import axiscal
+
+    d = draw(4)
+    (tmp_path / "scan.toml").write_text(SCAN.format(**d))
+    out = tmp_path / "k"
+    proc = subprocess.Popen([sys.executable, "-m", "campaign", "run", str(tmp_path / "scan.toml"), "--out", str(out)],
+                            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    end = time.monotonic() + 120
+    while len(_lines(out / "sweeps.csv")) < 4:  # the header and 3 sweeps: pass 2 is under way
+        assert proc.poll() is None and time.monotonic() < end, proc.stderr.read() if proc.stderr else ""
+        time.sleep(0.02)
+    time.sleep(0.3)  # into the rest or the down sweep of pass 2: at least 6 s of machine time
+    proc.send_signal(signal.SIGKILL)
+    proc.wait(timeout=10)
+    assert len(_lines(out / "sweeps.csv")) == 4  # killed before pass 2 was recorded whole
+    kept = {name: _lines(out / name) for name in ("raw.csv", "positions.csv", "sweeps.csv", "events.jsonl")}
+
+    resumed = axiscal("resume", out, "--json", timeout=300)
+    assert resumed.returncode == 0, resumed.stderr
+    for name, lines in kept.items():  # append-only: everything recorded before the kill is still there
+        assert _lines(out / name)[:len(lines)] == lines, name
+    events = [json.loads(line) for line in (out / "events.jsonl").read_text().splitlines()]
+    resume = next(e for e in events if e["kind"] == "resume")
+    assert resume["data"]["first_point"] == 2  # pass 2's up sweep: a resumed scan measures whole passes
+    sweeps = [line.split(",")[:3] for line in (out / "sweeps.csv").read_text().splitlines()[1:]]
+    assert sweeps == [["0", "1", "+"], ["1", "1", "-"], ["2", "2", "+"], ["2", "2", "+"], ["3", "2", "-"]]
+
+    table = read_points(out / "points.csv")
+    assert sorted(set(table.run.tolist())) == [1, 2] and len(table) == 2 * 2 * 7
+    assert "pass 2" in table.meta["left_out_1"] and "segments" in table.meta  # each run aligned by itself
+    model = sim_model(parse_config(SCAN.format(**d), "scan.toml").sim)
+    errors = [float(np.mean(table.deviation[(table.direction == s) & (table.target == t)]))
+              - float(model.deviation_um(np.array([t]), s, 0.0, np.inf)[0])
+              for s in (1, -1) for t in sorted(set(table.target.tolist()))]
+    assert float(np.sqrt(np.mean(np.square(errors)))) < 0.35, errors
+
+    # replay: the recorded streams give the same table, and another one with other settings
+    same = json.loads(axiscal("replay", out, "--json").stdout)
+    assert same["identical"] and same["points"] == len(table)
+    other = json.loads(axiscal("replay", out, "--json", "--scan-window", "3", "--moving").stdout)
+    assert not other["identical"] and other["window"] == 3 and other["rest_reference"] is False
+    assert len(other["differences"]) == len(table)
+    offset_only = json.loads(axiscal("replay", out, "--json", "--offset-only").stdout)  # what the rate estimate buys:
+    assert offset_only["rate"] is False and not offset_only["identical"]  # tens of ppm over a pass are µm here
+    assert max(abs(x["difference"]) for x in offset_only["differences"]) > 0.5
+
+    # the report says what it is: a scan, its clocks, its speed limit, what was left out, no verdict
+    assert axiscal("report", out, "-o", tmp_path / "r.html").returncode == 0
+    html = (tmp_path / "r.html").read_text()
+    for words in ("NOT JUDGED", "captured with the scan method, not an ISO 230-2 test", "Clock offset, ms",
+                  "Speed limit", "Left out", "pass 2"):
+        assert words in html, words
+
+
+@pytest.mark.machine
+def test_a_fault_during_a_sweep_measures_the_pass_again_and_aligns_the_rest_by_itself(tmp_path):
+    d = {**draw(5), "velocity": 10.0}
+    # the drive faults during the first move after 14 s: the down sweep of pass 1 (it starts at about 12.4 s)
+    config = parse_config(SCAN.format(**d) + "[sim.faults.axis_error]\nat_s = 14.0\n", "scan.toml")
+    out = start_campaign(config, tmp_path / "c", opener=open_hardware)
+    assert out.status == "completed" and out.points == out.planned == 4
+    sweeps = [line.split(",")[:3] for line in (tmp_path / "c" / "sweeps.csv").read_text().splitlines()[1:]]
+    assert sweeps == [["0", "1", "+"], ["0", "1", "+"], ["1", "1", "-"], ["2", "2", "+"], ["3", "2", "-"]]
+    table = read_points(tmp_path / "c" / "points.csv")
+    assert sorted(set(table.run.tolist())) == [1, 2] and len(table) == 2 * 2 * 7
+    assert "pass 1" in table.meta["left_out_1"]
+    model = sim_model(config.sim)
+    errors = [float(np.mean(table.deviation[(table.direction == s) & (table.target == t)]))
+              - float(model.deviation_um(np.array([t]), s, 0.0, np.inf)[0])
+              for s in (1, -1) for t in sorted(set(table.target.tolist()))]
+    assert float(np.sqrt(np.mean(np.square(errors)))) < 0.35, errors
