@@ -189,8 +189,6 @@ class AdsAxis(HaltsOnClose):
         """Ask the PLC to clear the axis error (bReset)."""
         self._write_member("bReset", True)
 
-<<<<<<< HEAD
-=======
     def stream_positions(self, cycle_s: float = 0.0, max_delay_s: float = 0.05) -> AdsPositionStream:
         """The controller's actual position (fActPosition) as ADS device notifications: sampled by
         the PLC every `cycle_s` (0: every PLC cycle), each sample stamped with the PLC's time and
@@ -207,19 +205,12 @@ class AdsAxis(HaltsOnClose):
         return stream
 
     def close(self) -> None:
-        """Halt the axis if it is moving (not in read-only mode), then close the connection."""
-        if self._closed:
-            return
-        for stream in list(self._streams):
-            stream.close()
-        try:
-            if not self.read_only and self.status().busy:
-                self.halt()
-        finally:
-            self._disconnect()
-            self._closed = True
+        """End the position streams, then close as every controller axis does (HaltsOnClose)."""
+        if not self._closed:
+            for stream in list(self._streams):
+                stream.close()
+        super().close()
 
->>>>>>> scanrun
     # --- compensation tables -----------------------------------------------------------------
 
     def write_comp_table(self, table: CompTable) -> None:
