@@ -19,8 +19,9 @@ from campaign.discovery.fit import derived
 from campaign.discovery.followup import FollowUp, plan_follow_up
 from campaign.discovery.local import LocalError, Zone, zones
 from campaign.discovery.search import Candidate, Discovery, discover
+from campaign.effects import effect as registered
 from campaign.errors import InputError
-from campaign.model import EFFECT_PARAMS, ErrorModel
+from campaign.model import ErrorModel
 from campaign.outliers import Outliers, find_outliers
 from campaign.plan import build_plan
 from campaign.plot import check_plot_path
@@ -58,23 +59,17 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.set_defaults(func=run)
 
 
-ENVIRONMENT_PARAMS = {"air_factor": "share of the air log's refractive-index change in the reading, 1",
-                      "alpha_ppm_per_k": "expansion following the material log, µm/m per K"}
-"""The environment effect's parameters (discovery only: it follows one campaign's log, so it is
-not a parameter of the axis model)."""
-
-
 ROTARY_UNITS = {"µm": "arcsec", "mm": "deg"}
 """A parameter's unit on a rotary axis (the model's keys say µm and mm: they are arcsec and deg there)."""
 
 
 def unit_of(effect: str, key: str, time_unit: str, kind: str = "linear") -> str:
-    """The unit of a model parameter, from its description in EFFECT_PARAMS (on a rotary axis µm
-    is arcsec and mm is deg; without a time column a thermal time constant is in points)."""
+    """The unit of a model parameter, from its description in its effect's module (campaign/effects/;
+    on a rotary axis µm is arcsec and mm is deg; without a time column a thermal time constant is
+    in points)."""
     if key == "tau_s" and effect == "thermal_drift" and time_unit != "s":
         return time_unit
-    described = ENVIRONMENT_PARAMS if effect == "environment" else EFFECT_PARAMS[effect]
-    unit = described[key].rsplit(", ", 1)[-1].split(" (")[0]
+    unit = registered(effect).params[key].rsplit(", ", 1)[-1].split(" (")[0]
     if kind == "rotary":
         unit = ROTARY_UNITS.get(unit, unit)
     return "" if unit == "1" else unit

@@ -58,6 +58,7 @@ from campaign.discovery.fit import (
     standard_errors,
 )
 from campaign.discovery.local import LocalError, find_locals, look_elsewhere, passes, refit_local
+from campaign.effects import RegistryView, effect, effects
 from campaign.errors import InputError
 from campaign.model import DEFAULTS, EFFECT_PARAMS, ErrorModel
 
@@ -232,7 +233,7 @@ def default_shape(name: str, key: str, data: CampaignData) -> float:
     if key == "period_mm":
         return 10.0
     grid = FORMS[name].grid(data, {})
-    return grid[len(grid) // 2]["tau_s"]
+    return grid[len(grid) // 2][key]
 
 
 def disagreement(data: CampaignData, residual: np.ndarray) -> dict:
@@ -465,8 +466,8 @@ def environment_variant(fits: list[Fit], n: int) -> tuple[Fit, tuple[str, str] |
     return chosen, note
 
 
-NESTED_IN = {"position_dependent_backlash": "backlash"}
-"""Effect -> the simpler effect it contains (its k = 0 case)."""
+NESTED_IN: RegistryView[str] = RegistryView(lambda e: e.nested_in)
+"""Effect -> the simpler effect it contains (its k = 0 case): each effect's `nested_in`."""
 
 
 def prefer_simpler(best: Candidate, accepted: list[Candidate], n: int, notes: list[str]) -> Candidate:
@@ -785,24 +786,16 @@ def starting_report(data: CampaignData, start: Fit, final: Fit, errors: dict[str
     return out
 
 
-DWELLS_HOW_TO_TELL = (
-    "a campaign whose wait before each capture varies over a decade (fixed dwells from 0.5 s to 5 s, "
-    "e.g. two campaigns with --capture dwell at dwell_s = 0.5 and 5): settling fades with the wait, "
-    "backlash does not")
-HOW_TO_TELL = {
-    frozenset({"settling", "backlash"}): DWELLS_HOW_TO_TELL,
-    frozenset({"settling", "position_dependent_backlash"}): DWELLS_HOW_TO_TELL,
-    frozenset({"backlash", "position_dependent_backlash"}): (
-        "both directions at targets over the whole travel: a reversal that grows along the travel is "
-        "position_dependent_backlash, a constant one backlash"),
-    frozenset({"periodic_lead", "nonlinear_lead"}): (
-        "more targets (at least 4 per screw lead over part of the travel, offsets = \"golden\"), or the known "
-        "screw lead in the model (periodic_lead.period_mm) so that only its amplitude is fitted"),
-    frozenset({"thermal_drift", "linear_scale"}): "more runs over a longer time: a drift changes from run to run",
-    frozenset({"thermal_drift", "linear_drift"}): (
-        "a longer campaign (several of the drift's time constants, or a second campaign later): an exponential "
-        "growth levels off, a linear one does not"),
-}
+DWELLS_HOW_TO_TELL = effect("settling").rivals["backlash"]
+
+
+def how_to_tell_pairs() -> dict[frozenset[str], str]:
+    """What campaign separates two effects that explain the same residual: every effect's `rivals`
+    (campaign/effects/), one entry a pair."""
+    return {frozenset({e.name, other}): text for e in effects() for other, text in e.rivals.items()}
+
+
+HOW_TO_TELL = how_to_tell_pairs()
 """What campaign separates two effects that explain the same residual."""
 HOW_TO_TELL_DEFAULT = ("a campaign that varies what separates them: more runs over a longer time for time "
                        "effects, more targets for effects along the travel, varied dwells for settling")
@@ -847,9 +840,9 @@ def choose(data: CampaignData, current: Fit, ranking: list[Candidate],
     return None, unresolved
 
 
-LIMIT_OF = {"thermal_drift": "linear_drift"}
+LIMIT_OF: RegistryView[str] = RegistryView(lambda e: e.tends_to)
 """Effect -> the effect that is its limit (an exponential growth whose time constant is far beyond
-the campaign is a linear drift)."""
+the campaign is a linear drift): each effect's `tends_to`."""
 
 
 def gated_out(cand: Candidate, best: Candidate) -> bool:
@@ -935,7 +928,7 @@ def how_to_tell(names: list[str]) -> str:
     texts, unknown = [], False
     for i, a in enumerate(names):
         for b in names[i + 1:]:
-            text = HOW_TO_TELL.get(frozenset({a, b}))
+            text = how_to_tell_pairs().get(frozenset({a, b}))
             unknown |= text is None
             if text is not None and text not in texts:
                 texts.append(text)
