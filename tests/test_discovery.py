@@ -175,8 +175,8 @@ def test_at_a_constant_dwell_settling_and_backlash_are_unresolved_not_named(hidd
     true_effects = {**{k: v for k, v in BASE.items() if k != "backlash"}, hidden: HIDDEN[hidden][0]}
     result = run_discovery(true_effects, ["linear_scale"], dwell_jitter=0.0)
     assert "settling" not in result.added and "backlash" not in result.added, result.added
-    entry = next(e for e in result.unresolved if set(e["effects"]) == {"backlash", "settling"})
-    assert "cannot tell backlash from settling" in entry["why"] and "decade" in entry["how_to_tell"]
+    entry = next(e for e in result.unresolved if set(e.effects) == {"backlash", "settling"})
+    assert "cannot tell backlash from settling" in entry.why and "decade" in entry.how_to_tell
     assert any("settling is confounded with backlash" in note for note in result.notes)
 
 

@@ -170,9 +170,7 @@ def as_json(result: Discovery) -> dict:
                    "ranking": ranking_json(s.ranking)} for s in result.steps],
         "remaining": ranking_json(result.remaining),
         "remaining_beside": result.remaining_beside,
-        "stand_in": None if result.stand_in is None else {
-            **result.stand_in, "params": rounded(result.stand_in["params"]),
-            "gap_without_um": round(result.stand_in["gap_without_um"], 4)},
+        "stand_in": None if result.stand_in is None else result.stand_in.as_dict(),
         "model": {name: rounded(p) for name, p in result.params().items()},
         "model_standard_errors": {name: errors_json(e) for name, e in result.errors.items()},
         "starting_model": {name: starting_json(entry) for name, entry in result.starting.items()},
@@ -180,7 +178,7 @@ def as_json(result: Discovery) -> dict:
         "disagreement_before": result.disagreement_before,
         "disagreement_after": result.disagreement_after,
         "choices": result.choices,
-        "unresolved": result.unresolved,
+        "unresolved": [u.as_dict() for u in result.unresolved],
         "local": None if result.local is None else result.local.as_dict(),
         "local_errors": [local.as_dict() for local in result.local_errors],
         "zones": [{"sentence": z.sentence, "region_mm": [round(v, 3) for v in z.region_mm],
@@ -242,10 +240,10 @@ def nothing_named(result: Discovery) -> str:
         return "no effect is named: none of the vocabulary explains the residual significantly"
     sizes = []
     for entry in result.unresolved:
-        tried = [c for c in result.remaining if c.name in entry["effects"]]
+        tried = [c for c in result.remaining if c.name in entry.effects]
         if tried:
             best = min(tried, key=lambda c: c.delta_bic)
-            sizes.append(f"{' or '.join(entry['effects'])} explains {best.explained_pct:.1f} % of it, "
+            sizes.append(f"{' or '.join(entry.effects)} explains {best.explained_pct:.1f} % of it, "
                          f"ΔBIC {best.delta_bic:.1f}")
     size = "; ".join(sizes)
     return ("no effect is named, but the residual is not noise: something significant is there that this campaign "
@@ -316,13 +314,12 @@ def summary_lines(result: Discovery, incomplete: list[str], time_unit: str = "s"
     for zone in zones(result.local_errors):
         lines.append(f"found outside the model: [bold]{zone_said(zone)}[/]; no effect of the model has this shape")
     if result.stand_in is not None:
-        b = abs(result.stand_in["params"]["b_um"])
+        b = abs(result.stand_in.params["b_um"])
         lines.append(f"in the model as a stand-in: a reversal of {b:.1f} {dev} (backlash or settling)")
     for entry in result.unresolved:
-        rivals = "".join(f" or a local error at {r['region_mm'][0]:g}–{r['region_mm'][1]:g}"
-                         for r in entry.get("local_rivals", []))
-        lines.append(f"[yellow]unresolved:[/] {' or '.join(entry['effects'])}{rivals}; to tell: "
-                     f"{first_clause(entry['how_to_tell'])}")
+        rivals = "".join(f" or a local error at {r.region_mm[0]:g}–{r.region_mm[1]:g}" for r in entry.local_rivals)
+        lines.append(f"[yellow]unresolved:[/] {' or '.join(entry.effects)}{rivals}; to tell: "
+                     f"{first_clause(entry.how_to_tell)}")
     verdict = noise_verdict(result.gap_after_um, result.noise_um)
     lines.append(f"gap {result.gap_before_um:.2f} -> {result.gap_after_um:.2f} {dev} RMS, noise "
                  f"{result.noise_um:.2f} {dev}: what is left is {verdict}")
@@ -381,10 +378,10 @@ def print_text(result: Discovery, time_unit: str, incomplete: list[str], verbose
         for line in starting_lines(result, time_unit):
             console.print(line)
     for entry in result.unresolved:
-        console.print(f"[yellow]unresolved:[/] {entry['why']}. To tell: {entry['how_to_tell']}.")
+        console.print(f"[yellow]unresolved:[/] {entry.why}. To tell: {entry.how_to_tell}.")
     if result.stand_in is not None:
-        console.print(f"[yellow]in the model as a stand-in:[/] {result.stand_in['observable']}; the model holds it "
-                      f"as {result.stand_in['effect']} (gap {result.stand_in['gap_without_um']:.3f} {dev} without it)")
+        console.print(f"[yellow]in the model as a stand-in:[/] {result.stand_in.observable}; the model holds it "
+                      f"as {result.stand_in.effect} (gap {result.stand_in.gap_without_um:.3f} {dev} without it)")
     for local in result.local_errors:
         console.print(f"[yellow]found outside the model:[/] {local_said(local)}; no effect of the model has this "
                       f"shape; {local.time_text()}. It explains {local.explained_pct:.1f} % of the residual (ΔBIC "
@@ -496,7 +493,7 @@ def reversal_um(result: Discovery) -> float | None:
     """The size of the reversal the unresolved backlash stands for, µm (the stand-in's, or the
     backlash candidate's), if any."""
     if result.stand_in is not None:
-        return float(result.stand_in["params"]["b_um"])
+        return float(result.stand_in.params["b_um"])
     for cand in result.remaining:
         if cand.name == "backlash" and cand.fit is not None:
             return float(cand.fit.params()["backlash"]["b_um"])
@@ -571,8 +568,8 @@ def write_follow_up(path: Path, text: str) -> None:
 def regions_to_measure(result: Discovery) -> list[tuple[float, float]]:
     """Where a follow-up should measure densely: the located local errors' regions when what is left
     (or what they explain) is more than noise."""
-    rivals = [tuple(r["region_mm"]) for u in result.unresolved for r in u.get("local_rivals", [])]
-    return [zone.region_mm for zone in zones(result.local_errors)] + [(a, b) for a, b in rivals]
+    rivals = [r.region_mm for u in result.unresolved for r in u.local_rivals]
+    return [zone.region_mm for zone in zones(result.local_errors)] + rivals
 
 
 def follow_up_lines(follow: FollowUp | None, path: str) -> list[str]:

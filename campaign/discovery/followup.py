@@ -35,6 +35,7 @@ import numpy as np
 from campaign.config import Config, config_toml, config_with, parse_config
 from campaign.discovery.data import CampaignData
 from campaign.discovery.fit import Fit, Term, linear_fit
+from campaign.discovery.records import Unresolved
 from campaign.discovery.search import RIVAL_MARGIN
 from campaign.effects import REGISTRY
 from campaign.model import is_model_name
@@ -174,9 +175,9 @@ def _with_travel(targets: list[float] | None, data: CampaignData) -> list[float]
     return sorted({*(targets or []), *(round(float(v), 3) for v in _targets(data))})
 
 
-def _periods_of(group: dict[str, Any], remaining: list[Any]) -> list[float]:
-    if group.get("periods_mm"):
-        return [float(p) for p in group["periods_mm"]]
+def _periods_of(group: Unresolved, remaining: list[Any]) -> list[float]:
+    if group.periods_mm:
+        return [float(p) for p in group.periods_mm]
     for cand in remaining:
         if cand.name == "periodic_lead" and cand.fit is not None:
             if cand.periods:
@@ -224,7 +225,7 @@ def part_of(name: str) -> str | None:
     return None if found is None else found.follow_up
 
 
-def _asks(unresolved: list[dict[str, Any]], remaining: list[Any], data: CampaignData, final: Fit,
+def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData, final: Fit,
           config: Config, reversal_um: float | None, noise_um: float,
           regions: list[tuple[float, float]]) -> tuple[list[_Ask], list[str]]:
     """What each unresolved group (and each located region) asks of the follow-up; the groups none
@@ -233,7 +234,7 @@ def _asks(unresolved: list[dict[str, Any]], remaining: list[Any], data: Campaign
     unplanned: list[str] = []
     first_cycles = config.plan.cycles
     for group in unresolved:
-        names = set(group["effects"])
+        names = set(group.effects)
         parts = {part_of(name) for name in names}
         if "dwells" in parts:
             waits = data.w if data.w is not None else np.array([[config.plan.dwell_s]])
@@ -251,9 +252,9 @@ def _asks(unresolved: list[dict[str, Any]], remaining: list[Any], data: Campaign
         elif "cluster" in parts:
             periods = _periods_of(group, remaining)
             if not periods:
-                unplanned.append(f"{' or '.join(group['effects'])}: no candidate period to plan for")
+                unplanned.append(f"{' or '.join(group.effects)}: no candidate period to plan for")
                 continue
-            targets, why = _cluster(data, final, periods, group.get("delta_bic") or [], noise_um)
+            targets, why = _cluster(data, final, periods, list(group.period_delta_bic), noise_um)
             asks.append(_Ask(Part(sorted(names), why), targets, 1,
                              {"offsets": "golden", "offset_fraction": CLUSTER_OFFSET}))
         elif "runs" in parts:
@@ -265,7 +266,7 @@ def _asks(unresolved: list[dict[str, Any]], remaining: list[Any], data: Campaign
             asks.append(_Ask(Part(sorted(names), "a reversal that may grow along the travel: both directions at "
                                                  f"{FEW_TARGETS} targets over the whole travel"), _spread(data), 1))
         else:
-            unplanned.append(f"{' or '.join(group['effects'])}: {group.get('how_to_tell', '')}")
+            unplanned.append(f"{' or '.join(group.effects)}: {group.how_to_tell}")
     for start, end in regions:
         spacing = float(np.median(np.diff(_targets(data)))) if len(_targets(data)) > 1 else 1.0
         step = max(min(spacing / 4, (end - start) / 8), 1e-3)
@@ -297,7 +298,7 @@ def _merged(asks: list[_Ask], data: CampaignData) -> tuple[list[float], int, dic
     return targets, cycles, plan, capture
 
 
-def plan_follow_up(unresolved: list[dict[str, Any]], remaining: list[Any], data: CampaignData, final: Fit,
+def plan_follow_up(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData, final: Fit,
                    config: Config, reversal_um: float | None, noise_um: float, out: Path,
                    sources: list[str], regions: list[tuple[float, float]] | None = None,
                    budget_s: float | None = None) -> FollowUp | None:

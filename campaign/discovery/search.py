@@ -58,6 +58,7 @@ from campaign.discovery.fit import (
     standard_errors,
 )
 from campaign.discovery.local import LocalError, find_locals, look_elsewhere, passes, refit_local
+from campaign.discovery.records import LocalRival, StandIn, Unresolved
 from campaign.effects import RegistryView, effect, effects
 from campaign.errors import InputError
 from campaign.model import DEFAULTS, EFFECT_PARAMS, ErrorModel
@@ -107,7 +108,7 @@ class Candidate:
         return self.verdict == "accepted"
 
 
-@dataclass
+@dataclass(frozen=True)
 class Step:
     """One named effect: its parameters and the gap (RMS of measured - simulated, µm) before and
     after; `ranking`: every candidate tried at this step; residuals µm per point."""
@@ -149,7 +150,7 @@ class Discovery:
     disagreement_after: dict = field(default_factory=dict)
     choices: list[dict] = field(default_factory=list)
     """Where two confounded candidates were both plausible: step, chosen, other, why."""
-    unresolved: list[dict] = field(default_factory=list)
+    unresolved: list[Unresolved] = field(default_factory=list)
     """Effects the data cannot tell apart or pin down, none of them named: effects, why,
     how_to_tell (and periods_mm for a period that is not identifiable)."""
     errors: dict[str, dict[str, float]] = field(default_factory=dict)
@@ -158,7 +159,7 @@ class Discovery:
     """The candidates tried after the last step, none of them named."""
     remaining_beside: str | None = None
     """The unresolved effect the remaining candidates were tried beside (a stand-in), if any."""
-    stand_in: dict | None = None
+    stand_in: StandIn | None = None
     """Rivals that predict the same deviation at every position the campaign can be used for
     (backlash and settling at a constant wait): one of them is in the final model in their place,
     not named (STAND_IN_RIVALS). effect, observable (what the data show, in words), rivals,
@@ -493,7 +494,7 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     it explains the campaign better than local terms over the regions located: an effect that merely
     soaked up a local error (a bow, a short period, a reversal) is not named."""
     vocabulary = search_vocabulary(data, model, given)
-    periodic = any("periodic_lead" in u["effects"] for u in vocabulary.unresolved)
+    periodic = any("periodic_lead" in u.effects for u in vocabulary.unresolved)
     beside = find_locals(data, vocabulary.final)
     for name in [n for n in reversed(vocabulary.added) if n in MAY_SOAK] if not beside else ():
         # a short period or a reversal may have soaked up most of it: look beside the rest
@@ -535,18 +536,20 @@ def route_score(data: CampaignData, result: Discovery) -> float:
 def add_local_rivals(result: Discovery, found: list[LocalError]) -> None:
     """The unresolved period's group gets the local errors that would fit as well as rivals
     (`local_rivals`: sentence and region, mm): what the campaign shows there is either."""
-    entry = next((u for u in result.unresolved if "periodic_lead" in u["effects"]), None)
-    if entry is None:
+    at = next((i for i, u in enumerate(result.unresolved) if "periodic_lead" in u.effects), None)
+    if at is None:
         return
-    rivals = entry.setdefault("local_rivals", [])
+    entry = result.unresolved[at]
+    rivals = list(entry.local_rivals)
     for local in found:
-        region = [round(v, 1) for v in local.region_mm]
-        if all(r["region_mm"] != region for r in rivals):
-            rivals.append({"sentence": local.sentence(), "region_mm": region})
-    said = ", ".join(f"{r['region_mm'][0]:g}–{r['region_mm'][1]:g} {result_unit(found)}" for r in rivals)
-    if "denser targets over" not in entry["how_to_tell"]:
-        entry["how_to_tell"] = (f"{entry['how_to_tell']}; or a local error at {said}: denser targets over it tell "
-                                "a wave from a local error")
+        lo, hi = (round(v, 1) for v in local.region_mm)
+        if all(r.region_mm != (lo, hi) for r in rivals):
+            rivals.append(LocalRival(local.sentence(), (lo, hi)))
+    said = ", ".join(f"{r.region_mm[0]:g}–{r.region_mm[1]:g} {result_unit(found)}" for r in rivals)
+    how = entry.how_to_tell
+    if "denser targets over" not in how:
+        how = f"{how}; or a local error at {said}: denser targets over it tell a wave from a local error"
+    result.unresolved[at] = replace(entry, local_rivals=tuple(rivals), how_to_tell=how)
 
 
 def result_unit(found: list[LocalError]) -> str:
@@ -565,7 +568,7 @@ def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]
     rest is left out. None when none is left, or when an unresolved period stays beside them (the
     local error may be that period seen at few targets: said in a note)."""
     again = search_vocabulary(data, model, given, [local.term for local in found])
-    if periodic and any("periodic_lead" in u["effects"] for u in again.unresolved):
+    if periodic and any("periodic_lead" in u.effects for u in again.unresolved):
         _note(vocabulary.notes, f"{found[0].sentence()} would fit too, but the unresolved periodic error is still "
                                 "there beside it: it may be that error seen at few targets, so it is not added")
         add_local_rivals(vocabulary, found)
@@ -604,13 +607,13 @@ def beside_unresolved_period(data: CampaignData, result: Discovery) -> Discovery
     1 µm, 10 mm lead its P3 came out about 0.3 µm low on every seed. The aliases agree at the
     targets, so the bow beside any of them is much the same. The gap stays that of the model
     without a period (nothing is added for it)."""
-    entry = next((u for u in result.unresolved if u["effects"] == ["periodic_lead"] and u.get("periods_mm")), None)
+    entry = next((u for u in result.unresolved if u.effects == ("periodic_lead",) and u.periods_mm), None)
     cand = next((c for c in result.remaining if c.name == "periodic_lead" and c.fit is not None), None)
     if entry is None or cand is None:
         return result
     free = [t for t in result.final.terms if not t.fixed and t.name in EFFECT_PARAMS]
     fits = [(result.final, -cand.delta_bic)]
-    for period, delta in zip(entry["periods_mm"], entry["delta_bic"]):
+    for period, delta in zip(entry.periods_mm or (), entry.period_delta_bic):
         fits.append((linear_fit(data, [*result.final.terms, Term("periodic_lead", {"period_mm": period}, False,
                                                                      {"period_mm": period})]), delta))
     weights = np.exp(-(np.array([d for _, d in fits]) - min(d for _, d in fits)) / 2)
@@ -631,9 +634,8 @@ def beside_unresolved_period(data: CampaignData, result: Discovery) -> Discovery
                 errors[key] = math.hypot(beside[term.name][key], spread)
         result.averaged[term.name] = averaged
         result.errors[term.name] = errors
-        for step in result.steps:
-            if step.effect == term.name:
-                step.params, step.errors = dict(averaged), dict(errors)
+        result.steps[:] = [replace(step, params=dict(averaged), errors=dict(errors)) if step.effect == term.name
+                           else step for step in result.steps]
         if term.name in result.starting:
             result.starting[term.name].update(params=averaged, errors=errors)
     _note(result.notes, f"the named effects' values are fitted beside each of the {len(fits) - 1} candidate periods "
@@ -659,7 +661,7 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
     current = start
     steps: list[Step] = []
     choices: list[dict[str, Any]] = []
-    unresolved: list[dict[str, Any]] = []
+    unresolved: list[Unresolved] = []
     ranking: list[Candidate] = []
     remaining: list[Candidate] = []
     remaining_beside = None
@@ -684,7 +686,7 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
             held = [c for c in held if c.name in own]
             others.sort(key=lambda c: (c.fit is None, c.delta_bic))
             chosen, more = choose(data, stand_in.fitted, others, notes)
-            unresolved = [u for u in unresolved if set(u["effects"]) & own] + more
+            unresolved = [u for u in unresolved if set(u.effects) & own] + more
             ranking = [*held, *others]
             if chosen is not None:
                 _note(notes, f"{chosen.name} was tested beside the unresolved {stand_in.name} (as a stand-in, "
@@ -713,8 +715,8 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
         steps.append(Step(chosen.name, after.params()[chosen.name], current.rms_um(data.y), after.rms_um(data.y),
                           ranking, data.y - current.prediction, data.y - after.prediction, errors))
         current = after
-    kept: dict[str, Any] | None = None
-    group = next((u for u in unresolved if "backlash" in u["effects"] and set(u["effects"]) <= STAND_IN_RIVALS),
+    kept: StandIn | None = None
+    group = next((u for u in unresolved if "backlash" in u.effects and set(u.effects) <= STAND_IN_RIVALS),
                  None)
     backlash = next((c for c in remaining if c.name == "backlash" and c.fit is not None), None)
     if remaining_beside is not None and group is not None and backlash is not None and not waits_vary(data):
@@ -724,10 +726,10 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
         current = refine(data, backlash.fitted.terms)
         b_um = current.params()["backlash"]["b_um"]  # in the deviation unit (µm, arcsec)
         dev = data.deviation_unit
-        kept = {"effect": "backlash", "rivals": list(group["effects"]),
-                "observable": f"a reversal of {abs(b_um):.1f} {dev} between the directions (x̄↑ − x̄↓ = "
-                              f"{-b_um:+.1f} {dev}): backlash, or settling not died out; cannot tell which",
-                "params": current.params()["backlash"], "gap_without_um": without}
+        kept = StandIn("backlash", group.effects,
+                       f"a reversal of {abs(b_um):.1f} {dev} between the directions (x̄↑ − x̄↓ = "
+                       f"{-b_um:+.1f} {dev}): backlash, or settling not died out; cannot tell which",
+                       current.params()["backlash"], without)
     current = drop_failing(data, current, steps, notes)
     all_errors = standard_errors(data, current)
     for name in all_errors:
@@ -809,7 +811,7 @@ CONFOUNDED_PAIRS = {frozenset({"environment", "thermal_drift"}), frozenset({"env
 
 
 def choose(data: CampaignData, current: Fit, ranking: list[Candidate],
-           notes: list[str]) -> tuple[Candidate | None, list[dict]]:
+           notes: list[str]) -> tuple[Candidate | None, list[Unresolved]]:
     """The candidate to name at this step, and what cannot be resolved: a periodic error whose
     period is not identifiable, and groups of candidates that explain the same residual about
     equally well (rivals). Neither a rival nor an unidentifiable period is named; the other
@@ -856,7 +858,7 @@ def gated_out(cand: Candidate, best: Candidate) -> bool:
 
 
 def hold_reversal(backlash: Candidate, ranking: list[Candidate], data: CampaignData, n: int,
-                  unresolved: list[dict]) -> list[Candidate]:
+                  unresolved: list[Unresolved]) -> list[Candidate]:
     """At a constant (or unrecorded) wait before each capture, settling leaves a constant offset per
     direction: exactly a backlash. The reversal is listed as unresolved, not named; so is a
     position-dependent backlash whose growth is not significant (it is the same reversal). A
@@ -865,13 +867,12 @@ def hold_reversal(backlash: Candidate, ranking: list[Candidate], data: CampaignD
     size = f"a reversal of {b:+.3g} µm" if b is not None else "a reversal"
     wait = ("no wait before capture is recorded" if data.w is None else
             f"the wait before every capture is about {float(np.nanmean(data.w)):.2g} s")
-    unresolved.append({
-        "effects": ["backlash", "settling"],
-        "why": f"{size} between the directions (backlash explains {backlash.explained_pct:.1f} %, ΔBIC "
-               f"{backlash.delta_bic:.1f}), but {wait}: settling that has not died out leaves the same constant "
-               "offset per direction, so this campaign cannot tell backlash from settling and names neither",
-        "how_to_tell": DWELLS_HOW_TO_TELL,
-        "delta_bic": {"backlash": round(backlash.delta_bic, 2)}})
+    unresolved.append(Unresolved(
+        ("backlash", "settling"),
+        f"{size} between the directions (backlash explains {backlash.explained_pct:.1f} %, ΔBIC "
+        f"{backlash.delta_bic:.1f}), but {wait}: settling that has not died out leaves the same constant "
+        "offset per direction, so this campaign cannot tell backlash from settling and names neither",
+        DWELLS_HOW_TO_TELL, {"backlash": round(backlash.delta_bic, 2)}))
     backlash.verdict = "not told apart from settling (the wait before capture does not vary)"
     held = [backlash]
     for cand in ranking:
@@ -942,30 +943,28 @@ def said_list(names: list[str]) -> str:
     return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
 
 
-def rival_entry(best: Candidate, rivals: list[Candidate]) -> dict:
+def rival_entry(best: Candidate, rivals: list[Candidate]) -> Unresolved:
     """The `unresolved` record of candidates that explain the same residual."""
     group = [best, *rivals]
     said = "; ".join(f"{c.name} explains {c.explained_pct:.1f} % (ΔBIC {c.delta_bic:.1f})" for c in group)
     names = [c.name for c in group]
     none = "neither is named" if len(names) == 2 else "none of them is named"
-    return {"effects": names,
-            "why": f"{said_list(names)} explain the same part of the residual about equally well ({said}), "
-                   f"and together no better than one alone: this campaign cannot tell which it is, so {none}",
-            "how_to_tell": how_to_tell(names),
-            "delta_bic": {c.name: round(c.delta_bic, 2) for c in group}}
+    return Unresolved(tuple(names),
+                      f"{said_list(names)} explain the same part of the residual about equally well ({said}), "
+                      f"and together no better than one alone: this campaign cannot tell which it is, so {none}",
+                      how_to_tell(names), {c.name: round(c.delta_bic, 2) for c in group})
 
 
-def period_entry(cand: Candidate, data: CampaignData) -> dict:
+def period_entry(cand: Candidate, data: CampaignData) -> Unresolved:
     """The `unresolved` record of a periodic error whose period is not identifiable."""
     shown = ", ".join(f"{p:.4g} mm (ΔBIC {d:+.1f})" for p, d in cand.periods[:6])
     targets = len(np.unique(np.round(data.x, 6)))
-    return {"effects": ["periodic_lead"],
-            "why": f"a periodic error explains {cand.explained_pct:.1f} % of the residual, but its period is not "
-                   f"identifiable: {len(cand.periods)} periods fit about as well ({shown}); with {targets} targets "
-                   "a screw lead aliases to other periods",
-            "how_to_tell": PERIOD_HOW_TO_TELL,
-            "periods_mm": [round(p, 4) for p, _ in cand.periods],
-            "delta_bic": [round(d, 2) for _, d in cand.periods]}
+    return Unresolved(("periodic_lead",),
+                      f"a periodic error explains {cand.explained_pct:.1f} % of the residual, but its period is not "
+                      f"identifiable: {len(cand.periods)} periods fit about as well ({shown}); with {targets} targets "
+                      "a screw lead aliases to other periods",
+                      PERIOD_HOW_TO_TELL, periods_mm=tuple(round(p, 4) for p, _ in cand.periods),
+                      period_delta_bic=tuple(round(d, 2) for _, d in cand.periods))
 
 
 PLAUSIBLE_SHARE = 0.5
