@@ -65,11 +65,12 @@ ROTARY_UNITS = {"µm": "arcsec", "mm": "deg"}
 
 def unit_of(effect: str, key: str, time_unit: str, kind: str = "linear") -> str:
     """The unit of a model parameter, from its description in its effect's module (campaign/effects/;
-    on a rotary axis µm is arcsec and mm is deg; without a time column a thermal time constant is
-    in points)."""
-    if key == "tau_s" and effect == "thermal_drift" and time_unit != "s":
+    on a rotary axis µm is arcsec and mm is deg; without a time column the time constant of an
+    effect in time, one cross-validated by run such as thermal_drift, is in points)."""
+    described = registered(effect)
+    if key == "tau_s" and described.form is not None and described.form.group == "run" and time_unit != "s":
         return time_unit
-    unit = registered(effect).params[key].rsplit(", ", 1)[-1].split(" (")[0]
+    unit = described.params[key].rsplit(", ", 1)[-1].split(" (")[0]
     if kind == "rotary":
         unit = ROTARY_UNITS.get(unit, unit)
     return "" if unit == "1" else unit
