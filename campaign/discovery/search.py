@@ -798,7 +798,9 @@ def how_to_tell_pairs() -> dict[frozenset[str], str]:
 
 
 HOW_TO_TELL = how_to_tell_pairs()
-"""What campaign separates two effects that explain the same residual."""
+"""What campaign separates two effects that explain the same residual, for the effects registered
+when this module was imported (`how_to_tell` asks `how_to_tell_pairs()`, which an effect registered
+later is in)."""
 HOW_TO_TELL_DEFAULT = ("a campaign that varies what separates them: more runs over a longer time for time "
                        "effects, more targets for effects along the travel, varied dwells for settling")
 PERIOD_HOW_TO_TELL = ("more targets (at least 4 per screw lead over part of the travel), a denser offset pattern "
