@@ -350,7 +350,7 @@ def test_tables_of_different_axis_kinds_are_refused(cli, tmp_path):
     assert "a.csv" in said.err and "r.csv" in said.err and "arcsec" in said.err and said.out == ""
 
 
-def planned_follow_up(tmp_path, groups: list[dict], budget_s: float | None = None):
+def planned_follow_up(tmp_path, groups: list[Unresolved], budget_s: float | None = None):
     """The follow-up planned for `groups` after a first campaign of the shipped config (the bow only,
     fast simulator): the follow-up and the first campaign's targets."""
     from campaign.discovery.followup import plan_follow_up

@@ -16,8 +16,11 @@ import pytest
 
 import campaign.effects
 from campaign.config import load_config
+from campaign.discovery.data import read_campaign
 from campaign.discovery.effects import FORMS
-from campaign.discovery.followup import part_of
+from campaign.discovery.fit import linear_fit
+from campaign.discovery.followup import part_of, plan_follow_up
+from campaign.discovery.records import Unresolved
 from campaign.discovery.search import how_to_tell_pairs
 from campaign.effects import effect, effects, register, unregister
 from campaign.effects.base import SIZE_UM, Effect, EffectForm, Ranges, Samples, Shape, span_ends
@@ -147,6 +150,26 @@ def test_every_module_of_the_package_is_one_registered_effect_and_documented():
     assert "environment" in FORMS and "environment" not in EFFECT_PARAMS  # discovery's only: it follows a log
 
 
+@pytest.mark.parametrize(("effects_table", "said"), [
+    ({"local_step": {"height_um": 1, "at_mm": 5, "rise_mm": 2, "direction": 2}},
+     "'effects.local_step.direction' must be 0, 1 or -1"),
+    ({"local_defect": {"amplitude_um": 1, "centre_mm": 5, "width_mm": 2, "skew": -1}},
+     "'effects.local_defect.skew' must be between -0.9 and 0.9"),
+    ({"thermal_drift": {"growth_ppm": 1, "tau_s": 0}}, "'effects.thermal_drift.tau_s' must be > 0"),
+    ({"periodic_lead": {"amplitude_um": 1, "period_mm": -10}}, "'effects.periodic_lead.period_mm' must be > 0"),
+    ({"nonlinear_lead": {"p2_um": 1, "start_mm": 600, "end_mm": 0}}, "'effects.nonlinear_lead.end_mm' must be > start_mm"),
+    ({"noise": {"sigma_um": 0.3, "reading_sigma_um": -0.1}}, "'effects.noise' sigmas must be >= 0"),
+    ({"environment": {"air_factor": 1.0}}, "unknown effect 'effects.environment'"),
+])
+def test_a_model_file_is_checked_by_the_rules_of_each_effects_module(effects_table, said):
+    """The checks of a model file come from the effect modules (choices, limits, positive, check);
+    `environment` has no deviation, so a model file may not give it."""
+    from campaign.model import model_from_dict
+
+    with pytest.raises(InputError, match=re.escape(f"m.toml: {said}")):
+        model_from_dict({"effects": effects_table}, "m.toml")
+
+
 def test_an_effect_cannot_be_registered_twice_or_without_simulator_and_form():
     with pytest.raises(ValueError, match="registered already"):
         register(effect("backlash"))
@@ -201,7 +224,13 @@ def test_a_new_effect_is_simulated_from_a_model_file_and_named_by_discovery(midd
     assert abs(step["params"]["wear_um"] - wear) <= 3 * step["standard_errors"]["wear_um"], step
     assert found["gap_after_um"] < found["gap_before_um"]
     assert how_to_tell_pairs()[frozenset({"middle_wear", "backlash"})] == EFFECT.rivals["backlash"]
-    assert part_of("middle_wear") == "travel"  # its part of a follow-up, from its module
+    # its part of a follow-up, from its module: a group with it is planned as its part says
+    assert part_of("middle_wear") == "travel"
+    data = read_campaign(tmp_path / "run" / "points.csv")
+    follow = plan_follow_up([Unresolved(("backlash", "middle_wear"), "", "")], [], data, linear_fit(data, []), config,
+                            None, found["noise_um"], tmp_path / "follow.toml", ["run/points.csv"])
+    assert follow is not None and [p.effects for p in follow.parts] == [["backlash", "middle_wear"]], follow
+    assert "whole travel" in follow.parts[0].why and not follow.unplanned
 
 
 @pytest.mark.machine  # a simulated campaign and a discovery each: about 0.7 s
