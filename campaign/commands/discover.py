@@ -147,16 +147,6 @@ def errors_json(errors: dict[str, float]) -> dict[str, float]:
     return {k: float(f"{v:.3g}") for k, v in errors.items()}
 
 
-def starting_json(entry: dict) -> dict:
-    """One effect of the starting model (Discovery.starting) as JSON: given, fixed, params, and for
-    a fitted effect significant, standard_errors and p_value."""
-    out = {"given": entry["given"], "fixed": entry["fixed"], "params": rounded(entry["params"])}
-    if "p_value" in entry:
-        out.update(significant=entry["significant"], standard_errors=errors_json(entry["errors"]),
-                   p_value=float(f"{entry['p_value']:.3g}"))
-    return out
-
-
 def as_json(result: Discovery) -> dict:
     """The JSON object: added, gap_before_um, gap_after_um, steps, and the details."""
     return {
@@ -174,11 +164,11 @@ def as_json(result: Discovery) -> dict:
         "stand_in": None if result.stand_in is None else result.stand_in.as_dict(),
         "model": {name: rounded(p) for name, p in result.params().items()},
         "model_standard_errors": {name: errors_json(e) for name, e in result.errors.items()},
-        "starting_model": {name: starting_json(entry) for name, entry in result.starting.items()},
+        "starting_model": {name: entry.as_dict() for name, entry in result.starting.items()},
         "offset_um": round(result.final.offset_um, 4),
         "disagreement_before": result.disagreement_before,
         "disagreement_after": result.disagreement_after,
-        "choices": result.choices,
+        "choices": [c.as_dict() for c in result.choices],
         "unresolved": [u.as_dict() for u in result.unresolved],
         "local": None if result.local is None else result.local.as_dict(),
         "local_errors": [local.as_dict() for local in result.local_errors],
@@ -257,15 +247,15 @@ def starting_lines(result: Discovery, time_unit: str) -> list[str]:
     and which fitted effect is not significantly different from zero."""
     lines = []
     for name, entry in result.starting.items():
-        if entry["fixed"]:
+        if entry.fixed:
             lines.append(f"    {name}: held as given ("
                          + ", ".join(f"{k} = {with_error(v, None, unit_of(name, k, time_unit))}"
-                                     for k, v in entry["params"].items()) + ")")
+                                     for k, v in entry.params.items()) + ")")
             continue
-        lines.append(f"    {name}: {params_text(name, entry['params'], entry['errors'], entry['given'], time_unit)}")
-        if not entry["significant"]:
+        lines.append(f"    {name}: {params_text(name, dict(entry.params), dict(entry.errors), entry.given, time_unit)}")
+        if not entry.significant:
             lines.append(f"    [yellow]{name} is not significantly different from zero[/]: leaving it out fits as well "
-                         f"(F-test p = {entry['p_value']:.2g}, not below 0.05); this campaign does not show it")
+                         f"(F-test p = {entry.p_value:.2g}, not below 0.05); this campaign does not show it")
     return lines
 
 

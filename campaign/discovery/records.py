@@ -1,5 +1,6 @@
 """What discovery reports, as typed records: an unresolved group (and a local error that rivals
-it), and the stand-in a reversal of unknown cause is held by. Each has `as_dict`, its JSON object
+it), the stand-in a reversal of unknown cause is held by, the starting model's effects as fitted,
+and the choice between the air log and screw growth. Each has `as_dict`, its JSON object
 (`axiscal discover --json`, docs/discovery.md), keys in the order they have always had.
 
 Units: deviations µm (the axis's deviation unit), positions mm (its position unit).
@@ -8,7 +9,7 @@ Units: deviations µm (the axis's deviation unit), positions mm (its position un
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 
@@ -68,3 +69,48 @@ class StandIn:
         return {"effect": self.effect, "rivals": list(self.rivals), "observable": self.observable,
                 "params": {k: round(float(v), 4) for k, v in self.params.items()},
                 "gap_without_um": round(self.gap_without_um, 4)}
+
+
+@dataclass(frozen=True)
+class StartingEffect:
+    """An effect of the starting model as fitted at the end, beside the named effects: the
+    parameters the model gave (`given`), whether all were (`fixed`: held, not fitted), its
+    parameters and their 1-σ errors, and for a fitted one the F-test of the final fit against it left
+    out (`p_value`) and whether it differs from zero (`significant`)."""
+
+    given: tuple[str, ...]
+    fixed: bool
+    params: Mapping[str, float]
+    errors: Mapping[str, float] = field(default_factory=dict)
+    p_value: float | None = None
+    significant: bool | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"given": list(self.given), "fixed": self.fixed,
+                               "params": {k: round(float(v), 4) for k, v in self.params.items()}}
+        if self.p_value is not None:
+            out.update(significant=self.significant,
+                       standard_errors={k: float(f"{v:.3g}") for k, v in self.errors.items()},
+                       p_value=float(f"{self.p_value:.3g}"))
+        return out
+
+
+@dataclass(frozen=True)
+class Choice:
+    """Where environment and thermal_drift both explained the run-to-run slope change at a step:
+    which was chosen, the other, thermal_drift's pivot (mm) and whether it is at the laser datum,
+    what each explains (%) and its ΔBIC, and why, in words."""
+
+    step: int
+    chosen: str
+    other: str
+    pivot_mm: float
+    pivot_at_laser_datum: bool
+    environment_explained_pct: float
+    thermal_drift_explained_pct: float
+    delta_bic_environment: float
+    delta_bic_thermal_drift: float
+    why: str
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Any
 
 import numpy as np
 
@@ -58,7 +57,7 @@ from campaign.discovery.fit import (
     standard_errors,
 )
 from campaign.discovery.local import LocalError, find_locals, look_elsewhere, passes, refit_local
-from campaign.discovery.records import LocalRival, StandIn, Unresolved
+from campaign.discovery.records import Choice, LocalRival, StandIn, StartingEffect, Unresolved
 from campaign.effects import RegistryView, effect, effects
 from campaign.errors import InputError
 from campaign.model import DEFAULTS, EFFECT_PARAMS, ErrorModel
@@ -148,7 +147,7 @@ class Discovery:
     notes: list[str] = field(default_factory=list)
     disagreement_before: dict = field(default_factory=dict)
     disagreement_after: dict = field(default_factory=dict)
-    choices: list[dict] = field(default_factory=list)
+    choices: list[Choice] = field(default_factory=list)
     """Where two confounded candidates were both plausible: step, chosen, other, why."""
     unresolved: list[Unresolved] = field(default_factory=list)
     """Effects the data cannot tell apart or pin down, none of them named: effects, why,
@@ -171,7 +170,7 @@ class Discovery:
     """Errors outside the vocabulary, in the final model as local terms (bumps, steps; not named as
     effects of the model, not saved with it), in the order found (the one that explains most
     first; campaign.discovery.local.zones gives them along the axis)."""
-    starting: dict[str, dict] = field(default_factory=dict)
+    starting: dict[str, StartingEffect] = field(default_factory=dict)
     """The starting model's effects, as fitted at the end: params, errors, given (the keys the
     model gave), fixed, p_value (F-test of the effect against none of it) and significant."""
 
@@ -637,7 +636,7 @@ def beside_unresolved_period(data: CampaignData, result: Discovery) -> Discovery
         result.steps[:] = [replace(step, params=dict(averaged), errors=dict(errors)) if step.effect == term.name
                            else step for step in result.steps]
         if term.name in result.starting:
-            result.starting[term.name].update(params=averaged, errors=errors)
+            result.starting[term.name] = replace(result.starting[term.name], params=averaged, errors=errors)
     _note(result.notes, f"the named effects' values are fitted beside each of the {len(fits) - 1} candidate periods "
                         "of the unresolved periodic error and averaged (weights exp(-ΔBIC/2)), their errors include "
                         "the spread over them: left out, the wave's values at the targets would bias the bow")
@@ -660,7 +659,7 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
     start = refine(data, start_terms(model, given, data, notes) + list(extra or []))
     current = start
     steps: list[Step] = []
-    choices: list[dict[str, Any]] = []
+    choices: list[Choice] = []
     unresolved: list[Unresolved] = []
     ranking: list[Candidate] = []
     remaining: list[Candidate] = []
@@ -706,7 +705,7 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
         choice = air_or_screw(data, ranking, chosen, len(steps) + 1)
         if choice:
             choices.append(choice)
-            _note(notes, choice["why"])
+            _note(notes, choice.why)
         after = refine(data, chosen.fitted.terms)
         if chosen.periods:
             spreads[chosen.name] = period_spread_mm(chosen.periods)
@@ -769,7 +768,7 @@ look-elsewhere factor, the usual 5 %)."""
 
 
 def starting_report(data: CampaignData, start: Fit, final: Fit, errors: dict[str, dict[str, float]],
-                    given: dict[str, set[str]]) -> dict[str, dict]:
+                    given: dict[str, set[str]]) -> dict[str, StartingEffect]:
     """The starting model's effects as fitted at the end (beside the named effects): their
     parameters and errors, the parameters the model gave, and whether each fitted effect differs
     from zero (nested F-test of the final fit against it left out)."""
@@ -778,12 +777,13 @@ def starting_report(data: CampaignData, start: Fit, final: Fit, errors: dict[str
     for term in start.terms:
         if term.name not in EFFECT_PARAMS:
             continue  # a local error found earlier: reported on its own
-        entry: dict = {"given": sorted(given.get(term.name, set()) & set(EFFECT_PARAMS.get(term.name, {}))),
-                       "fixed": term.fixed, "params": params.get(term.name, dict(term.held))}
+        entry = StartingEffect(tuple(sorted(given.get(term.name, set()) & set(EFFECT_PARAMS.get(term.name, {})))),
+                               term.fixed, params.get(term.name, dict(term.held)))
         if not term.fixed:
             reduced = linear_fit(data, [t for t in final.terms if t.name != term.name])
             p_value = f_test_p(reduced, final, n)
-            entry.update(errors=errors.get(term.name, {}), p_value=p_value, significant=p_value < SIGNIFICANT)
+            entry = replace(entry, errors=errors.get(term.name, {}), p_value=p_value,
+                            significant=p_value < SIGNIFICANT)
         out[term.name] = entry
     return out
 
@@ -974,7 +974,7 @@ PLAUSIBLE_SHARE = 0.5
 of what the chosen candidate explains."""
 
 
-def air_or_screw(data: CampaignData, ranking: list[Candidate], chosen: Candidate, step: int) -> dict | None:
+def air_or_screw(data: CampaignData, ranking: list[Candidate], chosen: Candidate, step: int) -> Choice | None:
     """When environment and thermal_drift both explain the run-to-run slope change at this step,
     which one is chosen and why: the fit of the log against the exponential in time (ΔBIC), and
     the pivot of the slope change (air index: the laser datum; screw growth: its fixed bearing)."""
@@ -1013,11 +1013,8 @@ def air_or_screw(data: CampaignData, ranking: list[Candidate], chosen: Candidate
     gated = f"; {other.name} is {other.verdict}" if other.verdict.startswith("not named") else ""
     why = (f"environment and thermal_drift both explain the run-to-run slope change (step {step}); "
            f"chose {chosen.name}: {fit_why}, by {margin:.1f} in BIC; {pivot_why}{gated}")
-    return {"step": step, "chosen": chosen.name, "other": other.name, "pivot_mm": round(pivot, 1),
-            "pivot_at_laser_datum": bool(at_datum), "environment_explained_pct": round(env.explained_pct, 2),
-            "thermal_drift_explained_pct": round(thermal.explained_pct, 2),
-            "delta_bic_environment": round(env.delta_bic, 2), "delta_bic_thermal_drift": round(thermal.delta_bic, 2),
-            "why": why}
+    return Choice(step, chosen.name, other.name, round(pivot, 1), bool(at_datum), round(env.explained_pct, 2),
+                  round(thermal.explained_pct, 2), round(env.delta_bic, 2), round(thermal.delta_bic, 2), why)
 
 
 def steps_ranking_note(notes: list[str], ranking: list[Candidate], beside: str | None) -> None:
