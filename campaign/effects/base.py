@@ -95,7 +95,7 @@ over the whole travel; "travel" both directions at a few targets over the whole 
 every effect of the group asks for it)."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Effect:
     """One effect an axis can have, everything about it in one place.
 
@@ -110,7 +110,8 @@ class Effect:
     apart (one side of the pair is enough). nested_in: the simpler effect it contains (its special
     case); tends_to: the effect it becomes at the edge of its range (a growth whose time constant
     is far beyond the campaign is a linear drift). derived: quantities computed from its
-    parameters and reported beside them. follow_up: its part of a follow-up campaign."""
+    parameters and reported beside them. follow_up: its part of a follow-up campaign. One object per
+    effect: two are the same only when they are one (compared by identity)."""
 
     name: str
     order: int
