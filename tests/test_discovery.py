@@ -175,8 +175,8 @@ def test_at_a_constant_dwell_settling_and_backlash_are_unresolved_not_named(hidd
     true_effects = {**{k: v for k, v in BASE.items() if k != "backlash"}, hidden: HIDDEN[hidden][0]}
     result = run_discovery(true_effects, ["linear_scale"], dwell_jitter=0.0)
     assert "settling" not in result.added and "backlash" not in result.added, result.added
-    entry = next(e for e in result.unresolved if set(e["effects"]) == {"backlash", "settling"})
-    assert "cannot tell backlash from settling" in entry["why"] and "decade" in entry["how_to_tell"]
+    entry = next(e for e in result.unresolved if set(e.effects) == {"backlash", "settling"})
+    assert "cannot tell backlash from settling" in entry.why and "decade" in entry.how_to_tell
     assert any("settling is confounded with backlash" in note for note in result.notes)
 
 
@@ -217,9 +217,9 @@ def test_environment_air_is_named_and_its_share_recovered_and_preferred_to_therm
     assert result.steps[0].errors["air_factor"] < 0.05
     assert result.gap_after_um <= 1.3 * NOISE_UM
     [choice] = result.choices
-    assert choice["chosen"] == "environment" and choice["other"] == "thermal_drift"
-    assert choice["pivot_at_laser_datum"] and abs(choice["pivot_mm"]) < 90
-    assert choice["why"] in result.notes and "laser datum" in choice["why"]
+    assert choice.chosen == "environment" and choice.other == "thermal_drift"
+    assert choice.pivot_at_laser_datum and abs(choice.pivot_mm) < 90
+    assert choice.why in result.notes and "laser datum" in choice.why
 
 
 def test_environment_material_is_named_and_alpha_recovered_when_the_air_log_moves_with_it():
@@ -254,6 +254,6 @@ def test_screw_growth_with_a_compensated_warming_air_log_is_thermal_drift_and_sa
     result = run_discovery(true, ["linear_scale", "backlash"], seed=4, environment=env)
     assert result.added == ["thermal_drift"], (result.added, result.notes)
     [choice] = result.choices
-    assert choice["chosen"] == "thermal_drift" and not choice["pivot_at_laser_datum"]
-    assert "away from the laser datum" in choice["why"]
+    assert choice.chosen == "thermal_drift" and not choice.pivot_at_laser_datum
+    assert "away from the laser datum" in choice.why
     assert any("the instrument compensates the air" in n for n in result.notes)

@@ -37,10 +37,10 @@ def test_a_given_period_s_amplitude_and_phase_errors_match_their_spread_over_cam
     for seed in range(30):
         table = simulate_campaign(CONFIG, ErrorModel({**BASE, "periodic_lead": LEAD}), seed=seed, dwell_jitter=0.8)
         found.append(discover(campaign_data(table), start, given).starting["periodic_lead"])
-    assert all(f["given"] == ["period_mm"] and "period_mm" not in f["errors"] for f in found)
+    assert all(f.given == ("period_mm",) and "period_mm" not in f.errors for f in found)
     for key in ("amplitude_um", "phase_rad"):
-        values = np.array([f["params"][key] for f in found])
-        errors = np.array([f["errors"][key] for f in found])
+        values = np.array([f.params[key] for f in found])
+        errors = np.array([f.errors[key] for f in found])
         spread = values.std(ddof=1)  # 30 campaigns: known to about ±13 %
         assert 0.7 * spread < errors.mean() < 1.4 * spread, (key, spread, errors.mean())
         assert abs(values.mean() - LEAD[key]) < 3 * spread / np.sqrt(len(values)) + 0.01, key

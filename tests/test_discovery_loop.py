@@ -15,6 +15,7 @@ from campaign.config import load_config, parse_config
 from campaign.discovery.data import campaign_data, join_campaigns
 from campaign.discovery.effects import FORMS
 from campaign.discovery.local import zones
+from campaign.discovery.records import Unresolved
 from campaign.discovery.search import discover
 from campaign.discovery.simulate import simulate_campaign
 from campaign.model import EFFECT_PARAMS, ErrorModel
@@ -105,7 +106,7 @@ def test_the_bow_beside_an_unresolved_period_is_not_biased(seed):
     old code. Averaged over the candidate periods it is within 0.15 µm, and both within 3 reported σ."""
     lead = {"periodic_lead": {"amplitude_um": 1.0, "period_mm": 10.0, "phase_rad": 0.3}}
     result = found(user_config(seed=seed), {**BOW, **lead}, seed)
-    assert [u["effects"] for u in result.unresolved] == [["periodic_lead"]]
+    assert [u.effects for u in result.unresolved] == [("periodic_lead",)]
     bow, error = result.params()["nonlinear_lead"], result.errors["nonlinear_lead"]
     for key, true in (("p2_um", 0.49), ("p3_um", 0.73)):
         assert abs(bow[key] - true) < 3 * error[key], (key, bow, error)
@@ -316,7 +317,7 @@ def test_the_bow_is_averaged_when_a_bump_is_not_added_beside_an_unresolved_perio
     bump = {"amplitude_um": 3.0, "centre_mm": 300.0, "width_mm": 150.0, "direction": 0.0}
     result = found(user_config(seed=1), {**BOW, **lead, "local_defect": bump}, 1)
     assert result.local is None and any("would fit too" in n for n in result.notes)  # the branch
-    assert [u["effects"] for u in result.unresolved] == [["periodic_lead"]]
+    assert [u.effects for u in result.unresolved] == [("periodic_lead",)]
     assert "linear_scale" in result.averaged and any("averaged" in n for n in result.notes)
     assert result.params()["linear_scale"] == result.averaged["linear_scale"]
 
@@ -349,7 +350,7 @@ def test_tables_of_different_axis_kinds_are_refused(cli, tmp_path):
     assert "a.csv" in said.err and "r.csv" in said.err and "arcsec" in said.err and said.out == ""
 
 
-def planned_follow_up(tmp_path, groups: list[dict], budget_s: float | None = None):
+def planned_follow_up(tmp_path, groups: list[Unresolved], budget_s: float | None = None):
     """The follow-up planned for `groups` after a first campaign of the shipped config (the bow only,
     fast simulator): the follow-up and the first campaign's targets."""
     from campaign.discovery.followup import plan_follow_up
@@ -372,7 +373,7 @@ def test_the_thermal_part_spans_the_travel_with_twice_the_runs_and_is_not_planne
     Given a larger budget it is planned: 5 of the first campaign's targets over the travel."""
     from campaign.plan import build_plan
 
-    groups = [{"effects": ["linear_scale", "thermal_drift"], "how_to_tell": ""}]
+    groups = [Unresolved(("linear_scale", "thermal_drift"), "", "")]
     follow, first = planned_follow_up(tmp_path, groups)
     assert not follow.parts and follow.duration_s == 0.0
     [said] = follow.unplanned
@@ -390,7 +391,7 @@ def test_the_thermal_part_spans_the_travel_with_twice_the_runs_and_is_not_planne
 def test_the_growing_backlash_part_spans_the_travel(tmp_path):
     from campaign.plan import build_plan
 
-    groups = [{"effects": ["backlash", "position_dependent_backlash"], "how_to_tell": ""}]
+    groups = [Unresolved(("backlash", "position_dependent_backlash"), "", "")]
     follow, first = planned_follow_up(tmp_path, groups)
     targets = build_plan(follow.config).targets
     assert set(np.round(targets, 3)) <= set(first) and min(targets) == first[0] and max(targets) == first[-1]
@@ -402,9 +403,9 @@ def test_a_follow_up_is_marked_as_one_and_never_longer_than_the_first_campaign(t
     """Issue 34 item 6: every part together (settling against backlash, an aliased period, a growing
     reversal) fits the first campaign's machine time by construction; the config says it is a
     follow-up of the first campaign, so it is never judged as an acceptance test."""
-    groups = [{"effects": ["backlash", "settling"], "how_to_tell": ""},
-              {"effects": ["periodic_lead"], "how_to_tell": "", "periods_mm": [10.0, 3.8, 6.56], "delta_bic": [0, 1, 2]},
-              {"effects": ["backlash", "position_dependent_backlash"], "how_to_tell": ""}]
+    groups = [Unresolved(("backlash", "settling"), "", ""),
+              Unresolved(("periodic_lead",), "", "", periods_mm=(10.0, 3.8, 6.56), period_delta_bic=(0, 1, 2)),
+              Unresolved(("backlash", "position_dependent_backlash"), "", "")]
     follow, _ = planned_follow_up(tmp_path, groups)
     assert follow.parts and follow.duration_s <= follow.first_duration_s, (follow.duration_s, follow.unplanned)
     assert follow.config.campaign.purpose == "follow-up" and follow.config.campaign.follows == "first"

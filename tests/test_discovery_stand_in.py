@@ -83,7 +83,7 @@ def test_no_stand_in_where_the_waits_vary(seed):
     machine = {**BOW, "settling": {"e0_um": 4.0, "tau_s": 8.0}}
     table = simulate_campaign(user_config(), ErrorModel(machine), seed=seed, dwell_jitter=0.1)
     result = discover(campaign_data(table), ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
-    assert any(set(u["effects"]) == {"backlash", "settling"} for u in result.unresolved)
+    assert any(set(u.effects) == {"backlash", "settling"} for u in result.unresolved)
     assert result.remaining_beside == {1: "backlash", 2: "settling"}[seed]
     assert result.stand_in is None and "backlash" not in result.params() and "settling" not in result.params()
 
@@ -101,5 +101,5 @@ def test_the_stand_in_is_the_backlash_even_when_settling_is_tried_beside():
     data = campaign_data(table)
     assert data.w is not None and not waits_vary(data)
     result = discover(data, ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
-    assert result.stand_in is not None and result.stand_in["effect"] == "backlash"
-    assert abs(result.stand_in["params"]["b_um"]) == pytest.approx(3.0, abs=0.5)
+    assert result.stand_in is not None and result.stand_in.effect == "backlash"
+    assert abs(result.stand_in.params["b_um"]) == pytest.approx(3.0, abs=0.5)

@@ -19,8 +19,9 @@ from campaign.discovery.fit import derived
 from campaign.discovery.followup import FollowUp, plan_follow_up
 from campaign.discovery.local import LocalError, Zone, zones
 from campaign.discovery.search import Candidate, Discovery, discover
+from campaign.effects import effect as registered
 from campaign.errors import InputError
-from campaign.model import EFFECT_PARAMS, ErrorModel
+from campaign.model import ErrorModel
 from campaign.outliers import Outliers, find_outliers
 from campaign.plan import build_plan
 from campaign.plot import check_plot_path
@@ -58,23 +59,18 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.set_defaults(func=run)
 
 
-ENVIRONMENT_PARAMS = {"air_factor": "share of the air log's refractive-index change in the reading, 1",
-                      "alpha_ppm_per_k": "expansion following the material log, µm/m per K"}
-"""The environment effect's parameters (discovery only: it follows one campaign's log, so it is
-not a parameter of the axis model)."""
-
-
 ROTARY_UNITS = {"µm": "arcsec", "mm": "deg"}
 """A parameter's unit on a rotary axis (the model's keys say µm and mm: they are arcsec and deg there)."""
 
 
 def unit_of(effect: str, key: str, time_unit: str, kind: str = "linear") -> str:
-    """The unit of a model parameter, from its description in EFFECT_PARAMS (on a rotary axis µm
-    is arcsec and mm is deg; without a time column a thermal time constant is in points)."""
-    if key == "tau_s" and effect == "thermal_drift" and time_unit != "s":
+    """The unit of a model parameter, from its description in its effect's module (campaign/effects/;
+    on a rotary axis µm is arcsec and mm is deg; without a time column the time constant of an
+    effect in time, one cross-validated by run such as thermal_drift, is in points)."""
+    described = registered(effect)
+    if key == "tau_s" and described.form is not None and described.form.group == "run" and time_unit != "s":
         return time_unit
-    described = ENVIRONMENT_PARAMS if effect == "environment" else EFFECT_PARAMS[effect]
-    unit = described[key].rsplit(", ", 1)[-1].split(" (")[0]
+    unit = described.params[key].rsplit(", ", 1)[-1].split(" (")[0]
     if kind == "rotary":
         unit = ROTARY_UNITS.get(unit, unit)
     return "" if unit == "1" else unit
@@ -151,16 +147,6 @@ def errors_json(errors: dict[str, float]) -> dict[str, float]:
     return {k: float(f"{v:.3g}") for k, v in errors.items()}
 
 
-def starting_json(entry: dict) -> dict:
-    """One effect of the starting model (Discovery.starting) as JSON: given, fixed, params, and for
-    a fitted effect significant, standard_errors and p_value."""
-    out = {"given": entry["given"], "fixed": entry["fixed"], "params": rounded(entry["params"])}
-    if "p_value" in entry:
-        out.update(significant=entry["significant"], standard_errors=errors_json(entry["errors"]),
-                   p_value=float(f"{entry['p_value']:.3g}"))
-    return out
-
-
 def as_json(result: Discovery) -> dict:
     """The JSON object: added, gap_before_um, gap_after_um, steps, and the details."""
     return {
@@ -175,17 +161,15 @@ def as_json(result: Discovery) -> dict:
                    "ranking": ranking_json(s.ranking)} for s in result.steps],
         "remaining": ranking_json(result.remaining),
         "remaining_beside": result.remaining_beside,
-        "stand_in": None if result.stand_in is None else {
-            **result.stand_in, "params": rounded(result.stand_in["params"]),
-            "gap_without_um": round(result.stand_in["gap_without_um"], 4)},
+        "stand_in": None if result.stand_in is None else result.stand_in.as_dict(),
         "model": {name: rounded(p) for name, p in result.params().items()},
         "model_standard_errors": {name: errors_json(e) for name, e in result.errors.items()},
-        "starting_model": {name: starting_json(entry) for name, entry in result.starting.items()},
+        "starting_model": {name: entry.as_dict() for name, entry in result.starting.items()},
         "offset_um": round(result.final.offset_um, 4),
         "disagreement_before": result.disagreement_before,
         "disagreement_after": result.disagreement_after,
-        "choices": result.choices,
-        "unresolved": result.unresolved,
+        "choices": [c.as_dict() for c in result.choices],
+        "unresolved": [u.as_dict() for u in result.unresolved],
         "local": None if result.local is None else result.local.as_dict(),
         "local_errors": [local.as_dict() for local in result.local_errors],
         "zones": [{"sentence": z.sentence, "region_mm": [round(v, 3) for v in z.region_mm],
@@ -247,10 +231,10 @@ def nothing_named(result: Discovery) -> str:
         return "no effect is named: none of the vocabulary explains the residual significantly"
     sizes = []
     for entry in result.unresolved:
-        tried = [c for c in result.remaining if c.name in entry["effects"]]
+        tried = [c for c in result.remaining if c.name in entry.effects]
         if tried:
             best = min(tried, key=lambda c: c.delta_bic)
-            sizes.append(f"{' or '.join(entry['effects'])} explains {best.explained_pct:.1f} % of it, "
+            sizes.append(f"{' or '.join(entry.effects)} explains {best.explained_pct:.1f} % of it, "
                          f"ΔBIC {best.delta_bic:.1f}")
     size = "; ".join(sizes)
     return ("no effect is named, but the residual is not noise: something significant is there that this campaign "
@@ -263,15 +247,15 @@ def starting_lines(result: Discovery, time_unit: str) -> list[str]:
     and which fitted effect is not significantly different from zero."""
     lines = []
     for name, entry in result.starting.items():
-        if entry["fixed"]:
+        if entry.fixed:
             lines.append(f"    {name}: held as given ("
                          + ", ".join(f"{k} = {with_error(v, None, unit_of(name, k, time_unit))}"
-                                     for k, v in entry["params"].items()) + ")")
+                                     for k, v in entry.params.items()) + ")")
             continue
-        lines.append(f"    {name}: {params_text(name, entry['params'], entry['errors'], entry['given'], time_unit)}")
-        if not entry["significant"]:
+        lines.append(f"    {name}: {params_text(name, dict(entry.params), dict(entry.errors), entry.given, time_unit)}")
+        if not entry.significant:
             lines.append(f"    [yellow]{name} is not significantly different from zero[/]: leaving it out fits as well "
-                         f"(F-test p = {entry['p_value']:.2g}, not below 0.05); this campaign does not show it")
+                         f"(F-test p = {entry.p_value:.2g}, not below 0.05); this campaign does not show it")
     return lines
 
 
@@ -321,13 +305,12 @@ def summary_lines(result: Discovery, incomplete: list[str], time_unit: str = "s"
     for zone in zones(result.local_errors):
         lines.append(f"found outside the model: [bold]{zone_said(zone)}[/]; no effect of the model has this shape")
     if result.stand_in is not None:
-        b = abs(result.stand_in["params"]["b_um"])
+        b = abs(result.stand_in.params["b_um"])
         lines.append(f"in the model as a stand-in: a reversal of {b:.1f} {dev} (backlash or settling)")
     for entry in result.unresolved:
-        rivals = "".join(f" or a local error at {r['region_mm'][0]:g}–{r['region_mm'][1]:g}"
-                         for r in entry.get("local_rivals", []))
-        lines.append(f"[yellow]unresolved:[/] {' or '.join(entry['effects'])}{rivals}; to tell: "
-                     f"{first_clause(entry['how_to_tell'])}")
+        rivals = "".join(f" or a local error at {r.region_mm[0]:g}–{r.region_mm[1]:g}" for r in entry.local_rivals)
+        lines.append(f"[yellow]unresolved:[/] {' or '.join(entry.effects)}{rivals}; to tell: "
+                     f"{first_clause(entry.how_to_tell)}")
     verdict = noise_verdict(result.gap_after_um, result.noise_um)
     lines.append(f"gap {result.gap_before_um:.2f} -> {result.gap_after_um:.2f} {dev} RMS, noise "
                  f"{result.noise_um:.2f} {dev}: what is left is {verdict}")
@@ -386,10 +369,10 @@ def print_text(result: Discovery, time_unit: str, incomplete: list[str], verbose
         for line in starting_lines(result, time_unit):
             console.print(line)
     for entry in result.unresolved:
-        console.print(f"[yellow]unresolved:[/] {entry['why']}. To tell: {entry['how_to_tell']}.")
+        console.print(f"[yellow]unresolved:[/] {entry.why}. To tell: {entry.how_to_tell}.")
     if result.stand_in is not None:
-        console.print(f"[yellow]in the model as a stand-in:[/] {result.stand_in['observable']}; the model holds it "
-                      f"as {result.stand_in['effect']} (gap {result.stand_in['gap_without_um']:.3f} {dev} without it)")
+        console.print(f"[yellow]in the model as a stand-in:[/] {result.stand_in.observable}; the model holds it "
+                      f"as {result.stand_in.effect} (gap {result.stand_in.gap_without_um:.3f} {dev} without it)")
     for local in result.local_errors:
         console.print(f"[yellow]found outside the model:[/] {local_said(local)}; no effect of the model has this "
                       f"shape; {local.time_text()}. It explains {local.explained_pct:.1f} % of the residual (ΔBIC "
@@ -501,7 +484,7 @@ def reversal_um(result: Discovery) -> float | None:
     """The size of the reversal the unresolved backlash stands for, µm (the stand-in's, or the
     backlash candidate's), if any."""
     if result.stand_in is not None:
-        return float(result.stand_in["params"]["b_um"])
+        return float(result.stand_in.params["b_um"])
     for cand in result.remaining:
         if cand.name == "backlash" and cand.fit is not None:
             return float(cand.fit.params()["backlash"]["b_um"])
@@ -576,8 +559,8 @@ def write_follow_up(path: Path, text: str) -> None:
 def regions_to_measure(result: Discovery) -> list[tuple[float, float]]:
     """Where a follow-up should measure densely: the located local errors' regions when what is left
     (or what they explain) is more than noise."""
-    rivals = [tuple(r["region_mm"]) for u in result.unresolved for r in u.get("local_rivals", [])]
-    return [zone.region_mm for zone in zones(result.local_errors)] + [(a, b) for a, b in rivals]
+    rivals = [r.region_mm for u in result.unresolved for r in u.local_rivals]
+    return [zone.region_mm for zone in zones(result.local_errors)] + rivals
 
 
 def follow_up_lines(follow: FollowUp | None, path: str) -> list[str]:

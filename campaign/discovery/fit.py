@@ -11,12 +11,14 @@ Units: deviations and RMS values µm; everything else as in campaign.discovery.e
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from campaign.discovery.data import CampaignData
 from campaign.discovery.effects import form_of, period_limits
+from campaign.effects import RegistryView
 from campaign.model import effect_um
 
 COLLINEAR = 1e-3
@@ -119,11 +121,11 @@ def linear_fit(data: CampaignData, terms: list[Term]) -> Fit:
 
 def shape_bounds(data: CampaignData, name: str, key: str) -> tuple[float, float]:
     """The bounds of a searched shape parameter: the period's range, or a third of the lowest and
-    three times the highest time constant of its grid."""
+    three times the highest value of its grid (a time constant's; a grid runs upwards)."""
     if key == "period_mm":
         return period_limits(data)
     grid = form_of(name).grid(data, {})
-    return grid[0]["tau_s"] / 3, grid[-1]["tau_s"] * 3
+    return grid[0][key] / 3, grid[-1][key] * 3
 
 
 def refine(data: CampaignData, terms: list[Term]) -> Fit:
@@ -288,10 +290,9 @@ def f_test_p(before: Fit, after: Fit, n: int) -> float:
     return float(stats.f.sf(f_value, q, dof)) if f_value > 0 else 1.0
 
 
-DERIVED = {"thermal_drift": lambda p: {"initial_rate_ppm_per_h": p["growth_ppm"] / p["tau_s"] * 3600},
-           "nonlinear_lead": lambda p: {"bow_rms_um": math.sqrt(p["p2_um"] ** 2 / 5 + p["p3_um"] ** 2 / 7)}}
+DERIVED: RegistryView[Callable[[dict[str, float]], dict[str, float]]] = RegistryView(lambda e: e.derived)
 """Quantities reported beside an effect's parameters, computed from them (and given an error the
-same way): thermal drift's initial rate of slope change, µm/m per hour (per 3600 points without a
+same way; each effect's `derived`, campaign/effects/): thermal drift's initial rate of slope change, µm/m per hour (per 3600 points without a
 time column); the bow's RMS over its span, µm (its size: P2 and P3 have RMS 1/√5 and 1/√7)."""
 ANGLES = ("phase_rad",)
 """Parameters that are angles: their differences are wrapped to (-π, π]."""

@@ -2,7 +2,9 @@
 discovery left unresolved, within the axis's limits and as short as it can be.
 
 Each unresolved group asks for one part of the plan (`Part`), and the parts are merged into one
-campaign (its targets, capture and cycles):
+campaign (its targets, capture and cycles). The part an effect asks for is its module's
+`follow_up` (campaign/effects/): a group gets the first of these that one of its effects asks for
+("travel" only when all do):
 - settling against backlash (or position-dependent backlash): waits before capture that vary over
   a decade (the dwell method with a short window and `dwell_jitter`), at a few targets close
   together, with as many points as the reversal's size against the noise needs;
@@ -33,7 +35,9 @@ import numpy as np
 from campaign.config import Config, config_toml, config_with, parse_config
 from campaign.discovery.data import CampaignData
 from campaign.discovery.fit import Fit, Term, linear_fit
+from campaign.discovery.records import Unresolved
 from campaign.discovery.search import RIVAL_MARGIN
+from campaign.effects import REGISTRY
 from campaign.model import is_model_name
 from campaign.plan import build_plan, check_plan, estimate_duration_s
 
@@ -171,9 +175,9 @@ def _with_travel(targets: list[float] | None, data: CampaignData) -> list[float]
     return sorted({*(targets or []), *(round(float(v), 3) for v in _targets(data))})
 
 
-def _periods_of(group: dict[str, Any], remaining: list[Any]) -> list[float]:
-    if group.get("periods_mm"):
-        return [float(p) for p in group["periods_mm"]]
+def _periods_of(group: Unresolved, remaining: list[Any]) -> list[float]:
+    if group.periods_mm:
+        return [float(p) for p in group.periods_mm]
     for cand in remaining:
         if cand.name == "periodic_lead" and cand.fit is not None:
             if cand.periods:
@@ -214,7 +218,14 @@ def _spread(data: CampaignData) -> list[float]:
     return [round(float(t[i]), 3) for i in picks]
 
 
-def _asks(unresolved: list[dict[str, Any]], remaining: list[Any], data: CampaignData, final: Fit,
+def part_of(name: str) -> str | None:
+    """The part of a follow-up that an effect asks for (its module's `follow_up`,
+    campaign/effects/); None for a name that is no registered effect."""
+    found = REGISTRY.get(name)
+    return None if found is None else found.follow_up
+
+
+def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData, final: Fit,
           config: Config, reversal_um: float | None, noise_um: float,
           regions: list[tuple[float, float]]) -> tuple[list[_Ask], list[str]]:
     """What each unresolved group (and each located region) asks of the follow-up; the groups none
@@ -223,8 +234,9 @@ def _asks(unresolved: list[dict[str, Any]], remaining: list[Any], data: Campaign
     unplanned: list[str] = []
     first_cycles = config.plan.cycles
     for group in unresolved:
-        names = set(group["effects"])
-        if "settling" in names:
+        names = set(group.effects)
+        parts = {part_of(name) for name in names}
+        if "dwells" in parts:
             waits = data.w if data.w is not None else np.array([[config.plan.dwell_s]])
             high = max(WAITS_S[1], 1.25 * float(np.nanmax(waits)))
             low = max(high / 10, WAITS_S[0] * high / WAITS_S[1])
@@ -237,24 +249,24 @@ def _asks(unresolved: list[dict[str, Any]], remaining: list[Any], data: Campaign
                 f"reversal {SEPARATION:g} times the noise of {noise_um:.2g} µm over √points)")),
                 None, 2, {"dwell_s": round((low + high) / 2, 3), "dwell_jitter": round((high - low) / (high + low), 3)},
                 {"method": "dwell", "average_s": DWELL_WINDOW_S}, points))
-        elif "periodic_lead" in names:
+        elif "cluster" in parts:
             periods = _periods_of(group, remaining)
             if not periods:
-                unplanned.append(f"{' or '.join(group['effects'])}: no candidate period to plan for")
+                unplanned.append(f"{' or '.join(group.effects)}: no candidate period to plan for")
                 continue
-            targets, why = _cluster(data, final, periods, group.get("delta_bic") or [], noise_um)
+            targets, why = _cluster(data, final, periods, list(group.period_delta_bic), noise_um)
             asks.append(_Ask(Part(sorted(names), why), targets, 1,
                              {"offsets": "golden", "offset_fraction": CLUSTER_OFFSET}))
-        elif names & {"thermal_drift", "linear_drift", "environment"}:
+        elif "runs" in parts:
             asks.append(_Ask(Part(sorted(names), (
                 f"a slope that changes from run to run or not at all: {2 * first_cycles} runs (the first campaign "
                 f"had {first_cycles}) at {FEW_TARGETS} targets over the whole travel; a drift changes the slope from "
                 "run to run, a scale does not")), _spread(data), 2 * first_cycles))
-        elif names <= {"backlash", "position_dependent_backlash"}:
+        elif parts == {"travel"}:
             asks.append(_Ask(Part(sorted(names), "a reversal that may grow along the travel: both directions at "
                                                  f"{FEW_TARGETS} targets over the whole travel"), _spread(data), 1))
         else:
-            unplanned.append(f"{' or '.join(group['effects'])}: {group.get('how_to_tell', '')}")
+            unplanned.append(f"{' or '.join(group.effects)}: {group.how_to_tell}")
     for start, end in regions:
         spacing = float(np.median(np.diff(_targets(data)))) if len(_targets(data)) > 1 else 1.0
         step = max(min(spacing / 4, (end - start) / 8), 1e-3)
@@ -286,7 +298,7 @@ def _merged(asks: list[_Ask], data: CampaignData) -> tuple[list[float], int, dic
     return targets, cycles, plan, capture
 
 
-def plan_follow_up(unresolved: list[dict[str, Any]], remaining: list[Any], data: CampaignData, final: Fit,
+def plan_follow_up(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData, final: Fit,
                    config: Config, reversal_um: float | None, noise_um: float, out: Path,
                    sources: list[str], regions: list[tuple[float, float]] | None = None,
                    budget_s: float | None = None) -> FollowUp | None:

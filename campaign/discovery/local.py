@@ -59,7 +59,7 @@ MIN_SEEN = 3
 fewer cannot tell its size from its width, nor a bump from one target's odd reading."""
 
 
-@dataclass
+@dataclass(frozen=True)
 class LocalError:
     """A local error found: its term (in the final model), parameters (amplitude_um, or plus_um and
     minus_um per direction; centre_mm; width_mm, at half height; in the axis's units whatever the

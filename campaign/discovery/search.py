@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Any
 
 import numpy as np
 
@@ -58,6 +57,8 @@ from campaign.discovery.fit import (
     standard_errors,
 )
 from campaign.discovery.local import LocalError, find_locals, look_elsewhere, passes, refit_local
+from campaign.discovery.records import Choice, LocalRival, StandIn, StartingEffect, Unresolved
+from campaign.effects import RegistryView, effect, effects
 from campaign.errors import InputError
 from campaign.model import DEFAULTS, EFFECT_PARAMS, ErrorModel
 
@@ -106,7 +107,7 @@ class Candidate:
         return self.verdict == "accepted"
 
 
-@dataclass
+@dataclass(frozen=True)
 class Step:
     """One named effect: its parameters and the gap (RMS of measured - simulated, µm) before and
     after; `ranking`: every candidate tried at this step; residuals µm per point."""
@@ -146,9 +147,9 @@ class Discovery:
     notes: list[str] = field(default_factory=list)
     disagreement_before: dict = field(default_factory=dict)
     disagreement_after: dict = field(default_factory=dict)
-    choices: list[dict] = field(default_factory=list)
+    choices: list[Choice] = field(default_factory=list)
     """Where two confounded candidates were both plausible: step, chosen, other, why."""
-    unresolved: list[dict] = field(default_factory=list)
+    unresolved: list[Unresolved] = field(default_factory=list)
     """Effects the data cannot tell apart or pin down, none of them named: effects, why,
     how_to_tell (and periods_mm for a period that is not identifiable)."""
     errors: dict[str, dict[str, float]] = field(default_factory=dict)
@@ -157,7 +158,7 @@ class Discovery:
     """The candidates tried after the last step, none of them named."""
     remaining_beside: str | None = None
     """The unresolved effect the remaining candidates were tried beside (a stand-in), if any."""
-    stand_in: dict | None = None
+    stand_in: StandIn | None = None
     """Rivals that predict the same deviation at every position the campaign can be used for
     (backlash and settling at a constant wait): one of them is in the final model in their place,
     not named (STAND_IN_RIVALS). effect, observable (what the data show, in words), rivals,
@@ -169,7 +170,7 @@ class Discovery:
     """Errors outside the vocabulary, in the final model as local terms (bumps, steps; not named as
     effects of the model, not saved with it), in the order found (the one that explains most
     first; campaign.discovery.local.zones gives them along the axis)."""
-    starting: dict[str, dict] = field(default_factory=dict)
+    starting: dict[str, StartingEffect] = field(default_factory=dict)
     """The starting model's effects, as fitted at the end: params, errors, given (the keys the
     model gave), fixed, p_value (F-test of the effect against none of it) and significant."""
 
@@ -232,7 +233,7 @@ def default_shape(name: str, key: str, data: CampaignData) -> float:
     if key == "period_mm":
         return 10.0
     grid = FORMS[name].grid(data, {})
-    return grid[len(grid) // 2]["tau_s"]
+    return grid[len(grid) // 2][key]
 
 
 def disagreement(data: CampaignData, residual: np.ndarray) -> dict:
@@ -465,8 +466,8 @@ def environment_variant(fits: list[Fit], n: int) -> tuple[Fit, tuple[str, str] |
     return chosen, note
 
 
-NESTED_IN = {"position_dependent_backlash": "backlash"}
-"""Effect -> the simpler effect it contains (its k = 0 case)."""
+NESTED_IN: RegistryView[str] = RegistryView(lambda e: e.nested_in)
+"""Effect -> the simpler effect it contains (its k = 0 case): each effect's `nested_in`."""
 
 
 def prefer_simpler(best: Candidate, accepted: list[Candidate], n: int, notes: list[str]) -> Candidate:
@@ -492,7 +493,7 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     it explains the campaign better than local terms over the regions located: an effect that merely
     soaked up a local error (a bow, a short period, a reversal) is not named."""
     vocabulary = search_vocabulary(data, model, given)
-    periodic = any("periodic_lead" in u["effects"] for u in vocabulary.unresolved)
+    periodic = any("periodic_lead" in u.effects for u in vocabulary.unresolved)
     beside = find_locals(data, vocabulary.final)
     for name in [n for n in reversed(vocabulary.added) if n in MAY_SOAK] if not beside else ():
         # a short period or a reversal may have soaked up most of it: look beside the rest
@@ -534,18 +535,20 @@ def route_score(data: CampaignData, result: Discovery) -> float:
 def add_local_rivals(result: Discovery, found: list[LocalError]) -> None:
     """The unresolved period's group gets the local errors that would fit as well as rivals
     (`local_rivals`: sentence and region, mm): what the campaign shows there is either."""
-    entry = next((u for u in result.unresolved if "periodic_lead" in u["effects"]), None)
-    if entry is None:
+    at = next((i for i, u in enumerate(result.unresolved) if "periodic_lead" in u.effects), None)
+    if at is None:
         return
-    rivals = entry.setdefault("local_rivals", [])
+    entry = result.unresolved[at]
+    rivals = list(entry.local_rivals)
     for local in found:
-        region = [round(v, 1) for v in local.region_mm]
-        if all(r["region_mm"] != region for r in rivals):
-            rivals.append({"sentence": local.sentence(), "region_mm": region})
-    said = ", ".join(f"{r['region_mm'][0]:g}–{r['region_mm'][1]:g} {result_unit(found)}" for r in rivals)
-    if "denser targets over" not in entry["how_to_tell"]:
-        entry["how_to_tell"] = (f"{entry['how_to_tell']}; or a local error at {said}: denser targets over it tell "
-                                "a wave from a local error")
+        lo, hi = (round(v, 1) for v in local.region_mm)
+        if all(r.region_mm != (lo, hi) for r in rivals):
+            rivals.append(LocalRival(local.sentence(), (lo, hi)))
+    said = ", ".join(f"{r.region_mm[0]:g}–{r.region_mm[1]:g} {result_unit(found)}" for r in rivals)
+    how = entry.how_to_tell
+    if "denser targets over" not in how:
+        how = f"{how}; or a local error at {said}: denser targets over it tell a wave from a local error"
+    result.unresolved[at] = replace(entry, local_rivals=tuple(rivals), how_to_tell=how)
 
 
 def result_unit(found: list[LocalError]) -> str:
@@ -564,7 +567,7 @@ def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]
     rest is left out. None when none is left, or when an unresolved period stays beside them (the
     local error may be that period seen at few targets: said in a note)."""
     again = search_vocabulary(data, model, given, [local.term for local in found])
-    if periodic and any("periodic_lead" in u["effects"] for u in again.unresolved):
+    if periodic and any("periodic_lead" in u.effects for u in again.unresolved):
         _note(vocabulary.notes, f"{found[0].sentence()} would fit too, but the unresolved periodic error is still "
                                 "there beside it: it may be that error seen at few targets, so it is not added")
         add_local_rivals(vocabulary, found)
@@ -603,13 +606,13 @@ def beside_unresolved_period(data: CampaignData, result: Discovery) -> Discovery
     1 µm, 10 mm lead its P3 came out about 0.3 µm low on every seed. The aliases agree at the
     targets, so the bow beside any of them is much the same. The gap stays that of the model
     without a period (nothing is added for it)."""
-    entry = next((u for u in result.unresolved if u["effects"] == ["periodic_lead"] and u.get("periods_mm")), None)
+    entry = next((u for u in result.unresolved if u.effects == ("periodic_lead",) and u.periods_mm), None)
     cand = next((c for c in result.remaining if c.name == "periodic_lead" and c.fit is not None), None)
     if entry is None or cand is None:
         return result
     free = [t for t in result.final.terms if not t.fixed and t.name in EFFECT_PARAMS]
     fits = [(result.final, -cand.delta_bic)]
-    for period, delta in zip(entry["periods_mm"], entry["delta_bic"]):
+    for period, delta in zip(entry.periods_mm or (), entry.period_delta_bic):
         fits.append((linear_fit(data, [*result.final.terms, Term("periodic_lead", {"period_mm": period}, False,
                                                                      {"period_mm": period})]), delta))
     weights = np.exp(-(np.array([d for _, d in fits]) - min(d for _, d in fits)) / 2)
@@ -630,11 +633,10 @@ def beside_unresolved_period(data: CampaignData, result: Discovery) -> Discovery
                 errors[key] = math.hypot(beside[term.name][key], spread)
         result.averaged[term.name] = averaged
         result.errors[term.name] = errors
-        for step in result.steps:
-            if step.effect == term.name:
-                step.params, step.errors = dict(averaged), dict(errors)
+        result.steps[:] = [replace(step, params=dict(averaged), errors=dict(errors)) if step.effect == term.name
+                           else step for step in result.steps]
         if term.name in result.starting:
-            result.starting[term.name].update(params=averaged, errors=errors)
+            result.starting[term.name] = replace(result.starting[term.name], params=averaged, errors=errors)
     _note(result.notes, f"the named effects' values are fitted beside each of the {len(fits) - 1} candidate periods "
                         "of the unresolved periodic error and averaged (weights exp(-ΔBIC/2)), their errors include "
                         "the spread over them: left out, the wave's values at the targets would bias the bow")
@@ -657,8 +659,8 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
     start = refine(data, start_terms(model, given, data, notes) + list(extra or []))
     current = start
     steps: list[Step] = []
-    choices: list[dict[str, Any]] = []
-    unresolved: list[dict[str, Any]] = []
+    choices: list[Choice] = []
+    unresolved: list[Unresolved] = []
     ranking: list[Candidate] = []
     remaining: list[Candidate] = []
     remaining_beside = None
@@ -683,7 +685,7 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
             held = [c for c in held if c.name in own]
             others.sort(key=lambda c: (c.fit is None, c.delta_bic))
             chosen, more = choose(data, stand_in.fitted, others, notes)
-            unresolved = [u for u in unresolved if set(u["effects"]) & own] + more
+            unresolved = [u for u in unresolved if set(u.effects) & own] + more
             ranking = [*held, *others]
             if chosen is not None:
                 _note(notes, f"{chosen.name} was tested beside the unresolved {stand_in.name} (as a stand-in, "
@@ -703,7 +705,7 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
         choice = air_or_screw(data, ranking, chosen, len(steps) + 1)
         if choice:
             choices.append(choice)
-            _note(notes, choice["why"])
+            _note(notes, choice.why)
         after = refine(data, chosen.fitted.terms)
         if chosen.periods:
             spreads[chosen.name] = period_spread_mm(chosen.periods)
@@ -712,8 +714,8 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
         steps.append(Step(chosen.name, after.params()[chosen.name], current.rms_um(data.y), after.rms_um(data.y),
                           ranking, data.y - current.prediction, data.y - after.prediction, errors))
         current = after
-    kept: dict[str, Any] | None = None
-    group = next((u for u in unresolved if "backlash" in u["effects"] and set(u["effects"]) <= STAND_IN_RIVALS),
+    kept: StandIn | None = None
+    group = next((u for u in unresolved if "backlash" in u.effects and set(u.effects) <= STAND_IN_RIVALS),
                  None)
     backlash = next((c for c in remaining if c.name == "backlash" and c.fit is not None), None)
     if remaining_beside is not None and group is not None and backlash is not None and not waits_vary(data):
@@ -723,10 +725,10 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
         current = refine(data, backlash.fitted.terms)
         b_um = current.params()["backlash"]["b_um"]  # in the deviation unit (µm, arcsec)
         dev = data.deviation_unit
-        kept = {"effect": "backlash", "rivals": list(group["effects"]),
-                "observable": f"a reversal of {abs(b_um):.1f} {dev} between the directions (x̄↑ − x̄↓ = "
-                              f"{-b_um:+.1f} {dev}): backlash, or settling not died out; cannot tell which",
-                "params": current.params()["backlash"], "gap_without_um": without}
+        kept = StandIn("backlash", group.effects,
+                       f"a reversal of {abs(b_um):.1f} {dev} between the directions (x̄↑ − x̄↓ = "
+                       f"{-b_um:+.1f} {dev}): backlash, or settling not died out; cannot tell which",
+                       current.params()["backlash"], without)
     current = drop_failing(data, current, steps, notes)
     all_errors = standard_errors(data, current)
     for name in all_errors:
@@ -766,7 +768,7 @@ look-elsewhere factor, the usual 5 %)."""
 
 
 def starting_report(data: CampaignData, start: Fit, final: Fit, errors: dict[str, dict[str, float]],
-                    given: dict[str, set[str]]) -> dict[str, dict]:
+                    given: dict[str, set[str]]) -> dict[str, StartingEffect]:
     """The starting model's effects as fitted at the end (beside the named effects): their
     parameters and errors, the parameters the model gave, and whether each fitted effect differs
     from zero (nested F-test of the final fit against it left out)."""
@@ -775,35 +777,30 @@ def starting_report(data: CampaignData, start: Fit, final: Fit, errors: dict[str
     for term in start.terms:
         if term.name not in EFFECT_PARAMS:
             continue  # a local error found earlier: reported on its own
-        entry: dict = {"given": sorted(given.get(term.name, set()) & set(EFFECT_PARAMS.get(term.name, {}))),
-                       "fixed": term.fixed, "params": params.get(term.name, dict(term.held))}
+        entry = StartingEffect(tuple(sorted(given.get(term.name, set()) & set(EFFECT_PARAMS.get(term.name, {})))),
+                               term.fixed, params.get(term.name, dict(term.held)))
         if not term.fixed:
             reduced = linear_fit(data, [t for t in final.terms if t.name != term.name])
             p_value = f_test_p(reduced, final, n)
-            entry.update(errors=errors.get(term.name, {}), p_value=p_value, significant=p_value < SIGNIFICANT)
+            entry = replace(entry, errors=errors.get(term.name, {}), p_value=p_value,
+                            significant=p_value < SIGNIFICANT)
         out[term.name] = entry
     return out
 
 
-DWELLS_HOW_TO_TELL = (
-    "a campaign whose wait before each capture varies over a decade (fixed dwells from 0.5 s to 5 s, "
-    "e.g. two campaigns with --capture dwell at dwell_s = 0.5 and 5): settling fades with the wait, "
-    "backlash does not")
-HOW_TO_TELL = {
-    frozenset({"settling", "backlash"}): DWELLS_HOW_TO_TELL,
-    frozenset({"settling", "position_dependent_backlash"}): DWELLS_HOW_TO_TELL,
-    frozenset({"backlash", "position_dependent_backlash"}): (
-        "both directions at targets over the whole travel: a reversal that grows along the travel is "
-        "position_dependent_backlash, a constant one backlash"),
-    frozenset({"periodic_lead", "nonlinear_lead"}): (
-        "more targets (at least 4 per screw lead over part of the travel, offsets = \"golden\"), or the known "
-        "screw lead in the model (periodic_lead.period_mm) so that only its amplitude is fitted"),
-    frozenset({"thermal_drift", "linear_scale"}): "more runs over a longer time: a drift changes from run to run",
-    frozenset({"thermal_drift", "linear_drift"}): (
-        "a longer campaign (several of the drift's time constants, or a second campaign later): an exponential "
-        "growth levels off, a linear one does not"),
-}
-"""What campaign separates two effects that explain the same residual."""
+DWELLS_HOW_TO_TELL = effect("settling").rivals["backlash"]
+
+
+def how_to_tell_pairs() -> dict[frozenset[str], str]:
+    """What campaign separates two effects that explain the same residual: every effect's `rivals`
+    (campaign/effects/), one entry a pair."""
+    return {frozenset({e.name, other}): text for e in effects() for other, text in e.rivals.items()}
+
+
+HOW_TO_TELL = how_to_tell_pairs()
+"""What campaign separates two effects that explain the same residual, for the effects registered
+when this module was imported (`how_to_tell` asks `how_to_tell_pairs()`, which an effect registered
+later is in)."""
 HOW_TO_TELL_DEFAULT = ("a campaign that varies what separates them: more runs over a longer time for time "
                        "effects, more targets for effects along the travel, varied dwells for settling")
 PERIOD_HOW_TO_TELL = ("more targets (at least 4 per screw lead over part of the travel), a denser offset pattern "
@@ -816,7 +813,7 @@ CONFOUNDED_PAIRS = {frozenset({"environment", "thermal_drift"}), frozenset({"env
 
 
 def choose(data: CampaignData, current: Fit, ranking: list[Candidate],
-           notes: list[str]) -> tuple[Candidate | None, list[dict]]:
+           notes: list[str]) -> tuple[Candidate | None, list[Unresolved]]:
     """The candidate to name at this step, and what cannot be resolved: a periodic error whose
     period is not identifiable, and groups of candidates that explain the same residual about
     equally well (rivals). Neither a rival nor an unidentifiable period is named; the other
@@ -847,9 +844,9 @@ def choose(data: CampaignData, current: Fit, ranking: list[Candidate],
     return None, unresolved
 
 
-LIMIT_OF = {"thermal_drift": "linear_drift"}
+LIMIT_OF: RegistryView[str] = RegistryView(lambda e: e.tends_to)
 """Effect -> the effect that is its limit (an exponential growth whose time constant is far beyond
-the campaign is a linear drift)."""
+the campaign is a linear drift): each effect's `tends_to`."""
 
 
 def gated_out(cand: Candidate, best: Candidate) -> bool:
@@ -863,7 +860,7 @@ def gated_out(cand: Candidate, best: Candidate) -> bool:
 
 
 def hold_reversal(backlash: Candidate, ranking: list[Candidate], data: CampaignData, n: int,
-                  unresolved: list[dict]) -> list[Candidate]:
+                  unresolved: list[Unresolved]) -> list[Candidate]:
     """At a constant (or unrecorded) wait before each capture, settling leaves a constant offset per
     direction: exactly a backlash. The reversal is listed as unresolved, not named; so is a
     position-dependent backlash whose growth is not significant (it is the same reversal). A
@@ -872,13 +869,12 @@ def hold_reversal(backlash: Candidate, ranking: list[Candidate], data: CampaignD
     size = f"a reversal of {b:+.3g} µm" if b is not None else "a reversal"
     wait = ("no wait before capture is recorded" if data.w is None else
             f"the wait before every capture is about {float(np.nanmean(data.w)):.2g} s")
-    unresolved.append({
-        "effects": ["backlash", "settling"],
-        "why": f"{size} between the directions (backlash explains {backlash.explained_pct:.1f} %, ΔBIC "
-               f"{backlash.delta_bic:.1f}), but {wait}: settling that has not died out leaves the same constant "
-               "offset per direction, so this campaign cannot tell backlash from settling and names neither",
-        "how_to_tell": DWELLS_HOW_TO_TELL,
-        "delta_bic": {"backlash": round(backlash.delta_bic, 2)}})
+    unresolved.append(Unresolved(
+        ("backlash", "settling"),
+        f"{size} between the directions (backlash explains {backlash.explained_pct:.1f} %, ΔBIC "
+        f"{backlash.delta_bic:.1f}), but {wait}: settling that has not died out leaves the same constant "
+        "offset per direction, so this campaign cannot tell backlash from settling and names neither",
+        DWELLS_HOW_TO_TELL, {"backlash": round(backlash.delta_bic, 2)}))
     backlash.verdict = "not told apart from settling (the wait before capture does not vary)"
     held = [backlash]
     for cand in ranking:
@@ -935,7 +931,7 @@ def how_to_tell(names: list[str]) -> str:
     texts, unknown = [], False
     for i, a in enumerate(names):
         for b in names[i + 1:]:
-            text = HOW_TO_TELL.get(frozenset({a, b}))
+            text = how_to_tell_pairs().get(frozenset({a, b}))
             unknown |= text is None
             if text is not None and text not in texts:
                 texts.append(text)
@@ -949,30 +945,28 @@ def said_list(names: list[str]) -> str:
     return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
 
 
-def rival_entry(best: Candidate, rivals: list[Candidate]) -> dict:
+def rival_entry(best: Candidate, rivals: list[Candidate]) -> Unresolved:
     """The `unresolved` record of candidates that explain the same residual."""
     group = [best, *rivals]
     said = "; ".join(f"{c.name} explains {c.explained_pct:.1f} % (ΔBIC {c.delta_bic:.1f})" for c in group)
     names = [c.name for c in group]
     none = "neither is named" if len(names) == 2 else "none of them is named"
-    return {"effects": names,
-            "why": f"{said_list(names)} explain the same part of the residual about equally well ({said}), "
-                   f"and together no better than one alone: this campaign cannot tell which it is, so {none}",
-            "how_to_tell": how_to_tell(names),
-            "delta_bic": {c.name: round(c.delta_bic, 2) for c in group}}
+    return Unresolved(tuple(names),
+                      f"{said_list(names)} explain the same part of the residual about equally well ({said}), "
+                      f"and together no better than one alone: this campaign cannot tell which it is, so {none}",
+                      how_to_tell(names), {c.name: round(c.delta_bic, 2) for c in group})
 
 
-def period_entry(cand: Candidate, data: CampaignData) -> dict:
+def period_entry(cand: Candidate, data: CampaignData) -> Unresolved:
     """The `unresolved` record of a periodic error whose period is not identifiable."""
     shown = ", ".join(f"{p:.4g} mm (ΔBIC {d:+.1f})" for p, d in cand.periods[:6])
     targets = len(np.unique(np.round(data.x, 6)))
-    return {"effects": ["periodic_lead"],
-            "why": f"a periodic error explains {cand.explained_pct:.1f} % of the residual, but its period is not "
-                   f"identifiable: {len(cand.periods)} periods fit about as well ({shown}); with {targets} targets "
-                   "a screw lead aliases to other periods",
-            "how_to_tell": PERIOD_HOW_TO_TELL,
-            "periods_mm": [round(p, 4) for p, _ in cand.periods],
-            "delta_bic": [round(d, 2) for _, d in cand.periods]}
+    return Unresolved(("periodic_lead",),
+                      f"a periodic error explains {cand.explained_pct:.1f} % of the residual, but its period is not "
+                      f"identifiable: {len(cand.periods)} periods fit about as well ({shown}); with {targets} targets "
+                      "a screw lead aliases to other periods",
+                      PERIOD_HOW_TO_TELL, periods_mm=tuple(round(p, 4) for p, _ in cand.periods),
+                      period_delta_bic=tuple(round(d, 2) for _, d in cand.periods))
 
 
 PLAUSIBLE_SHARE = 0.5
@@ -980,7 +974,7 @@ PLAUSIBLE_SHARE = 0.5
 of what the chosen candidate explains."""
 
 
-def air_or_screw(data: CampaignData, ranking: list[Candidate], chosen: Candidate, step: int) -> dict | None:
+def air_or_screw(data: CampaignData, ranking: list[Candidate], chosen: Candidate, step: int) -> Choice | None:
     """When environment and thermal_drift both explain the run-to-run slope change at this step,
     which one is chosen and why: the fit of the log against the exponential in time (ΔBIC), and
     the pivot of the slope change (air index: the laser datum; screw growth: its fixed bearing)."""
@@ -1019,11 +1013,8 @@ def air_or_screw(data: CampaignData, ranking: list[Candidate], chosen: Candidate
     gated = f"; {other.name} is {other.verdict}" if other.verdict.startswith("not named") else ""
     why = (f"environment and thermal_drift both explain the run-to-run slope change (step {step}); "
            f"chose {chosen.name}: {fit_why}, by {margin:.1f} in BIC; {pivot_why}{gated}")
-    return {"step": step, "chosen": chosen.name, "other": other.name, "pivot_mm": round(pivot, 1),
-            "pivot_at_laser_datum": bool(at_datum), "environment_explained_pct": round(env.explained_pct, 2),
-            "thermal_drift_explained_pct": round(thermal.explained_pct, 2),
-            "delta_bic_environment": round(env.delta_bic, 2), "delta_bic_thermal_drift": round(thermal.delta_bic, 2),
-            "why": why}
+    return Choice(step, chosen.name, other.name, round(pivot, 1), bool(at_datum), round(env.explained_pct, 2),
+                  round(thermal.explained_pct, 2), round(env.delta_bic, 2), round(thermal.delta_bic, 2), why)
 
 
 def steps_ranking_note(notes: list[str], ranking: list[Candidate], beside: str | None) -> None:

@@ -1,0 +1,116 @@
+"""What discovery reports, as typed records: an unresolved group (and a local error that rivals
+it), the stand-in a reversal of unknown cause is held by, the starting model's effects as fitted,
+and the choice between the air log and screw growth. Each has `as_dict`, its JSON object
+(`axiscal discover --json`, docs/discovery.md), keys in the order they have always had.
+
+Units: deviations µm (the axis's deviation unit), positions mm (its position unit).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+
+@dataclass(frozen=True)
+class LocalRival:
+    """A local error that would fit as well as an unresolved period: what it is, in words, and
+    where (from, to)."""
+
+    sentence: str
+    region_mm: tuple[float, float]
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"sentence": self.sentence, "region_mm": list(self.region_mm)}
+
+
+@dataclass(frozen=True)
+class Unresolved:
+    """Effects the campaign cannot tell apart or pin down, none of them named: which (`effects`),
+    why, the campaign that would tell (`how_to_tell`), and the evidence: each effect's ΔBIC
+    (`delta_bic`), or for a period that is not identifiable its candidate periods, best first
+    (`periods_mm`) with their ΔBIC to the best (`period_delta_bic`); the local errors that would
+    fit as well (`local_rivals`)."""
+
+    effects: tuple[str, ...]
+    why: str
+    how_to_tell: str
+    delta_bic: Mapping[str, float] = field(default_factory=dict)
+    periods_mm: tuple[float, ...] | None = None
+    period_delta_bic: tuple[float, ...] = ()
+    local_rivals: tuple[LocalRival, ...] = ()
+
+    def as_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"effects": list(self.effects), "why": self.why, "how_to_tell": self.how_to_tell}
+        if self.periods_mm is not None:
+            out.update(periods_mm=list(self.periods_mm), delta_bic=list(self.period_delta_bic))
+        else:
+            out["delta_bic"] = dict(self.delta_bic)
+        if self.local_rivals:
+            out["local_rivals"] = [r.as_dict() for r in self.local_rivals]
+        return out
+
+
+@dataclass(frozen=True)
+class StandIn:
+    """Rivals that predict the same deviation wherever the campaign's axis is used (backlash and
+    settling at a constant wait): `effect`, the one in the final model in their place (not named);
+    what the data show, in words (`observable`); the `rivals`; its fitted `params`; and the gap had
+    nothing been added for it (`gap_without_um`)."""
+
+    effect: str
+    rivals: tuple[str, ...]
+    observable: str
+    params: Mapping[str, float]
+    gap_without_um: float
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"effect": self.effect, "rivals": list(self.rivals), "observable": self.observable,
+                "params": {k: round(float(v), 4) for k, v in self.params.items()},
+                "gap_without_um": round(self.gap_without_um, 4)}
+
+
+@dataclass(frozen=True)
+class StartingEffect:
+    """An effect of the starting model as fitted at the end, beside the named effects: the
+    parameters the model gave (`given`), whether all were (`fixed`: held, not fitted), its
+    parameters and their 1-σ errors, and for a fitted one the F-test of the final fit against it left
+    out (`p_value`) and whether it differs from zero (`significant`)."""
+
+    given: tuple[str, ...]
+    fixed: bool
+    params: Mapping[str, float]
+    errors: Mapping[str, float] = field(default_factory=dict)
+    p_value: float | None = None
+    significant: bool | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"given": list(self.given), "fixed": self.fixed,
+                               "params": {k: round(float(v), 4) for k, v in self.params.items()}}
+        if self.p_value is not None:
+            out.update(significant=self.significant,
+                       standard_errors={k: float(f"{v:.3g}") for k, v in self.errors.items()},
+                       p_value=float(f"{self.p_value:.3g}"))
+        return out
+
+
+@dataclass(frozen=True)
+class Choice:
+    """Where environment and thermal_drift both explained the run-to-run slope change at a step:
+    which was chosen, the other, thermal_drift's pivot (mm) and whether it is at the laser datum,
+    what each explains (%) and its ΔBIC, and why, in words."""
+
+    step: int
+    chosen: str
+    other: str
+    pivot_mm: float
+    pivot_at_laser_datum: bool
+    environment_explained_pct: float
+    thermal_drift_explained_pct: float
+    delta_bic_environment: float
+    delta_bic_thermal_drift: float
+    why: str
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
