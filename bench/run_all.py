@@ -16,9 +16,10 @@ HERE = Path(__file__).parent
 SCRIPTS = (("demo_wall_time.py",), ("stable_vs_dwell.py",), ("compensation.py",),
            ("compensation.py", "--smooth", "none"), ("compensation.py", "--cycles", "10"), ("import_stream.py",),
            ("smoothing.py",), ("startup.py",), ("history.py",), ("fake_machine.py",), ("scan.py",),
-           ("discovery_draws.py",), ("history_drawn.py",), ("history_plant.py",), ("history_seeds.py",))
-"""Each benchmark script with its options, run in turn. The last five print their figures (scan
-and discovery_draws also write bench/results/*.json); the summary quotes the others."""
+           ("discovery_draws.py",), ("history_drawn.py",), ("history_plant.py",), ("history_seeds.py",),
+           ("scan_run.py",))
+"""Each benchmark script with its options, run in turn. The last six print their figures (scan,
+scan_run and discovery_draws also write bench/results/*.json); the summary quotes the others."""
 SEPARATE = {"discovery_dense.py": "at its goal's 100,000 rows it would run 50 minutes or more here (4,000 rows "
                                   "took 120 s on the 2-core machine, the README's row; not run at 100,000): run "
                                   "it by hand, `bench/discovery_dense.py --rows N`"}
