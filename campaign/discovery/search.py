@@ -58,6 +58,7 @@ from campaign.discovery.fit import (
     standard_errors,
 )
 from campaign.discovery.local import LocalError, find_locals, look_elsewhere, passes, refit_local
+from campaign.discovery.locate import Located, locate
 from campaign.errors import InputError
 from campaign.model import DEFAULTS, EFFECT_PARAMS, ErrorModel
 
@@ -172,6 +173,11 @@ class Discovery:
     starting: dict[str, dict] = field(default_factory=dict)
     """The starting model's effects, as fitted at the end: params, errors, given (the keys the
     model gave), fixed, p_value (F-test of the effect against none of it) and significant."""
+    located_before: Located | None = None
+    """Where the campaign departs from the starting model beyond the noise, model-free
+    (campaign.discovery.locate), before anything is named."""
+    located_after: Located | None = None
+    """The same for the final model: what it leaves unexplained, with its regions."""
 
     @property
     def local(self) -> LocalError | None:
@@ -513,7 +519,10 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
         for name in dropped:
             _note(routes[best].notes, f"{name} explained part of the residual before the local errors were located; "
                                       "beside them it is not significant: not named (it soaked up a local error)")
-    return beside_unresolved_period(data, routes[best])
+    result = beside_unresolved_period(data, routes[best])
+    result.located_before = locate(data, data.y - result.start.prediction)
+    result.located_after = locate(data, data.y - result.final.prediction)
+    return result
 
 
 def _same_places(a: list[LocalError], b: list[LocalError]) -> bool:
