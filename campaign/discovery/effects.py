@@ -361,33 +361,40 @@ def _local_columns(kind: str, by_direction: bool) -> Callable[[CampaignData, Sha
     return columns
 
 
-def region_basis(x: np.ndarray, start_mm: float, end_mm: float, pieces: int, open_end: bool = True) -> np.ndarray:
+def region_basis(x: np.ndarray, start_mm: float, end_mm: float, pieces: int, open_end: bool = True,
+                 open_start: bool = False) -> np.ndarray:
     """A local term whose shape follows the data over [start_mm, end_mm]: cubic B-splines on `pieces`
     equal intervals, without the two that are not flat at the start (so the term and its slope are
     zero there and before it). open_end: each is held at its end value beyond the end (a step's level
-    goes on; pieces + 1 columns); otherwise the two not flat at the end go too, and the term is zero
-    after it (a bump of any shape; pieces - 1 columns, pieces at least 2)."""
+    goes on); otherwise the two not flat at the end go too, and the term is zero after it (a bump of
+    any shape). open_start: the two at the start stay (a region that begins at the first target, where
+    nothing is measured before it). pieces + 3 columns less two for each closed side (pieces at least
+    2 when both are closed)."""
     from scipy.interpolate import BSpline
 
-    pieces = max(int(pieces), 1 if open_end else 2)
+    pieces = max(int(pieces), 1 if open_end or open_start else 2)
     inner = np.linspace(start_mm, end_mm, pieces + 1)
     knots = np.r_[[start_mm] * 3, inner, [end_mm] * 3]
     u = np.clip(np.asarray(x, dtype=float), start_mm, end_mm)
-    cols = BSpline.design_matrix(u, knots, 3).toarray()[:, 2:]
-    cols[np.asarray(x) < start_mm] = 0.0
+    cols = BSpline.design_matrix(u, knots, 3).toarray()
+    if not open_start:
+        cols = cols[:, 2:]
+        cols[np.asarray(x) < start_mm] = 0.0
     return cols if open_end else cols[:, :-2]
 
 
 def _region_columns(side: int) -> Callable[[CampaignData, Shape, Shape], np.ndarray]:
     def columns(data: CampaignData, shape: Shape, held: Shape) -> np.ndarray:
-        g = region_basis(data.x, shape["start_mm"], shape["end_mm"], int(shape["pieces"]), shape["open_end"] > 0)
+        g = region_basis(data.x, shape["start_mm"], shape["end_mm"], int(shape["pieces"]), shape["open_end"] > 0,
+                         shape.get("open_start", 0.0) > 0)
         return g if side == 0 else g * (data.d * side > 0)[:, None]
     return columns
 
 
 def _region_params(c: np.ndarray, shape: Shape, held: Shape) -> dict[str, float]:
     grid = np.linspace(shape["start_mm"], shape["end_mm"], 201)
-    values = region_basis(grid, shape["start_mm"], shape["end_mm"], int(shape["pieces"]), shape["open_end"] > 0) @ c
+    values = region_basis(grid, shape["start_mm"], shape["end_mm"], int(shape["pieces"]), shape["open_end"] > 0,
+                         shape.get("open_start", 0.0) > 0) @ c
     k = int(np.argmax(np.abs(values)))
     return {"peak_um": float(values[k]), "peak_at_mm": float(grid[k]), "level_after_um": float(values[-1]),
             **shape}

@@ -59,7 +59,7 @@ from campaign.discovery.fit import (
 )
 from campaign.discovery.local import LocalError, find_locals, look_elsewhere, passes, refit_local
 from campaign.discovery.locate import Located, locate
-from campaign.discovery.unexplained import describe_region, region_terms
+from campaign.discovery.unexplained import describe_region, region_terms, wave_over_part
 from campaign.errors import InputError
 from campaign.model import DEFAULTS, EFFECT_PARAMS, ErrorModel
 
@@ -404,6 +404,8 @@ def gate_failures(data: CampaignData, fit: Fit, name: str) -> list[str]:
                and not lo <= params[k] <= hi]
     if outside:
         out.append(f"not physical: {', '.join(outside)}")
+    if name == "periodic_lead" and (partial := wave_over_part(data, fit)):
+        out.append(partial)
     return out
 
 

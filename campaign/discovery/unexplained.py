@@ -58,8 +58,10 @@ def region_term(data: CampaignData, region: Region, index: int) -> Term | None:
     step = region.shape in ("step", "slope change")
     pieces = int(np.clip(inside // 2, 1 if step else 2, MAX_PIECES))
     name = "local_region" + SIDES.get(region.direction, "") + (f"#{index}" if index > 1 else "")
+    at_end = end >= float(targets[-1])  # nothing is measured beyond the travel: no side to close there
     return Term(name, {}, False, {"start_mm": start, "end_mm": end, "pieces": float(pieces),
-                                  "open_end": 1.0 if step else 0.0})
+                                  "open_end": 1.0 if step or at_end else 0.0,
+                                  "open_start": 1.0 if start <= float(targets[0]) else 0.0})
 
 
 def is_region(term: Term) -> bool:
@@ -97,10 +99,12 @@ def describe_region(data: CampaignData, fit: Fit, name: str, without: Fit) -> Lo
     cov = np.linalg.pinv(a.T @ a) * fit.rss / max(n - p, 1)
     block = cov[slices[i], slices[i]]
     at = np.array([params["peak_at_mm"]])
-    b = region_basis(at, shape["start_mm"], shape["end_mm"], int(shape["pieces"]), shape["open_end"] > 0)[0]
+    b = region_basis(at, shape["start_mm"], shape["end_mm"], int(shape["pieces"]), shape["open_end"] > 0,
+                     shape.get("open_start", 0.0) > 0)[0]
     peak_error = float(math.sqrt(max(float(b @ block @ b), 0.0)))
     grid = np.linspace(shape["start_mm"], shape["end_mm"], 201)
-    values = region_basis(grid, shape["start_mm"], shape["end_mm"], int(shape["pieces"]), shape["open_end"] > 0) @ coefs
+    values = region_basis(grid, shape["start_mm"], shape["end_mm"], int(shape["pieces"]), shape["open_end"] > 0,
+                     shape.get("open_start", 0.0) > 0) @ coefs
     stepped = abs(params["level_after_um"]) >= 0.5 * abs(params["peak_um"])
     where = (float(grid[int(np.argmax(np.abs(np.diff(values))))]) if stepped else params["peak_at_mm"])
     direction = {"local_region_plus": "+", "local_region_minus": "-"}.get(name.split("#")[0], "both")
@@ -131,3 +135,52 @@ def describe_region(data: CampaignData, fit: Fit, name: str, without: Fit) -> Lo
                       time_change_error_um=float(math.sqrt(max(change_cov[-1, -1], 0.0))),
                       position_unit=data.position_unit, deviation_unit=data.deviation_unit, kind="region")
 
+
+
+SECTIONS = 3
+"""A screw lead's periodic error is looked at in this many sections of the travel (equal numbers of
+targets)."""
+SECTION_SIGMAS = 3.0
+"""A wave whose amplitude differs between two sections by more than this many standard errors of the
+difference, the smaller under half the larger, is in part of the travel only."""
+
+
+def wave_over_part(data: CampaignData, fit: Fit, name: str = "periodic_lead") -> str | None:
+    """Is the periodic term `name` of `fit` a wave over part of the travel only (not a screw lead,
+    whose error repeats on every turn)? Its sine and cosine fitted per section of the travel
+    (SECTIONS) beside the rest of the model: why, in words, when the amplitudes differ (SECTION_SIGMAS)
+    and the smaller is under half the larger; None otherwise."""
+    i = next((k for k, t in enumerate(fit.terms) if t.name == name), None)
+    if i is None or fit.terms[i].fixed:
+        return None
+    term = fit.terms[i]
+    targets = _targets(data)
+    if len(targets) < 3 * SECTIONS:
+        return None
+    edges = np.quantile(targets, np.linspace(0, 1, SECTIONS + 1))
+    section = np.clip(np.searchsorted(edges, data.x, side="right") - 1, 0, SECTIONS - 1)
+    cols = term.columns(data)
+    split = np.column_stack([cols * (section == k)[:, None] for k in range(SECTIONS)])
+    others = [t for t in fit.terms if t is not term]
+    a, _ = design(data, others)
+    base = fixed_deviation(data, others)
+    full = np.column_stack([a, split])
+    beta = np.linalg.lstsq(full, data.y - base, rcond=None)[0]
+    rss = float(np.sum((data.y - base - full @ beta) ** 2))
+    n, p = full.shape
+    cov = np.linalg.pinv(full.T @ full) * rss / max(n - p, 1)
+    width = cols.shape[1]
+    amps, errs = [], []
+    for k in range(SECTIONS):
+        j = a.shape[1] + width * k
+        c = beta[j:j + width]
+        amp = float(np.hypot(*c)) if width == 2 else float(abs(c[0]))
+        g = c / amp if amp > 0 else np.ones(width) / math.sqrt(width)
+        amps.append(amp)
+        errs.append(float(math.sqrt(max(float(g @ cov[j:j + width, j:j + width] @ g), 0.0))))
+    hi, lo = int(np.argmax(amps)), int(np.argmin(amps))
+    if amps[lo] < 0.5 * amps[hi] and amps[hi] - amps[lo] > SECTION_SIGMAS * math.hypot(errs[hi], errs[lo]):
+        said = ", ".join(f"{a:.2g} ± {e:.2g}" for a, e in zip(amps, errs))
+        return (f"a wave over part of the travel only (amplitude by {SECTIONS} sections: {said} "
+                f"{data.deviation_unit}): a screw lead repeats on every turn")
+    return None
