@@ -110,7 +110,12 @@ class LocalError:
         """Which directions show it, in words: what was seen in each."""
         p, e, dev = self.params, self.errors, self.deviation_unit
         if self.kind == "region":
-            return {"+": "the + direction only", "-": "the − direction only"}.get(self.directions, "both directions")
+            if self.directions not in ("+", "-"):
+                return "both directions"
+            seen, other = ("+", "−") if self.directions == "+" else ("−", "+")
+            below = "below 3σ" if abs(p.get("other_um", 0.0)) < 3 * e.get("other_um", math.inf) else "also"
+            return (f"seen in the {seen} direction; in the {other} direction {below} ({p.get('other_um', math.nan):+.2g} "
+                    f"± {e.get('other_um', math.nan):.2g} {dev})")
         if "plus_um" not in p:
             return "both directions"
         if self.directions == "both":

@@ -378,6 +378,9 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
     failed += gates
     if not failed and len(periods) > 1 and periods[1][1] < RIVAL_MARGIN:
         cand.verdict = "period not identifiable"
+    elif not failed and name == "periodic_lead" and (partial := wave_over_part(data, best)):
+        cand.verdict = f"not named ({partial})"  # an identified period whose wave is not on every turn
+        failed.append(partial)
     if env_note and not failed:  # which log it follows matters only when it explains something
         _note(notes, *env_note)
     return cand
@@ -404,8 +407,6 @@ def gate_failures(data: CampaignData, fit: Fit, name: str) -> list[str]:
                and not lo <= params[k] <= hi]
     if outside:
         out.append(f"not physical: {', '.join(outside)}")
-    if name == "periodic_lead" and (partial := wave_over_part(data, fit)):
-        out.append(partial)
     return out
 
 
@@ -621,7 +622,10 @@ def unnamed_beside_regions(data: CampaignData, result: Discovery) -> Discovery:
     found (campaign.discovery.unexplained, each passing its tests); when that model's
     leave-one-target-out CV is not above the named one's, the effect is not named and the regions
     stay in the model as unexplained local errors (a note says so), in place of the effect and of any
-    bump or step term beside it."""
+    bump or step term beside it. Not beside an unresolved period: the regions may be that period seen
+    at few targets."""
+    if any("periodic_lead" in u["effects"] for u in result.unresolved):
+        return result
     for step in list(result.steps):
         name = step.effect
         if name not in {t.name for t in result.final.terms}:
@@ -661,13 +665,15 @@ def with_regions(data: CampaignData, model: ErrorModel, given: dict[str, set[str
     """The route of unexplained local errors (campaign.discovery.unexplained): a local term whose shape
     follows the data over each region the locator found beside the starting model (each kept only
     when it passes the tests), the vocabulary searched beside them, then each term tested again beside
-    what is named. None when none is left, or when an unresolved period stays beside them (as for
-    with_locals: they become its rivals)."""
+    what is named. None when none is left, or when the vocabulary left a period unresolved (the
+    regions may be that period seen at few targets: with_locals makes them its rivals)."""
+    if periodic:  # a region may be the unresolved period seen at few targets (with_locals says so)
+        return None
     terms = region_terms(data, vocabulary.start, located)
     if not terms:
         return None
     again = search_vocabulary(data, model, given, terms)
-    if periodic and any("periodic_lead" in u["effects"] for u in again.unresolved):
+    if any("periodic_lead" in u["effects"] for u in again.unresolved):
         return None
     final, kept = again.final, []
     for term in terms:

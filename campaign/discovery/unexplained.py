@@ -123,9 +123,18 @@ def describe_region(data: CampaignData, fit: Fit, name: str, without: Fit) -> Lo
     grown = Fit(fit.terms, fit.coefs, fit.offset_um, prediction, rss, fit.n_params + 1, fit.offsets_um)
     time_p = f_test_p(fit, grown, n)
     change_cov = np.linalg.pinv(full.T @ full) * rss / max(n - p - 1, 1)
+    errors = {"amplitude_um": peak_error}
+    if direction in ("+", "-"):  # what the other direction shows there: the same spline fitted for it
+        other = "local_region_" + ("minus" if direction == "+" else "plus") + "#0"
+        beside = linear_fit(data, [*fit.terms, Term(other, {}, False, dict(shape))])
+        ob, oslices = design(data, beside.terms)
+        ocov = np.linalg.pinv(ob.T @ ob) * beside.rss / max(len(data) - ob.shape[1], 1)
+        j = len(beside.terms) - 1
+        shown["other_um"] = float(b @ beside.coefs[j])
+        errors["other_um"] = float(math.sqrt(max(float(b @ ocov[oslices[j], oslices[j]] @ b), 0.0)))
     k = len(data)
     factor = look_elsewhere(data)
-    return LocalError(term, shown, {"amplitude_um": peak_error}, direction, time_p, float(beta[-1]),
+    return LocalError(term, shown, errors, direction, time_p, float(beta[-1]),
                       explained_pct=100 * (1 - fit.rss / without.rss) if without.rss > 0 else 0.0,
                       delta_bic=bic(fit, k) - bic(without, k) + 2 * math.log(factor),
                       p_value=min(1.0, f_test_p(without, fit, k) * factor),
