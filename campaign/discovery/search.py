@@ -665,16 +665,14 @@ def with_regions(data: CampaignData, model: ErrorModel, given: dict[str, set[str
     """The route of unexplained local errors (campaign.discovery.unexplained): a local term whose shape
     follows the data over each region the locator found beside the starting model (each kept only
     when it passes the tests), the vocabulary searched beside them, then each term tested again beside
-    what is named. None when none is left, or when the vocabulary left a period unresolved (the
+    what is named. None when none is left, or when a period stays unresolved beside them (the
     regions may be that period seen at few targets: with_locals makes them its rivals)."""
-    if periodic:  # a region may be the unresolved period seen at few targets (with_locals says so)
-        return None
     terms = region_terms(data, vocabulary.start, located)
     if not terms:
         return None
     again = search_vocabulary(data, model, given, terms)
     if any("periodic_lead" in u["effects"] for u in again.unresolved):
-        return None
+        return None  # a region may be the unresolved period seen at few targets (as for with_locals)
     final, kept = again.final, []
     for term in terms:
         without = linear_fit(data, [t for t in final.terms if t.name != term.name])
