@@ -34,9 +34,9 @@ def test_the_region_term_is_zero_before_its_region_and_holds_its_level_after():
 def test_a_flat_topped_zone_is_an_unexplained_local_error_and_nothing_is_named():
     """Zones 60-160 mm long, 2-4 µm of either sign, with 15 mm ramps, on 21 targets (uniform and
     golden-like), 0.4 µm of noise, a 10 µm/m scale: nothing of the vocabulary is named, a local error
-    is located and the gap ends within 1.3 × the noise in at least 6 of 8 draws. The code before
-    (one Gaussian or logistic profile) named the bow or a screw lead in 4 of these 8 and met all three
-    in 3."""
+    is located and the gap ends within 1.3 × the noise in at least 6 of 8 draws (6 here). The code
+    before (one Gaussian or logistic profile) named the bow or a screw lead in 4 of these 8 and met all
+    three in 3."""
     good, said = 0, []
     for seed in range(8):
         rng = np.random.default_rng(seed)
