@@ -28,7 +28,7 @@ from campaign.discovery.data import campaign_data
 from campaign.discovery.search import discover
 from campaign.discovery.simulate import simulate_campaign
 from campaign.model import ErrorModel
-from tests.discovery_draws import SHAPES, draw, judge, plan_config
+from tests.discovery_draws import SHAPES, draw, judge, named_out_of_gates, plan_config
 
 RESULTS = Path(__file__).parent / "results"
 
@@ -45,18 +45,22 @@ def main() -> None:
             for offsets in ("golden", "none"):
                 config = plan_config(count, offsets)
                 tally = {"shape": shape, "targets": count, "offsets": offsets, "draws": 0, "visible": 0,
-                         "located": 0, "false_names": 0, "gap_within_1_3": 0, "false": []}
+                         "located": 0, "stated": 0, "seen": 0, "false_names": 0, "gap_within_1_3": 0,
+                         "bad_names": 0, "false": []}
                 for k in range(args.draws):
                     seed = args.seed + 7919 * k + 31 * count + (0 if offsets == "none" else 1)
                     truth = draw(np.random.default_rng(seed), shape, config)
                     table = simulate_campaign(config, ErrorModel(truth.model), seed=seed, dwell_jitter=0.8)
-                    result = discover(campaign_data(table), ErrorModel({"linear_scale": {}}),
-                                      {"linear_scale": set()})
+                    data = campaign_data(table)
+                    result = discover(data, ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
                     judged = judge(result, truth)
                     found_local = shape == "null" and bool(result.local_errors)
                     tally["draws"] += 1
                     tally["visible"] += truth.visible
                     tally["located"] += truth.visible and judged.located
+                    tally["stated"] += truth.visible and judged.stated
+                    tally["seen"] += truth.visible and judged.seen
+                    tally["bad_names"] += bool(named_out_of_gates(data, result))
                     tally["false_names"] += bool(judged.false_names) or found_local
                     tally["gap_within_1_3"] += judged.gap_ratio <= 1.3
                     if judged.false_names or found_local:
@@ -64,17 +68,33 @@ def main() -> None:
                 rows.append(tally)
                 print(shape, count, offsets, {k: v for k, v in tally.items() if k != "false"}, flush=True)
     RESULTS.mkdir(exist_ok=True)
-    out = {"draws_per_cell": args.draws, "seconds": round(time.perf_counter() - started, 1), "rows": rows}
+    out = {"draws_per_cell": args.draws, "seed": args.seed, "seconds": round(time.perf_counter() - started, 1),
+           "totals": totals(rows), "rows": rows}
     (RESULTS / "discovery_draws.json").write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
-    print("| shape | targets | golden: visible / located / false names / gap ≤ 1.3σ | uniform: same |")
+    print("| shape | targets | golden: visible · seen · located · stated · false names · gap ≤ 1.3σ | uniform: "
+          "the same |")
     print("|---|---|---|---|")
     for shape in (*SHAPES, "null"):
         for count in (11, 17, 21):
             cells = []
             for offsets in ("golden", "none"):
                 r = next(r for r in rows if (r["shape"], r["targets"], r["offsets"]) == (shape, count, offsets))
-                cells.append(f"{r['visible']}/{r['draws']} · {r['located']} · {r['false_names']} · {r['gap_within_1_3']}")
+                cells.append(f"{r['visible']}/{r['draws']} · {r['seen']} · {r['located']} · {r['stated']} · "
+                             f"{r['false_names']} · {r['gap_within_1_3']}")
             print(f"| {shape} | {count} | {cells[0]} | {cells[1]} |")
+    print(json.dumps(out["totals"]))
+
+
+def totals(rows: list[dict]) -> dict:
+    """The sums over the out-of-vocabulary cells and over the nulls, with the shares the issue's goals
+    are stated in."""
+    oov = [r for r in rows if r["shape"] != "null"]
+    nulls = [r for r in rows if r["shape"] == "null"]
+    total = {k: sum(r[k] for r in oov) for k in ("draws", "visible", "seen", "located", "stated", "false_names",
+                                                  "gap_within_1_3", "bad_names")}
+    total["no_false_share"] = round(1 - total["false_names"] / max(total["draws"], 1), 4)
+    total["nulls"] = {k: sum(r[k] for r in nulls) for k in ("draws", "false_names", "bad_names")}
+    return total
 
 
 if __name__ == "__main__":

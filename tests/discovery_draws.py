@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from campaign.config import Config, parse_config
+from campaign.discovery.data import CampaignData
 from campaign.discovery.local import zones
 from campaign.discovery.search import Discovery
 from campaign.plan import build_plan
@@ -148,13 +149,28 @@ def _visible(effects: dict, targets: np.ndarray, noise: float) -> bool:
 @dataclass
 class Judged:
     """How discovery did on one draw: located (an out-of-vocabulary region found within its
-    width, a step within 10 mm), false names (vocabulary effects named that the machine lacks),
-    the gap after against the noise estimate."""
+    width, a step within 10 mm, by a local term of the final model), false names (vocabulary
+    effects named that the machine lacks), the gap after against the noise estimate; stated: located
+    by a local term, or said as unexplained structure (a region the locator finds in what the final
+    model leaves) within the same tolerance; seen: a region the locator finds before anything is named
+    within it."""
 
     located: bool
     false_names: list[str]
     gap_ratio: float
     said: str
+    stated: bool = False
+    seen: bool = False
+
+
+def _near(truth: Truth, centres: list[float]) -> bool:
+    """Is one of `centres` within the truth's tolerance of one of its regions (a step within 10 mm, a
+    region within its half-width or 10 mm)?"""
+    for centre, half in truth.regions:
+        tolerance = 10.0 if truth.shape == "step" else max(half, 10.0)
+        if any(abs(c - centre) <= tolerance for c in centres):
+            return True
+    return False
 
 
 def judge(result: Discovery, truth: Truth) -> Judged:
@@ -169,4 +185,19 @@ def judge(result: Discovery, truth: Truth) -> Judged:
     false = [name for name in result.added if name not in truth.vocabulary and name != "linear_scale"]
     gap_ratio = result.gap_after_um / max(result.noise_um, 1e-9)
     said = f"added {result.added}, local {[e.sentence() for e in result.local_errors]}"
-    return Judged(located, false, gap_ratio, said)
+    after = result.located_after.along if result.located_after is not None else []
+    before = result.located_before.along if result.located_before is not None else []
+    stated = located or _near(truth, [r.centre for r in after])
+    seen = _near(truth, [r.centre for r in before]) or (truth.shape == "linear_growth" and result.located_before
+                                                          is not None and any(r.over == "time"
+                                                                              for r in result.located_before.regions))
+    return Judged(located, false, gap_ratio, said, stated, seen)
+
+
+def named_out_of_gates(data: CampaignData, result: Discovery) -> list[str]:
+    """The named effects of the final model whose size is under 2σ or a parameter outside its physical
+    range (campaign.discovery.search.gate_failures), each with why."""
+    from campaign.discovery.search import gate_failures
+
+    return [f"{name}: {'; '.join(why)}" for name in result.added if name in {t.name for t in result.final.terms}
+            and (why := gate_failures(data, result.final, name))]

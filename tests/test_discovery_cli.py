@@ -92,10 +92,17 @@ def test_seed_000_horizontal_axis(cli, tmp_path):
     assert data["time_source"] == "point order"
     assert any("point order" in note for note in data["notes"])
     assert any("evenly spaced" in note for note in data["notes"])  # no periodic search on a 60 mm grid
-    assert data["added"] == ["nonlinear_lead"]
+    # issue 34: the bow only just passed its cross-validation (0.911 -> 0.908 µm); a local term over the
+    # region the locator finds (280-520 mm) predicts left-out targets far better (0.52 µm), so the bow
+    # is not named and the region is said as an unexplained local error
+    assert data["added"] == []
+    [local] = data["local_errors"]
+    assert local["kind"] == "region" and local["region_mm"][0] < 300.0 and 420.0 < local["region_mm"][1]
+    assert local["cv_after_um"] < 0.7 * local["cv_before_um"]
+    assert any(r["shape"] == "bump" for r in data["located"]["before"]["regions"])
     assert data["gap_after_um"] < data["gap_before_um"]
     saved = read_model(tmp_path / "h.toml")
-    assert set(saved.effects) == {"linear_scale", "nonlinear_lead", "noise"}
+    assert set(saved.effects) == {"linear_scale", "noise"}
     assert saved.effects["linear_scale"]["ppm"] == pytest.approx(data["model"]["linear_scale"]["ppm"], abs=1e-3)
     assert (tmp_path / "h.png").read_bytes()[:4] == b"\x89PNG"
 

@@ -18,6 +18,7 @@ from campaign.discovery.data import CampaignData, join_campaigns, keep_rows, rea
 from campaign.discovery.fit import derived
 from campaign.discovery.followup import FollowUp, plan_follow_up
 from campaign.discovery.local import LocalError, Zone, zones
+from campaign.discovery.locate import Located, short
 from campaign.discovery.search import Candidate, Discovery, discover
 from campaign.effects import effect as registered
 from campaign.errors import InputError
@@ -175,6 +176,8 @@ def as_json(result: Discovery) -> dict:
         "zones": [{"sentence": z.sentence, "region_mm": [round(v, 3) for v in z.region_mm],
                    "size_um": round(z.size_um, 4)} for z in zones(result.local_errors)],
         "notes": result.notes,
+        "located": {"before": None if result.located_before is None else result.located_before.as_dict(curves=True),
+                    "after": None if result.located_after is None else result.located_after.as_dict(curves=True)},
     }
 
 
@@ -299,9 +302,16 @@ def summary_lines(result: Discovery, incomplete: list[str], time_unit: str = "s"
         sizes = ", ".join(param_text(step.effect, k, v, step.errors, (), time_unit, kind).split(" (")[0]
                           for k, v in list(step.params.items())[:2])
         lines.append(f"named: [bold]{step.effect}[/] {sizes}")
+    located = located_lines(result)
     if not result.steps:
-        lines.append("named: nothing" + (" (something is there: see unresolved)" if result.unresolved else "")
-                     + (" from the model's effects" if result.local is not None else ""))
+        there = result.located_before is not None and bool(result.located_before.regions)
+        if there:  # the located regions say what is there, on the same line
+            located[0] = located[0].replace("located: ", "; located: ", 1)
+        lines.append("named: nothing" + (" (something is there: see unresolved)" if result.unresolved and not there
+                                         else "")
+                     + (" from the model's effects" if result.local is not None else "")
+                     + (located.pop(0) if there else ""))
+    lines += located
     for zone in zones(result.local_errors):
         lines.append(f"found outside the model: [bold]{zone_said(zone)}[/]; no effect of the model has this shape")
     if result.stand_in is not None:
@@ -314,6 +324,31 @@ def summary_lines(result: Discovery, incomplete: list[str], time_unit: str = "s"
     verdict = noise_verdict(result.gap_after_um, result.noise_um)
     lines.append(f"gap {result.gap_before_um:.2f} -> {result.gap_after_um:.2f} {dev} RMS, noise "
                  f"{result.noise_um:.2f} {dev}: what is left is {verdict}")
+    return lines
+
+
+SUMMARY_REGIONS = 3
+"""The most regions the summary lists (the largest first; --verbose gives all)."""
+
+
+def regions_said(located: Located | None) -> str:
+    """The largest regions in a few words each, and how many more there are."""
+    if located is None or not located.regions:
+        return "nothing beyond the noise"
+    ordered = sorted(located.regions, key=lambda r: -abs(r.peak_um))
+    said = "; ".join(short(r) for r in ordered[:SUMMARY_REGIONS])
+    more = len(ordered) - SUMMARY_REGIONS
+    return said + (f"; {more} more (--verbose)" if more > 0 else "")
+
+
+def located_lines(result: Discovery) -> list[str]:
+    """Where the campaign departs from the starting model, model-free, before anything is named; and
+    what the final model leaves unexplained, with its regions (only when there is some)."""
+    lines = []
+    if result.located_before is not None:
+        lines.append(f"located: {regions_said(result.located_before)}")
+    if result.located_after is not None and result.located_after.regions:
+        lines.append(f"[yellow]left unexplained:[/] {regions_said(result.located_after)}")
     return lines
 
 
@@ -379,6 +414,15 @@ def print_text(result: Discovery, time_unit: str, incomplete: list[str], verbose
                       f"{local.delta_bic:.1f} with its search's look-elsewhere, p {local.p_value:.2g}, "
                       f"{cv_text(local.cv_before_um, local.cv_after_um, dev)}); the model holds it as a smooth local "
                       f"term (gap {local.gap_without_um:.3f} {dev} without it), not as an effect, and does not save it")
+    for when, located in (("before anything is named", result.located_before),
+                          ("left by the final model", result.located_after)):
+        if located is None:
+            continue
+        curves = ", ".join(f"{c.over} {c.direction if c.over == 'position' else c.what}: {c.dof:.1f} parameters, "
+                           f"CV {c.cv_rms_um:.3f} {dev}" for c in located.curves)
+        console.print(f"located {when} (a smoother of the residual chosen by cross-validation, its band from a "
+                      f"noise of {located.noise_um:.3f} {dev}; {curves}): "
+                      + ("; ".join(r.sentence() for r in located.regions) or "nothing beyond the noise"))
     if len(result.final.offsets_um) > 1:
         console.print("campaigns fitted together, each with its own datum offset: "
                       + ", ".join(f"{o:+.3f} {dev}" for o in result.final.offsets_um))

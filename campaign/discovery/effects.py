@@ -79,15 +79,59 @@ def _local_columns(kind: str, by_direction: bool) -> Callable[[Samples, Shape, S
     return columns
 
 
+def region_basis(x: np.ndarray, start_mm: float, end_mm: float, pieces: int, open_end: bool = True,
+                 open_start: bool = False) -> np.ndarray:
+    """A local term whose shape follows the data over [start_mm, end_mm]: cubic B-splines on `pieces`
+    equal intervals, without the two that are not flat at the start (so the term and its slope are
+    zero there and before it). open_end: each is held at its end value beyond the end (a step's level
+    goes on); otherwise the two not flat at the end go too, and the term is zero after it (a bump of
+    any shape). open_start: the two at the start stay (a region that begins at the first target, where
+    nothing is measured before it). pieces + 3 columns less two for each closed side (pieces at least
+    2 when both are closed)."""
+    from scipy.interpolate import BSpline
+
+    pieces = max(int(pieces), 1 if open_end or open_start else 2)
+    inner = np.linspace(start_mm, end_mm, pieces + 1)
+    knots = np.r_[[start_mm] * 3, inner, [end_mm] * 3]
+    u = np.clip(np.asarray(x, dtype=float), start_mm, end_mm)
+    cols = BSpline.design_matrix(u, knots, 3).toarray()
+    if not open_start:
+        cols = cols[:, 2:]
+        cols[np.asarray(x) < start_mm] = 0.0
+    return cols if open_end else cols[:, :-2]
+
+
+def _region_columns(side: int) -> Callable[[Samples, Shape, Shape], np.ndarray]:
+    def columns(data: Samples, shape: Shape, held: Shape) -> np.ndarray:
+        g = region_basis(data.x, shape["start_mm"], shape["end_mm"], int(shape["pieces"]), shape["open_end"] > 0,
+                         shape.get("open_start", 0.0) > 0)
+        return g if side == 0 else g * (data.d * side > 0)[:, None]
+    return columns
+
+
+def _region_params(c: np.ndarray, shape: Shape, held: Shape) -> dict[str, float]:
+    grid = np.linspace(shape["start_mm"], shape["end_mm"], 201)
+    values = region_basis(grid, shape["start_mm"], shape["end_mm"], int(shape["pieces"]), shape["open_end"] > 0,
+                         shape.get("open_start", 0.0) > 0) @ c
+    k = int(np.argmax(np.abs(values)))
+    return {"peak_um": float(values[k]), "peak_at_mm": float(grid[k]), "level_after_um": float(values[-1]),
+            **shape}
+
+
 LOCAL_FORMS: dict[str, EffectForm] = {f.name: f for f in (
     EffectForm("local_error", ("amplitude_um",), (), "target", _local_columns("bump", False)),
     EffectForm("local_error_by_direction", ("plus_um", "minus_um"), (), "target", _local_columns("bump", True)),
     EffectForm("local_error_step", ("amplitude_um",), (), "target", _local_columns("step", False)),
     EffectForm("local_error_step_by_direction", ("plus_um", "minus_um"), (), "target", _local_columns("step", True)),
+    EffectForm("local_region", (), (), "target", _region_columns(0), _region_params),
+    EffectForm("local_region_plus", (), (), "target", _region_columns(1), _region_params),
+    EffectForm("local_region_minus", (), (), "target", _region_columns(-1), _region_params),
 )}
 """Not in the vocabulary: the local terms discovery adds for an error no effect of the model has the
 shape of (a screw defect, a worn zone, a joint between two sections): a bump or a step, in both
-directions or one amplitude per direction. Their centre and width (mm) are found by their own search
+directions or one amplitude per direction; or, over a region the locator found
+(campaign.discovery.unexplained), a spline whose shape follows the data (local_region, in both
+directions, or _plus / _minus for one). Their centre and width (mm) are found by their own search
 (campaign.discovery.local) and held in the term's shape; only the amplitudes are fitted with the
 model. A second or third one on the same axis is named with "#2", "#3". Never a candidate, never in
 the saved model."""

@@ -85,12 +85,16 @@ class LocalError:
     deviation_unit: str = "µm"
     kind: str = "bump"
     """"bump" (centre_mm its peak, width_mm at half its height) or "step" (centre_mm the middle of
-    the rise, width_mm the rise from 10 % to 90 %, amplitude the step's height)."""
+    the rise, width_mm the rise from 10 % to 90 %, amplitude the step's height), or "region" (a term
+    whose shape follows the data from start_mm to end_mm, campaign.discovery.unexplained: amplitude
+    its peak, centre_mm the peak or, when its level goes on after the region, where it rises most)."""
 
     @property
     def region_mm(self) -> tuple[float, float]:
         """Where it acts: a bump from one width below its centre to one above; a step over its
         rise (at least a millimetre either side)."""
+        if self.kind == "region":
+            return self.params["start_mm"], self.params["end_mm"]
         c, w = self.params["centre_mm"], self.params["width_mm"]
         half = w if self.kind == "bump" else max(w / 2, 1.0)
         return c - half, c + half
@@ -105,6 +109,13 @@ class LocalError:
     def _sides(self) -> str:
         """Which directions show it, in words: what was seen in each."""
         p, e, dev = self.params, self.errors, self.deviation_unit
+        if self.kind == "region":
+            if self.directions not in ("+", "-"):
+                return "both directions"
+            seen, other = ("+", "−") if self.directions == "+" else ("−", "+")
+            below = "below 3σ" if abs(p.get("other_um", 0.0)) < 3 * e.get("other_um", math.inf) else "also"
+            return (f"seen in the {seen} direction; in the {other} direction {below} ({p.get('other_um', math.nan):+.2g} "
+                    f"± {e.get('other_um', math.nan):.2g} {dev})")
         if "plus_um" not in p:
             return "both directions"
         if self.directions == "both":
@@ -118,6 +129,11 @@ class LocalError:
         """'a local error of +2.4 µm at 214 mm, width 18 mm, both directions' or 'a step of -2.6 µm at
         250 mm, rising over 8 mm, both directions' (the axis's units)."""
         p, unit = self.params, self.position_unit
+        if self.kind == "region":
+            after = (f", and {p['level_after_um']:+.2g} {self.deviation_unit} after it (a step at {p['centre_mm']:.4g} "
+                     f"{unit})" if abs(p["level_after_um"]) >= 0.5 * abs(self.size_um) else "")
+            return (f"an unexplained local error of {self.size_um:+.2g} {self.deviation_unit} from {p['start_mm']:.4g} "
+                    f"to {p['end_mm']:.4g} {unit}{after}, {self._sides()}")
         if self.kind == "step":
             return (f"a step of {self.size_um:+.2g} {self.deviation_unit} at {p['centre_mm']:.4g} {unit}, rising over "
                     f"{p['width_mm']:.2g} {unit}, {self._sides()}")

@@ -57,7 +57,9 @@ from campaign.discovery.fit import (
     standard_errors,
 )
 from campaign.discovery.local import LocalError, find_locals, look_elsewhere, passes, refit_local
+from campaign.discovery.locate import Located, locate
 from campaign.discovery.records import Choice, LocalRival, StandIn, StartingEffect, Unresolved
+from campaign.discovery.unexplained import describe_region, region_terms, wave_over_part
 from campaign.effects import RegistryView, effect, effects
 from campaign.errors import InputError
 from campaign.model import DEFAULTS, EFFECT_PARAMS, ErrorModel
@@ -173,6 +175,11 @@ class Discovery:
     starting: dict[str, StartingEffect] = field(default_factory=dict)
     """The starting model's effects, as fitted at the end: params, errors, given (the keys the
     model gave), fixed, p_value (F-test of the effect against none of it) and significant."""
+    located_before: Located | None = None
+    """Where the campaign departs from the starting model beyond the noise, model-free
+    (campaign.discovery.locate), before anything is named."""
+    located_after: Located | None = None
+    """The same for the final model: what it leaves unexplained, with its regions."""
 
     @property
     def local(self) -> LocalError | None:
@@ -372,6 +379,9 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
     failed += gates
     if not failed and len(periods) > 1 and periods[1][1] < RIVAL_MARGIN:
         cand.verdict = "period not identifiable"
+    elif not failed and name == "periodic_lead" and (partial := wave_over_part(data, best)):
+        cand.verdict = f"not named ({partial})"  # an identified period whose wave is not on every turn
+        failed.append(partial)
     if env_note and not failed:  # which log it follows matters only when it explains something
         _note(notes, *env_note)
     return cand
@@ -507,6 +517,11 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
             route = with_locals(data, model, given, vocabulary, found, periodic)
             if route is not None:
                 routes.append(route)
+    start_located = locate(data, data.y - vocabulary.start.prediction)
+    regions = with_regions(data, model, given, vocabulary, start_located, periodic)
+    if regions is not None and (cv_rms_um(data, regions.final.terms, data.target_index)
+                                < cv_rms_um(data, vocabulary.final.terms, data.target_index)):
+        routes.append(regions)  # unexplained local errors, only when they also predict left-out targets better
     scores = [route_score(data, r) for r in routes]
     best = min(range(len(routes)), key=lambda i: scores[i] + (0.0 if i == 0 else BIC_MARGIN))
     if best and routes[0].added:
@@ -514,7 +529,12 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
         for name in dropped:
             _note(routes[best].notes, f"{name} explained part of the residual before the local errors were located; "
                                       "beside them it is not significant: not named (it soaked up a local error)")
-    return beside_unresolved_period(data, routes[best])
+    result = unnamed_beside_regions(data, routes[best])
+    result = beside_unresolved_period(data, result)
+    result.located_before = start_located if result.start is vocabulary.start else locate(
+        data, data.y - result.start.prediction)
+    result.located_after = locate(data, data.y - result.final.prediction)
+    return result
 
 
 def _same_places(a: list[LocalError], b: list[LocalError]) -> bool:
@@ -595,6 +615,85 @@ def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]
     again.noise_um = pooled_scatter_um(data, data.y - final.prediction)
     again.disagreement_after = disagreement(data, data.y - final.prediction)
     again.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_error")}
+    return again
+
+
+def unnamed_beside_regions(data: CampaignData, result: Discovery) -> Discovery:
+    """Issue 34 item 2 (a): each named effect must predict left-out targets better than a general local
+    term over the regions it explains. For each, the final model without it is located again
+    (campaign.discovery.locate), local terms whose shape follows the data are fitted over the regions
+    found (campaign.discovery.unexplained, each passing its tests); when that model's
+    leave-one-target-out CV is not above the named one's, the effect is not named and the regions
+    stay in the model as unexplained local errors (a note says so), in place of the effect and of any
+    bump or step term beside it. Not beside an unresolved period: the regions may be that period seen
+    at few targets."""
+    if any("periodic_lead" in u.effects for u in result.unresolved):
+        return result
+    for step in list(result.steps):
+        name = step.effect
+        if name not in {t.name for t in result.final.terms}:
+            continue
+        # without it, and without the fixed-shape local terms (a bump or a step it may stand beside)
+        without = linear_fit(data, [t for t in result.final.terms if t.name != name
+                                    and not t.name.startswith("local_error")])
+        index = 1 + sum(1 for t in result.final.terms if t.name.startswith("local_region"))
+        terms = [replace(t, name=t.name.split("#")[0] + (f"#{index + k}" if index + k > 1 else ""))
+                 for k, t in enumerate(region_terms(data, without, locate(data, data.y - without.prediction)))]
+        if not terms:
+            continue
+        local = linear_fit(data, [*without.terms, *terms])
+        named_cv = cv_rms_um(data, result.final.terms, data.target_index)
+        local_cv = cv_rms_um(data, local.terms, data.target_index)
+        if local_cv > named_cv:
+            continue
+        result.steps.remove(step)
+        result.final = local
+        result.local_errors = [e for e in result.local_errors if e.term.name in {t.name for t in local.terms}] + [
+            describe_region(data, local, t.name, linear_fit(data, [u for u in local.terms if u.name != t.name]))
+            for t in terms]
+        _note(result.notes, f"{name} is not named: local terms over the regions it explains predict left-out targets "
+                            f"as well (CV {local_cv:.3f} against {named_cv:.3f} {data.deviation_unit}); they stay in "
+                            "the model as unexplained local errors")
+    if result.local_errors and any(e.kind == "region" for e in result.local_errors):
+        final = result.final
+        result.gap_after_um = final.rms_um(data.y)
+        result.noise_um = pooled_scatter_um(data, data.y - final.prediction)
+        result.disagreement_after = disagreement(data, data.y - final.prediction)
+        result.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_")}
+    return result
+
+
+def with_regions(data: CampaignData, model: ErrorModel, given: dict[str, set[str]], vocabulary: Discovery,
+                 located: Located, periodic: bool) -> Discovery | None:
+    """The route of unexplained local errors (campaign.discovery.unexplained): a local term whose shape
+    follows the data over each region the locator found beside the starting model (each kept only
+    when it passes the tests), the vocabulary searched beside them, then each term tested again beside
+    what is named. None when none is left, or when a period stays unresolved beside them (the
+    regions may be that period seen at few targets: with_locals makes them its rivals)."""
+    terms = region_terms(data, vocabulary.start, located)
+    if not terms:
+        return None
+    again = search_vocabulary(data, model, given, terms)
+    if any("periodic_lead" in u.effects for u in again.unresolved):
+        return None  # a region may be the unresolved period seen at few targets (as for with_locals)
+    final, kept = again.final, []
+    for term in terms:
+        without = linear_fit(data, [t for t in final.terms if t.name != term.name])
+        if passes(data, without, final):
+            kept.append(term)
+        else:
+            final = without
+    if not kept:
+        return None
+    found = [describe_region(data, final, term.name, linear_fit(data, [t for t in final.terms if t.name != term.name]))
+             for term in kept]
+    again.final, again.local_errors = final, found
+    again.start, again.gap_before_um = vocabulary.start, vocabulary.gap_before_um
+    again.disagreement_before = vocabulary.disagreement_before
+    again.gap_after_um = final.rms_um(data.y)
+    again.noise_um = pooled_scatter_um(data, data.y - final.prediction)
+    again.disagreement_after = disagreement(data, data.y - final.prediction)
+    again.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_")}
     return again
 
 

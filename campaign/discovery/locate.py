@@ -1,0 +1,518 @@
+"""Where the measurement departs from the model, before anything is named (issue 34 item 1): a
+model-free smoother of the residual (measured - model, µm) over position, one per direction, and
+over time, each with a band; the regions where the smoothed residual leaves its band, with their
+shape in words (step, bump, slope change, wave, or a level over the whole travel).
+
+The smoother is a penalised cubic B-spline (a P-spline: at most MAX_BASIS basis functions, a
+second-difference penalty). Over position it smooths the residual's mean per target and
+direction (weights: the points in each), and its flexibility (the penalty) is chosen by
+leave-one-target-out cross-validation, which for a linear smoother is exact from the hat matrix's
+diagonal. Over time it smooths what the targets' means leave (the change from run to run) as a
+level and a slope along the axis that both vary in time (a varying-coefficient P-spline), its
+penalty chosen by generalised cross-validation. The band is the smoother's Bayesian standard error
+(σ² (BᵀWB + λP)⁻¹, σ the run-to-run scatter pooled over targets and directions) times the normal
+quantile that holds a BAND_ALPHA chance of a false region over the curve's effective number of
+parameters (Bonferroni). The cost is linear in the rows: sparse B-spline rows (4 per row), a
+MAX_BASIS × MAX_BASIS system per penalty; nothing n × n.
+
+Units: positions mm (deg), deviations µm (arcsec), times s (or point order).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from campaign.discovery.data import CampaignData
+
+MAX_BASIS = 150
+"""The most B-spline basis functions of one smoother (resolution: the travel over about this)."""
+PENALTIES = np.geomspace(1e-6, 1e6, 49)
+"""Penalties tried, relative to trace(BᵀWB) / trace(P)."""
+BAND_ALPHA = 0.01
+"""Chance of a false region along one curve (Bonferroni over its effective number of parameters)."""
+GRID = 481
+"""Points at which each curve is evaluated and reported."""
+DIRECTIONS = {1: "+", -1: "-"}
+
+
+@dataclass(frozen=True)
+class Region:
+    """One place where the smoothed residual leaves its band. over: "position" (start, end in mm or
+    deg) or "time" (s, or points without a time column); what: "deviation" (over position), "level"
+    or "slope" (over time: the mean, or the change along the travel from one end to the other);
+    peak: the largest smoothed residual there (µm), at peak_at; direction: "both", "+", "-" or
+    "opposite" (of opposite sign in the two directions, as a reversal is); shape: step, bump,
+    slope change, wave, level."""
+
+    over: str
+    what: str
+    start: float
+    end: float
+    peak_um: float
+    peak_at: float
+    direction: str
+    shape: str
+    unit: str = "mm"
+    deviation_unit: str = "µm"
+
+    @property
+    def centre(self) -> float:
+        """The middle of the region; a step's place is where it changes most (peak_at)."""
+        return self.peak_at if self.shape == "step" else (self.start + self.end) / 2
+
+    def sentence(self) -> str:
+        """'a bump of +2.9 µm from 231 to 268 mm (peak at 250 mm), both directions'."""
+        dev = self.deviation_unit
+        sides = {"both": "both directions", "+": "the + direction only", "-": "the − direction only",
+                 "opposite": "opposite in the two directions"}[self.direction]
+        where = f"from {self.start:.4g} to {self.end:.4g} {self.unit} (peak at {self.peak_at:.4g} {self.unit})"
+        if self.over == "time":
+            thing = "the level" if self.what == "level" else "the slope along the travel"
+            return f"{thing} departs in time: {_article(self.shape)} {self.shape} of {self.peak_um:+.2g} {dev} {where}"
+        return f"{_article(self.shape)} {self.shape} of {self.peak_um:+.2g} {dev} {where}, {sides}"
+
+    def as_dict(self) -> dict:
+        return {"over": self.over, "what": self.what, "from": round(self.start, 3), "to": round(self.end, 3),
+                "peak_um": round(self.peak_um, 4), "peak_at": round(self.peak_at, 3), "direction": self.direction,
+                "shape": self.shape, "unit": self.unit, "sentence": self.sentence()}
+
+
+def _article(shape: str) -> str:
+    return "an" if shape[0] in "aeiou" else "a"
+
+
+@dataclass
+class Curve:
+    """One smoother: over "position" (direction "+", "-") or "time" (what "level" or "slope"),
+    evaluated at `at`: value and band half-width (µm); the effective number of parameters, the
+    penalty chosen and its cross-validated RMS (µm)."""
+
+    over: str
+    what: str
+    direction: str
+    at: np.ndarray
+    value_um: np.ndarray
+    band_um: np.ndarray
+    dof: float
+    penalty: float
+    cv_rms_um: float
+
+    def as_dict(self, every: int = 8) -> dict:
+        pick = slice(None, None, every)
+        return {"over": self.over, "what": self.what, "direction": self.direction,
+                "at": [round(float(v), 3) for v in self.at[pick]],
+                "value_um": [round(float(v), 4) for v in self.value_um[pick]],
+                "band_um": [round(float(v), 4) for v in self.band_um[pick]],
+                "dof": round(self.dof, 2), "penalty": float(f"{self.penalty:.3g}"),
+                "cv_rms_um": round(self.cv_rms_um, 4)}
+
+
+@dataclass
+class Located:
+    """What the locator found in one residual: the regions (along the axis, then in time), the curves
+    they come from, and the noise the bands are built on (µm per point)."""
+
+    regions: list[Region]
+    curves: list[Curve] = field(default_factory=list)
+    noise_um: float = 0.0
+
+    @property
+    def along(self) -> list[Region]:
+        return [r for r in self.regions if r.over == "position"]
+
+    def as_dict(self, curves: bool = False) -> dict:
+        out: dict = {"regions": [r.as_dict() for r in self.regions], "noise_um": round(self.noise_um, 4)}
+        if curves:
+            out["curves"] = [c.as_dict() for c in self.curves]
+        return out
+
+
+class _Smoother:
+    """A P-spline over [lo, hi]: `basis` cubic B-splines on equal knots, a second-difference penalty
+    (`penalty`; toward a straight line) or a first-difference one (`penalties[1]`; toward a level,
+    which lets a step through with less smearing)."""
+
+    def __init__(self, lo: float, hi: float, basis: int):
+        self.lo, self.hi = lo, hi if hi > lo else lo + 1.0
+        self.k = max(basis, 4)
+        h = (self.hi - self.lo) / (self.k - 3)
+        self.knots = self.lo + h * np.arange(-3, self.k + 1)
+        self.penalties = {}
+        for order in (2, 1):
+            diff = np.diff(np.eye(self.k), order, axis=0)
+            self.penalties[order] = diff.T @ diff
+        self.penalty = self.penalties[2]
+
+    def rows(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each point's four nonzero basis values and their columns (n × 4 each)."""
+        from scipy.interpolate import BSpline
+
+        u = np.clip(np.asarray(u, dtype=float), self.knots[3], self.knots[-4])
+        m = BSpline.design_matrix(u, self.knots, 3).tocsr()
+        m.sort_indices()
+        nnz = np.diff(m.indptr)
+        if np.all(nnz == 4):
+            return m.data.reshape(-1, 4), m.indices.reshape(-1, 4)
+        dense = np.zeros((len(u), 4))
+        cols = np.zeros((len(u), 4), dtype=int)
+        for i in range(len(u)):  # a point on a knot has fewer nonzeros: pad with zeros
+            s = slice(m.indptr[i], m.indptr[i + 1])
+            dense[i, :nnz[i]], cols[i, :nnz[i]] = m.data[s], m.indices[s]
+            cols[i, nnz[i]:] = m.indices[s][-1] if nnz[i] else 0
+        return dense, cols
+
+
+def _gram(values: np.ndarray, cols: np.ndarray, weights: np.ndarray, k: int) -> np.ndarray:
+    """BᵀWB from the rows' nonzeros (k × k), O(n)."""
+    g = np.zeros(k * k)
+    for a in range(values.shape[1]):
+        for b in range(values.shape[1]):
+            g += np.bincount(cols[:, a] * k + cols[:, b], weights * values[:, a] * values[:, b], minlength=k * k)
+    return g.reshape(k, k)
+
+
+def _apply(values: np.ndarray, cols: np.ndarray, coef: np.ndarray) -> np.ndarray:
+    return np.sum(values * coef[cols], axis=1)
+
+
+def _quad(values: np.ndarray, cols: np.ndarray, inverse: np.ndarray) -> np.ndarray:
+    """bᵢᵀ M bᵢ for every row, from its four nonzeros."""
+    block = inverse[cols[:, :, None], cols[:, None, :]]
+    return np.einsum("ni,nj,nij->n", values, values, block)
+
+
+def _fit(values: np.ndarray, cols: np.ndarray, y: np.ndarray, w: np.ndarray, penalty_matrix: np.ndarray,
+         k: int, criterion: str, others: tuple[np.ndarray, ...] = ()) -> tuple[np.ndarray, np.ndarray, float, float,
+                                                                                float]:
+    """The penalised fit whose penalty (its matrix `penalty_matrix` or one of `others`, and its weight)
+    minimises leave-one-out CV ("loo") or GCV ("gcv"): coefficients, (BᵀWB + λP)⁻¹, effective
+    parameters, the penalty's weight, the CV RMS. Every weight from one eigendecomposition per
+    penalty matrix (BᵀWB = RᵀR, R⁻ᵀPR⁻¹ = U diag(s) Uᵀ, so (BᵀWB + λP)⁻¹ = M diag(1/(1 + λs)) Mᵀ with
+    M = R⁻¹U): a k × k decomposition, then O(n) per weight."""
+    gram = _gram(values, cols, w, k)
+    rhs = np.zeros(k)
+    for a in range(values.shape[1]):
+        rhs += np.bincount(cols[:, a], w * values[:, a] * y, minlength=k)
+    jitter = 1e-9 * max(float(np.trace(gram)), 1e-300) / k  # basis functions no point reaches
+    root = np.linalg.cholesky(gram + jitter * np.eye(k)).T  # gram = rootᵀ root
+    root_inv = np.linalg.inv(root)
+    yy = float(np.sum(w * y * y))
+    n = len(y)
+    best: tuple[float, np.ndarray, np.ndarray, float, float] | None = None
+    for matrix in (penalty_matrix, *others):
+        s, u = np.linalg.eigh(root_inv.T @ matrix @ root_inv)
+        s = np.maximum(s, 0.0)
+        m = root_inv @ u
+        proj = m.T @ rhs
+        z2 = None
+        if criterion == "loo":
+            z = np.zeros((n, k))
+            for a in range(values.shape[1]):
+                z += values[:, a, None] * m[cols[:, a], :]
+            z2 = z * z
+        scale = max(float(np.trace(gram)), 1e-300) / max(float(np.trace(matrix)), 1e-300)
+        for rel in PENALTIES:
+            lam = rel * scale
+            shrink = 1.0 / (1.0 + lam * s)
+            coef = m @ (shrink * proj)
+            dof = float(np.sum(shrink))
+            if z2 is not None:
+                hat = w * (z2 @ shrink)
+                if float(np.max(hat)) > 1.0 - 1e-3:  # a point the fit passes through: its fold cannot be predicted
+                    continue
+                loo = (y - _apply(values, cols, coef)) / (1.0 - hat)
+                score = float(np.sum(w * loo**2) / max(float(np.sum(w)), 1e-300))
+            else:
+                rss = max(yy - 2 * float(coef @ rhs) + float(coef @ gram @ coef), 0.0)
+                score = n * rss / max(n - dof, 1e-6) ** 2 / max(float(np.mean(w)), 1e-300)
+            if best is None or score < best[0]:
+                best = (score, coef, (m * shrink) @ m.T, dof, lam)
+    if best is None:  # every weight passes through some point: the stiffest
+        lam = PENALTIES[-1] * max(float(np.trace(gram)), 1e-300) / max(float(np.trace(penalty_matrix)), 1e-300)
+        inverse = np.linalg.pinv(gram + lam * penalty_matrix, hermitian=True)
+        return inverse @ rhs, inverse, float(np.trace(inverse @ gram)), lam, math.inf
+    score, coef, inverse, dof, lam = best
+    return coef, inverse, dof, lam, math.sqrt(max(score, 0.0))
+
+
+def _quantile(dof: float) -> float:
+    """The band's normal quantile: BAND_ALPHA over the curve's effective parameters, two-sided."""
+    from scipy.stats import norm
+
+    return float(norm.isf(BAND_ALPHA / (2 * max(dof, 1.0))))
+
+
+def pooled_noise_um(data: CampaignData, residual: np.ndarray) -> float:
+    """Run-to-run scatter of the residual per point, pooled over (campaign, target, direction), µm."""
+    keys = (data.campaign_index * (data.target_index.max() + 1) + data.target_index) * 2 + (data.d > 0)
+    _, group = np.unique(keys, return_inverse=True)
+    count = np.bincount(group)
+    mean = np.bincount(group, residual) / count
+    dof = int(np.sum(count - 1))
+    if dof <= 0:
+        return float(np.std(residual))
+    return float(np.sqrt(np.sum((residual - mean[group]) ** 2) / dof))
+
+
+def position_curves(data: CampaignData, residual: np.ndarray, noise_um: float) -> list[Curve]:
+    """One smoother of the residual's target means over position per direction."""
+    lo, hi = float(np.min(data.x)), float(np.max(data.x))
+    at = np.linspace(lo, hi, GRID)
+    curves = []
+    for sign, name in DIRECTIONS.items():
+        pick = data.d == sign
+        if not np.any(pick):
+            continue
+        keys = data.campaign_index[pick] * (data.target_index.max() + 1) + data.target_index[pick]
+        _, group = np.unique(keys, return_inverse=True)
+        count = np.bincount(group).astype(float)
+        means = np.bincount(group, residual[pick]) / count
+        where = np.bincount(group, data.x[pick]) / count
+        if len(means) < 4:
+            continue
+        smoother = _Smoother(lo, hi, min(MAX_BASIS, len(np.unique(np.round(where, 6))) + 2))
+        values, cols = smoother.rows(where)
+        coef, inverse, dof, lam, cv = _fit(values, cols, means, count, smoother.penalty, smoother.k, "loo",
+                                           (smoother.penalties[1],))
+        grid_values, grid_cols = smoother.rows(at)
+        se = noise_um * np.sqrt(np.maximum(_quad(grid_values, grid_cols, inverse), 0.0))
+        curves.append(Curve("position", "deviation", name, at, _apply(grid_values, grid_cols, coef),
+                            _quantile(dof) * se, dof, lam, cv))
+    return curves
+
+
+def time_curves(data: CampaignData, residual: np.ndarray, noise_um: float) -> list[Curve]:
+    """What the targets' means leave (the change from run to run), smoothed over time as a level and a
+    slope along the travel (µm from one end to the other), each a P-spline in time; one campaign."""
+    if data.campaigns > 1 or len(np.unique(data.run)) < 2:
+        return []
+    t = np.nanmean(data.t, axis=1)
+    keys = data.target_index * 2 + (data.d > 0)
+    _, group = np.unique(keys, return_inverse=True)
+    count = np.bincount(group)
+    left = residual - (np.bincount(group, residual) / count)[group]
+    travel = float(np.ptp(data.x)) or 1.0
+    u = (data.x - float(np.mean(data.x))) / travel  # the slope's column: its coefficient is µm over the travel
+    lo, hi = float(np.min(t)), float(np.max(t))
+    runs = len(np.unique(data.run))
+    smoother = _Smoother(lo, hi, min(MAX_BASIS, 4 * runs + 3))
+    values, cols = smoother.rows(t)
+    k = smoother.k
+    both_values = np.hstack([values, values * u[:, None]])
+    both_cols = np.hstack([cols, cols + k])
+    penalty = np.zeros((2 * k, 2 * k))
+    penalty[:k, :k] = penalty[k:, k:] = smoother.penalty
+    # the group means took one level per target and direction: the level's mean in time is not free
+    coef, inverse, dof, lam, cv = _fit(both_values, both_cols, left, np.ones(len(left)), penalty, 2 * k, "gcv")
+    at = np.linspace(lo, hi, GRID)
+    grid_values, grid_cols = smoother.rows(at)
+    zero = np.zeros_like(grid_values)
+    out = []
+    for what, vals, offset in (("level", grid_values, 0), ("slope", grid_values, k)):
+        full_values = np.hstack([vals, zero]) if offset == 0 else np.hstack([zero, vals])
+        full_cols = np.hstack([grid_cols, grid_cols + k])
+        se = noise_um * np.sqrt(np.maximum(_quad(full_values, full_cols, inverse), 0.0))
+        out.append(Curve("time", what, "both", at, _apply(full_values, full_cols, coef),
+                         _quantile(dof / 2) * se, dof / 2, lam, cv))
+    return out
+
+
+EXTENT = 0.25
+"""A region reaches on from where the curve leaves its band to where it falls below this share of its
+peak (or changes sign): a bump's region is about one width at half height either side."""
+
+
+SMALLEST = 0.5
+"""The smallest departure reported, in the noise of one point: on a dense table the band is so narrow
+that a smoother's own ringing beside a sharp feature would pass it."""
+
+
+def _lobes(curve: Curve, smallest_um: float = 0.0) -> list[tuple[int, int]]:
+    """Index ranges [i, j) of `curve.at` of each departure: where the curve is beyond its band, reaching
+    on while it keeps its sign and EXTENT of its peak; departures of one sign that meet are one."""
+    value = curve.value_um
+    out_of_band = np.abs(value) > np.maximum(curve.band_um, smallest_um)
+    edges = np.flatnonzero(np.diff(np.r_[0, out_of_band.astype(int), 0]))
+    spans: list[tuple[int, int]] = []
+    for i, j in zip(edges[::2], edges[1::2]):
+        k = i + int(np.argmax(np.abs(value[i:j])))
+        keep = (np.sign(value) == np.sign(value[k])) & (np.abs(value) >= EXTENT * abs(value[k]))
+        while i > 0 and keep[i - 1]:
+            i -= 1
+        while j < len(value) and keep[j]:
+            j += 1
+        if spans and i <= spans[-1][1] and np.sign(value[spans[-1][0]]) == np.sign(value[k]):
+            spans[-1] = (spans[-1][0], max(j, spans[-1][1]))
+        else:
+            spans.append((int(i), int(j)))
+    return spans
+
+
+def shape_of(at: np.ndarray, value: np.ndarray, start: float, end: float, travel: float) -> str:
+    """The shape in words of the smoothed residual over a region and half its width either side: the
+    template (each beside a straight line) that leaves the least of it: a step (a jump), a bump, a slope
+    change (a kink), a wave (a sinusoid of a few periods); "level" when a straight line alone holds it
+    over most of the travel."""
+    half = max((end - start) / 2, 2 * float(np.median(np.diff(at))))
+    pick = (at >= start - half) & (at <= end + half)
+    if pick.sum() < 6:
+        pick = np.ones(len(at), bool)
+    x, v = at[pick], value[pick]
+    span = float(np.ptp(x)) or 1.0
+    s = (x - x.mean()) / span
+    base = np.column_stack([np.ones_like(s), s])
+    total = float(np.sum((v - v.mean()) ** 2)) or 1e-300
+
+    def left(*extra: np.ndarray) -> float:
+        a = np.column_stack([base, *extra])
+        return float(np.sum((v - a @ np.linalg.lstsq(a, v, rcond=None)[0]) ** 2))
+
+    line = left()
+    if span >= 0.8 * travel and line <= 0.1 * float(np.sum(v**2)):
+        return "level"
+    centres = x[1:-1:max(1, len(x) // 40)]
+    scores = {
+        "step": min(left((x > c).astype(float)) for c in centres),
+        "slope change": min(left(np.maximum(x - c, 0.0)) for c in centres),
+        "bump": min(left(np.exp(-0.5 * ((x - c) / w) ** 2)) for c in centres
+                    for w in np.geomspace(span / 40, span / 2, 8)),
+    }
+    wave = min(left(np.sin(2 * np.pi * x / p), np.cos(2 * np.pi * x / p))
+               for p in np.geomspace(span / 8, span / 1.5, 24))
+    best = min(scores, key=lambda key: scores[key])
+    # a wave has one parameter more: it must leave clearly less than the best single shape
+    return "wave" if wave < 0.5 * scores[best] and wave < 0.2 * total else best
+
+
+def _combined(curves: list[Curve]) -> list[Curve]:
+    """The two directions' curves as their mean (direction "both") and half their difference
+    (direction "opposite": a reversal, + minus −), each with its band; one direction's curve alone
+    when the table has one."""
+    if len(curves) < 2:
+        return curves
+    plus, minus = curves
+    band = np.sqrt(plus.band_um**2 + minus.band_um**2) / 2
+    dof, cv = plus.dof + minus.dof, math.hypot(plus.cv_rms_um, minus.cv_rms_um) / 2
+    return [Curve("position", "deviation", "both", plus.at, (plus.value_um + minus.value_um) / 2, band, dof,
+                  plus.penalty, cv),
+            Curve("position", "deviation", "opposite", plus.at, (plus.value_um - minus.value_um) / 2, band, dof,
+                  plus.penalty, cv)]
+
+
+ONE_SIDE = 0.5
+"""A departure of the mean and one of the half difference at the same place (SHARED), of sizes
+within this share of each other, are one departure seen in one direction only."""
+SHARED = 0.7
+"""...at the same place: sharing at least this share of their joint extent."""
+
+
+def _regions_of(curves: list[Curve], travel: float, unit: str, dev: str, smallest_um: float) -> list[Region]:
+    """Regions along the axis from the two directions' curves: departures of their mean (both
+    directions), of half their difference (opposite in the two directions: a reversal), and where one
+    of each meets with about the same size, of one direction only."""
+    lobes = []
+    for curve in _combined(curves):
+        for i, j in _lobes(curve, smallest_um):
+            k = i + int(np.argmax(np.abs(curve.value_um[i:j])))
+            lobes.append((curve, i, j, float(curve.value_um[k]), float(curve.at[k])))
+    used = [False] * len(lobes)
+    out: list[tuple[Region, np.ndarray]] = []
+    for a, (curve, i, j, peak, peak_at) in enumerate(lobes):
+        if used[a]:
+            continue
+        used[a] = True
+        direction, value = curve.direction, curve.value_um
+        if curve.direction in ("both", "opposite"):
+            for b, (other, i2, j2, peak2, _) in enumerate(lobes):
+                shared = min(j, j2) - max(i, i2)
+                if (used[b] or other.direction == curve.direction or shared < SHARED * (max(j, j2) - min(i, i2))
+                        or abs(abs(peak2) - abs(peak)) > ONE_SIDE * max(abs(peak), abs(peak2))):
+                    continue
+                used[b] = True
+                mean_peak = peak if curve.direction == "both" else peak2
+                diff_peak = peak2 if curve.direction == "both" else peak
+                direction = "+" if mean_peak * diff_peak > 0 else "-"
+                value = curve.value_um + other.value_um * (1 if direction == "+" or curve.direction == "opposite"
+                                                           else -1)
+                if direction == "-" and curve.direction == "opposite":
+                    value = other.value_um - curve.value_um
+                i, j = min(i, i2), max(j, j2)
+                k = i + int(np.argmax(np.abs(value[i:j])))
+                peak, peak_at = float(value[k]), float(curve.at[k])
+                break
+        start, end = float(curve.at[i]), float(curve.at[j - 1])
+        shape = shape_of(curve.at, value, start, end, travel)
+        out.append((Region("position", "deviation", start, end, peak, peak_at, direction, shape, unit, dev), value))
+    out.sort(key=lambda r: r[0].start)
+    return _steps_joined(out, curves[0].at, travel)
+
+
+STEEP = 2.0
+"""Two departures of opposite sign are one step when the curve changes between their peaks at least
+this many times faster than on their outer sides (a wave changes as fast on both)."""
+
+
+def _steps_joined(regions: list[tuple[Region, np.ndarray]], at: np.ndarray, travel: float) -> list[Region]:
+    """Two neighbouring departures of opposite sign in the same direction that meet in a steep change are
+    one step (a jump beside a straight line leaves a saw tooth: one side below the line, the other
+    above): from one peak to the other, its size the jump, placed where the curve changes most."""
+    out: list[Region] = []
+    i = 0
+    while i < len(regions):
+        a, value = regions[i]
+        b = next((r for r, _ in regions[i + 1:] if r.direction == a.direction), None)
+        if b is not None and a.peak_um * b.peak_um < 0 and b.start - a.end < 0.5 * (b.peak_at - a.peak_at):
+            lo, hi = sorted((a.peak_at, b.peak_at))
+            pick = (at >= lo) & (at <= hi)
+            outer = ((at >= a.start) & (at < lo)) | ((at > hi) & (at <= b.end))
+            slope = np.abs(np.diff(value)) / np.diff(at)
+            inner = slope[pick[1:] & pick[:-1]]
+            flanks = slope[outer[1:] & outer[:-1]]
+            if len(inner) and float(np.max(inner)) >= STEEP * float(np.max(flanks, initial=0.0)):
+                slope = np.abs(np.diff(value[pick]))
+                k = int(np.argmax(slope))
+                where = float((at[pick][k] + at[pick][k + 1]) / 2)
+                step = Region("position", "deviation", lo, hi, b.peak_um - a.peak_um, where, a.direction, "step",
+                              a.unit, a.deviation_unit)
+                out.append(step)
+                regions = [r for r in regions if r[0] is not b]
+                i += 1
+                continue
+        out.append(a)
+        i += 1
+    return out
+
+
+def locate(data: CampaignData, residual: np.ndarray) -> Located:
+    """The regions where `residual` (µm per point: measured - model) departs from zero beyond the
+    noise, along the axis per direction and in time, and the curves they come from."""
+    residual = np.asarray(residual, dtype=float)
+    noise = pooled_noise_um(data, residual)
+    if len(data) < 8 or noise <= 0:
+        return Located([], [], noise)
+    curves = position_curves(data, residual, noise)
+    travel = float(np.ptp(data.x)) or 1.0
+    regions = _regions_of(curves, travel, data.position_unit, data.deviation_unit, SMALLEST * noise)
+    timed = time_curves(data, residual, noise)
+    time_unit = "s" if data.time_source == "time_s" else "points"
+    for curve in timed:
+        for i, j in _lobes(curve, SMALLEST * noise):
+            k = i + int(np.argmax(np.abs(curve.value_um[i:j])))
+            start, end = float(curve.at[i]), float(curve.at[j - 1])
+            shape = shape_of(curve.at, curve.value_um, start, end, float(np.ptp(curve.at)) or 1.0)
+            if shape == "slope change" and (i == 0 or j == len(curve.at)):
+                shape = "drift"
+            regions.append(Region("time", curve.what, start, end, float(curve.value_um[k]), float(curve.at[k]),
+                                  "both", shape, time_unit, data.deviation_unit))
+    return Located(regions, curves + timed, noise)
+
+
+def short(region: Region) -> str:
+    """A region in a few words: 'bump +2.1 µm at 66–141 mm', '(+ only)' when one direction shows it."""
+    sides = {"both": "", "+": " (+ only)", "-": " (− only)", "opposite": " (opposite directions)"}[region.direction]
+    what = "" if region.over == "position" else f"{region.what} "
+    return (f"{what}{region.shape} {region.peak_um:+.1f} {region.deviation_unit} at {region.start:.4g}–"
+            f"{region.end:.4g} {region.unit}{sides}")

@@ -1,0 +1,51 @@
+"""Issue 34 items 2 and 3: an error no effect of the vocabulary has the shape of stays an unexplained
+local error (a local term whose shape follows the data over the located region: a spline, not the
+simulator's formula, not one fixed profile), and no vocabulary effect is named for it unless it
+predicts left-out targets better (campaign/discovery/unexplained.py, search.unnamed_beside_regions)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from campaign.discovery.effects import region_basis
+from campaign.discovery.search import discover
+from campaign.model import ErrorModel
+from tests.test_discovery_locate import table
+
+
+def zone(x: np.ndarray, low: float, high: float, height: float, ramp: float = 15.0) -> np.ndarray:
+    """A raised (or sunken) zone with a flat top and straight ramps `ramp` mm long: a worn section of
+    a screw, neither a Gaussian nor a raised cosine."""
+    return height * np.clip(np.minimum((x - low) / ramp, (high - x) / ramp), 0.0, 1.0)
+
+
+def test_the_region_term_is_zero_before_its_region_and_holds_its_level_after():
+    x = np.linspace(0.0, 600.0, 601)
+    cols = region_basis(x, 200.0, 300.0, 4)
+    assert cols.shape == (601, 5)
+    assert np.all(cols[x <= 200.0] == 0.0)
+    assert np.allclose(cols[x >= 300.0], cols[300])  # held at its end value: a step's level goes on
+    inside = (x > 200.0) & (x < 300.0)
+    assert np.linalg.matrix_rank(cols[inside]) == 5
+
+
+@pytest.mark.machine  # 8 discoveries, about 40 s
+def test_a_flat_topped_zone_is_an_unexplained_local_error_and_nothing_is_named():
+    """Zones 60-160 mm long, 2-4 µm of either sign, with 15 mm ramps, on 21 targets (uniform and
+    golden-like), 0.4 µm of noise, a 10 µm/m scale: nothing of the vocabulary is named, a local error
+    is located and the gap ends within 1.3 × the noise in at least 6 of 8 draws (6 here). The code
+    before (one Gaussian or logistic profile) named the bow or a screw lead in 4 of these 8 and met all
+    three in 3."""
+    good, said = 0, []
+    for seed in range(8):
+        rng = np.random.default_rng(seed)
+        low, length = float(rng.uniform(80.0, 380.0)), float(rng.uniform(60.0, 160.0))
+        height = float(rng.uniform(2.0, 4.0) * rng.choice([-1.0, 1.0]))
+        data = table(rng, 21, lambda x, d, t, a=low, b=low + length, h=height: zone(x, a, b, h) + 0.01 * x, 0.4, bool(seed % 2))
+        result = discover(data, ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
+        ok = not result.added and bool(result.local_errors) and result.gap_after_um <= 1.3 * result.noise_um
+        good += ok
+        said.append((seed, result.added, [e.sentence() for e in result.local_errors],
+                     round(result.gap_after_um / result.noise_um, 2)))
+    assert good >= 6, said
