@@ -15,6 +15,7 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,6 +26,9 @@ from campaign.pointtable import PointTable, write_points_text
 from campaign.record import POSITIONS_FILE, RUNS_FILE, SWEEPS_FILE, Recorder, load_raw, read_json_lines
 from campaign.stream.align import ControllerStream, InstrumentStream
 from campaign.stream.scan import Profile, ScanResult, analyse_scan, point_table
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 EVENTS_FILE = "events.jsonl"
 
@@ -87,7 +91,6 @@ def segments(directory: Path, plan: Plan, rest_s: float) -> tuple[list[Segment],
     """The scan's segments (one per run of the executor, runs.jsonl, and one after each fault within
     a run, events.jsonl) with their whole passes; the sweeps of a pass a segment did not finish are
     left out (a retry or a resume measures that pass again)."""
-    import pandas as pd
 
     starts = [float(r["t_s"]) for r in read_json_lines(directory / RUNS_FILE) if r.get("record") == "start"]
     # a fault within a run interrupts the streams too: the sweeps after it are aligned by themselves
@@ -110,12 +113,32 @@ def segments(directory: Path, plan: Plan, rest_s: float) -> tuple[list[Segment],
                         "it before the run stopped or a fault (a retry or the resume measured it again)")
         if not runs:
             continue
-        indices = tuple(s[0] for s in mine if s[1] in runs)
-        first = raw[(raw.point == min(indices)) & (raw.t_s >= lo)].t_s
-        first_s = float(first.min()) if len(first) and not pd.isna(first.min()) else lo
-        out.append(Segment(tuple(runs), indices, max(lo, first_s - 0.9 * rest_s),
-                           max(s[3] for s in mine if s[1] in runs)))
+        out.append(_segment(raw, runs, mine, lo, rest_s))
     return out, left
+
+
+def _segment(raw: pd.DataFrame, runs: list[int] | tuple[int, ...], mine: list[tuple[int, int, int, float]],
+             lo: float, rest_s: float) -> Segment:
+    """The segment of the whole passes `runs` among the sweeps `mine` recorded from campaign time `lo`
+    on: its streams span from the rest before its first sweep to its last sweep's record."""
+    import pandas as pd
+
+    indices = tuple(s[0] for s in mine if s[1] in runs)
+    first, record_s = min(indices), min(s[3] for s in mine if s[0] == min(indices))
+    rows = raw[(raw.t_s >= lo) & (raw.t_s <= record_s)]
+    other = rows[rows.point.isna() | (rows.point != first)].t_s  # e.g. the recovery after a fault, the re-approach
+    if len(other):
+        rows = rows[rows.t_s > float(other.max())]
+    first_s = float(rows.t_s.min()) if len(rows) and not pd.isna(rows.t_s.min()) else lo
+    return Segment(tuple(runs), indices, max(lo, first_s - 0.9 * rest_s), max(s[3] for s in mine if s[1] in runs))
+
+
+def by_pass(directory: Path, segment: Segment, rest_s: float) -> list[Segment]:
+    """`segment` split into one segment per pass (each aligned by itself when the whole segment
+    cannot be: a pass whose streams cannot be aligned must not take the others with it)."""
+    sweeps = [s for s in read_sweeps(directory) if s[0] in segment.sweeps and segment.from_s <= s[3] <= segment.to_s]
+    raw = load_raw(directory)
+    return [_segment(raw, (run,), sweeps, segment.from_s, rest_s) for run in segment.runs]
 
 
 def scan_streams(directory: Path, segment: Segment | None = None) -> tuple[ControllerStream, InstrumentStream]:
@@ -160,24 +183,18 @@ def analyse_recorded_scan(directory: str | Path, config: Config, plan: Plan,
     results: list[tuple[Segment, ScanResult]] = []
     t0 = first_controller_time(path)  # the controller's stamps are s since 1970: referred to its first
     for segment in parts:
-        ctrl, inst = scan_streams(path, segment)
-        if len(ctrl.time_s) < 10 or len(inst.time_s) < 10:
-            left_out.append(f"passes {segment.runs}: too few samples recorded to align")
-            continue
-        ctrl = ControllerStream(ctrl.time_s - t0, ctrl.position)
-        try:
-            result = analyse_scan(ctrl, inst, plan.targets, config.instrument.rate_hz, window=s.window,
-                                  wanted_u=s.wanted_u, kind=config.axis.kind, rest_reference=s.rest_reference,
-                                  average_s=config.capture.average_s, rate=s.rate)
-        except (InputError, ValueError, np.linalg.LinAlgError) as exc:
-            left_out.append(f"passes {', '.join(map(str, segment.runs))}: the clocks could not be aligned ({exc})")
-            continue
-        expected = [(p.run, p.direction) for p in plan.points if p.index in segment.sweeps]
-        if len(result.moves) != len(expected):
-            left_out.append(f"passes {', '.join(map(str, segment.runs))}: {len(result.moves)} sweeps seen in the "
-                            f"controller's stream, {len(expected)} recorded")
-            continue
-        results.append((segment, _renumbered(result, expected)))
+        got, why = _analyse_segment(path, segment, t0, config, plan, s)
+        if got is None and len(segment.runs) > 1:  # each pass by itself: one bad pass leaves the others
+            for one in by_pass(path, segment, config.plan.dwell_s):
+                alone, why_alone = _analyse_segment(path, one, t0, config, plan, s)
+                if alone is None:
+                    left_out.append(why_alone)
+                else:
+                    results.append((one, alone))
+        elif got is None:
+            left_out.append(why)
+        else:
+            results.append((segment, got))
     if not results:
         raise InputError(f"{path}: no whole pass of the scan could be aligned"
                          + (f" ({'; '.join(left_out)})" if left_out else ""))
@@ -193,6 +210,30 @@ def analyse_recorded_scan(directory: str | Path, config: Config, plan: Plan,
         meta[f"left_out_{i}"] = why
     table = point_table(profile, plan.targets, s.window, meta)
     return RecordedScan(table, profile, results, left_out)
+
+
+def _analyse_segment(path: Path, segment: Segment, t0: float, config: Config, plan: Plan, s: ScanSettings,
+                     ) -> tuple[ScanResult | None, str]:
+    """One segment aligned and tabulated, or None and why it could not be."""
+    passes = f"pass{'es' if len(segment.runs) > 1 else ''} {', '.join(map(str, segment.runs))}"
+    ctrl, inst = scan_streams(path, segment)
+    if len(ctrl.time_s) < 10 or len(inst.time_s) < 10:
+        return None, f"{passes}: too few samples recorded to align"
+    ctrl = ControllerStream(ctrl.time_s - t0, ctrl.position)
+    try:
+        result = analyse_scan(ctrl, inst, plan.targets, config.instrument.rate_hz, window=s.window,
+                              wanted_u=s.wanted_u, kind=config.axis.kind, rest_reference=s.rest_reference,
+                              average_s=config.capture.average_s, rate=s.rate)
+    except (InputError, ValueError, np.linalg.LinAlgError) as exc:
+        return None, f"{passes}: the clocks could not be aligned ({exc})"
+    expected = [(p.run, p.direction) for p in plan.points if p.index in segment.sweeps]
+    if len(result.moves) != len(expected):
+        return None, (f"{passes}: {len(result.moves)} sweeps seen in the controller's stream, "
+                      f"{len(expected)} recorded")
+    try:
+        return _renumbered(result, expected), ""
+    except InputError as exc:
+        return None, f"{passes}: {exc}"
 
 
 def _renumbered(result: ScanResult, expected: list[tuple[int, int]]) -> ScanResult:
