@@ -241,3 +241,31 @@ def test_a_pass_that_cannot_be_aligned_is_left_out_and_the_others_kept(tmp_path)
     result = analyse_recorded_scan(tmp_path / "c", config, build_plan(config))
     assert sorted(set(result.table.run.tolist())) == [1] and len(result.table) == 2 * 7
     assert any(why.startswith("pass 2:") for why in result.left_out), result.left_out
+
+
+@pytest.mark.machine
+def test_a_resume_right_after_a_sweep_record_keeps_every_pass_recorded_whole(tmp_path):
+    from campaign.errors import CampaignInterrupted
+    from campaign.measure import Control, Observer, resume_campaign
+
+    d = {**draw(8), "velocity": 15.0}
+    config = parse_config(SCAN.format(**d), "scan.toml")
+    control = Control()
+
+    class AbortAfterPass1(Observer):  # the operator's abort, taken between points: no tick after the record
+        def emit(self, event):
+            if event.kind == "sweep" and event.point == 1:
+                control.request_abort("key a")
+
+    with pytest.raises(CampaignInterrupted):
+        start_campaign(config, tmp_path / "c", opener=open_hardware, observer=AbortAfterPass1(), control=control)
+    runs = [json.loads(line) for line in (tmp_path / "c" / "runs.jsonl").read_text().splitlines()]
+    last_sweep_s = float((tmp_path / "c" / "sweeps.csv").read_text().splitlines()[-1].split(",")[4])
+    out = resume_campaign(tmp_path / "c", opener=open_hardware)
+    assert out.status == "completed"
+    starts = [json.loads(line)["t_s"] for line in (tmp_path / "c" / "runs.jsonl").read_text().splitlines()
+              if json.loads(line)["record"] == "start"]
+    assert len(runs) == 2 and starts[1] == pytest.approx(last_sweep_s, abs=1e-6)  # the case the split got wrong
+    table = read_points(tmp_path / "c" / "points.csv")
+    assert sorted(set(table.run.tolist())) == [1, 2] and len(table) == 2 * 2 * 7  # pass 1 recorded whole, kept
+    assert not any(k.startswith("left_out") for k in table.meta)

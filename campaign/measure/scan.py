@@ -105,7 +105,8 @@ def segments(directory: Path, plan: Plan, rest_s: float) -> tuple[list[Segment],
     left: list[str] = []
     bounds = [*starts, float("inf")]
     for lo, hi in itertools.pairwise(bounds):
-        mine = [s for s in sweeps if lo <= s[3] < hi]
+        # a record at a boundary is before it: a run starts, a fault is raised, after the record at that instant
+        mine = [s for s in sweeps if lo < s[3] <= hi]
         runs = sorted({s[1] for s in mine if per_run[s[1]] <= {m[0] for m in mine if m[1] == s[1]}})
         partial = sorted({s[1] for s in mine} - set(runs))
         if partial:
