@@ -269,3 +269,31 @@ def test_a_resume_right_after_a_sweep_record_keeps_every_pass_recorded_whole(tmp
     table = read_points(tmp_path / "c" / "points.csv")
     assert sorted(set(table.run.tolist())) == [1, 2] and len(table) == 2 * 2 * 7  # pass 1 recorded whole, kept
     assert not any(k.startswith("left_out") for k in table.meta)
+
+
+@pytest.mark.machine
+def test_skip_after_a_fault_during_a_scan_stops_naming_the_pass_and_resume_finishes_it(tmp_path):
+    from campaign.measure import resume_campaign
+
+    d = {**draw(5), "velocity": 10.0}
+    config = parse_config(SCAN.format(**d).replace("[axis]", "on_fault = \"skip\"\n[axis]", 1)
+                          + "[sim.faults.axis_error]\nat_s = 10.0\n", "scan.toml")
+    out = start_campaign(config, tmp_path / "c", opener=open_hardware)
+    assert out.status == "interrupted" and "pass 1" in out.message and "axiscal resume" in out.message
+    assert not (tmp_path / "c" / "points.csv").read_text().strip()  # no table from a scan missing a sweep
+    again = resume_campaign(tmp_path / "c", opener=open_hardware)
+    assert again.status == "completed" and again.points == again.planned == 4
+    table = read_points(tmp_path / "c" / "points.csv")
+    assert sorted(set(table.run.tolist())) == [1, 2] and len(table) == 2 * 2 * 7  # every pass recorded whole
+
+
+@pytest.mark.machine
+def test_axiscal_run_with_on_fault_skip_during_a_scan_says_interrupted_and_resume(tmp_path):
+    from tests.test_demo_e2e import axiscal
+
+    d = {**draw(5), "velocity": 10.0}
+    (tmp_path / "scan.toml").write_text(SCAN.format(**d) + "[sim.faults.axis_error]\nat_s = 10.0\n")
+    proc = axiscal("run", tmp_path / "scan.toml", "--out", tmp_path / "c", "--on-fault", "skip")
+    assert proc.returncode == 3, (proc.stdout, proc.stderr)
+    assert "error:" not in proc.stderr and "campaign interrupted" in proc.stdout
+    assert "pass 1" in proc.stdout and "Continue with: axiscal resume" in " ".join(proc.stdout.split())

@@ -389,6 +389,9 @@ class Executor:
         decision = self._decide(exc, total)
         if decision == "abort":
             raise CampaignStopped(str(exc)) from exc
+        if decision == "skip" and self.sweeps:  # a scan's table needs whole passes: none is left for later
+            raise CampaignStopped(f"a scan cannot skip a sweep: pass {self.plan.points[point].run} (point {point + 1}) "
+                                  "is measured again, whole, by `axiscal resume`") from exc
         self._recover(exc)  # CampaignStopped when the axis is not ready again: run() stops
         if self.sweeps:  # a lost connection took the position stream with it; the next sweeps need one
             if self.position_stream is not None:
