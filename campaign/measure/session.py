@@ -32,6 +32,7 @@ from campaign.record import (
     StopData,
     last_raw_state,
     open_campaign,
+    read_sweeps,
     recorded_point_indices,
 )
 from campaign.specs import DriverSpec
@@ -315,7 +316,10 @@ def missing_points(directory: Path, plan: Plan) -> list[int]:
     scan's (its sweeps.csv): every sweep from the start of the first pass not recorded whole, so
     that a resumed scan measures whole passes (each run of the executor is aligned by itself:
     campaign.measure.scan)."""
-    done = set(recorded_point_indices(directory))
+    if plan.sweeps:  # each sweep recorded checked against the plan before anything moves
+        done = {s.point for s in read_sweeps(directory, plan)}
+    else:
+        done = set(recorded_point_indices(directory))
     missing = [i for i in range(len(plan.points)) if i not in done]
     if plan.sweeps and missing:
         runs = {plan.points[i].run for i in missing}
