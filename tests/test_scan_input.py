@@ -77,3 +77,30 @@ def test_replay_of_a_scan_with_a_bad_or_missing_positions_file_is_one_error_line
     else:
         path.write_text("\n".join(change(path.read_text().splitlines())) + "\n")
     _one_error(axiscal("replay", tmp_path / "c"), *words)
+
+
+def _killed_before_its_stop(directory):
+    """The directory as a kill -9 leaves it after the last sweep: no stop record, no stop events."""
+    for name in ("runs.jsonl", "events.jsonl"):
+        path = directory / name
+        lines = path.read_text().splitlines(keepends=True)
+        keep = [ln for ln in lines if '"record": "stop"' not in ln and '"kind": "stop"' not in ln
+                and '"state": "stopped"' not in ln]
+        path.write_text("".join(keep))
+
+
+@pytest.mark.machine
+@pytest.mark.parametrize("lost", ["profile.csv", "points.csv"])
+def test_resume_writes_what_a_kill_between_the_table_and_the_profile_left_out(tmp_path, scans, lost):
+    _, done = scans
+    shutil.copytree(done, tmp_path / "c")
+    table, profile = (tmp_path / "c" / "points.csv").read_text(), (tmp_path / "c" / "profile.csv").read_text()
+    _killed_before_its_stop(tmp_path / "c")
+    if lost == "profile.csv":  # the old order: the table written, killed before the profile
+        (tmp_path / "c" / "profile.csv").unlink()
+    else:  # the order now: the profile written, killed before the table
+        (tmp_path / "c" / "points.csv").write_text("")
+    proc = axiscal("resume", tmp_path / "c")
+    assert proc.returncode == 0, (proc.stdout, proc.stderr)
+    assert (tmp_path / "c" / "points.csv").read_text() == table
+    assert (tmp_path / "c" / "profile.csv").read_text() == profile

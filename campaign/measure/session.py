@@ -22,7 +22,6 @@ from campaign.model import ErrorModel
 from campaign.plan import Plan, build_plan, check_plan, estimate_duration_s, plan_records
 from campaign.pointtable import read_points
 from campaign.record import (
-    PROFILE_FILE,
     Event,
     Recorder,
     RecordingError,
@@ -34,6 +33,7 @@ from campaign.record import (
     open_campaign,
     read_sweeps,
     recorded_point_indices,
+    scan_results_written,
 )
 from campaign.specs import DriverSpec
 from protocols.hardware import Hardware, Reading
@@ -278,7 +278,7 @@ def continue_campaign(r: Resumption, **kwargs: Any) -> Outcome:
     in plan order, appending to the same files. The keywords go to `execute` (`opener` or
     `opened`)."""
     if not r.todo:  # stopped after its last point, before its stop record
-        if r.plan.sweeps and not (r.path / PROFILE_FILE).exists():  # a scan killed before its table
+        if r.plan.sweeps and not scan_results_written(r.path):  # a scan killed before (all of) its results
             finish_scan(r.recorder, r.config, r.plan)
         publish_stopped(r.recorder, r.t_last, "completed")
         r.recorder.emit(Event(r.t_last, "stop", "campaign completed: nothing left to measure", None,

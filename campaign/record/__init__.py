@@ -24,6 +24,7 @@ from campaign.record.directory import (
     read_json_lines,
     read_sweeps,
     recorded_point_indices,
+    scan_results_written,
 )
 from campaign.record.events import (
     KINDS,
@@ -97,4 +98,5 @@ __all__ = [
     "read_json_lines",
     "read_sweeps",
     "recorded_point_indices",
+    "scan_results_written",
 ]

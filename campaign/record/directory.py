@@ -297,6 +297,13 @@ def read_sweeps(directory: Path, plan: Plan | None = None) -> list[SweepRecord]:
     return out
 
 
+def scan_results_written(directory: Path) -> bool:
+    """A scan's results are in the directory: profile.csv and its table in points.csv (a kill -9
+    between the two leaves one of them to write)."""
+    points = Path(directory) / POINTS_FILE
+    return (Path(directory) / PROFILE_FILE).exists() and points.exists() and points.stat().st_size > 0
+
+
 def recorded_point_indices(directory: Path) -> list[int]:
     """The plan indices of the points recorded in points.csv (its `point` column); none while the
     file holds no row yet."""

@@ -320,19 +320,20 @@ class Recorder:
         self.points_written += 1
 
     def scan_results(self, table_text: str, profile_text: str) -> None:
-        """A scan's results, once its sweeps are recorded: the point table at the targets into the
-        (empty) points.csv in one write + fsync, and profile.csv written whole (`write_once`). The
+        """A scan's results, once its sweeps are recorded: profile.csv written whole (`write_once`),
+        then the point table at the targets into the (empty) points.csv in one write + fsync. Only
+        what is missing is written (a kill -9 between the two leaves the other for resume). The
         table's comments get the campaign's machine, axis, operator, plan seed and simulated mark."""
         comments = "".join(f"# {k}: {self.meta[k]}\n" for k in ("machine", "axis", "operator", "plan_seed")
                            if k in self.meta)
         if self.meta.get("simulated"):
             comments += "# simulated: yes (not a measurement of a real axis)\n"
         try:
-            if os.fstat(self._points_fd).st_size:
-                raise RecordingError(f"{self.dir / 'points.csv'}: holds a table already")
-            _write_all(self._points_fd, (comments + table_text).encode())
-            self._sync(self._points_fd)
-            write_once(self.dir / PROFILE_FILE, comments + profile_text)
+            if not (self.dir / PROFILE_FILE).exists():
+                write_once(self.dir / PROFILE_FILE, comments + profile_text)
+            if not os.fstat(self._points_fd).st_size:
+                _write_all(self._points_fd, (comments + table_text).encode())
+                self._sync(self._points_fd)
         except OSError as exc:
             raise RecordingError(f"{self.dir}: {exc.strerror or exc}") from exc
 
