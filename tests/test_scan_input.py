@@ -104,3 +104,20 @@ def test_resume_writes_what_a_kill_between_the_table_and_the_profile_left_out(tm
     assert proc.returncode == 0, (proc.stdout, proc.stderr)
     assert (tmp_path / "c" / "points.csv").read_text() == table
     assert (tmp_path / "c" / "profile.csv").read_text() == profile
+
+
+@pytest.mark.machine
+def test_a_table_that_cannot_be_made_is_said_as_such_not_as_an_alignment_failure(scans):
+    from campaign.errors import InputError
+    from campaign.measure import analyse_recorded_scan
+    from campaign.plan import build_plan
+    from campaign.record import open_campaign
+
+    _, done = scans
+    config = open_campaign(done).config()
+    plan = build_plan(config)
+    elsewhere = type(plan)(plan.steps, tuple(t + 500.0 for t in plan.targets), plan.offsets, plan.seed)
+    with pytest.raises(InputError) as refused:  # the streams align; no target lies in the scanned travel
+        analyse_recorded_scan(done, config, elsewhere)
+    assert "no point table (no target lies within the scanned travel)" in str(refused.value)
+    assert "could not be aligned" not in str(refused.value)

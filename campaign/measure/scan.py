@@ -35,7 +35,7 @@ from campaign.record import (
     read_sweeps,
 )
 from campaign.stream.align import ControllerStream, InstrumentStream
-from campaign.stream.scan import Profile, ScanResult, analyse_scan, point_table
+from campaign.stream.scan import Profile, ScanResult, TableError, analyse_scan, point_table
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -237,6 +237,8 @@ def _analyse_segment(path: Path, segment: Segment, positions: pd.DataFrame, t0: 
         result = analyse_scan(ctrl, inst, plan.targets, config.instrument.rate_hz, window=s.window,
                               wanted_u=s.wanted_u, kind=config.axis.kind, rest_reference=s.rest_reference,
                               average_s=config.capture.average_s, rate=s.rate)
+    except TableError as exc:  # aligned, but no table: said as it is
+        return None, f"{passes}: no point table ({exc})"
     except (InputError, ValueError, np.linalg.LinAlgError) as exc:
         return None, f"{passes}: the clocks could not be aligned ({exc})"
     expected = [(p.run, p.direction) for p in plan.points if p.index in segment.sweeps]

@@ -120,6 +120,10 @@ def profile(ctrl: ControllerStream, inst: InstrumentStream, alignment: Alignment
     return Profile(kind, pos, direction.astype(int), pass_.astype(int), dev, times)
 
 
+class TableError(InputError):
+    """The profile gives no point table at the targets (an alignment succeeded; the table did not)."""
+
+
 def point_table(prof: Profile, targets: tuple[float, ...] | list[float], window: float,
                 meta: dict[str, str] | None = None) -> PointTable:
     """The point table at `targets` (axis unit): per pass, direction and target, the value at the
@@ -144,7 +148,7 @@ def point_table(prof: Profile, targets: tuple[float, ...] | list[float], window:
                     value = float(np.mean(e))
                 rows.append((k, d, float(target), value, float(np.mean(t_all[near])), int(near.sum())))
     if not rows:
-        raise InputError("no target lies within the scanned travel")
+        raise TableError("no target lies within the scanned travel")
     rows.sort(key=lambda r: (r[0], -r[1], r[2] if r[1] > 0 else -r[2]))
     arr = np.array(rows, dtype=float)
     return PointTable(kind=prof.kind, run=arr[:, 0].astype(int), direction=arr[:, 1].astype(int),
