@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from campaign import capture_methods
 from campaign.errors import InputError
 from campaign.pointtable import PointTable, write_points_text
 from campaign.stream.align import (
@@ -322,7 +323,7 @@ def analyse_scan(ctrl: ControllerStream, inst: InstrumentStream, targets: tuple[
     pos, dev = UNITS[kind][0], unit_label(UNITS[kind][1])
     rest = "; ".join(f"{'+' if d > 0 else '-'}: {st.step:.3f} ± {st.u:.3f} {dev} over {st.ends} ends"
                      for d, st in steps.items())
-    table_meta = {"purpose": "diagnostic", "capture": "scan",
+    table_meta = {"purpose": "diagnostic", "capture": capture_methods.SCAN.name,
                   "scan": f"{len(moves)} moves at {v:g} {pos}/s, window {window:g} {pos}",
                   "clock_offset_ms": f"{a['offset_ms']} ± {a['offset_uncertainty_ms']}",
                   "clock_rate_error_ppm": f"{a['rate_error_ppm']} ± {a['rate_uncertainty_ppm']}",
