@@ -78,8 +78,8 @@ def assess(table: PointTable, config: Config | None = None, planned: Planned | N
     verdict = judge(table, ev, tolerances, unc, outliers, planned, purpose, follows)
     method = config.capture.method if config is not None else table.meta.get("capture", "")
     if method in capture_methods.METHODS and not capture_methods.method(method).iso_230_2:
-        why = (f"captured with the {method} method, not an ISO 230-2 test: the axis never stops at a target, "
-               "so A, E, B and R are indicative")
+        why = (f"captured with the {method} method, not an ISO 230-2 test: "
+               f"{capture_methods.method(method).not_iso_why}, so A, E, B and R are indicative")
         verdict = replace(verdict, reasons=(why, *verdict.reasons))
     simulated = is_simulated(table, config, meta)
     return Assessment(source or table.source, table, ev, outliers, unc, verdict, tolerances, config, planned,

@@ -116,6 +116,8 @@ class CaptureMethod:
       point in messages; deviation_scale: deviation unit per axis unit.
     describe(spec, position_unit, deviation_unit): the report's sentence (units as written, e.g. mm, µm).
     step_label(window): (what the plan's step list says it does, how long).
+    not_iso_why: why a method that is not iso_230_2 gives only indicative figures (the verdict's
+      reason); empty for an ISO 230-2 method.
     """
 
     name: str
@@ -128,6 +130,7 @@ class CaptureMethod:
     capture: Callable[[CaptureSettings, Window, float, Ticks, float, int], Captured]
     describe: Callable[[CaptureSettings, str, str], str]
     step_label: Callable[[Window], tuple[str, str]]
+    not_iso_why: str = ""
 
 
 METHODS: dict[str, CaptureMethod] = {}
@@ -135,7 +138,12 @@ METHODS: dict[str, CaptureMethod] = {}
 
 
 def register(method: CaptureMethod) -> CaptureMethod:
-    """Add `method` (a name registered already is replaced); every consumer sees it from now on."""
+    """Add `method`; every consumer sees it from now on. ValueError when its name is registered
+    already (two methods of one name would make a recorded `capture:` ambiguous)."""
+    if method.name in METHODS:
+        raise ValueError(f"a capture method '{method.name}' is registered already")
+    if not method.iso_230_2 and not method.not_iso_why:
+        raise ValueError(f"capture method '{method.name}': not an ISO 230-2 capture, it must say why (not_iso_why)")
     METHODS[method.name] = method
     return method
 
@@ -265,14 +273,15 @@ def _not_at_a_stop(name: str) -> Callable[[CaptureSettings, Window, float, Ticks
     return capture
 
 
-register(CaptureMethod(
+SCAN = register(CaptureMethod(
     "scan", "move at scan_velocity through every target while both streams are recorded; a diagnostic, "
     "not an ISO 230-2 test (docs/scan.md)", live=True, sweeps=True, iso_230_2=False, fixed_dwell=False,
     window=lambda spec, dwell_s: Window(0.0, 0.0, 0.0), capture=_not_at_a_stop("scan"),
     describe=lambda spec, pos, dev: (f"scan on the move at {spec.scan_velocity or 0:g} {pos}/s, clocks aligned "
                                      f"from the passes, a line through ±{spec.scan_window / 2:g} {pos} about each "
                                      "target (not an ISO 230-2 capture)"),
-    step_label=lambda w: ("sweep", "")))
+    step_label=lambda w: ("sweep", ""), not_iso_why="the axis never stops at a target"))
+"""The scan method: its name is what a scan's table says it was captured with (`# capture:`)."""
 
 register(CaptureMethod(
     "stream", "the stream import's own: the last average_s of each dwell found in a position log "

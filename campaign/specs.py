@@ -299,7 +299,8 @@ class CaptureSpec:
         "scan method: the constant velocity of every sweep, axis unit/s (mm/s or deg/s; at most "
         "axis.max_velocity); required with method = scan", min=1e-06)
     scan_window: float = key(float, 1.0,
-        "scan method: the stretch about each target a line is fitted through, axis unit", min=1e-06)
+        "scan method: the stretch about each target a line is fitted through, axis unit; at least the "
+        "samples' spacing (scan_velocity / instrument.rate_hz), at most the targets' spacing", min=1e-06)
     scan_wanted_u: float = key(float, 0.2,
         "scan method: the deviation uncertainty per target and pass the timing may cost, deviation unit "
         "(µm or arcsec); a faster scan is warned about", min=1e-06)

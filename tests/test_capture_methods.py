@@ -88,9 +88,9 @@ def test_the_shipped_methods_and_what_each_consumer_reads():
     assert METHODS["dwell"].window(dwell, 4.0) == Window(3.5, 0.5, 0.5)
 
 
-def test_a_method_not_run_live_is_refused_by_the_plan():
-    with pytest.raises(InputError, match="stream.*import-stream"):
-        build_plan(parse_config(SMALL + 'method = "stream"\n', "small.toml"))
+def test_a_method_not_run_live_is_refused_by_the_config_naming_file_and_key():
+    with pytest.raises(InputError, match="small.toml: key 'capture.method': \"stream\".*import-stream"):
+        parse_config(SMALL + 'method = "stream"\n', "small.toml")
 
 
 def test_the_program_writer_refuses_a_scan(cli):
@@ -119,6 +119,40 @@ def test_a_scan_config_is_checked_before_anything_runs():
         parse_config(diagnostic, "scan.toml")
     with pytest.raises(InputError, match="capture.scan_velocity.*above axis.max_velocity"):
         parse_config(diagnostic + "scan_velocity = 60.0\n", "scan.toml")
+    rate = parse_config(diagnostic + "scan_velocity = 10.0\n", "scan.toml").instrument.rate_hz
+    with pytest.raises(InputError, match="scan.toml: key 'capture.scan_window'.*shorter than the spacing of the samples"):
+        parse_config(diagnostic + f"scan_velocity = 10.0\nscan_window = {0.8 * 10.0 / rate}\n", "scan.toml")
+    parse_config(diagnostic + f"scan_velocity = 10.0\nscan_window = {1.2 * 10.0 / rate}\n", "scan.toml")
+    plan = build_plan(parse_config(diagnostic + "scan_velocity = 10.0\n", "scan.toml"))
+    spacing = min(b - a for a, b in zip(plan.targets, plan.targets[1:]))
+    with pytest.raises(InputError, match="scan.toml: key 'capture.scan_window'.*wider than the targets' spacing"):
+        parse_config(diagnostic + f"scan_velocity = 10.0\nscan_window = {spacing * 1.2 + 1}\n", "scan.toml")
     plan = build_plan(parse_config(diagnostic + "scan_velocity = 10.0\n", "scan.toml"))
     assert plan.sweeps and [(p.run, p.direction, p.target) for p in plan.points] == [
         (1, 1, 102.0), (1, -1, -2.0), (2, 1, 102.0), (2, -1, -2.0)]  # the targets ± the overrun, up and down
+
+
+def test_register_refuses_a_name_registered_already_and_a_non_iso_method_without_its_reason():
+    with pytest.raises(ValueError, match="'dwell' is registered already"):
+        register(replace(METHODS["dwell"], summary="another dwell"))
+    assert METHODS["dwell"].summary == "average the end of a fixed dwell"
+    with pytest.raises(ValueError, match="not_iso_why"):
+        register(replace(MEDIAN, name="glide", iso_230_2=False))
+    assert "glide" not in METHODS
+
+
+def test_the_verdict_and_the_report_read_a_method_from_its_registry_object(tmp_path):
+    from campaign.assess import assess
+    from campaign.report.document import _scan_facts
+    from tests.conftest import ROOT
+
+    text = (ROOT / "data/paper-2022-beckhoff-press/horizontal_before.csv").read_text()
+    (tmp_path / "t.csv").write_text("# capture: glide\n# purpose: diagnostic\n# scan: 4 moves\n" + text)
+    glide = register(replace(METHODS["scan"], name="glide", not_iso_why="the axis glides past its targets"))
+    try:
+        a = assess(read_points(tmp_path / "t.csv"))
+        assert any("glide method, not an ISO 230-2 test: the axis glides past its targets" in r
+                   for r in a.verdict.reasons), a.verdict.reasons
+        assert _scan_facts(a.table.meta) == [("Scan", "4 moves")]  # a sweeping method's table, whatever its name
+    finally:
+        METHODS.pop(glide.name)

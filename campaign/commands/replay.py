@@ -97,7 +97,7 @@ def replay_scan(args: argparse.Namespace, directory: Path, config: Config, plan:
     old_summary, new_summary = evaluate(recorded).summary, evaluate(got).summary
     meta = {k: v for k, v in got.meta.items()
             if k.startswith(("clock", "timing", "speed", "deviation", "warning", "left_out", "segments"))}
-    result: dict[str, Any] = {"dir": str(directory), "capture": "scan", "points": len(got), "recorded_points": len(recorded),
+    result: dict[str, Any] = {"dir": str(directory), "capture": capture_methods.SCAN.name, "points": len(got), "recorded_points": len(recorded),
               "window": settings.window, "wanted_u": settings.wanted_u, "rest_reference": settings.rest_reference,
               "rate": settings.rate,
               "identical": not diffs, "differences": diffs, "summary_recorded": old_summary,

@@ -9,6 +9,7 @@ from campaign.config import Config, config_with, load_config
 from campaign.errors import InputError
 from campaign.measure import Opener, Outcome, RichProgress, dry_run, start_campaign
 from campaign.plot import check_plot_path, plot_evaluation
+from campaign.record import SWEEPS_FILE, scan_results_written
 from campaign.views import make_console, print_evaluation, print_json
 from protocols.hardware import AxisError, InstrumentError
 
@@ -66,7 +67,9 @@ def print_outcome(outcome: Outcome, args: argparse.Namespace, extra: dict | None
 
     result = {"dir": str(outcome.dir), "status": outcome.status, "points": outcome.points,
               "planned": outcome.planned, "duration_s": round(outcome.duration_s, 3), **(extra or {})}
-    a = assess_path(outcome.dir) if outcome.points else None
+    # a scan's points.csv is its table, written only once every pass is recorded (its sweeps are not points)
+    unfinished_scan = (outcome.dir / SWEEPS_FILE).exists() and not scan_results_written(outcome.dir)
+    a = assess_path(outcome.dir) if outcome.points and not unfinished_scan else None
     if a is not None:
         ev = a.evaluation
         result.update(ev.summary)

@@ -242,6 +242,7 @@ class Executor:
         self.position_stream: PositionStream | None = None
         self.sweep_samples = 0  # instrument readings since the last move started
         self.sweep_positions = 0  # controller samples since the last move started
+        self.sweep_beam_lost = False  # a reading with the beam not OK since the last sweep was recorded
         self.state = RunState.IDLE
         self.stop_reason = ""
         self._display_failed = False
@@ -359,6 +360,7 @@ class Executor:
         total = len(self.plan.points)
         for first, last in stretches(todo):
             self.next_point = first
+            self.sweep_beam_lost = False
             captured: Captured | None = None  # handed from a capture step to its checkpoint
             for index, step in stretch_steps(self.plan, first, last, self.overrun):
                 self.step_index = index
@@ -387,6 +389,9 @@ class Executor:
         decision = self._decide(exc, total)
         if decision == "abort":
             raise CampaignStopped(str(exc)) from exc
+        if decision == "skip" and self.sweeps:  # a scan's table needs whole passes: none is left for later
+            raise CampaignStopped(f"a scan cannot skip a sweep: pass {self.plan.points[point].run} (point {point + 1}) "
+                                  "is measured again, whole, by `axiscal resume`") from exc
         self._recover(exc)  # CampaignStopped when the axis is not ready again: run() stops
         if self.sweeps:  # a lost connection took the position stream with it; the next sweeps need one
             if self.position_stream is not None:
@@ -516,6 +521,8 @@ class Executor:
             self.rec.sample(t, self.step_index, self.point_index, self.axis_position, reading)
             self.readings.append(reading)
             self.sweep_samples += 1
+            if not reading.signal_ok:
+                self.sweep_beam_lost = True
             self._show_reading(t, reading)
             if reading.signal_ok != self.beam_ok:
                 self.beam_ok = reading.signal_ok
@@ -554,6 +561,10 @@ class Executor:
         up to the spec's `retries` times."""
         self.point_index = step.point.index
         if capture_methods.method(step.spec.method).sweeps:  # the sweep and its rest are in the streams
+            if self.sweep_beam_lost:  # a sweep with a hole in the instrument's stream: the fault policy decides
+                self.sweep_beam_lost = False
+                raise BeamLost(f"beam not OK during the sweep of point {step.point.index + 1} or the rest "
+                               "before its record")
             last = self.readings[-1].position if self.readings else float("nan")
             return Captured(last, self.sweep_samples, self.now() - self.arrival_s, mean_env(self.readings))
         for attempt in range(step.spec.retries + 1):
@@ -596,6 +607,7 @@ class Executor:
             raise ValueError(f"plan step {self.step_index}: a checkpoint without a capture before it")
         if self.sweeps:
             self._sweep_done(point.index, point.run, point.direction, point.target, t, captured.samples)
+            self.sweep_beam_lost = False
             return
         env, messages = self.env_guard.check(captured.env, t)
         got = replace(captured, env=env)

@@ -15,6 +15,7 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -22,9 +23,22 @@ from campaign.config import Config
 from campaign.errors import InputError
 from campaign.plan import Plan
 from campaign.pointtable import PointTable, write_points_text
-from campaign.record import POSITIONS_FILE, RUNS_FILE, SWEEPS_FILE, Recorder, load_raw, read_json_lines
+from campaign.record import (
+    POSITION_COLUMNS,
+    POSITIONS_FILE,
+    RUNS_FILE,
+    SWEEPS_FILE,
+    Recorder,
+    SweepRecord,
+    load_raw,
+    read_json_lines,
+    read_sweeps,
+)
 from campaign.stream.align import ControllerStream, InstrumentStream
-from campaign.stream.scan import Profile, ScanResult, analyse_scan, point_table
+from campaign.stream.scan import Profile, ScanResult, TableError, analyse_scan, point_table
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 EVENTS_FILE = "events.jsonl"
 
@@ -68,32 +82,18 @@ class RecordedScan:
     left_out: list[str]
 
 
-def read_sweeps(directory: Path) -> list[tuple[int, int, int, float]]:
-    """sweeps.csv: (plan index, run, direction, campaign time s of its record) per sweep recorded."""
-    path = directory / SWEEPS_FILE
-    if not path.is_file():
-        raise InputError(f"{directory}: not a recorded scan (no {SWEEPS_FILE})")
-    out = []
-    for number, line in enumerate(path.read_text(encoding="utf-8").splitlines()[1:], start=2):
-        cells = line.split(",")
-        try:
-            out.append((int(cells[0]), int(cells[1]), 1 if cells[2] == "+" else -1, float(cells[4])))
-        except (IndexError, ValueError):
-            raise InputError(f"{path}: line {number}: not a sweep record") from None
-    return out
-
-
 def segments(directory: Path, plan: Plan, rest_s: float) -> tuple[list[Segment], list[str]]:
     """The scan's segments (one per run of the executor, runs.jsonl, and one after each fault within
     a run, events.jsonl) with their whole passes; the sweeps of a pass a segment did not finish are
     left out (a retry or a resume measures that pass again)."""
-    import pandas as pd
 
     starts = [float(r["t_s"]) for r in read_json_lines(directory / RUNS_FILE) if r.get("record") == "start"]
     # a fault within a run interrupts the streams too: the sweeps after it are aligned by themselves
     faults = [float(e["t_s"]) for e in read_json_lines(directory / EVENTS_FILE) if e.get("kind") == "fault"]
     starts = sorted({*starts, *faults})
-    sweeps = read_sweeps(directory)
+    if not (directory / SWEEPS_FILE).is_file():
+        raise InputError(f"{directory}: not a recorded scan (no {SWEEPS_FILE})")
+    sweeps = read_sweeps(directory, plan)
     per_run: dict[int, set[int]] = {}
     for p in plan.points:
         per_run.setdefault(p.run, set()).add(p.index)
@@ -102,33 +102,79 @@ def segments(directory: Path, plan: Plan, rest_s: float) -> tuple[list[Segment],
     left: list[str] = []
     bounds = [*starts, float("inf")]
     for lo, hi in itertools.pairwise(bounds):
-        mine = [s for s in sweeps if lo <= s[3] < hi]
-        runs = sorted({s[1] for s in mine if per_run[s[1]] <= {m[0] for m in mine if m[1] == s[1]}})
-        partial = sorted({s[1] for s in mine} - set(runs))
+        # a record at a boundary is before it: a run starts, a fault is raised, after the record at that instant
+        mine = [s for s in sweeps if lo < s.t_s <= hi]
+        runs = sorted({s.run for s in mine if per_run[s.run] <= {m.point for m in mine if m.run == s.run}})
+        partial = sorted({s.run for s in mine} - set(runs))
         if partial:
             left.append(f"pass {', '.join(map(str, partial))}: the sweeps recorded from {lo:g} s on did not finish "
                         "it before the run stopped or a fault (a retry or the resume measured it again)")
         if not runs:
             continue
-        indices = tuple(s[0] for s in mine if s[1] in runs)
-        first = raw[(raw.point == min(indices)) & (raw.t_s >= lo)].t_s
-        first_s = float(first.min()) if len(first) and not pd.isna(first.min()) else lo
-        out.append(Segment(tuple(runs), indices, max(lo, first_s - 0.9 * rest_s),
-                           max(s[3] for s in mine if s[1] in runs)))
+        out.append(_segment(raw, runs, mine, lo, rest_s))
     return out, left
 
 
-def scan_streams(directory: Path, segment: Segment | None = None) -> tuple[ControllerStream, InstrumentStream]:
-    """Both recorded streams of a scan (within `segment`'s campaign times, or all)."""
+def _segment(raw: pd.DataFrame, runs: list[int] | tuple[int, ...], mine: list[SweepRecord],
+             lo: float, rest_s: float) -> Segment:
+    """The segment of the whole passes `runs` among the sweeps `mine` recorded from campaign time `lo`
+    on: its streams span from the rest before its first sweep to its last sweep's record."""
+    import pandas as pd
+
+    indices = tuple(s.point for s in mine if s.run in runs)
+    first, record_s = min(indices), min(s.t_s for s in mine if s.point == min(indices))
+    rows = raw[(raw.t_s >= lo) & (raw.t_s <= record_s)]
+    other = rows[rows.point.isna() | (rows.point != first)].t_s  # e.g. the recovery after a fault, the re-approach
+    if len(other):
+        rows = rows[rows.t_s > float(other.max())]
+    first_s = float(rows.t_s.min()) if len(rows) and not pd.isna(rows.t_s.min()) else lo
+    return Segment(tuple(runs), indices, max(lo, first_s - 0.9 * rest_s), max(s.t_s for s in mine if s.run in runs))
+
+
+def by_pass(directory: Path, plan: Plan, segment: Segment, rest_s: float) -> list[Segment]:
+    """`segment` split into one segment per pass (each aligned by itself when the whole segment
+    cannot be: a pass whose streams cannot be aligned must not take the others with it)."""
+    sweeps = [s for s in read_sweeps(directory, plan)
+              if s.point in segment.sweeps and segment.from_s <= s.t_s <= segment.to_s]
+    raw = load_raw(directory)
+    return [_segment(raw, (run,), sweeps, segment.from_s, rest_s) for run in segment.runs]
+
+
+def read_positions(directory: Path) -> pd.DataFrame:
+    """positions.csv, the controller's stream, its columns and values checked (a torn last line,
+    killed while writing it, left out). InputError naming the file (and line) otherwise."""
     import pandas as pd
 
     path = directory / POSITIONS_FILE
     if not path.is_file():
         raise InputError(f"{directory}: not a recorded scan (no {POSITIONS_FILE})")
     try:
-        ctrl = pd.read_csv(path)
-    except (ValueError, pd.errors.ParserError) as exc:
+        frame = pd.read_csv(path, dtype=str, keep_default_na=False)
+    except (ValueError, pd.errors.ParserError, UnicodeDecodeError) as exc:
         raise InputError(f"{path}: cannot read the controller's stream ({exc})") from None
+    if tuple(frame.columns) != POSITION_COLUMNS:
+        raise InputError(f"{path}: line 1: not a positions header (expected {','.join(POSITION_COLUMNS)})")
+    with open(path, "rb") as f:
+        f.seek(max(0, path.stat().st_size - 1))
+        torn = f.read(1) not in (b"\n", b"")
+    if torn and len(frame):
+        frame = frame.iloc[:-1]
+    values: pd.DataFrame = frame.apply(pd.to_numeric, errors="coerce")
+    bad = values.isna().any(axis=1).to_numpy()
+    if bad.any():
+        raise InputError(f"{path}: line {int(np.argmax(bad)) + 2}: not a controller sample "
+                         f"({','.join(POSITION_COLUMNS)}, numbers)")
+    if values.empty:
+        raise InputError(f"{path}: holds no sample")
+    return values
+
+
+def scan_streams(directory: Path, segment: Segment | None = None, ctrl: pd.DataFrame | None = None,
+                 ) -> tuple[ControllerStream, InstrumentStream]:
+    """Both recorded streams of a scan (within `segment`'s campaign times, or all); `ctrl`: positions.csv
+    read already (read_positions)."""
+    if ctrl is None:
+        ctrl = read_positions(directory)
     raw = load_raw(directory)
     good = raw[(raw.signal_ok == 1) & raw.reading.notna() & raw.instrument_time_s.notna()]
     if segment is not None:
@@ -139,17 +185,6 @@ def scan_streams(directory: Path, segment: Segment | None = None) -> tuple[Contr
             InstrumentStream(good.instrument_time_s.to_numpy(float), good.reading.to_numpy(float)))
 
 
-def first_controller_time(directory: Path) -> float:
-    """The controller's time of the first sample recorded (s since 1970): the origin of a scan's
-    controller times (its alignment's `clock_reference_s`)."""
-    with open(directory / POSITIONS_FILE, encoding="utf-8") as f:
-        f.readline()
-        try:
-            return float(f.readline().split(",")[2])
-        except (IndexError, ValueError):
-            raise InputError(f"{directory / POSITIONS_FILE}: holds no sample") from None
-
-
 def analyse_recorded_scan(directory: str | Path, config: Config, plan: Plan,
                           settings: ScanSettings | None = None) -> RecordedScan:
     """Align, profile and tabulate the scan recorded in `directory` (`settings`: the config's, or
@@ -158,26 +193,21 @@ def analyse_recorded_scan(directory: str | Path, config: Config, plan: Plan,
     s = settings or settings_of(config)
     parts, left_out = segments(path, plan, config.plan.dwell_s)
     results: list[tuple[Segment, ScanResult]] = []
-    t0 = first_controller_time(path)  # the controller's stamps are s since 1970: referred to its first
+    positions = read_positions(path)
+    t0 = float(positions.controller_time_s.iloc[0])  # the controller's stamps are s since 1970: referred to its first
     for segment in parts:
-        ctrl, inst = scan_streams(path, segment)
-        if len(ctrl.time_s) < 10 or len(inst.time_s) < 10:
-            left_out.append(f"passes {segment.runs}: too few samples recorded to align")
-            continue
-        ctrl = ControllerStream(ctrl.time_s - t0, ctrl.position)
-        try:
-            result = analyse_scan(ctrl, inst, plan.targets, config.instrument.rate_hz, window=s.window,
-                                  wanted_u=s.wanted_u, kind=config.axis.kind, rest_reference=s.rest_reference,
-                                  average_s=config.capture.average_s, rate=s.rate)
-        except (InputError, ValueError, np.linalg.LinAlgError) as exc:
-            left_out.append(f"passes {', '.join(map(str, segment.runs))}: the clocks could not be aligned ({exc})")
-            continue
-        expected = [(p.run, p.direction) for p in plan.points if p.index in segment.sweeps]
-        if len(result.moves) != len(expected):
-            left_out.append(f"passes {', '.join(map(str, segment.runs))}: {len(result.moves)} sweeps seen in the "
-                            f"controller's stream, {len(expected)} recorded")
-            continue
-        results.append((segment, _renumbered(result, expected)))
+        got, why = _analyse_segment(path, segment, positions, t0, config, plan, s)
+        if got is None and len(segment.runs) > 1:  # each pass by itself: one bad pass leaves the others
+            for one in by_pass(path, plan, segment, config.plan.dwell_s):
+                alone, why_alone = _analyse_segment(path, one, positions, t0, config, plan, s)
+                if alone is None:
+                    left_out.append(why_alone)
+                else:
+                    results.append((one, alone))
+        elif got is None:
+            left_out.append(why)
+        else:
+            results.append((segment, got))
     if not results:
         raise InputError(f"{path}: no whole pass of the scan could be aligned"
                          + (f" ({'; '.join(left_out)})" if left_out else ""))
@@ -193,6 +223,32 @@ def analyse_recorded_scan(directory: str | Path, config: Config, plan: Plan,
         meta[f"left_out_{i}"] = why
     table = point_table(profile, plan.targets, s.window, meta)
     return RecordedScan(table, profile, results, left_out)
+
+
+def _analyse_segment(path: Path, segment: Segment, positions: pd.DataFrame, t0: float, config: Config, plan: Plan,
+                     s: ScanSettings) -> tuple[ScanResult | None, str]:
+    """One segment aligned and tabulated, or None and why it could not be."""
+    passes = f"pass{'es' if len(segment.runs) > 1 else ''} {', '.join(map(str, segment.runs))}"
+    ctrl, inst = scan_streams(path, segment, positions)
+    if len(ctrl.time_s) < 10 or len(inst.time_s) < 10:
+        return None, f"{passes}: too few samples recorded to align"
+    ctrl = ControllerStream(ctrl.time_s - t0, ctrl.position)
+    try:
+        result = analyse_scan(ctrl, inst, plan.targets, config.instrument.rate_hz, window=s.window,
+                              wanted_u=s.wanted_u, kind=config.axis.kind, rest_reference=s.rest_reference,
+                              average_s=config.capture.average_s, rate=s.rate)
+    except TableError as exc:  # aligned, but no table: said as it is
+        return None, f"{passes}: no point table ({exc})"
+    except (InputError, ValueError, np.linalg.LinAlgError) as exc:
+        return None, f"{passes}: the clocks could not be aligned ({exc})"
+    expected = [(p.run, p.direction) for p in plan.points if p.index in segment.sweeps]
+    if len(result.moves) != len(expected):
+        return None, (f"{passes}: {len(result.moves)} sweeps seen in the controller's stream, "
+                      f"{len(expected)} recorded")
+    try:
+        return _renumbered(result, expected), ""
+    except InputError as exc:
+        return None, f"{passes}: {exc}"
 
 
 def _renumbered(result: ScanResult, expected: list[tuple[int, int]]) -> ScanResult:

@@ -22,7 +22,6 @@ from campaign.model import ErrorModel
 from campaign.plan import Plan, build_plan, check_plan, estimate_duration_s, plan_records
 from campaign.pointtable import read_points
 from campaign.record import (
-    PROFILE_FILE,
     Event,
     Recorder,
     RecordingError,
@@ -32,7 +31,9 @@ from campaign.record import (
     StopData,
     last_raw_state,
     open_campaign,
+    read_sweeps,
     recorded_point_indices,
+    scan_results_written,
 )
 from campaign.specs import DriverSpec
 from protocols.hardware import Hardware, Reading
@@ -277,7 +278,7 @@ def continue_campaign(r: Resumption, **kwargs: Any) -> Outcome:
     in plan order, appending to the same files. The keywords go to `execute` (`opener` or
     `opened`)."""
     if not r.todo:  # stopped after its last point, before its stop record
-        if r.plan.sweeps and not (r.path / PROFILE_FILE).exists():  # a scan killed before its table
+        if r.plan.sweeps and not scan_results_written(r.path):  # a scan killed before (all of) its results
             finish_scan(r.recorder, r.config, r.plan)
         publish_stopped(r.recorder, r.t_last, "completed")
         r.recorder.emit(Event(r.t_last, "stop", "campaign completed: nothing left to measure", None,
@@ -315,7 +316,10 @@ def missing_points(directory: Path, plan: Plan) -> list[int]:
     scan's (its sweeps.csv): every sweep from the start of the first pass not recorded whole, so
     that a resumed scan measures whole passes (each run of the executor is aligned by itself:
     campaign.measure.scan)."""
-    done = set(recorded_point_indices(directory))
+    if plan.sweeps:  # each sweep recorded checked against the plan before anything moves
+        done = {s.point for s in read_sweeps(directory, plan)}
+    else:
+        done = set(recorded_point_indices(directory))
     missing = [i for i in range(len(plan.points)) if i not in done]
     if plan.sweeps and missing:
         runs = {plan.points[i].run for i in missing}

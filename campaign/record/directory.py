@@ -41,6 +41,10 @@ FORMAT_VERSION = 2
 CONFIG_FILE, META_FILE, PLAN_FILE, RUNS_FILE = "config.toml", "meta.json", "plan.jsonl", "runs.jsonl"
 POINTS_FILE = "points.csv"
 POSITIONS_FILE, SWEEPS_FILE, PROFILE_FILE = "positions.csv", "sweeps.csv", "profile.csv"
+POSITION_COLUMNS = ("t_s", "step", "controller_time_s", "actual_position")
+"""positions.csv: campaign time s, plan step, the controller's own time stamp (s since 1970), its actual position."""
+SWEEP_COLUMNS = ("point", "run", "direction", "end", "t_s", "samples", "positions")
+"""sweeps.csv: plan index, pass, + or -, end position, campaign time s of the record, readings, controller samples."""
 """A scan's controller stream, its sweeps done (what resume continues after), its dense profile."""
 """The campaign's point table (campaign.pointtable's format), appended point by point."""
 
@@ -241,15 +245,72 @@ def read_events(directory: str | Path) -> list[dict[str, Any]]:
     return records
 
 
+@dataclass(frozen=True)
+class SweepRecord:
+    """One row of a scan's sweeps.csv: the sweep (plan index `point`, pass `run`, `direction` +1/-1,
+    its `end` position in the axis unit) recorded at campaign time `t_s` (s) after `samples`
+    readings and `positions` controller samples were made durable."""
+
+    point: int
+    run: int
+    direction: int
+    end: float
+    t_s: float
+    samples: int
+    positions: int
+
+
+def read_sweeps(directory: Path, plan: Plan | None = None) -> list[SweepRecord]:
+    """The one reader of sweeps.csv (empty list when the file is not there); a torn last line
+    (no newline: killed while writing it) is left out. Each row is checked, and against `plan`
+    when given: its point is one of the plan's, with the plan's pass and direction. InputError
+    naming the file and line otherwise."""
+    path = Path(directory) / SWEEPS_FILE
+    if not path.exists():
+        return []
+    text = path.read_text(encoding="utf-8", errors="replace")
+    lines = text.split("\n")[:-1]  # the last element: "" after a newline, or a torn line
+    if not lines:
+        return []
+    if tuple(lines[0].split(",")) != SWEEP_COLUMNS:
+        raise InputError(f"{path}: line 1: not a sweeps header (expected {','.join(SWEEP_COLUMNS)})")
+    out = []
+    for number, line in enumerate(lines[1:], start=2):
+        cells = line.split(",")
+        try:
+            if len(cells) != len(SWEEP_COLUMNS) or cells[2] not in ("+", "-"):
+                raise ValueError
+            record = SweepRecord(int(cells[0]), int(cells[1]), 1 if cells[2] == "+" else -1, float(cells[3]),
+                                 float(cells[4]), int(cells[5]), int(cells[6]))
+        except ValueError:
+            raise InputError(f"{path}: line {number}: not a sweep record ({','.join(SWEEP_COLUMNS)})") from None
+        if plan is not None:
+            if not 0 <= record.point < len(plan.points):
+                raise InputError(f"{path}: line {number}: point {record.point} is not in the plan "
+                                 f"(0 to {len(plan.points) - 1})")
+            planned = plan.points[record.point]
+            if (record.run, record.direction) != (planned.run, planned.direction):
+                sign = "+" if planned.direction > 0 else "-"
+                raise InputError(f"{path}: line {number}: point {record.point} is pass {record.run} {cells[2]}, "
+                                 f"the plan's pass {planned.run} {sign}")
+        out.append(record)
+    return out
+
+
+def scan_results_written(directory: Path) -> bool:
+    """A scan's results are in the directory: profile.csv and its table in points.csv (a kill -9
+    between the two leaves one of them to write)."""
+    points = Path(directory) / POINTS_FILE
+    return (Path(directory) / PROFILE_FILE).exists() and points.exists() and points.stat().st_size > 0
+
+
 def recorded_point_indices(directory: Path) -> list[int]:
     """The plan indices of the points recorded in points.csv (its `point` column); none while the
     file holds no row yet."""
     from campaign.pointtable import read_points
 
-    sweeps = Path(directory) / SWEEPS_FILE
-    if sweeps.exists():  # a scan: the sweeps done (points.csv is its table at the targets, written at the end)
-        lines = sweeps.read_text(encoding="utf-8").splitlines()[1:]
-        return [int(line.split(",")[0]) for line in lines if line[:1].isdigit()]
+    if (Path(directory) / SWEEPS_FILE).exists():  # a scan: the sweeps done (points.csv: its table, at the end)
+        return [s.point for s in read_sweeps(directory)]
     path = Path(directory) / "points.csv"
     if not path.exists() or not any(ln[:1].isdigit() for ln in path.read_text(encoding="utf-8").splitlines()):
         return []

@@ -39,20 +39,21 @@ from campaign.record.directory import (
     FORMAT_VERSION,
     META_FILE,
     PLAN_FILE,
+    POSITION_COLUMNS,
     POSITIONS_FILE,
     PROFILE_FILE,
     RUNS_FILE,
+    SWEEP_COLUMNS,
     SWEEPS_FILE,
     open_campaign,
     read_json_lines,
+    read_sweeps,
 )
 from campaign.record.events import Event
 from protocols.hardware import ENV_FIELDS, Reading
 
 APPENDED = ("raw.csv", "points.csv", "events.jsonl", "events.log", RUNS_FILE, POSITIONS_FILE, SWEEPS_FILE)
 """The files a campaign appends to (a torn last line of each is cut off on reopen)."""
-POSITION_COLUMNS = ("t_s", "step", "controller_time_s", "actual_position")
-SWEEP_COLUMNS = ("point", "run", "direction", "end", "t_s", "samples", "positions")
 
 RAW_COLUMNS = ("t_s", "step", "point", "axis_position", "reading", "signal_ok", "signal_pct",
                "instrument_time_s", *ENV_FIELDS)
@@ -228,10 +229,12 @@ class Recorder:
             header = lines[0].split(",")
             rec.env_columns = tuple(c for c in header if c in ENV_FIELDS)
             rec.points_written = len(lines) - 1
-        sweeps = path / SWEEPS_FILE
-        if sweeps.exists():  # a scan: its points are its sweeps until the table is written
-            rec._sweeps_done = {int(line.split(",")[0]) for line in sweeps.read_text(encoding="utf-8").splitlines()[1:]
-                                if line[:1].isdigit()}
+        if (path / SWEEPS_FILE).exists():  # a scan: its points are its sweeps until the table is written
+            try:
+                rec._sweeps_done = {s.point for s in read_sweeps(path)}
+            except InputError:
+                rec.close()
+                raise
             rec.points_written = len(rec._sweeps_done)
         return rec
 
@@ -317,19 +320,20 @@ class Recorder:
         self.points_written += 1
 
     def scan_results(self, table_text: str, profile_text: str) -> None:
-        """A scan's results, once its sweeps are recorded: the point table at the targets into the
-        (empty) points.csv in one write + fsync, and profile.csv written whole (`write_once`). The
+        """A scan's results, once its sweeps are recorded: profile.csv written whole (`write_once`),
+        then the point table at the targets into the (empty) points.csv in one write + fsync. Only
+        what is missing is written (a kill -9 between the two leaves the other for resume). The
         table's comments get the campaign's machine, axis, operator, plan seed and simulated mark."""
         comments = "".join(f"# {k}: {self.meta[k]}\n" for k in ("machine", "axis", "operator", "plan_seed")
                            if k in self.meta)
         if self.meta.get("simulated"):
             comments += "# simulated: yes (not a measurement of a real axis)\n"
         try:
-            if os.fstat(self._points_fd).st_size:
-                raise RecordingError(f"{self.dir / 'points.csv'}: holds a table already")
-            _write_all(self._points_fd, (comments + table_text).encode())
-            self._sync(self._points_fd)
-            write_once(self.dir / PROFILE_FILE, comments + profile_text)
+            if not (self.dir / PROFILE_FILE).exists():
+                write_once(self.dir / PROFILE_FILE, comments + profile_text)
+            if not os.fstat(self._points_fd).st_size:
+                _write_all(self._points_fd, (comments + table_text).encode())
+                self._sync(self._points_fd)
         except OSError as exc:
             raise RecordingError(f"{self.dir}: {exc.strerror or exc}") from exc
 

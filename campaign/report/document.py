@@ -248,7 +248,8 @@ SCAN_FACTS = (("scan", "Scan"), ("clock_offset_ms", "Clock offset, ms"), ("clock
 
 def _scan_facts(meta: dict[str, str]) -> list[tuple[str, str]]:
     """A scan's alignment, timing budget, speed limit, rest steps, warnings and what was left out."""
-    if meta.get("capture") != "scan":
+    method = capture_methods.METHODS.get(meta.get("capture", ""))
+    if method is None or not method.sweeps:  # only a sweeping method's table carries these facts
         return []
     rows = [(label, meta[key]) for key, label in SCAN_FACTS if key in meta]
     rows += [("Warning", v) for k, v in meta.items() if k.startswith("warning_")]

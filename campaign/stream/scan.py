@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from campaign import capture_methods
 from campaign.errors import InputError
 from campaign.pointtable import PointTable, write_points_text
 from campaign.stream.align import (
@@ -120,6 +121,10 @@ def profile(ctrl: ControllerStream, inst: InstrumentStream, alignment: Alignment
     return Profile(kind, pos, direction.astype(int), pass_.astype(int), dev, times)
 
 
+class TableError(InputError):
+    """The profile gives no point table at the targets (an alignment succeeded; the table did not)."""
+
+
 def point_table(prof: Profile, targets: tuple[float, ...] | list[float], window: float,
                 meta: dict[str, str] | None = None) -> PointTable:
     """The point table at `targets` (axis unit): per pass, direction and target, the value at the
@@ -144,7 +149,7 @@ def point_table(prof: Profile, targets: tuple[float, ...] | list[float], window:
                     value = float(np.mean(e))
                 rows.append((k, d, float(target), value, float(np.mean(t_all[near])), int(near.sum())))
     if not rows:
-        raise InputError("no target lies within the scanned travel")
+        raise TableError("no target lies within the scanned travel")
     rows.sort(key=lambda r: (r[0], -r[1], r[2] if r[1] > 0 else -r[2]))
     arr = np.array(rows, dtype=float)
     return PointTable(kind=prof.kind, run=arr[:, 0].astype(int), direction=arr[:, 1].astype(int),
@@ -318,7 +323,7 @@ def analyse_scan(ctrl: ControllerStream, inst: InstrumentStream, targets: tuple[
     pos, dev = UNITS[kind][0], unit_label(UNITS[kind][1])
     rest = "; ".join(f"{'+' if d > 0 else '-'}: {st.step:.3f} ± {st.u:.3f} {dev} over {st.ends} ends"
                      for d, st in steps.items())
-    table_meta = {"purpose": "diagnostic", "capture": "scan",
+    table_meta = {"purpose": "diagnostic", "capture": capture_methods.SCAN.name,
                   "scan": f"{len(moves)} moves at {v:g} {pos}/s, window {window:g} {pos}",
                   "clock_offset_ms": f"{a['offset_ms']} ± {a['offset_uncertainty_ms']}",
                   "clock_rate_error_ppm": f"{a['rate_error_ppm']} ± {a['rate_uncertainty_ppm']}",
