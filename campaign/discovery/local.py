@@ -26,7 +26,17 @@ import numpy as np
 
 from campaign.discovery.data import CampaignData
 from campaign.discovery.effects import local_shape
-from campaign.discovery.fit import Fit, Term, bic, cv_rms_um, design, f_test_p, fixed_deviation, linear_fit
+from campaign.discovery.fit import (
+    Fit,
+    Term,
+    bic,
+    cv_rms_um,
+    design,
+    f_test_p,
+    fixed_deviation,
+    linear_fit,
+    thin_q,
+)
 
 ALPHA = 0.001
 """Largest p-value of the F-test (after the look-elsewhere factor), as for the vocabulary."""
@@ -218,10 +228,17 @@ def _grid_best(data: CampaignData, fit: Fit) -> tuple[str, float, float] | None:
     targets = _targets(data)
     step = max(float(np.median(np.diff(targets))) / 4, float(np.ptp(targets)) / MAX_CENTRES)
     centres = np.arange(targets[0], targets[-1] + step / 2, step)
-    q, _ = np.linalg.qr(design(data, fit.terms)[0])
+    q = thin_q(design(data, fit.terms)[0])
     r = data.y - fit.prediction
+    # a local shape takes one value per distinct position: the sums below are over those, with the
+    # residual's and the basis's sums there (exactly the sums over the rows)
+    xs, where = np.unique(data.x, return_inverse=True)
+    count = np.bincount(where).astype(float)
+    # per position: the residual's sum, then the basis's (one product gives both)
+    sums = np.column_stack([np.bincount(where, col, minlength=len(xs)) for col in np.column_stack([r, q]).T])
+    qr = q.T @ r
     best, power_best = None, -1.0
-    block = max(1, GRID_CELLS // max(len(data), 1))  # centres at a time: memory linear in the rows
+    block = max(1, GRID_CELLS // max(len(xs), 1))  # centres at a time: memory linear in the positions
     for kind in KINDS:
         widths = width_range(data, kind)
         if widths is None:
@@ -230,10 +247,12 @@ def _grid_best(data: CampaignData, fit: Fit) -> tuple[str, float, float] | None:
             power = np.zeros(len(centres))
             for lo in range(0, len(centres), block):
                 c = centres[lo:lo + block]
-                g = local_shape(data.x[:, None], c[None, :], width, kind)
-                g -= q @ (q.T @ g)
-                norm = (g * g).sum(0)
-                power[lo:lo + block] = np.where(norm > 1e-12 * len(data), (r @ g) ** 2 / np.maximum(norm, 1e-300), 0.0)
+                g = local_shape(xs[:, None], c[None, :], width, kind)
+                both = sums.T @ g  # r'·(column), then Q'·(column): the part in the model's span
+                qg = both[1:]
+                norm = count @ (g * g) - (qg * qg).sum(0)
+                rg = both[0] - qr @ qg
+                power[lo:lo + block] = np.where(norm > 1e-12 * len(data), rg**2 / np.maximum(norm, 1e-300), 0.0)
             power[~_seen(targets, kind, centres, width)] = 0.0
             i = int(np.argmax(power))
             if power[i] > power_best:
