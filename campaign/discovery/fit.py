@@ -16,7 +16,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from campaign.discovery.data import CampaignData
+from campaign.discovery.data import CampaignData, keep_rows
 from campaign.discovery.effects import form_of, period_limits
 from campaign.model import effect_um
 
@@ -234,6 +234,55 @@ def shape_bounds(data: CampaignData, name: str, key: str) -> tuple[float, float]
     return grid[0]["tau_s"] / 3, grid[-1]["tau_s"] * 3
 
 
+REDUCE_SHARE = 0.5
+"""A shape search runs on the projected problem (reduced_residual) when the data has at most this
+share of its rows as distinct (position, direction) pairs."""
+
+
+def reduced_residual(data: CampaignData, terms: list[Term], moving: list[int],
+                     probes: list[list[Term]]) -> Callable[[list[Term]], np.ndarray] | None:
+    """The residual of a shape search, projected exactly onto a smaller space, when the moving terms'
+    columns (`moving`: their indices in `terms`) are functions of position and direction alone (a
+    screw lead, a local error; checked on every term list of `probes`). Every column of the model
+    then lies in the span W of the indicators of the distinct (position, direction) pairs and of the
+    other terms' parts outside them; ‖y - Aβ‖² = ‖y - WWᵀy‖² + ‖Wᵀy - WᵀAβ‖², so the returned
+    function (terms at new shapes -> Wᵀy - WᵀAβ̂, with √‖y - WWᵀy‖² appended) has the norm and the
+    Jacobian's normal matrix of the full residual: least squares takes the same steps on about one
+    row per pair. None when the moving columns are not such functions or the saving is small
+    (REDUCE_SHARE)."""
+    keys, first, index = np.unique(np.column_stack([data.x, data.d]), axis=0, return_index=True,
+                                   return_inverse=True)
+    index = index.ravel()
+    if len(keys) > REDUCE_SHARE * len(data):
+        return None
+    count = np.bincount(index).astype(float)
+    for probe in probes:
+        for i in moving:
+            cols = full_columns(data, probe[i])
+            means = np.column_stack([np.bincount(index, c) for c in cols.T]) / count[:, None]
+            if np.max(np.abs(cols - means[index]), initial=0.0) > 1e-12 * max(1.0, float(np.max(np.abs(cols)))):
+                return None
+    still = [t for i, t in enumerate(terms) if i not in moving]
+    y = data.y - fixed_deviation(data, terms)
+    b = design(data, still)[0]
+    b_means = np.column_stack([np.bincount(index, c) for c in b.T]) / count[:, None]
+    u, sv, _ = np.linalg.svd(b - b_means[index], full_matrices=False)
+    u = u[:, sv > 1e-9 * max(float(np.linalg.norm(b)), 1e-300)]
+    root = np.sqrt(count)
+    y_small = np.concatenate([np.bincount(index, y) / root, u.T @ y])
+    b_small = np.vstack([b_means * root[:, None], u.T @ b])
+    rest = math.sqrt(max(float(y @ y - y_small @ y_small), 0.0))
+    pairs = keep_rows(data, np.isin(np.arange(len(data)), first))  # one row per pair, in data order
+    to_keys = np.argsort(np.argsort(first))  # the row of `pairs` of each key
+
+    def residual(new: list[Term]) -> np.ndarray:
+        cols = np.hstack([new[i].columns(pairs)[to_keys] for i in moving]) * root[:, None]
+        a = np.hstack([b_small, np.vstack([cols, np.zeros((len(y_small) - len(cols), cols.shape[1]))])])
+        return np.append(y_small - a @ _solve(a, y_small), rest)
+
+    return residual
+
+
 def refine(data: CampaignData, terms: list[Term]) -> Fit:
     """Refine every searched shape parameter from its current value (least_squares on logs)."""
     slots = [(i, key) for i, term in enumerate(terms) for key in term.searched]
@@ -249,7 +298,12 @@ def refine(data: CampaignData, terms: list[Term]) -> Fit:
             new[i].shape[key] = float(math.exp(value))
         return new
 
+    moving = sorted({i for i, _ in slots})
+    reduced = reduced_residual(data, terms, moving, [with_shapes(start), with_shapes(start + 0.1)])
+
     def residual(logs: np.ndarray) -> np.ndarray:
+        if reduced is not None:
+            return reduced(with_shapes(logs))
         f = linear_fit(data, with_shapes(logs))
         return data.y - f.prediction
 

@@ -35,6 +35,7 @@ from campaign.discovery.fit import (
     f_test_p,
     fixed_deviation,
     linear_fit,
+    reduced_residual,
     thin_q,
 )
 
@@ -293,7 +294,17 @@ def _refine(data: CampaignData, terms: list[Term], start: tuple[float, float], k
         return linear_fit(data, [*terms, local_term(v[0], v[1], by_direction, kind, index)])
 
     x0 = np.clip(np.array(start, dtype=float), lower + 1e-9, upper - 1e-9)
-    result = optimize.least_squares(lambda v: data.y - fit_at(v).prediction, x0, bounds=(lower, upper),
+
+    def at(v: np.ndarray) -> list[Term]:
+        return [*terms, local_term(v[0], v[1], by_direction, kind, index)]
+
+    nearby = np.clip(x0 + widths[0], lower, upper)
+    reduced = reduced_residual(data, at(x0), [len(terms)], [at(x0), at(nearby)])  # the same steps, fewer rows
+
+    def residual(v: np.ndarray) -> np.ndarray:
+        return reduced(at(v)) if reduced is not None else data.y - fit_at(v).prediction
+
+    result = optimize.least_squares(residual, x0, bounds=(lower, upper),
                                     x_scale=np.array([widths[0], widths[0]]), diff_step=1e-4)
     best, first = fit_at(result.x), fit_at(x0)
     return best if best.rss <= first.rss else first
