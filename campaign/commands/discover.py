@@ -42,7 +42,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                        description="Fit MODEL to a measured point table, then name, add and refit the "
                                    "effects the residual shows, until what is left is noise.")
     p.add_argument("files", nargs="+", metavar="POINTS.csv",
-                   help="point table CSV (see docs/point-table.md); several campaigns of one axis are fitted "
+                   help="point table CSV (see docs/point-table.md), or a scan's profile.csv (averaged over "
+                        "0.05 mm bins, see docs/discovery.md); several campaigns of one axis are fitted "
                         "together: shared effects, an offset per campaign (a new laser datum), each campaign's "
                         "time its own")
     p.add_argument("--model", metavar="MODEL.toml",

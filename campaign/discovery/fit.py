@@ -266,8 +266,10 @@ def reduced_residual(data: CampaignData, terms: list[Term], moving: list[int],
     y = data.y - fixed_deviation(data, terms)
     b = design(data, still)[0]
     b_means = np.column_stack([np.bincount(index, c) for c in b.T]) / count[:, None]
-    u, sv, _ = np.linalg.svd(b - b_means[index], full_matrices=False)
-    u = u[:, sv > 1e-9 * max(float(np.linalg.norm(b)), 1e-300)]
+    outside = b - b_means[index]  # the other terms' parts outside the pairs' indicators
+    eig, vectors = np.linalg.eigh(outside.T @ outside)
+    kept = eig > (1e-7 * max(float(np.linalg.norm(b)), 1e-300)) ** 2  # (what is below adds < 1e-14 to the RSS)
+    u = outside @ (vectors[:, kept] / np.sqrt(eig[kept]))
     root = np.sqrt(count)
     y_small = np.concatenate([np.bincount(index, y) / root, u.T @ y])
     b_small = np.vstack([b_means * root[:, None], u.T @ b])
