@@ -477,8 +477,14 @@ def _cv_from_hat(a: np.ndarray, y: np.ndarray, index: np.ndarray) -> float:
             rows = order[starts[part][:, None] + np.arange(size)[None, :]]  # groups × size
             qg = q[rows]
             block = np.eye(size) - qg @ np.swapaxes(qg, 1, 2)
-            e = np.linalg.pinv(block, rcond=CV_RCOND) @ r[rows][..., None]
-            total += float(np.sum(e**2))
+            # the block's eigenvalues are 1 - σ²(Q_g) >= 1 - Σ leverages: above CV_RCOND (of at most 1)
+            # its pseudo-inverse is its inverse, and a solve does
+            plain = (qg**2).sum(axis=(1, 2)) < 1 - CV_RCOND
+            rg = r[rows][..., None]
+            if plain.any():
+                total += float(np.sum(np.linalg.solve(block[plain], rg[plain]) ** 2))
+            if not plain.all():
+                total += float(np.sum((np.linalg.pinv(block[~plain], rcond=CV_RCOND) @ rg[~plain]) ** 2))
     return float(np.sqrt(total / len(y)))
 
 
