@@ -132,9 +132,9 @@ def design(data: CampaignData, terms: list[Term]) -> tuple[np.ndarray, list[slic
 
 NORMAL_COND = 1e4
 """Up to this condition number of the column-normalised design, least squares solves the normal
-equations (one pass over the rows, then a p × p Cholesky and one step of iterative refinement:
-relative error about NORMAL_COND² × 1e-16); above it, an SVD of the whole design (numpy's lstsq),
-which also holds a rank-deficient one."""
+equations (one pass over the rows, then a p × p Cholesky, refined once above REFINE_COND: relative
+error at most about NORMAL_COND × 1e-16 after the refinement); above it, an SVD of the whole
+design (numpy's lstsq), which also holds a rank-deficient one."""
 
 
 def _normal_scaled(a: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
