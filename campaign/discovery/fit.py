@@ -158,6 +158,17 @@ equations' solution gets one step of iterative refinement (below it, its relativ
 about 1e-13 without)."""
 
 
+def _times(a: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """a·v for a tall a (numpy's einsum: several times faster than BLAS's matrix-vector product on
+    a few columns)."""
+    return np.asarray(np.einsum("ij,j->i", a, v))
+
+
+def _t_times(a: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """aᵀ·v for a tall a (einsum, as _times)."""
+    return np.asarray(np.einsum("ij,i->j", a, v))
+
+
 def _solve(a: np.ndarray, y: np.ndarray) -> np.ndarray:
     normal = _normal_scaled(a)
     if normal is not None:
@@ -165,9 +176,9 @@ def _solve(a: np.ndarray, y: np.ndarray) -> np.ndarray:
 
         gram, scale = normal
         factor = linalg.cho_factor(gram)
-        beta = scale * linalg.cho_solve(factor, scale * (a.T @ y))
+        beta = scale * linalg.cho_solve(factor, scale * _t_times(a, y))
         if np.linalg.cond(gram) > REFINE_COND:  # one step of iterative refinement
-            beta += scale * linalg.cho_solve(factor, scale * (a.T @ (y - a @ beta)))
+            beta += scale * linalg.cho_solve(factor, scale * _t_times(a, y - _times(a, beta)))
         return np.asarray(beta)
     return np.linalg.lstsq(a, y, rcond=None)[0]
 
@@ -212,7 +223,7 @@ def linear_fit(data: CampaignData, terms: list[Term]) -> Fit:
     base = fixed_deviation(data, terms)
     a, slices = design(data, terms)
     beta = _solve(a, data.y - base)
-    prediction = base + a @ beta
+    prediction = base + _times(a, beta)
     coefs = []
     for term, sl in zip(terms, slices):
         full = np.zeros(full_columns(data, term).shape[1]) if not term.fixed else np.zeros(0)
@@ -366,11 +377,12 @@ def periodogram_periods(data: CampaignData, fit: Fit, top: int = 3) -> list[floa
         f = freqs[lo:lo + block]
         angle = 2 * np.pi * np.outer(xs, f)
         s, c = np.sin(angle), np.cos(angle)
-        qs, qc = q_at.T @ s, q_at.T @ c  # Q'·(column): the part in the model's span
-        ss = count @ (s * s) - (qs * qs).sum(0)
-        cc = count @ (c * c) - (qc * qc).sum(0)
-        sc = count @ (s * c) - (qs * qc).sum(0)
-        rs, rc = r_at @ s - qr @ qs, r_at @ c - qr @ qc
+        # Q'·(column): the part in the model's span (as (columnᵀ·Q)ᵀ: BLAS is many times faster so)
+        qs, qc = (s.T @ q_at).T, (c.T @ q_at).T
+        ss = np.einsum("k,kf,kf->f", count, s, s) - (qs * qs).sum(0)
+        cc = np.einsum("k,kf,kf->f", count, c, c) - (qc * qc).sum(0)
+        sc = np.einsum("k,kf,kf->f", count, s, c) - (qs * qc).sum(0)
+        rs, rc = s.T @ r_at - qr @ qs, c.T @ r_at - qr @ qc
         det = ss * cc - sc * sc
         ok = det > 1e-9 * np.maximum(ss * cc, 1e-300)
         power[lo:lo + block][ok] = (cc * rs**2 - 2 * sc * rs * rc + ss * rc**2)[ok] / det[ok]

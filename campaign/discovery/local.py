@@ -265,8 +265,10 @@ def _grid_best(data: CampaignData, fit: Fit) -> tuple[str, float, float] | None:
                 c = centres[lo:lo + block]
                 i0, i1 = np.searchsorted(xs, [c[0] - reach, c[-1] + reach], side="left")
                 g = local_shape(xs[i0:i1, None], c[None, :], width, kind)
-                both = sums[i0:i1].T @ g  # r'·(column), then Q'·(column): the part in the model's span
-                norm = count[i0:i1] @ (g * g)
+                # r'·(column), then Q'·(column): the part in the model's span (as (columnᵀ·sums)ᵀ:
+                # BLAS is many times faster so than with the few rows first)
+                both = (g.T @ sums[i0:i1]).T
+                norm = np.einsum("k,kc,kc->c", count[i0:i1], g, g)
                 if kind == "step":
                     both += above[i1][:, None]
                     norm += count_above[i1]
