@@ -245,6 +245,18 @@ def shape_bounds(data: CampaignData, name: str, key: str) -> tuple[float, float]
     return grid[0]["tau_s"] / 3, grid[-1]["tau_s"] * 3
 
 
+def _constant_within(data: CampaignData, index: np.ndarray, count: np.ndarray, moving: list[int],
+                     probes: list[list[Term]]) -> bool:
+    """Are the moving terms' columns the same within every group of `index`, on every probe?"""
+    for probe in probes:
+        for i in moving:
+            cols = full_columns(data, probe[i])
+            means = np.column_stack([np.bincount(index, c) for c in cols.T]) / count[:, None]
+            if np.max(np.abs(cols - means[index]), initial=0.0) > 1e-12 * max(1.0, float(np.max(np.abs(cols)))):
+                return False
+    return True
+
+
 REDUCE_SHARE = 0.5
 """A shape search runs on the projected problem (reduced_residual) when the data has at most this
 share of its rows as distinct (position, direction) pairs."""
@@ -253,26 +265,22 @@ share of its rows as distinct (position, direction) pairs."""
 def reduced_residual(data: CampaignData, terms: list[Term], moving: list[int],
                      probes: list[list[Term]]) -> Callable[[list[Term]], np.ndarray] | None:
     """The residual of a shape search, projected exactly onto a smaller space, when the moving terms'
-    columns (`moving`: their indices in `terms`) are functions of position and direction alone (a
-    screw lead, a local error; checked on every term list of `probes`). Every column of the model
-    then lies in the span W of the indicators of the distinct (position, direction) pairs and of the
-    other terms' parts outside them; ‖y - Aβ‖² = ‖y - WWᵀy‖² + ‖Wᵀy - WᵀAβ‖², so the returned
+    columns (`moving`: their indices in `terms`) are functions of position (a screw lead, a local
+    error), or of position and direction (one per direction), alone (checked on every term list of
+    `probes`). Every column of the model then lies in the span W of the indicators of the distinct
+    positions (or pairs) and of the other terms' parts outside them; ‖y - Aβ‖² = ‖y - WWᵀy‖² + ‖Wᵀy - WᵀAβ‖², so the returned
     function (terms at new shapes -> Wᵀy - WᵀAβ̂, with √‖y - WWᵀy‖² appended) has the norm and the
     Jacobian's normal matrix of the full residual: least squares takes the same steps on about one
-    row per pair. None when the moving columns are not such functions or the saving is small
+    row per position (or pair). None when the moving columns are not such functions or the saving is small
     (REDUCE_SHARE)."""
-    keys, first, index = np.unique(np.column_stack([data.x, data.d]), axis=0, return_index=True,
-                                   return_inverse=True)
-    index = index.ravel()
-    if len(keys) > REDUCE_SHARE * len(data):
+    for by in (data.x[:, None], np.column_stack([data.x, data.d])):  # positions, else pairs
+        keys, first, index = np.unique(by, axis=0, return_index=True, return_inverse=True)
+        index = index.ravel()
+        count = np.bincount(index).astype(float)
+        if len(keys) <= REDUCE_SHARE * len(data) and _constant_within(data, index, count, moving, probes):
+            break
+    else:
         return None
-    count = np.bincount(index).astype(float)
-    for probe in probes:
-        for i in moving:
-            cols = full_columns(data, probe[i])
-            means = np.column_stack([np.bincount(index, c) for c in cols.T]) / count[:, None]
-            if np.max(np.abs(cols - means[index]), initial=0.0) > 1e-12 * max(1.0, float(np.max(np.abs(cols)))):
-                return None
     still = [t for i, t in enumerate(terms) if i not in moving]
     y = data.y - fixed_deviation(data, terms)
     b = design(data, still)[0]
