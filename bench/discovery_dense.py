@@ -2,8 +2,9 @@
 positions. A point table of ROWS rows (targets 0.06 mm apart over 600 mm, both directions, 5 runs,
 a time column; a 1 µm, 10 mm screw lead, a bow and 0.3 µm of noise) is written as CSV; then, each
 in a fresh process, the table is read (campaign.pointtable.read_points) and discovered
-(`axiscal discover` on it). Reports the wall time and the peak memory of each and the ratio of the
-discovery's time to the reading's. Writes bench/results/discovery_dense.json.
+(`axiscal discover` on it). Reports the rows, the wall and CPU time and the peak resident memory of
+each, the ratios of the discovery's times to the reading's, and the load average (on a shared
+machine the wall time counts the others' work too). Writes bench/results/discovery_dense.json.
 
     .venv/bin/python bench/discovery_dense.py [--rows N]
 """
@@ -12,7 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import resource
+import os
 import subprocess
 import sys
 import tempfile
@@ -44,13 +45,17 @@ def dense_table(rows: int, seed: int = 1) -> PointTable:
                       optional={"time_s": np.arange(len(x)) * 0.05}, meta={}, source="<dense>")
 
 
-def timed(code: str) -> tuple[float, float, str]:
-    """Wall time (s), peak resident memory (MB, the largest child so far) and output of `code` run in
-    a fresh Python."""
+def timed(code: str) -> tuple[float, float, float, str]:
+    """Wall time (s), CPU time (s, user + system), peak resident memory (MB) and output of `code` run
+    in a fresh Python (the child reports its own peak: getrusage of the children would give the
+    largest child so far)."""
+    code += ("\nimport resource, sys\nu = resource.getrusage(resource.RUSAGE_SELF)\n"
+             "print(f'@@ {u.ru_utime + u.ru_stime} {u.ru_maxrss / 1024}', file=sys.stderr)")
     started = time.perf_counter()
-    said = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True).stdout
+    done = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True)
     wall = time.perf_counter() - started
-    return wall, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024, said
+    cpu, peak = (float(v) for v in done.stderr.rsplit("@@ ", 1)[1].split())
+    return wall, cpu, peak, done.stdout
 
 
 def main() -> None:
@@ -60,11 +65,13 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "dense.csv"
         write_points(path, dense_table(args.rows))
-        read_s, read_mb, _ = timed(f"from campaign.pointtable import read_points; read_points({str(path)!r})")
-        disc_s, disc_mb, said = timed(f"from campaign.cli import main; raise SystemExit(main(['discover', "
-                                      f"{str(path)!r}]))")
-    out = {"rows": args.rows, "read_s": round(read_s, 2), "read_peak_mb": round(read_mb), "discover_s": round(disc_s, 2),
-           "discover_peak_mb": round(disc_mb), "ratio": round(disc_s / read_s, 1), "said": said.splitlines()[:6]}
+        read_s, read_cpu, read_mb, _ = timed(f"from campaign.pointtable import read_points; read_points({str(path)!r})")
+        disc_s, disc_cpu, disc_mb, said = timed(f"from campaign.cli import main; main(['discover', {str(path)!r}])")
+    load = os.getloadavg()[0]
+    out = {"rows": args.rows, "read_s": round(read_s, 2), "read_cpu_s": round(read_cpu, 2), "read_peak_mb": round(read_mb),
+           "discover_s": round(disc_s, 2), "discover_cpu_s": round(disc_cpu, 2), "discover_peak_mb": round(disc_mb),
+           "ratio": round(disc_s / read_s, 1), "cpu_ratio": round(disc_cpu / read_cpu, 1),
+           "load_average": round(load, 1), "said": said.splitlines()[:6]}
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "discovery_dense.json").write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
     print(json.dumps(out, indent=1))

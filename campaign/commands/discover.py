@@ -14,7 +14,15 @@ import numpy as np
 
 from campaign.commands import SUMMARY
 from campaign.config import Config, load_config
-from campaign.discovery.data import CampaignData, join_campaigns, keep_rows, read_campaign, read_start_model
+from campaign.discovery.data import (
+    CampaignData,
+    is_profile,
+    join_campaigns,
+    keep_rows,
+    read_campaign,
+    read_profile,
+    read_start_model,
+)
 from campaign.discovery.fit import derived
 from campaign.discovery.followup import FollowUp, plan_follow_up
 from campaign.discovery.local import LocalError, Zone, zones
@@ -35,7 +43,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                        description="Fit MODEL to a measured point table, then name, add and refit the "
                                    "effects the residual shows, until what is left is noise.")
     p.add_argument("files", nargs="+", metavar="POINTS.csv",
-                   help="point table CSV (see docs/point-table.md); several campaigns of one axis are fitted "
+                   help="point table CSV (see docs/point-table.md), or a scan's profile.csv (averaged over "
+                        "0.05 mm bins, see docs/discovery.md); several campaigns of one axis are fitted "
                         "together: shared effects, an offset per campaign (a new laser datum), each campaign's "
                         "time its own")
     p.add_argument("--model", metavar="MODEL.toml",
@@ -455,21 +464,28 @@ def plot_steps(result: Discovery, x: np.ndarray, d: np.ndarray, y: np.ndarray, o
     plt.close(fig)
 
 
-def read_tables(files: list[str]) -> tuple[CampaignData, list[Outliers], list[str]]:
+def read_tables(files: list[str]) -> tuple[CampaignData, list[Outliers], list[str], list[str]]:
     """The campaigns, each with its outliers left out, joined for one fit; the outliers of each;
-    the notes on an incomplete campaign (named by its file when there are several)."""
-    parts, found, incomplete = [], [], []
+    the notes on an incomplete campaign (named by its file when there are several); the notes on
+    how a file was read: a scan's profile.csv is read as its bins' point table
+    (campaign.discovery.data.read_profile)."""
+    parts, found, incomplete, read = [], [], [], []
     for name in files:
-        table = read_points(name)
+        profile = is_profile(name)
+        if profile:
+            table, said = read_profile(name)
+            read.append(said)
+        else:
+            table = read_points(name)
         data = read_campaign(name, table)
         outliers = find_outliers(table)
         if outliers.found:
             data = keep_rows(data, ~outliers.mask(table))
         parts.append(data)
         found.append(outliers)
-        notes = incomplete_notes(name)
+        notes = [] if profile else incomplete_notes(name)  # a profile has no plan to be short of
         incomplete += [f"incomplete campaign: {name}: {n.split(': ', 1)[1]}" if len(files) > 1 else n for n in notes]
-    return join_campaigns(parts, files), found, incomplete
+    return join_campaigns(parts, files), found, incomplete, read
 
 
 def follow_up_config(args: argparse.Namespace) -> Config:
@@ -504,13 +520,13 @@ def run(args: argparse.Namespace) -> int:
     if args.output and Path(args.output).suffix.lower() != ".toml":
         raise InputError(f"-o: {args.output}: the campaign config must end in .toml")
     config = follow_up_config(args) if args.follow_up else None
-    data, outliers, incomplete = read_tables(args.files)
+    data, outliers, incomplete, read = read_tables(args.files)
     model, given = read_start_model(args.model)
     if len(data) < 4:
         raise InputError(f"{args.files[0]}: {len(data)} points are too few to fit a model")
     kind = data.kind
     result = discover(data, model, given)
-    result.notes[:0] = incomplete + [n for o in outliers for n in outlier_notes(o, kind)]
+    result.notes[:0] = incomplete + read + [n for o in outliers for n in outlier_notes(o, kind)]
     follow, failed = None, None
     if config is not None:
         try:  # the findings are printed even when the follow-up cannot be planned or written

@@ -7,8 +7,10 @@ point order (one unit per point).
 
 from __future__ import annotations
 
+import math
 import tomllib
-from dataclasses import dataclass
+from collections import OrderedDict
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +19,7 @@ from campaign.discovery.simulate import SAMPLE_PERIOD_META, sample_times
 from campaign.edlen import refractive_index
 from campaign.errors import InputError, read_toml
 from campaign.model import ErrorModel, model_from_dict
-from campaign.pointtable import PointTable, read_points
+from campaign.pointtable import AXIS_KINDS, PointTable, read_points
 from protocols.units import UNITS, unit_label
 
 CAPTURE_COLUMNS = ("capture_wait_s", "samples")
@@ -50,6 +52,9 @@ class CampaignData:
     air_index_change: np.ndarray | None = None
     campaign: np.ndarray | None = None
     kind: str = "linear"
+    remembered: OrderedDict = field(default_factory=OrderedDict, init=False, repr=False, compare=False)
+    """Arrays computed from this data set once (campaign.discovery.fit.remembered): its arrays
+    are not to be changed in place."""
 
     @property
     def position_unit(self) -> str:
@@ -211,3 +216,122 @@ def read_start_model(path: str | Path | None) -> tuple[ErrorModel, dict[str, set
     model.effects = {effect: {k: v for k, v in params.items() if k in given[effect]}
                      for effect, params in model.effects.items()}
     return model, given
+
+
+PROFILE_BIN = 0.05
+"""A scan's profile (campaign/stream/scan.py, profile.csv) is averaged per pass and direction over
+bins this wide (axis unit: mm or deg), centred on multiples of it, or a multiple of it holding at
+least PROFILE_BIN_SAMPLES samples on a fast or slowly sampled scan. Averaging over a bin of width h
+scales a wave of period P by sinc(h/P): 0.1 % for the shortest screw lead looked for (2 mm) at
+0.05 mm, 0.004 % for a 10 mm one; a bump or step narrower than a few bins cannot be told from the
+wave anyway."""
+PROFILE_BIN_SAMPLES = 4
+"""The fewest samples a bin holds on average (the bin widens in steps of PROFILE_BIN until it does)."""
+PROFILE_MIN_SHARE = 0.9
+"""A bin is kept only when it holds at least this share of the median bin's samples: a bin at the
+end of a pass, which the constant-velocity stretch only partly covers, would have its mean position
+off its centre, and is left out."""
+PROFILE_HEADER = ("direction", "pass", "time_s")
+"""The profile's columns besides position_<unit> and deviation_<unit> (docs/scan.md)."""
+
+
+def is_profile(path: str | Path) -> bool:
+    """Does the file start (after its `#` comments) with a scan profile's header (position_...)?"""
+    try:
+        with open(path, encoding="utf-8-sig", errors="replace") as f:
+            for line in f:
+                if line.strip() and not line.lstrip().startswith("#"):
+                    return line.strip().lower().startswith("position_")
+    except OSError:
+        return False
+    return False
+
+
+def read_profile(path: str | Path) -> tuple[PointTable, str]:
+    """A scan's profile.csv as a point table for discovery: per pass (the table's run) and direction,
+    the samples averaged over bins PROFILE_BIN wide (target: the bin's centre; deviation and time_s:
+    the means), only the bins every pass and direction fill (PROFILE_MIN_SHARE), in time order; its
+    `# key: value` comments kept as metadata. Also a sentence saying what was averaged. InputError
+    naming the file and line on a malformed file."""
+    name = str(path)
+    meta: dict[str, str] = {}
+    header: list[str] | None = None
+    rows: list[list[float]] = []
+    with open(path, encoding="utf-8-sig", errors="strict") as f:
+        try:
+            lines = f.read().splitlines()
+        except UnicodeDecodeError as exc:
+            raise InputError(f"{name}: not UTF-8 text (bad byte at offset {exc.start})") from None
+    kind = ""
+    for number, line in enumerate(lines, start=1):
+        stripped = line.strip()
+        if not stripped:
+            continue
+        if stripped.startswith("#"):
+            key, sep, value = stripped[1:].partition(":")
+            if sep and key.strip() and " " not in key.strip():
+                meta[key.strip()] = value.strip()
+            continue
+        cells = [c.strip() for c in stripped.split(",")]
+        if header is None:
+            header = cells
+            headers = {k: [t.replace("target", "position"), "direction", "pass", dev, "time_s"]
+                       for k, (t, dev) in AXIS_KINDS.items()}
+            kind = next((k for k, wanted in headers.items() if header[:5] == wanted), "")
+            if not kind:
+                raise InputError(f"{name}:{number}: not a scan profile's header: expected "
+                                 f"{','.join(headers['linear'])} (docs/scan.md), got {stripped[:80]}")
+            continue
+        if len(cells) < 5:
+            raise InputError(f"{name}:{number}: {len(cells)} columns, the header has 5")
+        try:
+            direction = {"+": 1.0, "-": -1.0}[cells[1]]
+            values = [float(cells[0]), direction, float(cells[2]), float(cells[3]), float(cells[4])]
+        except (KeyError, ValueError):
+            raise InputError(f"{name}:{number}: '{stripped[:60]}' is not a profile row (position, +/-, pass, "
+                             "deviation, time)") from None
+        if not all(np.isfinite(values)):
+            raise InputError(f"{name}:{number}: '{stripped[:60]}' has a value that is not a finite number")
+        rows.append(values)
+    if header is None or not rows:
+        raise InputError(f"{name}: no profile rows")
+    table, said = profile_table(np.array(rows), kind, meta, name)
+    return table, said
+
+
+def profile_table(samples: np.ndarray, kind: str, meta: dict[str, str], name: str) -> tuple[PointTable, str]:
+    """The point table of a profile's samples (rows: position, direction ±1, pass, deviation, time
+    s): see read_profile."""
+    pos, d, passes, dev, time = samples.T
+    lane = np.flatnonzero((np.diff(passes) == 0) & (np.diff(d) == 0))
+    spacing = float(np.median(np.abs(np.diff(pos)[lane]))) if len(lane) else 0.0
+    width = PROFILE_BIN * max(1, math.ceil(PROFILE_BIN_SAMPLES * spacing / PROFILE_BIN - 1e-9))
+    cell = np.round(pos / width).astype(np.int64)
+    groups = np.column_stack([passes.astype(np.int64), d.astype(np.int64), cell])
+    keys, where, count = np.unique(groups, axis=0, return_inverse=True, return_counts=True)
+    where = where.ravel()
+    mean_dev = np.bincount(where, dev) / count
+    mean_time = np.bincount(where, time) / count
+    mean_pos = np.bincount(where, pos) / count
+    full = count >= PROFILE_MIN_SHARE * np.median(count)
+    lanes = {(int(p), int(s)) for p, s, _ in keys}
+    cells_in: dict[int, set[tuple[int, int]]] = {}
+    for (p, s, c), ok in zip(keys.tolist(), full):
+        if ok:
+            cells_in.setdefault(c, set()).add((p, s))
+    common = {c for c, have in cells_in.items() if have == lanes}
+    keep = full & np.array([c in common for c in keys[:, 2].tolist()])
+    if not keep.any():
+        raise InputError(f"{name}: no position is covered by every pass in both directions: nothing to compare")
+    order = np.flatnonzero(keep)[np.argsort(mean_time[keep], kind="stable")]
+    target = np.round(keys[order, 2] * width, 6)
+    off = float(np.max(np.abs(mean_pos[order] - target)))
+    unit = UNITS[kind][0]
+    table = PointTable(kind=kind, run=keys[order, 0].astype(int), direction=keys[order, 1].astype(int),
+                       target=target, deviation=mean_dev[order],
+                       optional={"time_s": mean_time[order] - float(time.min())},
+                       meta={**meta, "profile_bin": f"{width:g} {unit}"}, extra={}, source=name)
+    said = (f"{name}: a scan's profile: {len(dev)} samples averaged per pass and direction over bins "
+            f"{width:g} {unit} wide, {len(common)} positions from {target.min():g} to {target.max():g} {unit} "
+            f"({len(table)} points; a bin's mean position is within {off:.2g} {unit} of its centre)")
+    return table, said

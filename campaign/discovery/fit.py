@@ -16,7 +16,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from campaign.discovery.data import CampaignData
+from campaign.discovery.data import CampaignData, keep_rows
 from campaign.discovery.effects import form_of, period_limits
 from campaign.effects import RegistryView
 from campaign.model import effect_um
@@ -43,8 +43,38 @@ class Term:
         return [] if self.fixed else [k for k in form_of(self.name).shape if k not in self.held]
 
     def columns(self, data: CampaignData) -> np.ndarray:
-        cols = form_of(self.name).columns(data, self.shape, self.held)
+        cols = full_columns(data, self)
         return cols if self.keep is None else cols[:, list(self.keep)]
+
+
+REMEMBERED = 32
+"""Arrays remembered per data set (`remembered`): a search computes the same term's columns over and
+over (every candidate beside the same model, every step of a shape refinement beside the same other
+terms); at 100,000 rows these are 32 arrays of one or two columns, about 50 MB at most."""
+
+
+def _key(term: Term) -> tuple:
+    return (term.name, tuple(sorted(term.shape.items())), tuple(sorted(term.held.items())))
+
+
+def remembered(data: CampaignData, key: tuple, make: Callable[[], np.ndarray]) -> np.ndarray:
+    """make() for `data`, computed once while among the REMEMBERED most recently used (per data
+    set, in data.remembered). The array is shared: callers must not change it in place."""
+    store = data.remembered
+    if key in store:
+        store.move_to_end(key)
+        return store[key]
+    value = make()
+    value.flags.writeable = False
+    store[key] = value
+    if len(store) > REMEMBERED:
+        store.popitem(last=False)
+    return value
+
+
+def full_columns(data: CampaignData, term: Term) -> np.ndarray:
+    """The term's form's columns on `data`, every one (its keep mask not applied): remembered."""
+    return remembered(data, _key(term), lambda: form_of(term.name).columns(data, term.shape, term.held))
 
 
 @dataclass
@@ -73,7 +103,12 @@ class Fit:
 
 
 def fixed_deviation(data: CampaignData, terms: list[Term]) -> np.ndarray:
-    """The capture-averaged deviation of the fixed terms, µm."""
+    """The capture-averaged deviation of the fixed terms, µm (computed once per data set: remembered)."""
+    fixed = [t for t in terms if t.fixed]
+    return remembered(data, ("fixed", *(_key(t) for t in fixed)), lambda: _fixed_deviation(data, fixed))
+
+
+def _fixed_deviation(data: CampaignData, terms: list[Term]) -> np.ndarray:
     total = np.zeros(len(data))
     w = data.w if data.w is not None else np.full(data.t.shape, np.inf)
     for term in terms:
@@ -96,8 +131,81 @@ def design(data: CampaignData, terms: list[Term]) -> tuple[np.ndarray, list[slic
     return np.hstack(blocks), slices
 
 
+NORMAL_COND = 1e4
+"""Up to this condition number of the column-normalised design, least squares solves the normal
+equations (one pass over the rows, then a p × p Cholesky, refined once above REFINE_COND: relative
+error at most about NORMAL_COND × 1e-16 after the refinement); above it, an SVD of the whole
+design (numpy's lstsq), which also holds a rank-deficient one."""
+
+
+def _normal_scaled(a: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """(AᵀA of the column-normalised a, 1/column norms) when a is tall, has no zero column and its
+    normalised condition number is at most NORMAL_COND; None otherwise."""
+    if not a.shape[0] > a.shape[1] > 0:
+        return None
+    gram = a.T @ a
+    diag = np.diag(gram).copy()
+    if not np.all(diag > 0):
+        return None
+    scale = 1 / np.sqrt(diag)
+    gram *= np.outer(scale, scale)
+    eig = np.linalg.eigvalsh(gram)
+    return (gram, scale) if eig[0] > eig[-1] / NORMAL_COND**2 else None
+
+
+REFINE_COND = 1e3
+"""Above this condition number of the normalised normal matrix (the design's squared), the normal
+equations' solution gets one step of iterative refinement (below it, its relative error is under
+about 1e-13 without)."""
+
+
 def _solve(a: np.ndarray, y: np.ndarray) -> np.ndarray:
+    normal = _normal_scaled(a)
+    if normal is not None:
+        from scipy import linalg
+
+        gram, scale = normal
+        factor = linalg.cho_factor(gram)
+        beta = scale * linalg.cho_solve(factor, scale * (a.T @ y))
+        if np.linalg.cond(gram) > REFINE_COND:  # one step of iterative refinement
+            beta += scale * linalg.cho_solve(factor, scale * (a.T @ (y - a @ beta)))
+        return np.asarray(beta)
     return np.linalg.lstsq(a, y, rcond=None)[0]
+
+
+def thin_q(a: np.ndarray) -> np.ndarray:
+    """An orthonormal basis of a's columns (n × p, as the Q of a thin QR): Cholesky QR done twice on
+    the column-normalised matrix (O(n·p²)) when its condition number is at most NORMAL_COND;
+    numpy's Householder QR otherwise (a rank-deficient a)."""
+    normal = _normal_scaled(a)
+    if normal is None:
+        return np.linalg.qr(a)[0]
+    from scipy import linalg
+
+    gram, scale = normal
+    upper = linalg.cholesky(gram)
+    q = a @ (scale[:, None] * linalg.solve_triangular(upper, np.eye(len(upper))))  # a·D·R⁻¹
+    again = linalg.cholesky(q.T @ q)
+    return np.asarray(q @ linalg.solve_triangular(again, np.eye(len(again))))
+
+
+def outside_norms(base: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """The norm of each column of `cols` outside the span of `base`'s columns: from the normal
+    equations, ‖c‖² - bᵀ(AᵀA)⁻¹b with b = Aᵀc (one pass over the rows), when base is well conditioned
+    (NORMAL_COND); through thin_q otherwise."""
+    normal = _normal_scaled(base)
+    total = np.einsum("ij,ij->j", cols, cols)
+    if normal is not None:
+        from scipy import linalg
+
+        gram, scale = normal
+        b = scale[:, None] * (base.T @ cols)
+        inside = np.einsum("ij,ij->j", b, linalg.cho_solve(linalg.cho_factor(gram), b))
+        out2 = total - inside
+        if np.all(out2 > 1e-6 * total):  # no cancellation to speak of: else the projection below
+            return np.asarray(np.sqrt(out2))
+    q = thin_q(base)
+    return np.asarray(np.linalg.norm(cols - q @ (q.T @ cols), axis=0))
 
 
 def linear_fit(data: CampaignData, terms: list[Term]) -> Fit:
@@ -108,8 +216,7 @@ def linear_fit(data: CampaignData, terms: list[Term]) -> Fit:
     prediction = base + a @ beta
     coefs = []
     for term, sl in zip(terms, slices):
-        full = np.zeros(form_of(term.name).columns(data, term.shape, term.held).shape[1]) if not term.fixed \
-            else np.zeros(0)
+        full = np.zeros(full_columns(data, term).shape[1]) if not term.fixed else np.zeros(0)
         if not term.fixed:
             keep = term.keep if term.keep is not None else (True,) * len(full)
             full[list(np.flatnonzero(keep))] = beta[sl]
@@ -128,6 +235,57 @@ def shape_bounds(data: CampaignData, name: str, key: str) -> tuple[float, float]
     return grid[0][key] / 3, grid[-1][key] * 3
 
 
+REDUCE_SHARE = 0.5
+"""A shape search runs on the projected problem (reduced_residual) when the data has at most this
+share of its rows as distinct (position, direction) pairs."""
+
+
+def reduced_residual(data: CampaignData, terms: list[Term], moving: list[int],
+                     probes: list[list[Term]]) -> Callable[[list[Term]], np.ndarray] | None:
+    """The residual of a shape search, projected exactly onto a smaller space, when the moving terms'
+    columns (`moving`: their indices in `terms`) are functions of position and direction alone (a
+    screw lead, a local error; checked on every term list of `probes`). Every column of the model
+    then lies in the span W of the indicators of the distinct (position, direction) pairs and of the
+    other terms' parts outside them; ‖y - Aβ‖² = ‖y - WWᵀy‖² + ‖Wᵀy - WᵀAβ‖², so the returned
+    function (terms at new shapes -> Wᵀy - WᵀAβ̂, with √‖y - WWᵀy‖² appended) has the norm and the
+    Jacobian's normal matrix of the full residual: least squares takes the same steps on about one
+    row per pair. None when the moving columns are not such functions or the saving is small
+    (REDUCE_SHARE)."""
+    keys, first, index = np.unique(np.column_stack([data.x, data.d]), axis=0, return_index=True,
+                                   return_inverse=True)
+    index = index.ravel()
+    if len(keys) > REDUCE_SHARE * len(data):
+        return None
+    count = np.bincount(index).astype(float)
+    for probe in probes:
+        for i in moving:
+            cols = full_columns(data, probe[i])
+            means = np.column_stack([np.bincount(index, c) for c in cols.T]) / count[:, None]
+            if np.max(np.abs(cols - means[index]), initial=0.0) > 1e-12 * max(1.0, float(np.max(np.abs(cols)))):
+                return None
+    still = [t for i, t in enumerate(terms) if i not in moving]
+    y = data.y - fixed_deviation(data, terms)
+    b = design(data, still)[0]
+    b_means = np.column_stack([np.bincount(index, c) for c in b.T]) / count[:, None]
+    outside = b - b_means[index]  # the other terms' parts outside the pairs' indicators
+    eig, vectors = np.linalg.eigh(outside.T @ outside)
+    kept = eig > (1e-7 * max(float(np.linalg.norm(b)), 1e-300)) ** 2  # (what is below adds < 1e-14 to the RSS)
+    u = outside @ (vectors[:, kept] / np.sqrt(eig[kept]))
+    root = np.sqrt(count)
+    y_small = np.concatenate([np.bincount(index, y) / root, u.T @ y])
+    b_small = np.vstack([b_means * root[:, None], u.T @ b])
+    rest = math.sqrt(max(float(y @ y - y_small @ y_small), 0.0))
+    pairs = keep_rows(data, np.isin(np.arange(len(data)), first))  # one row per pair, in data order
+    to_keys = np.argsort(np.argsort(first))  # the row of `pairs` of each key
+
+    def residual(new: list[Term]) -> np.ndarray:
+        cols = np.hstack([new[i].columns(pairs)[to_keys] for i in moving]) * root[:, None]
+        a = np.hstack([b_small, np.vstack([cols, np.zeros((len(y_small) - len(cols), cols.shape[1]))])])
+        return np.append(y_small - a @ _solve(a, y_small), rest)
+
+    return residual
+
+
 def refine(data: CampaignData, terms: list[Term]) -> Fit:
     """Refine every searched shape parameter from its current value (least_squares on logs)."""
     slots = [(i, key) for i, term in enumerate(terms) for key in term.searched]
@@ -143,7 +301,12 @@ def refine(data: CampaignData, terms: list[Term]) -> Fit:
             new[i].shape[key] = float(math.exp(value))
         return new
 
+    moving = sorted({i for i, _ in slots})
+    reduced = reduced_residual(data, terms, moving, [with_shapes(start), with_shapes(start + 0.1)])
+
     def residual(logs: np.ndarray) -> np.ndarray:
+        if reduced is not None:
+            return reduced(with_shapes(logs))
         f = linear_fit(data, with_shapes(logs))
         return data.y - f.prediction
 
@@ -158,11 +321,10 @@ def refine(data: CampaignData, terms: list[Term]) -> Fit:
 def drop_collinear(data: CampaignData, terms: list[Term], term: Term) -> Term:
     """`term` with its columns that the model's columns already span dropped (keep mask)."""
     base, _ = design(data, terms)
-    q, _ = np.linalg.qr(base)
-    cols = form_of(term.name).columns(data, term.shape, term.held)
-    outside = cols - q @ (q.T @ cols)
+    cols = full_columns(data, term)
+    outside = outside_norms(base, cols)
     norms = np.linalg.norm(cols, axis=0)
-    keep = tuple(bool(n > 0 and np.linalg.norm(o) > COLLINEAR * n) for o, n in zip(outside.T, norms))
+    keep = tuple(bool(n > 0 and o > COLLINEAR * n) for o, n in zip(outside, norms))
     return replace(term, keep=keep)
 
 
@@ -173,7 +335,7 @@ def confounders(data: CampaignData, terms: list[Term], term: Term) -> list[str]:
     for other in terms:
         if other.name == term.name:
             continue
-        q, _ = np.linalg.qr(design(data, [replace(other, fixed=False, keep=None)])[0])
+        q = thin_q(design(data, [replace(other, fixed=False, keep=None)])[0])
         outside = cols - q @ (q.T @ cols)
         if np.linalg.norm(outside) <= COLLINEAR * max(float(np.linalg.norm(cols)), 1e-300):
             names.append(other.name)
@@ -190,19 +352,26 @@ def periodogram_periods(data: CampaignData, fit: Fit, top: int = 3) -> list[floa
     low, high = period_limits(data)
     travel = float(np.ptp(data.x)) or 1.0
     freqs = np.arange(1 / high, 1 / low, 1 / (8 * travel))
-    a, _ = design(data, fit.terms)
-    q, _ = np.linalg.qr(a)
+    q = thin_q(design(data, fit.terms)[0])
     r = data.y - fit.prediction
+    # a sine of x takes one value per distinct position: every sum below is over those, with the
+    # residual's and the basis's sums there (exactly the sums over the rows)
+    xs, where = np.unique(data.x, return_inverse=True)
+    count = np.bincount(where).astype(float)
+    r_at = np.bincount(where, r)
+    q_at = np.column_stack([np.bincount(where, col, minlength=len(xs)) for col in q.T])
+    qr = q.T @ r
     power = np.zeros(len(freqs))
-    block = max(1, PERIODOGRAM_CELLS // max(len(data), 1))  # frequencies at a time: memory linear in the rows
+    block = max(1, PERIODOGRAM_CELLS // max(len(xs), 1))  # frequencies at a time: memory linear in the rows
     for lo in range(0, len(freqs), block):
         f = freqs[lo:lo + block]
-        angle = 2 * np.pi * np.outer(data.x, f)
+        angle = 2 * np.pi * np.outer(xs, f)
         s, c = np.sin(angle), np.cos(angle)
-        s -= q @ (q.T @ s)
-        c -= q @ (q.T @ c)
-        ss, cc, sc = (s * s).sum(0), (c * c).sum(0), (s * c).sum(0)
-        rs, rc = r @ s, r @ c
+        qs, qc = q_at.T @ s, q_at.T @ c  # Q'·(column): the part in the model's span
+        ss = count @ (s * s) - (qs * qs).sum(0)
+        cc = count @ (c * c) - (qc * qc).sum(0)
+        sc = count @ (s * c) - (qs * qc).sum(0)
+        rs, rc = r_at @ s - qr @ qs, r_at @ c - qr @ qc
         det = ss * cc - sc * sc
         ok = det > 1e-9 * np.maximum(ss * cc, 1e-300)
         power[lo:lo + block][ok] = (cc * rs**2 - 2 * sc * rs * rc + ss * rc**2)[ok] / det[ok]
@@ -235,6 +404,9 @@ def _fold_solve(a: np.ndarray, y: np.ndarray) -> np.ndarray:
 CV_FOLDS_REFITTED = 200
 """Up to this many groups each fold is refitted; beyond (a dense table), the left-out residuals come
 from the whole fit's hat matrix, group by group (e_g = (I - H_gg)⁻¹ r_g), in time linear in the rows."""
+CV_BLOCK_MAX = 2000
+"""A group larger than this is refitted whatever the number of groups (its hat block would be
+that size squared)."""
 
 
 def cv_rms_um(data: CampaignData, terms: list[Term], groups: np.ndarray) -> float:
@@ -243,33 +415,77 @@ def cv_rms_um(data: CampaignData, terms: list[Term], groups: np.ndarray) -> floa
     base = fixed_deviation(data, terms)
     a, _ = design(data, terms)
     y = data.y - base
-    errors = np.zeros(len(y))
     names, index = np.unique(groups, return_inverse=True)
     if len(names) > CV_FOLDS_REFITTED:
         return _cv_from_hat(a, y, index)
-    for g in range(len(names)):
+    return _cv_refitted(a, y, index)
+
+
+def _cv_refitted(a: np.ndarray, y: np.ndarray, index: np.ndarray) -> float:
+    """The grouped leave-out RMS, each fold refitted. A fold's normal equations are the whole
+    design's less its group's (G - A_gᵀA_g: time linear in the rows over all folds); when the fold's
+    column-normalised design has a direction below CV_RCOND (so the truncated solve differs from
+    plain least squares), or lacks a column, the fold is solved from its rows (_fold_solve)."""
+    from scipy import linalg
+
+    gram, aty = a.T @ a, a.T @ y
+    errors = np.zeros(len(y))
+    for g in range(int(index.max()) + 1 if len(index) else 0):
         out = index == g
-        beta = _fold_solve(a[~out], y[~out])
-        errors[out] = y[out] - a[out] @ beta
+        ag, yg = a[out], y[out]
+        fold_gram = gram - ag.T @ ag
+        diag = np.diag(fold_gram)
+        beta = None
+        if len(diag) and np.all(diag > 0):
+            scale = 1 / np.sqrt(diag)
+            scaled = fold_gram * np.outer(scale, scale)
+            eig = np.linalg.eigvalsh(scaled)
+            if eig[0] > eig[-1] * CV_RCOND**2 * 100:  # a margin of 10 in the singular values
+                beta = scale * linalg.cho_solve(linalg.cho_factor(scaled), scale * (aty - ag.T @ yg))
+        if beta is None:
+            beta = _fold_solve(a[~out], y[~out])
+        errors[out] = yg - ag @ beta
     return float(np.sqrt(np.mean(errors**2)))
 
 
 def _cv_from_hat(a: np.ndarray, y: np.ndarray, index: np.ndarray) -> float:
     """The grouped leave-out RMS from the hat matrix of the whole fit (column-normalised, directions
-    below CV_RCOND left out): e_g = (I - H_gg)⁻¹ r_g, a small solve per group."""
+    below CV_RCOND left out): e_g = (I - H_gg)⁻¹ r_g (a pseudo-inverse with CV_RCOND), the groups of
+    one size at once. The basis of the fit's span comes from the eigenvectors of the p × p normal
+    matrix (singular values above CV_RCOND of the largest only, so accurate to about 1e-10). A group
+    above CV_BLOCK_MAX rows is refitted instead."""
     norms = np.linalg.norm(a, axis=0)
     norms[norms == 0] = 1.0
-    u, sv, _ = np.linalg.svd(a / norms, full_matrices=False)
-    q = u[:, sv > CV_RCOND * sv[0]] if len(sv) else u[:, :0]
+    scaled = a / norms
+    eig, vectors = np.linalg.eigh(scaled.T @ scaled)
+    sv = np.sqrt(np.maximum(eig, 0.0))
+    keep = sv > CV_RCOND * sv.max() if len(sv) else np.zeros(0, dtype=bool)
+    q = scaled @ (vectors[:, keep] / sv[keep])
     r = y - q @ (q.T @ y)
     order = np.argsort(index, kind="stable")
-    bounds = np.flatnonzero(np.diff(index[order])) + 1
+    sizes = np.bincount(index)
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
     total = 0.0
-    for rows in np.split(order, bounds):
-        qg = q[rows]
-        block = np.eye(len(rows)) - qg @ qg.T
-        e = np.linalg.lstsq(block, r[rows], rcond=CV_RCOND)[0]
-        total += float(e @ e)
+    for size in np.unique(sizes[sizes > 0]):
+        chosen = np.flatnonzero(sizes == size)
+        if size > CV_BLOCK_MAX:
+            for g in chosen:
+                out = index == g
+                e = y[out] - a[out] @ _fold_solve(a[~out], y[~out])
+                total += float(e @ e)
+            continue
+        for part in np.array_split(chosen, max(1, len(chosen) * int(size) ** 2 // 4_000_000 + 1)):
+            rows = order[starts[part][:, None] + np.arange(size)[None, :]]  # groups × size
+            qg = q[rows]
+            block = np.eye(size) - qg @ np.swapaxes(qg, 1, 2)
+            # the block's eigenvalues are 1 - σ²(Q_g) >= 1 - Σ leverages: above CV_RCOND (of at most 1)
+            # its pseudo-inverse is its inverse, and a solve does
+            plain = (qg**2).sum(axis=(1, 2)) < 1 - CV_RCOND
+            rg = r[rows][..., None]
+            if plain.any():
+                total += float(np.sum(np.linalg.solve(block[plain], rg[plain]) ** 2))
+            if not plain.all():
+                total += float(np.sum((np.linalg.pinv(block[~plain], rcond=CV_RCOND) @ rg[~plain]) ** 2))
     return float(np.sqrt(total / len(y)))
 
 

@@ -25,8 +25,19 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from campaign.discovery.data import CampaignData
-from campaign.discovery.effects import local_shape
-from campaign.discovery.fit import Fit, Term, bic, cv_rms_um, design, f_test_p, fixed_deviation, linear_fit
+from campaign.discovery.effects import STEP_RISE, local_shape
+from campaign.discovery.fit import (
+    Fit,
+    Term,
+    bic,
+    cv_rms_um,
+    design,
+    f_test_p,
+    fixed_deviation,
+    linear_fit,
+    reduced_residual,
+    thin_q,
+)
 
 ALPHA = 0.001
 """Largest p-value of the F-test (after the look-elsewhere factor), as for the vocabulary."""
@@ -45,6 +56,8 @@ MAX_CENTRES = 600
 """The most centres on the grid (a quarter of the target spacing apart, or the travel over this)."""
 GRID_CELLS = 4_000_000
 """Rows × centres evaluated at a time by the grid (about 32 MB per array)."""
+GRID_MIN_BLOCK = 32
+"""The fewest centres the grid evaluates at a time."""
 BUMP_MAX_SHARE = 4.0
 """The widest bump looked for is this share of the travel (wider, it is a bow, not a local error)."""
 STEP_MAX_SHARE = 8.0
@@ -54,6 +67,11 @@ MIN_WIDTH_SPACINGS = 2.0
 """The narrowest bump looked for, in target spacings (width at half height): three targets see it."""
 HOPELESS = 10.0
 """A bump whose ΔBIC on the grid (with the look-elsewhere factor) is above this is not refined."""
+WINDOW_WIDTHS = 5.0
+"""The grid evaluates a bump within this many widths of its centre (beyond, exp(-4·ln 2·25) ≈ 1e-30)."""
+STEP_FLAT_Z = 40.0
+"""The grid evaluates a step where its logistic's argument is within ±this (beyond, 1/(1 + e^-40) is
+1 in double precision, and e^-40 ≈ 4e-18 below)."""
 MIN_SEEN = 3
 """A bump is looked for only where at least this many targets see it at half its height or more:
 fewer cannot tell its size from its width, nor a bump from one target's odd reading."""
@@ -218,22 +236,44 @@ def _grid_best(data: CampaignData, fit: Fit) -> tuple[str, float, float] | None:
     targets = _targets(data)
     step = max(float(np.median(np.diff(targets))) / 4, float(np.ptp(targets)) / MAX_CENTRES)
     centres = np.arange(targets[0], targets[-1] + step / 2, step)
-    q, _ = np.linalg.qr(design(data, fit.terms)[0])
+    q = thin_q(design(data, fit.terms)[0])
     r = data.y - fit.prediction
+    # a local shape takes one value per distinct position: the sums below are over those, with the
+    # residual's and the basis's sums there (exactly the sums over the rows)
+    xs, where = np.unique(data.x, return_inverse=True)
+    count = np.bincount(where).astype(float)
+    # per position: the residual's sum, then the basis's (one product gives both)
+    sums = np.column_stack([np.bincount(where, col, minlength=len(xs)) for col in np.column_stack([r, q]).T])
+    qr = q.T @ r
+    above = np.vstack([np.cumsum(sums[::-1], axis=0)[::-1], np.zeros((1, sums.shape[1]))])  # sums from k on
+    count_above = np.append(np.cumsum(count[::-1])[::-1], 0.0)
     best, power_best = None, -1.0
-    block = max(1, GRID_CELLS // max(len(data), 1))  # centres at a time: memory linear in the rows
     for kind in KINDS:
         widths = width_range(data, kind)
         if widths is None:
             continue
         for width in np.geomspace(*widths, WIDTHS):
+            # only the positions where the shape is not flat are evaluated (a bump is below 1e-30 of
+            # its height beyond WINDOW_WIDTHS widths of its centre; a step is exactly 1 in double
+            # precision above its window, and below 1e-17 under it): the rest is `above` for a step
+            reach = WINDOW_WIDTHS * width if kind == "bump" else STEP_FLAT_Z * width / STEP_RISE
+            block = max(GRID_MIN_BLOCK, math.ceil(2 * reach / step))  # centres at a time
+            if block * len(xs) > GRID_CELLS:  # memory linear in the positions
+                block = max(GRID_MIN_BLOCK, GRID_CELLS // max(len(xs), 1))
             power = np.zeros(len(centres))
             for lo in range(0, len(centres), block):
                 c = centres[lo:lo + block]
-                g = local_shape(data.x[:, None], c[None, :], width, kind)
-                g -= q @ (q.T @ g)
-                norm = (g * g).sum(0)
-                power[lo:lo + block] = np.where(norm > 1e-12 * len(data), (r @ g) ** 2 / np.maximum(norm, 1e-300), 0.0)
+                i0, i1 = np.searchsorted(xs, [c[0] - reach, c[-1] + reach], side="left")
+                g = local_shape(xs[i0:i1, None], c[None, :], width, kind)
+                both = sums[i0:i1].T @ g  # r'·(column), then Q'·(column): the part in the model's span
+                norm = count[i0:i1] @ (g * g)
+                if kind == "step":
+                    both += above[i1][:, None]
+                    norm += count_above[i1]
+                qg = both[1:]
+                norm = norm - (qg * qg).sum(0)
+                rg = both[0] - qr @ qg
+                power[lo:lo + block] = np.where(norm > 1e-12 * len(data), rg**2 / np.maximum(norm, 1e-300), 0.0)
             power[~_seen(targets, kind, centres, width)] = 0.0
             i = int(np.argmax(power))
             if power[i] > power_best:
@@ -254,7 +294,17 @@ def _refine(data: CampaignData, terms: list[Term], start: tuple[float, float], k
         return linear_fit(data, [*terms, local_term(v[0], v[1], by_direction, kind, index)])
 
     x0 = np.clip(np.array(start, dtype=float), lower + 1e-9, upper - 1e-9)
-    result = optimize.least_squares(lambda v: data.y - fit_at(v).prediction, x0, bounds=(lower, upper),
+
+    def at(v: np.ndarray) -> list[Term]:
+        return [*terms, local_term(v[0], v[1], by_direction, kind, index)]
+
+    nearby = np.clip(x0 + widths[0], lower, upper)
+    reduced = reduced_residual(data, at(x0), [len(terms)], [at(x0), at(nearby)])  # the same steps, fewer rows
+
+    def residual(v: np.ndarray) -> np.ndarray:
+        return reduced(at(v)) if reduced is not None else data.y - fit_at(v).prediction
+
+    result = optimize.least_squares(residual, x0, bounds=(lower, upper),
                                     x_scale=np.array([widths[0], widths[0]]), diff_step=1e-4)
     best, first = fit_at(result.x), fit_at(x0)
     return best if best.rss <= first.rss else first
