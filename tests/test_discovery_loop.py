@@ -249,6 +249,9 @@ def test_the_scan_planning_rule(tmp_path, controller):
                                 tmp_path / "f.toml", ["first/points.csv"])
         assert merged is not None and merged.config.capture.method == "dwell"
         assert any("one capture method" in p.why for p in merged.parts)
+        alone_region = plan_follow_up([group], [], data, linear_fit(data, []), config, None, 0.34,
+                                      tmp_path / "f.toml", ["first/points.csv"], [(240.0, 260.0)])
+        assert alone_region is not None and alone_region.config.capture.method == "dwell"  # a local error of its own
     else:
         assert capture.method == "dwell" and "NEW/points.csv" in follow.text
         assert f'not a scan: axis_driver.type = "{controller}" does not stream its actual position' in why

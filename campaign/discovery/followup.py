@@ -11,9 +11,9 @@ campaign (its targets, capture and cycles). The part an effect asks for is its m
 - a periodic error whose period is not identifiable (or that rivals the bow): a cluster of targets
   at most a quarter of the shortest candidate period apart, over a few of the longest candidate
   periods, in the middle of the travel measured; or, when the controller streams its position
-  (STREAMING_CONTROLLERS) and the cluster is the whole follow-up, a slow scan over the same span
-  (`_scan`: one sweep each way, its speed from the timing budget and the period to resolve), whose
-  dense profile the joint fit reads;
+  (STREAMING_CONTROLLERS) and every part is the cluster or a region where a local error rivals the
+  period, a slow scan over their span (`_scan`: one sweep each way, its speed from the timing
+  budget and the period to resolve), whose dense profile the joint fit reads;
 - thermal drift against linear scale (or the environment): twice the first campaign's runs at its
   targets over the whole travel (a slope is seen over the travel), so about twice its time;
 - a growing against a constant reversal: both directions at targets over the whole travel.
@@ -334,6 +334,7 @@ def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData
                                                  f"{FEW_TARGETS} targets over the whole travel"), _spread(data), 1))
         else:
             unplanned.append(f"{' or '.join(group.effects)}: {group.how_to_tell}")
+    rivals = {tuple(r.region_mm) for group in unresolved for r in group.local_rivals}
     for start, end in regions:
         spacing = float(np.median(np.diff(_targets(data)))) if len(_targets(data)) > 1 else 1.0
         step = max(min(spacing / 4, (end - start) / 8), 1e-3)
@@ -345,7 +346,11 @@ def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData
             f"where measurement and model disagree beyond the noise, {start:.4g} to {end:.4g} mm: {count} targets "
             f"{(b - a) / max(count - 1, 1):.3g} mm apart over it (the first campaign's are {spacing:.3g} mm apart), "
             "to see its shape")), targets, 1)
-        asks.append(_scan(config, dense, max(b - a, step), "region")[0] or dense)
+        # scanned only where a local error rivals a period (its cluster is scanned too): a located local
+        # error of its own keeps its stops (its scan's profile, fitted with the first table, named
+        # effects the machine lacked: docs/scan.md)
+        scanned = _scan(config, dense, max(b - a, step), "region")[0] if (start, end) in rivals else None
+        asks.append(scanned or dense)
     return asks, unplanned
 
 
