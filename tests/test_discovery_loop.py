@@ -187,14 +187,17 @@ def test_the_follow_up_tells_backlash_from_settling(cli, tmp_path, truth, seed):
 @pytest.mark.machine
 @pytest.mark.parametrize("seed", sweep(1, 2))
 def test_the_follow_up_pins_an_aliased_period(cli, tmp_path, seed):
-    """A 10 mm lead at 11 targets: periods fit alike; the follow-up is a cluster of targets at most a
-    quarter of the shortest candidate apart, shorter than the first campaign; fitted together, the
-    period is named within 2 %."""
+    """A 10 mm lead at 11 targets on a controller that does not stream its position (LinuxCNC): periods
+    fit alike; the follow-up is a stop-and-go cluster of targets at most a quarter of the shortest
+    candidate apart, shorter than the first campaign; fitted together, the period is named within 2 %.
+    (On a streaming controller it is a scan: tests/test_discovery_loop_machine.py.)"""
     lead = {"periodic_lead": {"amplitude_um": 1.0, "period_mm": 10.0, "phase_rad": 0.3}}
-    first, _, out = written_follow_up(cli, tmp_path, user_config(seed=seed).text, {**BOW, **lead}, seed)
+    text = user_config(seed=seed).text.replace('[axis_driver]\ntype = "sim"', '[axis_driver]\ntype = "linuxcnc"')
+    first, _, out = written_follow_up(cli, tmp_path, text, {**BOW, **lead}, seed)
     candidates = next(u["periods_mm"] for u in out["unresolved"] if u["effects"] == ["periodic_lead"])
     follow = out["follow_up"]
-    assert follow["duration_s"] <= follow["first_duration_s"]
+    assert follow["capture"] == "dwell" and follow["duration_s"] <= follow["first_duration_s"]
+    assert any("not a scan" in p["why"] and "linuxcnc" in p["why"] for p in follow["parts"])
     config = load_config(tmp_path / "follow.toml")
     from campaign.plan import build_plan
 
@@ -207,6 +210,91 @@ def test_the_follow_up_pins_an_aliased_period(cli, tmp_path, seed):
     both = json.loads(cli("discover", first, tmp_path / "second.csv", "--json").out)
     assert "periodic_lead" in both["added"] and not both["unresolved"]
     assert both["model"]["periodic_lead"]["period_mm"] == pytest.approx(10.0, rel=0.02)
+
+
+@pytest.mark.parametrize("controller", ["sim", "ads", "linuxcnc", "epics"])
+def test_the_scan_planning_rule(tmp_path, controller):
+    """The planning rule alone (no discovery): an aliased period's follow-up is a scan over the
+    cluster on a controller that streams its position (ADS, the simulated PLC), at the speed of
+    followup.scan_speed, within a quarter of the first campaign's machine time; on one that does
+    not it is the stop-and-go cluster, and the why says so; merged with a part that stops, it stops."""
+    from campaign.discovery.fit import linear_fit
+    from campaign.discovery.followup import SCAN_SAMPLES_PER_PERIOD, SCAN_TIMING_INTERVALS, plan_follow_up
+
+    text = user_config().text.replace('[axis_driver]\ntype = "sim"', f'[axis_driver]\ntype = "{controller}"')
+    if controller == "ads":
+        text = text.replace("[axis_driver]", '[axis_driver]\nams_net_id = "127.0.0.1.1.1"').replace(
+            '[instrument]\ntype = "sim"', '[instrument]\ntype = "serial"\nport = "/dev/ttyUSB0"')
+    config = parse_config(text, str(tmp_path / "first" / "config.toml"))
+    lead = {"periodic_lead": {"amplitude_um": 1.0, "period_mm": 10.0, "phase_rad": 0.3}}
+    data = campaign_data(simulate_campaign(config, ErrorModel({**BOW, **lead}), seed=1))
+    group = Unresolved(("periodic_lead",), "aliased", "more targets", periods_mm=(10.0, 15.9, 4.4),
+                       period_delta_bic=(0.0, 1.0, 2.0))
+    follow = plan_follow_up([group], [], data, linear_fit(data, []), config, None, 0.34, tmp_path / "f.toml",
+                            ["first/points.csv"])
+    assert follow is not None and [p.effects for p in follow.parts] == [["periodic_lead"]]
+    capture, why = follow.config.capture, follow.parts[0].why
+    if controller in ("sim", "ads"):
+        rate, speed = follow.config.instrument.rate_hz, capture.scan_velocity
+        assert capture.method == "scan" and follow.config.plan.cycles == 1 and speed is not None
+        assert 4 * follow.duration_s <= follow.first_duration_s
+        by_samples = rate * 4.4 / SCAN_SAMPLES_PER_PERIOD
+        by_timing = capture.scan_wanted_u / (SCAN_TIMING_INTERVALS / rate * 1000)
+        assert 0.9 * min(by_samples, by_timing, config.axis.max_velocity) <= speed <= min(by_samples, by_timing)
+        targets = follow.config.plan.targets or []
+        assert targets[-1] - targets[0] >= 3 * 15.9 * 0.99  # the cluster's span
+        assert "NEW/profile.csv" in follow.text and "scanned" in why
+        stopping = Unresolved(("backlash", "settling"), "a reversal", "vary the wait")
+        merged = plan_follow_up([group, stopping], [], data, linear_fit(data, []), config, 1.5, 0.34,
+                                tmp_path / "f.toml", ["first/points.csv"])
+        assert merged is not None and merged.config.capture.method == "dwell"
+        assert any("one capture method" in p.why for p in merged.parts)
+        alone_region = plan_follow_up([group], [], data, linear_fit(data, []), config, None, 0.34,
+                                      tmp_path / "f.toml", ["first/points.csv"], [(240.0, 260.0)])
+        assert alone_region is not None and alone_region.config.capture.method == "dwell"  # a local error of its own
+    else:
+        assert capture.method == "dwell" and "NEW/points.csv" in follow.text
+        assert f'not a scan: axis_driver.type = "{controller}" does not stream its actual position' in why
+
+
+@pytest.mark.machine
+@pytest.mark.parametrize("seed", [1, 2])
+def test_an_aliased_period_is_followed_up_by_a_slow_scan(cli, tmp_path, seed):
+    """Issue 33 item 4: on a controller that streams its position (the simulated PLC), the follow-up
+    of an aliased 10 mm lead is a scan over the cluster's span: its laser rate, its speed from the
+    rules of followup.scan_speed (samples per shortest candidate period, the timing within
+    capture.scan_wanted_u, the axis), at most a quarter of the first campaign's machine time; its
+    header says to fit its profile.csv. On LinuxCNC the same draw keeps the stops and says why."""
+    from campaign.discovery.followup import SCAN_SAMPLES_PER_PERIOD, SCAN_TIMING_INTERVALS
+
+    lead = {"periodic_lead": {"amplitude_um": 1.0, "period_mm": 10.0, "phase_rad": 0.3}}
+    first, config, out = written_follow_up(cli, tmp_path, user_config(seed=seed).text, {**BOW, **lead}, seed)
+    candidates = next(u["periods_mm"] for u in out["unresolved"] if u["effects"] == ["periodic_lead"])
+    follow = out["follow_up"]
+    assert follow["capture"] == "scan", follow["parts"]
+    assert 4 * follow["duration_s"] <= follow["first_duration_s"], follow
+    scan = load_config(tmp_path / "follow.toml")
+    assert scan.campaign.purpose == "follow-up" and scan.plan.cycles == 1
+    rate, speed = scan.instrument.rate_hz, scan.capture.scan_velocity
+    assert rate >= config.instrument.rate_hz and speed == follow["scan_velocity"]
+    assert rate * min(candidates) / speed >= SCAN_SAMPLES_PER_PERIOD
+    assert speed * SCAN_TIMING_INTERVALS / rate * 1000 <= scan.capture.scan_wanted_u * 1.0001
+    assert speed <= scan.axis.max_velocity and speed >= 0.5 * min(  # not needlessly slow
+        rate * min(candidates) / SCAN_SAMPLES_PER_PERIOD, scan.capture.scan_wanted_u / (SCAN_TIMING_INTERVALS / rate * 1000))
+    assert max(follow["targets"]) - min(follow["targets"]) >= 2 * max(candidates)  # over the cluster
+    assert cli("plan", tmp_path / "follow.toml").code == 0
+    assert "NEW/profile.csv" in (tmp_path / "follow.toml").read_text()
+    said = cli("discover", first, "--follow-up", "-o", tmp_path / "f2.toml")
+    assert "sweeps" in said.out and "profile.csv" in " ".join(said.out.split())
+    # a controller that does not stream its position: the stops, and why
+    stopped = tmp_path / "linuxcnc"
+    stopped.mkdir()
+    text = user_config(seed=seed).text.replace('[axis_driver]\ntype = "sim"', '[axis_driver]\ntype = "linuxcnc"')
+    _, _, out = written_follow_up(cli, stopped, text, {**BOW, **lead}, seed)
+    follow = out["follow_up"]
+    assert follow["capture"] == "dwell" and follow["scan_velocity"] is None
+    why = " ".join(p["why"] for p in follow["parts"])
+    assert "not a scan" in why and 'axis_driver.type = "linuxcnc"' in why and "stream" in why
 
 
 def test_the_follow_up_stays_within_the_limits_and_says_why(cli, tmp_path):

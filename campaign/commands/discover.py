@@ -630,9 +630,11 @@ def follow_up_lines(follow: FollowUp | None, path: str) -> list[str]:
     if not follow.parts:
         return ["follow-up: no part fits within the budget; no file written",
                 *(f"  [yellow]not planned:[/] {u}" for u in follow.unplanned)]
-    lines = [(f"follow-up written to {path}: {len(build_plan(follow.config).points)} points, "
+    scan = follow.config.capture.method == "scan"  # its points are sweeps; its profile is fitted
+    lines = [(f"follow-up written to {path}: {len(build_plan(follow.config).points)} {'sweeps' if scan else 'points'}, "
              f"{follow.duration_s / 60:.1f} min of machine time (the first campaign: {follow.first_duration_s / 60:.1f} "
-             "min); measure it, then discover both tables together")]
+             f"min); measure it, then discover {'the first table with its profile.csv' if scan else 'both tables'} "
+             "together")]
     if follow.longer:
         lines.append(f"  [yellow]warning:[/] {follow.longer}")
     lines += [f"  for {' or '.join(p.effects)}: {p.why}" for p in follow.parts]

@@ -10,7 +10,10 @@ campaign (its targets, capture and cycles). The part an effect asks for is its m
   together, with as many points as the reversal's size against the noise needs;
 - a periodic error whose period is not identifiable (or that rivals the bow): a cluster of targets
   at most a quarter of the shortest candidate period apart, over a few of the longest candidate
-  periods, in the middle of the travel measured;
+  periods, in the middle of the travel measured; or, when the controller streams its position
+  (STREAMING_CONTROLLERS) and every part is the cluster or a region where a local error rivals the
+  period, a slow scan over their span (`_scan`: one sweep each way, its speed from the timing
+  budget and the period to resolve), whose dense profile the joint fit reads;
 - thermal drift against linear scale (or the environment): twice the first campaign's runs at its
   targets over the whole travel (a slope is seen over the travel), so about twice its time;
 - a growing against a constant reversal: both directions at targets over the whole travel.
@@ -40,6 +43,7 @@ from campaign.discovery.search import RIVAL_MARGIN
 from campaign.effects import REGISTRY
 from campaign.model import is_model_name
 from campaign.plan import build_plan, check_plan, estimate_duration_s
+from protocols.units import DEVIATION_SCALE, UNITS, unit_label
 
 WAITS_S = (0.5, 5.0)
 """The waits before capture of the dwell part, s: a decade (stretched upwards to include the first
@@ -62,6 +66,18 @@ CLUSTER_STEP = 5
 """Nominal targets per shortest candidate period in the cluster; with golden offsets of
 CLUSTER_OFFSET of the spacing no two targets are more than a quarter of that period apart."""
 CLUSTER_OFFSET = 0.2
+STREAMING_CONTROLLERS = ("ads", "sim")
+"""The controllers that stream their actual position with their own time stamps (ADS device
+notifications), which a scan needs (campaign/measure/executor.py refuses a scan on any other)."""
+SCAN_RATE_HZ = 500.0
+"""The laser's rate a follow-up scan asks for at least ([instrument] rate_hz, axiscal's tick), Hz."""
+SCAN_SAMPLES_PER_PERIOD = 20
+"""A scan takes at least this many laser samples per shortest candidate period."""
+SCAN_TIMING_INTERVALS = 0.01
+"""The timing uncertainty a scan's alignment is expected to leave, in laser sample intervals (20 µs
+at 500 Hz: about six times what the alignment stated on the simulated machine's scans, 1.8-3.4 µs,
+docs/scan.md); a scan's speed keeps speed × that within the wanted deviation uncertainty
+(capture.scan_wanted_u), the budget campaign/stream/scan.py computes from a scan's own data."""
 MAX_CYCLES = 1000
 """The most cycles a plan may have ([plan] cycles)."""
 
@@ -94,7 +110,9 @@ class FollowUp:
                 "duration_s": round(self.duration_s, 1), "first_duration_s": round(self.first_duration_s, 1),
                 "longer_warning": self.longer,
                 "targets": list(build_plan(self.config).targets), "cycles": self.config.plan.cycles,
-                "capture": self.config.capture.method}
+                "capture": self.config.capture.method,
+                "scan_velocity": self.config.capture.scan_velocity if self.config.capture.method == "scan" else None,
+                "rate_hz": self.config.instrument.rate_hz}
 
 
 def _targets(data: CampaignData) -> np.ndarray:
@@ -161,6 +179,49 @@ def _cluster(data: CampaignData, final: Fit, periods: list[float], delta_bic: li
     return targets, why
 
 
+def scan_speed(config: Config, shortest: float, what: str = "shortest candidate period") -> tuple[float, float, str]:
+    """The speed (axis unit/s) of a follow-up scan resolving periods down to `shortest` (axis unit),
+    the laser rate it asks for (Hz) and why: at most SCAN_SAMPLES_PER_PERIOD samples per `shortest`
+    at the rate; the timing's share of the deviation (speed × the alignment's expected timing
+    uncertainty, SCAN_TIMING_INTERVALS sample intervals) within capture.scan_wanted_u; the axis's
+    velocity; a ramp within half the overrun (the targets' ends at constant velocity)."""
+    rate = max(config.instrument.rate_hz, SCAN_RATE_HZ)
+    unit = config.axis.unit
+    dev_unit = unit_label(UNITS[config.axis.kind][1])
+    scale = DEVIATION_SCALE[unit]
+    timing_s = SCAN_TIMING_INTERVALS / rate
+    wanted = config.capture.scan_wanted_u
+    limits = {"the period": shortest * rate / SCAN_SAMPLES_PER_PERIOD,
+              "the timing": wanted / (timing_s * scale),
+              "axis.max_velocity": config.axis.max_velocity,
+              "the ramp within half the overrun": math.sqrt(config.axis.max_acceleration * config.plan.overrun)}
+    binding = min(limits, key=lambda k: limits[k])
+    digits = 10 ** (math.floor(math.log10(limits[binding])) - 1)  # two significant digits, rounded down
+    speed = math.floor(limits[binding] / digits) * digits
+    why = (f"{speed:.3g} {unit}/s (set by {binding}): the laser at {rate:g} Hz takes {shortest * rate / speed:.0f} "
+           f"samples per {what} ({shortest:.3g} {unit}, at least {SCAN_SAMPLES_PER_PERIOD}); the "
+           f"alignment's expected timing uncertainty, {timing_s * 1e6:.0f} µs, costs {speed * timing_s * scale:.2g} "
+           f"{dev_unit}, within the wanted {wanted:g} {dev_unit} (capture.scan_wanted_u)")
+    return speed, rate, why
+
+
+def _scan(config: Config, stops: _Ask, shortest: float, what: str = "shortest candidate period") -> tuple[_Ask | None, str]:
+    """A slow scan over the span of the targets `stops` asks for instead of stopping at them,
+    resolving `shortest` (axis unit: a period, a region's width), or None and why not."""
+    if config.controller.type not in STREAMING_CONTROLLERS:
+        return None, (f"a stop-and-go cluster, not a scan: axis_driver.type = \"{config.controller.type}\" does not "
+                      "stream its actual position with the controller's time stamps, which a scan needs (ADS device "
+                      f"notifications: {', '.join(STREAMING_CONTROLLERS)})")
+    targets = stops.targets or []
+    speed, rate, how = scan_speed(config, shortest, what)
+    unit = config.axis.unit
+    span = targets[-1] - targets[0]
+    why = (f"{stops.part.why}; scanned instead of stopped at (the controller streams its position): a sweep each "
+           f"way over {span:.4g} {unit} (and the overrun) at {how}; fit its profile.csv with the first table")
+    return _Ask(Part(stops.part.effects, why), targets, 1, {"offsets": "none"},
+                {"method": "scan", "scan_velocity": speed}, instrument={"rate_hz": rate}, stops=stops), ""
+
+
 def _dwell_points(reversal_um: float, noise_um: float) -> int:
     """Points the dwell part needs, a rule of thumb (not a computed separation): a settling that
     explains the reversal at the first campaign's wait is taken to differ from a constant reversal
@@ -208,6 +269,9 @@ class _Ask:
     plan: dict[str, Any] = field(default_factory=dict)
     capture: dict[str, Any] = field(default_factory=dict)
     points: int = 0
+    instrument: dict[str, Any] = field(default_factory=dict)
+    stops: _Ask | None = None
+    """A scan's stop-and-go alternative (the cluster), planned when the scan cannot be merged."""
 
 
 def _spread(data: CampaignData) -> list[float]:
@@ -255,8 +319,11 @@ def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData
                 unplanned.append(f"{' or '.join(group.effects)}: no candidate period to plan for")
                 continue
             targets, why = _cluster(data, final, periods, list(group.period_delta_bic), noise_um)
-            asks.append(_Ask(Part(sorted(names), why), targets, 1,
-                             {"offsets": "golden", "offset_fraction": CLUSTER_OFFSET}))
+            cluster = _Ask(Part(sorted(names), why), targets, 1, {"offsets": "golden", "offset_fraction": CLUSTER_OFFSET})
+            scan, refused = _scan(config, cluster, min(periods))
+            if scan is None:
+                cluster.part.why += f"; {refused}"
+            asks.append(scan or cluster)
         elif "runs" in parts:
             asks.append(_Ask(Part(sorted(names), (
                 f"a slope that changes from run to run or not at all: {2 * first_cycles} runs (the first campaign "
@@ -267,6 +334,7 @@ def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData
                                                  f"{FEW_TARGETS} targets over the whole travel"), _spread(data), 1))
         else:
             unplanned.append(f"{' or '.join(group.effects)}: {group.how_to_tell}")
+    rivals = {tuple(r.region_mm) for group in unresolved for r in group.local_rivals}
     for start, end in regions:
         spacing = float(np.median(np.diff(_targets(data)))) if len(_targets(data)) > 1 else 1.0
         step = max(min(spacing / 4, (end - start) / 8), 1e-3)
@@ -274,28 +342,50 @@ def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData
         a, b = max(start - step, lo), min(end + step, hi)
         count = min(int((b - a) / step) + 1, MAX_CLUSTER_TARGETS)
         targets = [round(a + (b - a) * i / max(count - 1, 1), 4) for i in range(count)]
-        asks.append(_Ask(Part(["local error"], (
+        dense = _Ask(Part(["local error"], (
             f"where measurement and model disagree beyond the noise, {start:.4g} to {end:.4g} mm: {count} targets "
             f"{(b - a) / max(count - 1, 1):.3g} mm apart over it (the first campaign's are {spacing:.3g} mm apart), "
-            "to see its shape")), targets, 1))
+            "to see its shape")), targets, 1)
+        # scanned only where a local error rivals a period (its cluster is scanned too): a located local
+        # error of its own keeps its stops (its scan's profile, fitted with the first table, named
+        # effects the machine lacked: docs/scan.md)
+        scanned = _scan(config, dense, max(b - a, step), "region")[0] if (start, end) in rivals else None
+        asks.append(scanned or dense)
     return asks, unplanned
 
 
-def _merged(asks: list[_Ask], data: CampaignData) -> tuple[list[float], int, dict[str, Any], dict[str, Any]]:
+def _merged(asks: list[_Ask], data: CampaignData) -> tuple[list[float], int, dict[str, Any], dict[str, Any],
+                                                          dict[str, Any]]:
     """One plan for several parts: the union of their targets, the most cycles (and enough for the
-    points a part needs), their plan and capture keys."""
+    points a part needs), their plan, capture and instrument keys."""
     plan: dict[str, Any] = {"offsets": "none"}  # the targets written are where to measure (the first
     # campaign's measured targets already hold its offsets); a cluster sets its own
     capture: dict[str, Any] = {}
+    instrument: dict[str, Any] = {}
     wanted = [a.targets for a in asks if a.targets is not None]
     targets = sorted({v for t in wanted for v in t}) if wanted else _few(data)
     cycles = max(a.cycles for a in asks)
     for a in asks:
         plan.update(a.plan)
+        speed = min(capture.get("scan_velocity", math.inf), a.capture.get("scan_velocity", math.inf))
         capture.update(a.capture)
+        if math.isfinite(speed):  # scans merged: the slowest
+            capture["scan_velocity"] = speed
+        if a.instrument:  # the fastest laser rate asked for
+            instrument["rate_hz"] = max(instrument.get("rate_hz", 0.0), a.instrument["rate_hz"])
         if a.points:
             cycles = min(max(cycles, math.ceil(a.points / (2 * len(targets)))), MAX_CYCLES)
-    return targets, cycles, plan, capture
+    return targets, cycles, plan, capture, instrument
+
+
+def _stopped(ask: _Ask) -> _Ask:
+    """A scan's stop-and-go cluster, saying why it is not scanned; any other part as it is."""
+    if ask.stops is None:
+        return ask
+    cluster = ask.stops
+    cluster.part.why += ("; a stop-and-go cluster, not a scan: the other parts stop at targets, and one campaign has "
+                         "one capture method")
+    return cluster
 
 
 def plan_follow_up(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData, final: Fit,
@@ -315,15 +405,18 @@ def plan_follow_up(unresolved: list[Unresolved], remaining: list[Any], data: Cam
     asks, unplanned = _asks(unresolved, remaining, data, final, config, reversal_um, noise_um, regions or [])
     if not asks:
         return None
+    if any(a.stops is None for a in asks):  # one campaign has one capture method: a scan does not stop
+        asks = [_stopped(a) for a in asks]  # where the other parts do
     first = estimate_duration_s(build_plan(config), config.axis)
     budget = first if budget_s is None else budget_s
     follows = str(Path(sources[0]).parent) if sources else ""
 
     def build(chosen: list[_Ask]) -> tuple[Config, float]:
-        targets, cycles, plan, capture = _merged(chosen, data)
+        targets, cycles, plan, capture, instrument = _merged(chosen, data)
         plan.update(targets=targets, cycles=cycles, length=None, count=None)
         said = "; ".join(" or ".join(a.part.effects) for a in chosen)
-        changed = config_with(config, {"plan": plan, "capture": capture, **_moved_paths(config, out.parent),
+        changed = config_with(config, {"plan": plan, "capture": capture, "instrument": instrument,
+                                       **_moved_paths(config, out.parent),
                                        "campaign": {"description": f"follow-up of {', '.join(sources)}: to tell {said}",
                                                     "purpose": "follow-up", "follows": follows}})
         followed = parse_config(config_toml(changed.data), str(out))  # as it will be read from where it is written
@@ -346,9 +439,10 @@ def plan_follow_up(unresolved: list[Unresolved], remaining: list[Any], data: Cam
     followed, duration = build(chosen)
     parts = [a.part for a in chosen]
     body = config_toml(followed.data)
+    table = "profile.csv" if followed.capture.method == "scan" else "points.csv"  # a scan's dense profile
     header = [f"# Follow-up campaign written by `axiscal discover {' '.join(sources)} --follow-up`.",
               "# It would separate what the first campaign left unresolved; measure it on the same axis, then",
-              f"# fit both together: axiscal discover {' '.join(sources)} NEW/points.csv",
+              f"# fit both together: axiscal discover {' '.join(sources)} NEW/{table}",
               "# It is a follow-up ([campaign] purpose), not an acceptance test: it gets no pass/fail.",
               *(f"# - {', '.join(p.effects)}: {p.why}" for p in parts),
               *(f"# - not planned: {u}" for u in unplanned),
