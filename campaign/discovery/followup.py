@@ -414,6 +414,9 @@ def plan_follow_up(unresolved: list[Unresolved], remaining: list[Any], data: Cam
     def build(chosen: list[_Ask]) -> tuple[Config, float]:
         targets, cycles, plan, capture, instrument = _merged(chosen, data)
         plan.update(targets=targets, cycles=cycles, length=None, count=None)
+        gaps = [b - a for a, b in itertools.pairwise(targets) if b > a]
+        if "scan_velocity" in capture and gaps:  # a target's window never takes its neighbour's samples
+            capture["scan_window"] = min(config.capture.scan_window, min(gaps))
         said = "; ".join(" or ".join(a.part.effects) for a in chosen)
         changed = config_with(config, {"plan": plan, "capture": capture, "instrument": instrument,
                                        **_moved_paths(config, out.parent),
