@@ -6,6 +6,7 @@ the campaign recorded from it, with nothing else changed."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import pkgutil
 import re
@@ -21,7 +22,7 @@ from campaign.discovery.effects import FORMS
 from campaign.discovery.fit import linear_fit
 from campaign.discovery.followup import part_of, plan_follow_up
 from campaign.discovery.records import Unresolved
-from campaign.discovery.search import how_to_tell_pairs
+from campaign.discovery.search import how_to_tell_pairs, may_soak
 from campaign.effects import effect, effects, register, unregister
 from campaign.effects.base import SIZE_UM, Effect, EffectForm, Ranges, Samples, Shape, span_ends
 from campaign.errors import InputError
@@ -200,6 +201,21 @@ def test_a_registered_effect_is_known_everywhere_at_once_and_forgotten_when_unre
     # no product code names it: the registry is the only place consulted
     for code in [*ROOT.joinpath("campaign").rglob("*.py"), *ROOT.joinpath("drivers").rglob("*.py")]:
         assert "middle_wear" not in code.read_text(), code
+
+
+def test_whether_a_local_error_may_hide_behind_an_effect_is_its_modules_word():
+    """Discovery looks for local errors again without each named effect that may soak one up; which
+    those are is each module's may_soak, so a registered effect that says so is looked behind too."""
+    assert {e.name for e in effects() if may_soak(e.name)} == {
+        "periodic_lead", "backlash", "position_dependent_backlash", "settling"}
+    soaking = dataclasses.replace(EFFECT, may_soak=True)
+    register(soaking)
+    try:
+        assert may_soak("middle_wear")
+    finally:
+        unregister("middle_wear")
+    with pytest.raises(KeyError):
+        may_soak("middle_wear")
 
 
 @pytest.mark.machine  # a simulated campaign and a discovery each: about 0.7 s

@@ -119,7 +119,7 @@ def params_text(effect: str, params: dict[str, float], errors: dict[str, float],
     return text
 
 
-SAVED_TAU_POINTS = "thermal_drift time constant in points (no time column)"
+SAVED_TAU_POINTS = "time constant in points (no time column)"
 
 
 def rounded(params: dict[str, float]) -> dict[str, float]:
@@ -447,8 +447,8 @@ def print_text(result: Discovery, time_unit: str, incomplete: list[str], verbose
 
 def saved_model(result: Discovery, model: ErrorModel, source: str, time_source: str) -> str:
     """The final model as TOML. The datum offset and `environment` (it follows this campaign's log)
-    are left out, and said so. Without a time column thermal_drift's time constant is in points,
-    not seconds: it is not saved as `tau_s` but as a comment, so that the simulator refuses the file
+    are left out, and said so. Without a time column the time constant of an effect in time (its
+    form cross-validated by run, such as thermal_drift's) is in points, not seconds: it is not saved as `tau_s` but as a comment, so that the simulator refuses the file
     until a time constant in seconds is given, and `discover --model` refits it."""
     noise = model.effects.get("noise") if "sigma_um" in model.effects.get("noise", {}) else None
     lines = [f"# Error model found by `axiscal discover {source}`; the datum offset is left out."]
@@ -459,13 +459,15 @@ def saved_model(result: Discovery, model: ErrorModel, source: str, time_source: 
     for local in result.local_errors:
         lines.append(f"# Left out: {local.sentence()}, which no effect of the model has the shape of.")
     text = result.final_model(noise).to_toml()
-    if time_source != "time_s" and "thermal_drift" in params:
-        tau = params["thermal_drift"]["tau_s"]
-        lines.append(f"# No time column: thermal_drift's time constant was fitted on the point order, {tau:.4g} "
+    in_points = [name for name in params if time_source != "time_s" and "tau_s" in params[name]
+                 and (form := registered(name).form) is not None and form.group == "run"]
+    for name in in_points:  # an effect in time: its time constant was fitted on the point order
+        tau = params[name]["tau_s"]
+        lines.append(f"# No time column: {name}'s time constant was fitted on the point order, {tau:.4g} "
                      "points, not seconds;")
         lines.append("# tau_s is left out: give it in seconds (or fit it with `axiscal discover --model`).")
-        text = "\n".join(f"# tau_s = {tau!r}  # {SAVED_TAU_POINTS}, NOT seconds"
-                         if line.startswith("tau_s = ") and section == "[effects.thermal_drift]" else line
+        text = "\n".join(f"# tau_s = {tau!r}  # {name} {SAVED_TAU_POINTS}, NOT seconds"
+                         if line.startswith("tau_s = ") and section == f"[effects.{name}]" else line
                          for section, line in _with_sections(text.splitlines()))
     return "\n".join(lines) + "\n" + text.rstrip("\n") + "\n"
 

@@ -505,7 +505,7 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     vocabulary = search_vocabulary(data, model, given)
     periodic = any("periodic_lead" in u.effects for u in vocabulary.unresolved)
     beside = find_locals(data, vocabulary.final)
-    for name in [n for n in reversed(vocabulary.added) if n in MAY_SOAK] if not beside else ():
+    for name in [n for n in reversed(vocabulary.added) if may_soak(n)] if not beside else ():
         # a short period or a reversal may have soaked up most of it: look beside the rest
         beside = find_locals(data, linear_fit(data, [t for t in vocabulary.final.terms if t.name != name]))
         if beside:
@@ -742,9 +742,11 @@ def beside_unresolved_period(data: CampaignData, result: Discovery) -> Discovery
     return result
 
 
-MAY_SOAK = frozenset({"periodic_lead", "backlash", "position_dependent_backlash", "settling"})
-"""Named effects a local error may hide behind (a period fitted to a bump, a reversal to a bump in
-one direction): when none is found beside the model, it is looked for again without each of them."""
+def may_soak(name: str) -> bool:
+    """Whether a local error may hide behind the named effect `name` (its module's may_soak: a
+    period fitted to a bump, a reversal to a bump in one direction): when none is found beside the
+    model, it is looked for again without each of them."""
+    return effect(name).may_soak
 
 
 def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, set[str]],

@@ -110,7 +110,9 @@ class Effect:
     apart (one side of the pair is enough). nested_in: the simpler effect it contains (its special
     case); tends_to: the effect it becomes at the edge of its range (a growth whose time constant
     is far beyond the campaign is a linear drift). derived: quantities computed from its
-    parameters and reported beside them. follow_up: its part of a follow-up campaign. One object per
+    parameters and reported beside them. follow_up: its part of a follow-up campaign. may_soak:
+    a local error may hide behind it when it is named (a period fitted to a bump, a reversal to a
+    bump in one direction), so discovery looks for local errors again without it. One object per
     effect: two are the same only when they are one (compared by identity)."""
 
     name: str
@@ -128,6 +130,7 @@ class Effect:
     tends_to: str | None = None
     derived: Callable[[dict[str, float]], dict[str, float]] | None = None
     follow_up: FollowUpPart | None = None
+    may_soak: bool = False
 
     def __post_init__(self) -> None:
         if self.form is not None and self.form.name != self.name:

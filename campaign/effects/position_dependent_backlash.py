@@ -20,4 +20,4 @@ EFFECT = Effect(
     lambda p, x, d, t, w: -d * (p["b0_um"] + p["k_ppm"] * x * 1e-3) / 2,
     EffectForm("position_dependent_backlash", ("b0_um", "k_ppm"), (), "target", columns,
                sizes=("k_ppm",), ranges=ranges),
-    defaults={"b0_um": 0.0}, nested_in="backlash", follow_up="travel")
+    defaults={"b0_um": 0.0}, nested_in="backlash", follow_up="travel", may_soak=True)
