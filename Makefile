@@ -18,11 +18,12 @@ demo: $(STAMP)
 
 # Three workers on two cores: the tests that start a real-time LinuxCNC (one per machine: one xdist
 # group, scheduled first as the largest) keep one worker waiting on LinuxCNC's motion for about five
-# minutes with little CPU, while the other two run the rest.
+# minutes with little CPU, while the other two run the rest. One BLAS thread per process
+# (tests/conftest.py sets the same for a plain `pytest`): more only oversubscribes the two cores.
 test: $(STAMP)
 	bash tests/setup_system.sh
 	$(VENV)/bin/mypy campaign drivers protocols
-	$(PY) -m pytest -q -n 3 --dist loadgroup
+	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 $(PY) -m pytest -q -n 3 --dist loadgroup
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .

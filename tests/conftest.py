@@ -8,6 +8,13 @@ import os
 import subprocess
 from pathlib import Path
 
+# One BLAS thread per process, set before numpy is first imported (and inherited by the xdist workers
+# and every `axiscal` subprocess): three workers on two cores each running two BLAS threads spent
+# twice the CPU for the same wall time (a 25,600-row discover: 67 s of CPU against 32 s) and made the
+# machine tier's long discoveries several times slower than alone.
+for _threads in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_threads, "1")
+
 import pytest
 
 from campaign.cli import main
