@@ -17,12 +17,10 @@ SCRIPTS = (("demo_wall_time.py",), ("stable_vs_dwell.py",), ("compensation.py",)
            ("compensation.py", "--smooth", "none"), ("compensation.py", "--cycles", "10"), ("import_stream.py",),
            ("smoothing.py",), ("startup.py",), ("history.py",), ("fake_machine.py",), ("scan.py",),
            ("discovery_draws.py",), ("history_drawn.py",), ("history_plant.py",), ("history_seeds.py",),
-           ("scan_run.py",))
-"""Each benchmark script with its options, run in turn. The last six print their figures (scan,
+           ("scan_run.py",), ("discovery_dense.py",))
+"""Each benchmark script with its options, run in turn. The last seven print their figures (scan,
 scan_run and discovery_draws also write bench/results/*.json); the summary quotes the others."""
-SEPARATE = {"discovery_dense.py": "at its goal's 100,000 rows it would run 50 minutes or more here (4,000 rows "
-                                  "took 120 s on the 2-core machine, the README's row; not run at 100,000): run "
-                                  "it by hand, `bench/discovery_dense.py --rows N`"}
+SEPARATE: dict[str, str] = {}
 """The benchmark scripts `make bench` does not run, and why."""
 COMPENSATION = (("compensation", "5-run campaigns"),
                 ("compensation-raw-means", "5-run campaigns, table from the raw means (`--smooth none`)"),
