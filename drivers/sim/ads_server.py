@@ -363,8 +363,8 @@ class FramedServer(AdsTestServer):
             client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             connection = FramedConnection(handler=self.handler, client=client, address=address, server=self)
             connection.daemon = True
+            self.clients.append(connection)  # counted before it can answer
             connection.start()
-            self.clients.append(connection)
 
 
 class SimAdsServer:
