@@ -96,7 +96,8 @@ def _number(text: str, path: str, line: int, column: str) -> float:
     return value
 
 
-def _decode(path: str, raw: bytes) -> str:
+def decode_csv(path: str, raw: bytes) -> str:
+    """A CSV file's bytes as text (UTF-8, a BOM dropped); InputError when empty, binary or not UTF-8."""
     if not raw.strip():
         raise _fail(path, "the file is empty")
     if b"\x00" in raw:
@@ -107,9 +108,10 @@ def _decode(path: str, raw: bytes) -> str:
         raise _fail(path, f"not UTF-8 text (bad byte at offset {exc.start})") from None
 
 
-def parse_points(text: str, path: str = "<input>", partial: bool = False) -> PointTable:
-    """Parse point-table CSV text. `path` is used only in error messages. `partial`: a campaign's
-    table while it is recorded, whose targets need not all have the same directions yet."""
+def split_csv(text: str) -> tuple[dict[str, str], list[str] | None, int, list[tuple[int, list[str]]]]:
+    """A commented CSV text as axiscal writes them: its `# key: value` comments (metadata), its
+    first row (the header, None when there is none) with its line number, and every later row as
+    (line number, stripped cells). Blank lines and other comments are skipped."""
     header: list[str] | None = None
     header_line = 0
     meta: dict[str, str] = {}
@@ -128,6 +130,13 @@ def parse_points(text: str, path: str = "<input>", partial: bool = False) -> Poi
             header, header_line = cells, number
         else:
             rows.append((number, cells))
+    return meta, header, header_line, rows
+
+
+def parse_points(text: str, path: str = "<input>", partial: bool = False) -> PointTable:
+    """Parse point-table CSV text. `path` is used only in error messages. `partial`: a campaign's
+    table while it is recorded, whose targets need not all have the same directions yet."""
+    meta, header, header_line, rows = split_csv(text)
     if header is None:
         raise _fail(path, "the file has no header row")
     kind = _kind_from_header(header, path, header_line)
@@ -244,7 +253,7 @@ def read_points(path: str | Path, partial: bool = False) -> PointTable:
     """Read a point table from a file. Raises InputError for any bad input. `partial`: see
     `parse_points`."""
     name = str(path)
-    return parse_points(_decode(name, read_input_bytes(path, "a point table")), name, partial)
+    return parse_points(decode_csv(name, read_input_bytes(path, "a point table")), name, partial)
 
 
 def header_for(kind: str, optional: tuple[str, ...] = ()) -> list[str]:

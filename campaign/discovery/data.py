@@ -17,9 +17,9 @@ import numpy as np
 
 from campaign.discovery.simulate import SAMPLE_PERIOD_META, sample_times
 from campaign.edlen import refractive_index
-from campaign.errors import InputError, read_toml
+from campaign.errors import InputError, read_input_bytes, read_toml
 from campaign.model import ErrorModel, model_from_dict
-from campaign.pointtable import AXIS_KINDS, PointTable, read_points
+from campaign.pointtable import AXIS_KINDS, PointTable, decode_csv, read_points, split_csv
 from protocols.units import UNITS, unit_label
 
 CAPTURE_COLUMNS = ("capture_wait_s", "samples")
@@ -254,46 +254,29 @@ def read_profile(path: str | Path) -> tuple[PointTable, str]:
     `# key: value` comments kept as metadata. Also a sentence saying what was averaged. InputError
     naming the file and line on a malformed file."""
     name = str(path)
-    meta: dict[str, str] = {}
-    header: list[str] | None = None
+    meta, header, number, lines = split_csv(decode_csv(name, read_input_bytes(path, "a scan profile")))
+    headers = {k: [t.replace("target", "position"), "direction", "pass", dev, "time_s"]
+               for k, (t, dev) in AXIS_KINDS.items()}
+    kind = next((k for k, wanted in headers.items() if header is not None and header[:5] == wanted), "")
+    if not kind:
+        got = ",".join(header or [])[:80]
+        raise InputError(f"{name}:{number}: not a scan profile's header: expected "
+                         f"{','.join(headers['linear'])} (docs/scan.md), got {got}")
     rows: list[list[float]] = []
-    with open(path, encoding="utf-8-sig", errors="strict") as f:
-        try:
-            lines = f.read().splitlines()
-        except UnicodeDecodeError as exc:
-            raise InputError(f"{name}: not UTF-8 text (bad byte at offset {exc.start})") from None
-    kind = ""
-    for number, line in enumerate(lines, start=1):
-        stripped = line.strip()
-        if not stripped:
-            continue
-        if stripped.startswith("#"):
-            key, sep, value = stripped[1:].partition(":")
-            if sep and key.strip() and " " not in key.strip():
-                meta[key.strip()] = value.strip()
-            continue
-        cells = [c.strip() for c in stripped.split(",")]
-        if header is None:
-            header = cells
-            headers = {k: [t.replace("target", "position"), "direction", "pass", dev, "time_s"]
-                       for k, (t, dev) in AXIS_KINDS.items()}
-            kind = next((k for k, wanted in headers.items() if header[:5] == wanted), "")
-            if not kind:
-                raise InputError(f"{name}:{number}: not a scan profile's header: expected "
-                                 f"{','.join(headers['linear'])} (docs/scan.md), got {stripped[:80]}")
-            continue
+    for number, cells in lines:
+        row = ",".join(cells)[:60]
         if len(cells) < 5:
             raise InputError(f"{name}:{number}: {len(cells)} columns, the header has 5")
         try:
             direction = {"+": 1.0, "-": -1.0}[cells[1]]
             values = [float(cells[0]), direction, float(cells[2]), float(cells[3]), float(cells[4])]
         except (KeyError, ValueError):
-            raise InputError(f"{name}:{number}: '{stripped[:60]}' is not a profile row (position, +/-, pass, "
+            raise InputError(f"{name}:{number}: '{row}' is not a profile row (position, +/-, pass, "
                              "deviation, time)") from None
         if not all(np.isfinite(values)):
-            raise InputError(f"{name}:{number}: '{stripped[:60]}' has a value that is not a finite number")
+            raise InputError(f"{name}:{number}: '{row}' has a value that is not a finite number")
         rows.append(values)
-    if header is None or not rows:
+    if not rows:
         raise InputError(f"{name}: no profile rows")
     table, said = profile_table(np.array(rows), kind, meta, name)
     return table, said
