@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from rich.console import Console
 from rich.table import Table
 
 from campaign import capture_methods
@@ -115,12 +117,8 @@ def replay_scan(args: argparse.Namespace, directory: Path, config: Config, plan:
         console.print(f"{len(diffs)} of {len(recorded)} values change (window {settings.window:g}, "
                       f"{'at rest' if settings.rest_reference else 'on the move'}); largest "
                       f"{max(abs(d['difference'] or 0.0) for d in diffs):.4f} {unit_label(recorded.deviation_unit)}")
-    summary = Table(title=f"ISO 230-2 summary ({unit_label(recorded.deviation_unit)}), indicative: a scan")
-    for head in ("parameter", "recorded", "replayed"):
-        summary.add_column(head, justify="right")
-    for key in ("A", "E", "M", "B", "R"):
-        summary.add_row(key, fmt(old_summary.get(key)), fmt(new_summary.get(key)))
-    console.print(summary)
+    print_summaries(console, f"ISO 230-2 summary ({unit_label(recorded.deviation_unit)}), indicative: a scan",
+                    old_summary, new_summary)
     return 0
 
 
@@ -176,10 +174,15 @@ def run(args: argparse.Namespace) -> int:
             table.add_row(str(d["point"]), str(d["run"]), d["direction"], f"{d['target']:g}", fmt(d["recorded"]),
                           fmt(d["replayed"]), fmt(d["difference"]), fmt(d["wait_s"], 2), d["note"])
         console.print(table)
-    summary = Table(title=f"ISO 230-2 summary ({unit_label(recorded.deviation_unit)})")
+    print_summaries(console, f"ISO 230-2 summary ({unit_label(recorded.deviation_unit)})", old_summary, new_summary)
+    return 0
+
+
+def print_summaries(console: Console, title: str, recorded: Mapping[str, Any], replayed: Mapping[str, Any]) -> None:
+    """The recorded and the replayed ISO 230-2 parameters side by side."""
+    summary = Table(title=title)
     for head in ("parameter", "recorded", "replayed"):
         summary.add_column(head, justify="right")
     for key in ("A", "E", "M", "B", "R"):
-        summary.add_row(key, fmt(old_summary.get(key)), fmt(new_summary.get(key)))
+        summary.add_row(key, fmt(recorded.get(key)), fmt(replayed.get(key)))
     console.print(summary)
-    return 0

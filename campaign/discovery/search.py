@@ -608,13 +608,22 @@ def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]
             final = without
     if not kept:
         return None
-    again.final, again.local_errors = final, kept
+    return with_local_terms(data, again, vocabulary, final, kept)
+
+
+def with_local_terms(data: CampaignData, again: Discovery, vocabulary: Discovery, final: Fit,
+                     found: list[LocalError]) -> Discovery:
+    """`again` (a search beside local terms) finished as a route's result: its final fit with the
+    local errors `found`, the starting point and gap before of the vocabulary alone, the gap and
+    noise after, and the named effects' errors (the local terms' own, local_..., left out: they are
+    said with each local error)."""
+    again.final, again.local_errors = final, found
     again.start, again.gap_before_um = vocabulary.start, vocabulary.gap_before_um
     again.disagreement_before = vocabulary.disagreement_before
     again.gap_after_um = final.rms_um(data.y)
     again.noise_um = pooled_scatter_um(data, data.y - final.prediction)
     again.disagreement_after = disagreement(data, data.y - final.prediction)
-    again.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_error")}
+    again.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_")}
     return again
 
 
@@ -687,14 +696,7 @@ def with_regions(data: CampaignData, model: ErrorModel, given: dict[str, set[str
         return None
     found = [describe_region(data, final, term.name, linear_fit(data, [t for t in final.terms if t.name != term.name]))
              for term in kept]
-    again.final, again.local_errors = final, found
-    again.start, again.gap_before_um = vocabulary.start, vocabulary.gap_before_um
-    again.disagreement_before = vocabulary.disagreement_before
-    again.gap_after_um = final.rms_um(data.y)
-    again.noise_um = pooled_scatter_um(data, data.y - final.prediction)
-    again.disagreement_after = disagreement(data, data.y - final.prediction)
-    again.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_")}
-    return again
+    return with_local_terms(data, again, vocabulary, final, found)
 
 
 def beside_unresolved_period(data: CampaignData, result: Discovery) -> Discovery:
