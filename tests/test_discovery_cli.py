@@ -221,3 +221,17 @@ def test_environment_from_a_file_is_named_with_its_error_and_left_out_of_the_sav
     assert set(read_model(tmp_path / "new.toml").effects) == {"linear_scale", "noise"}
     out = cli("discover", tmp_path / "points.csv", "--verbose").out
     assert "add environment (air_factor = " in out and " ± " in out and "chose environment" in out
+
+
+def test_a_table_that_repeats_nothing_does_not_call_what_is_left_noise(cli):
+    """One mean per target (the 2012 turntable's published errors): the run-to-run scatter is not
+    measured, so the residual is not said to be noise; a table with repeated runs still is judged."""
+    from tests.conftest import DATA
+
+    single = cli("discover", DATA / "paper-2012-pmac-turntable" / "forward_errors.csv", "--json")
+    assert single.code == 0, single.err
+    assert json.loads(single.out)["noise_measured"] is False
+    text = " ".join(cli("discover", DATA / "paper-2012-pmac-turntable" / "forward_errors.csv").out.split())
+    assert "noise not measured" in text and "what is left is noise" not in text
+    repeated = cli("discover", DATA / "paper-2022-beckhoff-press" / "horizontal_before.csv", "--json")
+    assert repeated.code == 0 and json.loads(repeated.out)["noise_measured"] is True

@@ -164,6 +164,7 @@ def as_json(result: Discovery) -> dict:
         "gap_before_um": round(result.gap_before_um, 4),
         "gap_after_um": round(result.gap_after_um, 4),
         "noise_um": round(result.noise_um, 4),
+        "noise_measured": result.noise_measured,
         "time_source": result.time_source,
         "steps": [{"effect": s.effect, "params": rounded(s.params), "standard_errors": errors_json(s.errors),
                    **drift_rate(s.effect, s.params), "gap_before_um": round(s.gap_before_um, 4),
@@ -232,8 +233,15 @@ def ranking_lines(ranking: list[Candidate], dev: str = "µm") -> list[str]:
             f"{cv_text(c.cv_before_um, c.cv_after_um, dev)}  {c.verdict}" for c in ranking]
 
 
-def noise_verdict(gap: float, noise: float) -> str:
-    return "noise" if gap <= 1.3 * noise else "more than noise"
+NOISE_UNKNOWN = "not known: no target is read twice in a direction, so the noise is not measured (repeat runs to tell)"
+
+
+def noise_verdict(result: Discovery) -> str:
+    """What the gap left after the final model is: noise (within 1.3 times the run-to-run scatter),
+    more than noise, or not known when the campaign repeats nothing."""
+    if not result.noise_measured:
+        return NOISE_UNKNOWN
+    return "noise" if result.gap_after_um <= 1.3 * result.noise_um else "more than noise"
 
 
 def nothing_named(result: Discovery) -> str:
@@ -330,9 +338,10 @@ def summary_lines(result: Discovery, incomplete: list[str], time_unit: str = "s"
         rivals = "".join(f" or a local error at {r.region_mm[0]:g}–{r.region_mm[1]:g}" for r in entry.local_rivals)
         lines.append(f"[yellow]unresolved:[/] {' or '.join(entry.effects)}{rivals}; to tell: "
                      f"{first_clause(entry.how_to_tell)}")
-    verdict = noise_verdict(result.gap_after_um, result.noise_um)
-    lines.append(f"gap {result.gap_before_um:.2f} -> {result.gap_after_um:.2f} {dev} RMS, noise "
-                 f"{result.noise_um:.2f} {dev}: what is left is {verdict}")
+    verdict = noise_verdict(result)
+    noise = f"noise {result.noise_um:.2f} {dev}" if result.noise_measured else "noise not measured"
+    lines.append(f"gap {result.gap_before_um:.2f} -> {result.gap_after_um:.2f} {dev} RMS, {noise}: "
+                 f"what is left is {verdict}")
     return lines
 
 
@@ -368,7 +377,7 @@ def next_command(result: Discovery, files: list[str]) -> str | None:
     said = " ".join(files)
     if result.unresolved or result.local_errors:
         return f"next: axiscal discover {said} --follow-up -o FOLLOW.toml"
-    if noise_verdict(result.gap_after_um, result.noise_um) != "noise":
+    if noise_verdict(result) != "noise":
         return f"next: axiscal discover {said} --plot residual.png"
     return None
 
@@ -435,7 +444,7 @@ def print_text(result: Discovery, time_unit: str, incomplete: list[str], verbose
     if len(result.final.offsets_um) > 1:
         console.print("campaigns fitted together, each with its own datum offset: "
                       + ", ".join(f"{o:+.3f} {dev}" for o in result.final.offsets_um))
-    verdict = noise_verdict(result.gap_after_um, result.noise_um)
+    verdict = noise_verdict(result)
     line = (f"final gap {result.gap_after_um:.3f} {dev} RMS against a noise estimate of {result.noise_um:.3f} {dev} "
             f"(run-to-run scatter): what is left is {verdict}")
     console.print(line)

@@ -180,6 +180,9 @@ class Discovery:
     (campaign.discovery.locate), before anything is named."""
     located_after: Located | None = None
     """The same for the final model: what it leaves unexplained, with its regions."""
+    noise_measured: bool = True
+    """False when no target is read twice in a direction: noise_um is then the residual itself, not
+    a measured run-to-run scatter, and nothing can be said to be noise."""
 
     @property
     def local(self) -> LocalError | None:
@@ -264,11 +267,23 @@ def disagreement(data: CampaignData, residual: np.ndarray) -> dict:
     return out
 
 
-def pooled_scatter_um(data: CampaignData, residual: np.ndarray) -> float:
-    """Run-to-run scatter of the residual, pooled over (campaign, target, direction) groups, µm."""
+def _repeat_groups(data: CampaignData) -> tuple[np.ndarray, np.ndarray]:
+    """Each row's (campaign, target, direction) group, and each group's number of rows."""
     keys = (data.campaign_index * (data.target_index.max() + 1) + data.target_index) * 2 + (data.d > 0)
     _, group = np.unique(keys, return_inverse=True)
-    count = np.bincount(group)
+    return group, np.bincount(group)
+
+
+def noise_measured(data: CampaignData) -> bool:
+    """Whether the campaign repeats any target in a direction: without, pooled_scatter_um has no
+    run-to-run scatter to pool and falls back to the residual itself (the noise is not measured)."""
+    return bool(np.any(_repeat_groups(data)[1] > 1))
+
+
+def pooled_scatter_um(data: CampaignData, residual: np.ndarray) -> float:
+    """Run-to-run scatter of the residual, pooled over (campaign, target, direction) groups, µm
+    (the residual's RMS when nothing is repeated: noise_measured is then False)."""
+    group, count = _repeat_groups(data)
     mean = np.bincount(group, residual) / count
     ss = float(np.sum((residual - mean[group]) ** 2))
     dof = int(np.sum(count - 1))
@@ -534,6 +549,7 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     result.located_before = start_located if result.start is vocabulary.start else locate(
         data, data.y - result.start.prediction)
     result.located_after = locate(data, data.y - result.final.prediction)
+    result.noise_measured = noise_measured(data)
     return result
 
 
