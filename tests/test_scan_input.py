@@ -121,3 +121,16 @@ def test_a_table_that_cannot_be_made_is_said_as_such_not_as_an_alignment_failure
         analyse_recorded_scan(done, config, elsewhere)
     assert "no point table (no target lies within the scanned travel)" in str(refused.value)
     assert "could not be aligned" not in str(refused.value)
+
+
+@pytest.mark.machine
+@pytest.mark.parametrize(("name", "line", "words"), [
+    ("events.jsonl", '{"t_s": 1.0}', ["events.jsonl", "not an axiscal event"]),
+    ("runs.jsonl", '{"record": "start"}', ["runs.jsonl", "without a time"]),
+])
+def test_replay_of_a_scan_with_a_bad_event_or_run_record_is_one_error_line(tmp_path, scans, name, line, words):
+    _, done = scans
+    shutil.copytree(done, tmp_path / "c")
+    path = tmp_path / "c" / name
+    path.write_text(path.read_text() + line + "\n")
+    _one_error(axiscal("replay", tmp_path / "c"), *words)

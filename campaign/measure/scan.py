@@ -13,9 +13,10 @@ its whole passes, numbered as the plan's. Times in s, positions in the axis unit
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -31,6 +32,7 @@ from campaign.record import (
     Recorder,
     SweepRecord,
     load_raw,
+    read_events,
     read_json_lines,
     read_sweeps,
 )
@@ -40,7 +42,12 @@ from campaign.stream.scan import Profile, ScanResult, TableError, analyse_scan, 
 if TYPE_CHECKING:
     import pandas as pd
 
-EVENTS_FILE = "events.jsonl"
+def run_start_s(directory: Path, number: int, record: dict[str, Any]) -> float:
+    """A runs.jsonl start record's campaign time, s; InputError naming the line when it has none."""
+    t_s = record.get("t_s")
+    if isinstance(t_s, bool) or not isinstance(t_s, int | float) or not math.isfinite(t_s):
+        raise InputError(f"{directory / RUNS_FILE}:{number}: a run's start without a time (t_s)")
+    return float(t_s)
 
 
 @dataclass(frozen=True)
@@ -87,9 +94,10 @@ def segments(directory: Path, plan: Plan, rest_s: float) -> tuple[list[Segment],
     a run, events.jsonl) with their whole passes; the sweeps of a pass a segment did not finish are
     left out (a retry or a resume measures that pass again)."""
 
-    starts = [float(r["t_s"]) for r in read_json_lines(directory / RUNS_FILE) if r.get("record") == "start"]
+    starts = [run_start_s(directory, number, r) for number, r in enumerate(read_json_lines(directory / RUNS_FILE), 1)
+              if r.get("record") == "start"]
     # a fault within a run interrupts the streams too: the sweeps after it are aligned by themselves
-    faults = [float(e["t_s"]) for e in read_json_lines(directory / EVENTS_FILE) if e.get("kind") == "fault"]
+    faults = [float(e["t_s"]) for e in read_events(directory) if e["kind"] == "fault"]  # validated as read
     starts = sorted({*starts, *faults})
     if not (directory / SWEEPS_FILE).is_file():
         raise InputError(f"{directory}: not a recorded scan (no {SWEEPS_FILE})")
