@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 from protocols.plc_contract import CompTable
 
@@ -137,6 +137,7 @@ class PositionStream(Protocol):
         ...
 
 
+@runtime_checkable
 class StreamingAxis(Axis, Protocol):
     """An axis whose controller can stream its actual position (a scan needs one)."""
 

@@ -347,11 +347,11 @@ class Executor:
     def _open_position_stream(self) -> None:
         """A scan: the controller streams its actual position with its own time stamps at every
         cycle (ADS device notifications); an axis that cannot is refused before anything moves."""
-        if not hasattr(self.hw.axis, "stream_positions"):
+        axis = self.hw.axis
+        if not isinstance(axis, StreamingAxis):
             raise InputError(f"axis_driver.type = \"{self.controller.type}\": this axis cannot stream its actual "
                              "position with the controller's time stamps, which a scan needs (ADS device "
                              "notifications: the ads and sim drivers)")
-        axis: StreamingAxis = self.hw.axis  # type: ignore[assignment]  # it has stream_positions
         self.position_stream = axis.stream_positions(0.0, 0.05)
 
     def _run_points(self, todo: list[int]) -> list[int]:
