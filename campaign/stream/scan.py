@@ -181,9 +181,7 @@ def rest_steps(ctrl: ControllerStream, inst: InstrumentStream, alignment: Alignm
     t = alignment.controller_time(inst.time_s)
     v_ctrl = velocity(ctrl)
     steps: dict[int, list[float]] = {1: [], -1: []}
-    passes = {1: 0, -1: 0}
     for i, m in enumerate(moves):
-        passes[m.direction] += 1
         rest_to = moves[i + 1].start_s if i + 1 < len(moves) else float(ctrl.time_s[-1])
         if rest_to - m.end_s < 2 * average_s:
             continue
