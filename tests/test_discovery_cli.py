@@ -235,3 +235,16 @@ def test_a_table_that_repeats_nothing_does_not_call_what_is_left_noise(cli):
     assert "noise not measured" in text and "what is left is noise" not in text
     repeated = cli("discover", DATA / "paper-2022-beckhoff-press" / "horizontal_before.csv", "--json")
     assert repeated.code == 0 and json.loads(repeated.out)["noise_measured"] is True
+
+
+def test_a_step_between_two_targets_is_said_between_them_not_at_a_fitted_place(cli):
+    """The seed paper's horizontal axis after compensation (targets 60 mm apart) has a step no target
+    lies on: the data show it between two targets, not where between them nor how sharp."""
+    from tests.conftest import DATA
+
+    said = cli("discover", DATA / "paper-2022-beckhoff-press" / "horizontal_after.csv", "--json")
+    assert said.code == 0, said.err
+    steps = [e for e in json.loads(said.out)["local_errors"] if e["kind"] == "step"]
+    assert steps and all(e["between_targets_mm"][1] - e["between_targets_mm"][0] == pytest.approx(60.0)
+                         for e in steps)
+    assert all("between the targets at" in e["sentence"] and "rising over" not in e["sentence"] for e in steps)

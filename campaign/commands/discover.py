@@ -303,9 +303,10 @@ def local_said(local: LocalError) -> str:
     """A local error in words, with the error of its size and place (the axis's units)."""
     e = local.errors
     size = "amplitude_um" if "amplitude_um" in e else None
+    place = () if local.between_mm else ("centre_mm", "width_mm")  # a step between targets: not resolved
     errs = ", ".join(f"{k.split('_')[0]} ± {e[k]:.2g} "
                      f"{local.deviation_unit if k.endswith('um') else local.position_unit}"
-                     for k in (size, "centre_mm", "width_mm") if k and k in e)
+                     for k in (size, *place) if k and k in e)
     return f"{local.sentence()} ({errs})" if errs else local.sentence()
 
 

@@ -106,6 +106,9 @@ class LocalError:
     the rise, width_mm the rise from 10 % to 90 %, amplitude the step's height), or "region" (a term
     whose shape follows the data from start_mm to end_mm, campaign.discovery.unexplained: amplitude
     its peak, centre_mm the peak or, when its level goes on after the region, where it rises most)."""
+    between_mm: tuple[float, float] | None = None
+    """A step whose rise holds no target: the two targets it lies between. The data show a step
+    there, not where between them nor how sharp (the fitted centre and width are then not said)."""
 
     @property
     def region_mm(self) -> tuple[float, float]:
@@ -152,6 +155,11 @@ class LocalError:
                      f"{unit})" if abs(p["level_after_um"]) >= 0.5 * abs(self.size_um) else "")
             return (f"an unexplained local error of {self.size_um:+.2g} {self.deviation_unit} from {p['start_mm']:.4g} "
                     f"to {p['end_mm']:.4g} {unit}{after}, {self._sides()}")
+        if self.kind == "step" and self.between_mm is not None:
+            low, high = self.between_mm
+            return (f"a step of {self.size_um:+.2g} {self.deviation_unit} between the targets at {low:.4g} and "
+                    f"{high:.4g} {unit} (where between them and how sharp: not resolved, targets in between would "
+                    f"tell), {self._sides()}")
         if self.kind == "step":
             return (f"a step of {self.size_um:+.2g} {self.deviation_unit} at {p['centre_mm']:.4g} {unit}, rising over "
                     f"{p['width_mm']:.2g} {unit}, {self._sides()}")
@@ -168,6 +176,7 @@ class LocalError:
     def as_dict(self) -> dict:
         return {"sentence": self.sentence(), "effect": self.term.name, "kind": self.kind,
                 "region_mm": [round(v, 3) for v in self.region_mm],
+                **({"between_targets_mm": [round(v, 3) for v in self.between_mm]} if self.between_mm else {}),
                 "params": {k: round(v, 4) for k, v in self.params.items()},
                 "standard_errors": {k: float(f"{v:.3g}") for k, v in self.errors.items()},
                 "directions": self.directions, "time_p_value": float(f"{self.time_p:.3g}"),
@@ -444,7 +453,21 @@ def describe(data: CampaignData, fit: Fit, name: str, **tests: float) -> LocalEr
             directions = "+" if shows["+"] else "-"
     time_p, change, change_error = _time_test(data, fit, name)
     return LocalError(term, params, errors, directions, time_p, change, **tests, time_change_error_um=change_error,
-                      position_unit=data.position_unit, deviation_unit=data.deviation_unit, kind=term_kind(term))
+                      position_unit=data.position_unit, deviation_unit=data.deviation_unit, kind=term_kind(term),
+                      between_mm=unresolved_rise(data, params) if term_kind(term) == "step" else None)
+
+
+def unresolved_rise(data: CampaignData, params: dict[str, float]) -> tuple[float, float] | None:
+    """The targets either side of a step whose rise (centre ± width/2) holds no target, or None
+    when a target lies on the rise (or the step is at the end of the targets)."""
+    targets = np.unique(data.x)
+    c, w = params["centre_mm"], params["width_mm"]
+    if np.any(np.abs(targets - c) <= w / 2):
+        return None
+    below, above = targets[targets < c], targets[targets > c]
+    if not len(below) or not len(above):
+        return None
+    return float(below[-1]), float(above[0])
 
 
 def refit_local(data: CampaignData, fit: Fit, found: LocalError) -> tuple[Fit, LocalError]:
