@@ -19,7 +19,8 @@ SCRIPTS = (("demo_wall_time.py",), ("stable_vs_dwell.py",), ("compensation.py",)
            ("discovery_draws.py",), ("history_drawn.py",), ("history_plant.py",), ("history_seeds.py",),
            ("scan_run.py",), ("discovery_dense.py",))
 """Each benchmark script with its options, run in turn. The last seven print their figures (scan,
-scan_run and discovery_draws also write bench/results/*.json); the summary quotes the others."""
+scan_run, discovery_draws and discovery_dense also write bench/results/*.json; history_drawn and
+history_plant only print); the summary quotes the others."""
 SEPARATE: dict[str, str] = {}
 """The benchmark scripts `make bench` does not run, and why."""
 COMPENSATION = (("compensation", "5-run campaigns"),
