@@ -121,11 +121,16 @@ class LocalError:
         return c - half, c + half
 
     @property
+    def size_key(self) -> str:
+        """The parameter that is its size: amplitude_um, or the larger direction's (plus_um on a tie)."""
+        if "amplitude_um" in self.params:
+            return "amplitude_um"
+        return "plus_um" if abs(self.params["plus_um"]) >= abs(self.params["minus_um"]) else "minus_um"
+
+    @property
     def size_um(self) -> float:
         """The peak of the bump, µm (the larger of the two directions when they differ)."""
-        if "amplitude_um" in self.params:
-            return self.params["amplitude_um"]
-        return max(self.params["plus_um"], self.params["minus_um"], key=abs)
+        return self.params[self.size_key]
 
     def _sides(self) -> str:
         """Which directions show it, in words: what was seen in each."""

@@ -615,9 +615,7 @@ def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]
     largest = float(np.max(np.abs(data.y - vocabulary.start.prediction)))
     for local in list(kept):
         without = linear_fit(data, [t for t in final.terms if t.name != local.term.name])
-        key = next(k for k in ("amplitude_um", "plus_um", "minus_um") if k in local.params
-                   and local.params[k] == local.size_um)  # the larger direction's, when one each
-        small = abs(local.size_um) < SIZE_SIGMAS * local.errors.get(key, 0.0)
+        small = abs(local.size_um) < SIZE_SIGMAS * local.errors.get(local.size_key, 0.0)
         # a term larger than anything the campaign shows only cancels another one: not physical
         if not passes(data, without, final) or small or abs(local.size_um) > LOCAL_LARGEST * largest:
             kept.remove(local)
