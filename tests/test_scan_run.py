@@ -9,6 +9,7 @@ simulated axis's own error model at rest."""
 from __future__ import annotations
 
 import json
+import os
 
 import numpy as np
 import pytest
@@ -168,9 +169,25 @@ def test_kill_9_during_a_pass_loses_nothing_recorded_and_resume_continues_at_tha
     # replay: the recorded streams give the same table, and another one with other settings
     same = json.loads(axiscal("replay", out, "--json").stdout)
     assert same["identical"] and same["points"] == len(table)
+    # without the rest reference every value moves by its segment's rest step in its direction, exactly
+    # (this axis does not settle: a step can be below the table's 1e-4 µm, so no count of changed values)
+    from campaign.measure.scan import analyse_recorded_scan
+    from campaign.record import open_campaign
+
+    recorded = open_campaign(out)
+    steps = {run: {d: r.step for d, r in result.rest.items()}
+             for segment, result in analyse_recorded_scan(out, recorded.config(), recorded.plan_for(recorded.config())).segments
+             for run in segment.runs}
+    moving = json.loads(axiscal("replay", out, "--json", "--moving").stdout)
+    changed = {(x["run"], 1 if x["direction"] == "+" else -1, round(x["target"], 6)): x["difference"]
+               for x in moving["differences"]}
+    assert moving["points"] == len(table) and sorted(steps) == [1, 2]
+    for run, s, t in zip(table.run, table.direction, table.target):
+        assert abs(changed.get((int(run), int(s), round(float(t), 6)), 0.0) - steps[int(run)].get(int(s), 0.0)) < 1.5e-4
     other = json.loads(axiscal("replay", out, "--json", "--scan-window", "3", "--moving").stdout)
     assert not other["identical"] and other["window"] == 3 and other["rest_reference"] is False
-    assert len(other["differences"]) == len(table)
+    assert other["points"] == len(table) and all(x["recorded"] is not None and x["replayed"] is not None
+                                                 for x in other["differences"])
     offset_only = json.loads(axiscal("replay", out, "--json", "--offset-only").stdout)  # what the rate estimate buys:
     assert offset_only["rate"] is False and not offset_only["identical"]  # tens of ppm over a pass are µm here
     assert max(abs(x["difference"]) for x in offset_only["differences"]) > 0.5
@@ -181,6 +198,78 @@ def test_kill_9_during_a_pass_loses_nothing_recorded_and_resume_continues_at_tha
     for words in ("NOT JUDGED", "captured with the scan method, not an ISO 230-2 test", "Clock offset, ms",
                   "Speed limit", "Left out", "pass 2"):
         assert words in html, words
+
+
+DIE = """
+import os, sys
+from campaign.cli import main
+from campaign.record.recorder import Recorder
+
+batches, flush = int(sys.argv[3]), sys.argv[4]
+seen = {"sweeps": 0, "batches": 0}
+sweep, positions = Recorder.sweep, Recorder.positions
+
+def counted(self, *a, **k):
+    sweep(self, *a, **k)
+    seen["sweeps"] += 1
+
+def dying(self, *a, **k):  # kill -9 at a chosen controller batch after pass 2's up sweep: no buffer flushed
+    positions(self, *a, **k)
+    seen["batches"] += seen["sweeps"] >= 3
+    if seen["batches"] >= batches:
+        if flush in ("positions", "torn"):
+            self._positions.write("" if flush == "positions" else "12.5,3,17")  # a line cut mid-way
+            self._positions.flush()
+        if flush == "raw":
+            self._raw.flush()
+        os._exit(9)
+
+Recorder.sweep, Recorder.positions = counted, dying
+main(["run", sys.argv[1], "--out", sys.argv[2]])
+"""
+
+
+@pytest.mark.machine
+@pytest.mark.parametrize(("batches", "flush"), [(120, "positions"), (60, "raw"), (60, "torn"), (20, "positions")])
+def test_a_kill_at_any_point_of_a_pass_leaves_what_resume_needs_and_no_stream_overlaps(tmp_path, batches, flush):
+    """Killed at a chosen controller batch (about 50 ms each) after pass 2's up sweep, with one stream's
+    buffer written just before (the two streams are buffered apart: either can be ahead on disk, or end
+    in a torn line): the resumed run's campaign time starts after every sample recorded, so no segment
+    takes the killed run's last samples; the table is whole and is reproduced from the files."""
+    import subprocess
+    import sys
+
+    from campaign.measure import resume_campaign
+    from campaign.measure.scan import analyse_recorded_scan
+    from campaign.plan import build_plan
+    from tests.conftest import ROOT
+
+    d = draw(4)
+    (tmp_path / "scan.toml").write_text(SCAN.format(**d))
+    out = tmp_path / "k"
+    died = subprocess.run([sys.executable, "-c", DIE, str(tmp_path / "scan.toml"), str(out), str(batches), flush],
+                          cwd=ROOT, capture_output=True, text=True, timeout=300, check=False,
+                          env={**os.environ, "AXISCAL_DB": "none"})
+    assert died.returncode == 9, died.stderr
+    ends = [float(_lines(out / name)[-1].split(b",")[0]) for name in ("raw.csv", "positions.csv")]
+    assert len(_lines(out / "sweeps.csv")) == 4
+    config = parse_config(SCAN.format(**d), "scan.toml")
+    assert resume_campaign(out, opener=open_hardware).status == "completed"
+    starts = [json.loads(line)["t_s"] for line in (out / "runs.jsonl").read_text().splitlines()
+              if json.loads(line)["record"] == "start"]
+    assert len(starts) == 2 and starts[1] >= max(ends) - 1e-3, (starts, ends)
+    for name in ("raw.csv", "positions.csv"):  # campaign time never runs back: no two runs share a stretch
+        t_s = np.loadtxt(out / name, delimiter=",", skiprows=1, usecols=0)
+        assert np.all(np.diff(t_s) >= 0), name
+    table = read_points(out / "points.csv")
+    assert sorted(set(table.run.tolist())) == [1, 2] and len(table) == 2 * 2 * 7 and "pass 2" in table.meta["left_out_1"]
+    again = analyse_recorded_scan(out, config, build_plan(config)).table
+    assert np.allclose(again.deviation, table.deviation, atol=1e-4) and np.array_equal(again.target, table.target)
+    model = sim_model(config.sim)
+    errors = [float(np.mean(table.deviation[(table.direction == s) & (table.target == t)]))
+              - float(model.deviation_um(np.array([t]), s, 0.0, np.inf)[0])
+              for s in (1, -1) for t in sorted(set(table.target.tolist()))]
+    assert float(np.sqrt(np.mean(np.square(errors)))) < 0.35, errors
 
 
 @pytest.mark.machine

@@ -331,12 +331,31 @@ def load_raw(directory: Path) -> pd.DataFrame:
 
 
 def last_raw_state(directory: Path) -> tuple[float, float | None]:
-    """(campaign time of the last raw sample in s, last known axis position or None)."""
+    """(campaign time of the last sample recorded in s, last known axis position or None). The
+    time is the latest of raw.csv's and a scan's positions.csv's last rows: the two streams are
+    buffered apart, so a kill can leave either ahead, and a resumed run's campaign time must start
+    after both (its segment of the streams would otherwise take the earlier run's last samples)."""
     raw = load_raw(directory)
+    last_position_s = _last_stream_time_s(directory / POSITIONS_FILE)
     if raw.empty:
-        return 0.0, None
+        return last_position_s or 0.0, None
     positions = raw.axis_position.dropna()
-    return float(raw.t_s.iloc[-1]), float(positions.iloc[-1]) if len(positions) else None
+    t_s = max(float(raw.t_s.iloc[-1]), last_position_s or float("-inf"))
+    return t_s, float(positions.iloc[-1]) if len(positions) else None
+
+
+def _last_stream_time_s(path: Path) -> float | None:
+    """The campaign time (first column, s) of an appended stream's last whole line; None without one."""
+    if not path.is_file():
+        return None
+    with open(path, "rb") as f:
+        f.seek(max(0, path.stat().st_size - 4096))
+        tail = f.read()
+    lines = tail[:tail.rfind(b"\n") + 1].splitlines()
+    try:
+        return float(lines[-1].split(b",", 1)[0]) if lines else None
+    except ValueError:  # the header: no sample yet
+        return None
 
 
 def last_reading_offset(directory: Path, plan: Plan) -> float | None:
