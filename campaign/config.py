@@ -269,32 +269,9 @@ def _check_scan(s: Mapping[str, Mapping[str, Any]], src: str) -> None:
     if v > axis["max_velocity"]:
         raise InputError(f"{src}: key 'capture.scan_velocity': {v:g} {unit}/s is above axis.max_velocity = "
                          f"{axis['max_velocity']:g} {unit}/s")
-    _check_scan_window(capture["scan_window"], v, s["instrument"]["rate_hz"], plan, unit, src)
     if plan["cycle"] != "linear":
         raise InputError(f"{src}: key 'plan.cycle': a scan sweeps the whole travel (linear), not the pilgrim "
                          "step cycle")
-
-
-def _check_scan_window(window: float, velocity: float, rate_hz: float, plan: Mapping[str, Any], unit: str,
-                       src: str) -> None:
-    """A scan's window about each target holds samples: at least one sample spacing at the scan's
-    velocity, and at most the smallest spacing of the nominal targets (a target's window does not
-    take its neighbour's samples). Axis unit, velocity axis unit/s, rate Hz."""
-    spacing = velocity / rate_hz
-    if window < spacing * (1 - 1e-9):
-        raise InputError(f"{src}: key 'capture.scan_window': {window:g} {unit} is shorter than the spacing of the "
-                         f"samples at scan_velocity {velocity:g} {unit}/s and instrument.rate_hz {rate_hz:g} "
-                         f"({spacing:g} {unit}): a target could get no sample; make it at least {spacing:g} {unit}")
-    if plan["targets"] is not None:
-        targets = sorted(plan["targets"])
-    elif plan["length"] is not None and plan["count"] is not None and plan["count"] > 1:
-        targets = [plan["start"] + plan["length"] * i / (plan["count"] - 1) for i in range(plan["count"])]
-    else:
-        targets = []
-    gaps = [b - a for a, b in itertools.pairwise(targets) if b > a]
-    if gaps and window > min(gaps):
-        raise InputError(f"{src}: key 'capture.scan_window': {window:g} {unit} is wider than the targets' "
-                         f"spacing ({min(gaps):g} {unit}): a target's window would take its neighbour's samples")
 
 
 def _check_consistency(s: Mapping[str, Mapping[str, Any]], src: str) -> None:

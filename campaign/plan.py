@@ -226,8 +226,31 @@ def capture_at(point: Point, dwell_s: float, spec: CaptureSpec) -> tuple[float, 
 
 
 def build_plan(config: Config) -> Plan:
-    """The plan for a config (its plan and capture specs). Does not check limits: see `check_plan`."""
-    return make_plan(config.plan, config.capture)
+    """The plan for a config (its plan and capture specs). Does not check limits: see `check_plan`.
+    A scan's window is checked against the plan's targets (`check_scan_window`): InputError naming
+    the config's file and key."""
+    plan = make_plan(config.plan, config.capture)
+    if plan.sweeps:
+        check_scan_window(config.capture.scan_window, plan, config, f"{config.source}: key 'capture.scan_window'")
+    return plan
+
+
+def check_scan_window(window: float, plan: Plan, config: Config, option: str) -> None:
+    """A scan's window about each target (axis unit) holds samples and only its own: at least one
+    sample spacing at the scan's velocity (capture.scan_velocity / instrument.rate_hz), at most the
+    smallest spacing of the plan's targets, offsets included (a wider window takes its neighbour's
+    samples). The config's window, and replay's --scan-window against the recorded plan, alike.
+    InputError starting with `option` (what names the value: a config's file and key, an option)."""
+    velocity, rate_hz, unit = config.capture.scan_velocity or 0.0, config.instrument.rate_hz, config.axis.unit
+    spacing = velocity / rate_hz
+    if window < spacing * (1 - 1e-9):
+        raise InputError(f"{option}: {window:g} {unit} is shorter than the spacing of the samples at scan_velocity "
+                         f"{velocity:g} {unit}/s and instrument.rate_hz {rate_hz:g} ({spacing:g} {unit}): a target "
+                         f"could get no sample; make it at least {spacing:g} {unit}")
+    gaps = [b - a for a, b in itertools.pairwise(sorted(plan.targets)) if b > a]
+    if gaps and window > min(gaps) * (1 + 1e-9):
+        raise InputError(f"{option}: {window:g} {unit} is wider than the targets' spacing ({min(gaps):g} {unit}, "
+                         "offsets included): a target's window would take its neighbour's samples")
 
 
 def make_plan(p: PlanSpec, capture: CaptureSpec) -> Plan:

@@ -3,6 +3,7 @@ registered here, in this file alone, is seen by the command line's choices, the 
 validation, the plan, the executor and replay; the shipped ones by the report and the program
 writer through the same registry."""
 
+import itertools
 from dataclasses import replace
 from statistics import median
 
@@ -121,15 +122,38 @@ def test_a_scan_config_is_checked_before_anything_runs():
         parse_config(diagnostic + "scan_velocity = 60.0\n", "scan.toml")
     rate = parse_config(diagnostic + "scan_velocity = 10.0\n", "scan.toml").instrument.rate_hz
     with pytest.raises(InputError, match="scan.toml: key 'capture.scan_window'.*shorter than the spacing of the samples"):
-        parse_config(diagnostic + f"scan_velocity = 10.0\nscan_window = {0.8 * 10.0 / rate}\n", "scan.toml")
-    parse_config(diagnostic + f"scan_velocity = 10.0\nscan_window = {1.2 * 10.0 / rate}\n", "scan.toml")
+        build_plan(parse_config(diagnostic + f"scan_velocity = 10.0\nscan_window = {0.8 * 10.0 / rate}\n", "scan.toml"))
+    build_plan(parse_config(diagnostic + f"scan_velocity = 10.0\nscan_window = {1.2 * 10.0 / rate}\n", "scan.toml"))
     plan = build_plan(parse_config(diagnostic + "scan_velocity = 10.0\n", "scan.toml"))
     spacing = min(b - a for a, b in zip(plan.targets, plan.targets[1:]))
     with pytest.raises(InputError, match="scan.toml: key 'capture.scan_window'.*wider than the targets' spacing"):
-        parse_config(diagnostic + f"scan_velocity = 10.0\nscan_window = {spacing * 1.2 + 1}\n", "scan.toml")
+        build_plan(parse_config(diagnostic + f"scan_velocity = 10.0\nscan_window = {spacing * 1.2 + 1}\n", "scan.toml"))
     plan = build_plan(parse_config(diagnostic + "scan_velocity = 10.0\n", "scan.toml"))
     assert plan.sweeps and [(p.run, p.direction, p.target) for p in plan.points] == [
         (1, 1, 102.0), (1, -1, -2.0), (2, 1, 102.0), (2, -1, -2.0)]  # the targets ± the overrun, up and down
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3, 4])
+def test_a_scan_window_is_checked_against_the_offset_targets_the_plan_uses(cli, tmp_path, seed):
+    """The targets carry offsets (random or golden, up to a fraction of the spacing): the window must fit
+    between the plan's targets, not the nominal ones; `axiscal plan` says so in one error line."""
+    from tests.conftest import assert_one_line_error
+
+    scan = (SMALL.replace("[campaign]\n", '[campaign]\npurpose = "diagnostic"\n')
+            .replace("[plan]\n", f"[plan]\noffsets = \"random\"\noffset_fraction = 0.3\nseed = {seed}\n")
+            .replace("soft_limit_min = -5.0", "soft_limit_min = -25.0").replace("soft_limit_max = 105.0", "soft_limit_max = 125.0")
+            .replace("targets = [0.0, 50.0, 100.0]", "length = 100.0\ncount = 11")
+            + 'method = "scan"\nscan_velocity = 10.0\n')
+    nominal = build_plan(parse_config(scan.replace('offsets = "random"', 'offsets = "none"'), "scan.toml")).targets
+    targets = build_plan(parse_config(scan, "scan.toml")).targets
+    gap, nominal_gap = (min(b - a for a, b in itertools.pairwise(t)) for t in (targets, nominal))
+    assert gap < nominal_gap
+    window = (gap + nominal_gap) / 2  # fits the nominal targets, not the plan's
+    (tmp_path / "scan.toml").write_text(scan + f"scan_window = {window}\n")
+    assert_one_line_error(cli("plan", str(tmp_path / "scan.toml")), "key 'capture.scan_window'",
+                          "wider than the targets' spacing", f"({gap:g} mm")
+    (tmp_path / "ok.toml").write_text(scan + f"scan_window = {gap * 0.99}\n")
+    assert cli("plan", str(tmp_path / "ok.toml")).code == 0
 
 
 def test_register_refuses_a_name_registered_already_and_a_non_iso_method_without_its_reason():

@@ -188,6 +188,10 @@ def test_kill_9_during_a_pass_loses_nothing_recorded_and_resume_continues_at_tha
     assert not other["identical"] and other["window"] == 3 and other["rest_reference"] is False
     assert other["points"] == len(table) and all(x["recorded"] is not None and x["replayed"] is not None
                                                  for x in other["differences"])
+    for bad in ("11", "0.01"):  # wider than the targets' spacing (offsets included), shorter than the samples'
+        refused = axiscal("replay", out, "--scan-window", bad)
+        assert refused.returncode == 2 and refused.stderr.startswith("error: --scan-window: ") \
+            and len(refused.stderr.strip().splitlines()) == 1, refused.stderr
     offset_only = json.loads(axiscal("replay", out, "--json", "--offset-only").stdout)  # what the rate estimate buys:
     assert offset_only["rate"] is False and not offset_only["identical"]  # tens of ppm over a pass are µm here
     assert max(abs(x["difference"]) for x in offset_only["differences"]) > 0.5

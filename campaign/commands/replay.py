@@ -17,7 +17,7 @@ from campaign.config import Config
 from campaign.errors import InputError
 from campaign.iso230 import evaluate
 from campaign.measure import ScanSettings, analyse_recorded_scan, replay_campaign, settings_of
-from campaign.plan import Plan
+from campaign.plan import Plan, check_scan_window
 from campaign.pointtable import PointTable, read_points
 from campaign.record import open_campaign
 from campaign.views import fmt, make_console, print_json
@@ -83,6 +83,8 @@ def replay_scan(args: argparse.Namespace, directory: Path, config: Config, plan:
                                                                    "stable_window_s", "stable_timeout_s")):
         raise InputError(f"{directory}: a scan is replayed with --scan-window, --wanted-u, --moving and --offset-only, not with "
                          "the options of a capture at rest")
+    if args.scan_window is not None:  # as the config's window is checked: against the recorded plan's targets
+        check_scan_window(args.scan_window, plan, config, "--scan-window")
     own = settings_of(config)
     settings = ScanSettings(args.scan_window or own.window, args.wanted_u or own.wanted_u, not args.moving,
                             not args.offset_only)
