@@ -22,7 +22,7 @@ from campaign.plan import (
     plan_records,
 )
 from campaign.views import make_console, print_json
-from protocols.units import counted
+from protocols.units import UNITS, counted, unit_label
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -43,11 +43,43 @@ def summary(config: Config, plan: Plan) -> dict:
             "soft_limits": [a.soft_limit_min, a.soft_limit_max], "max_velocity": a.max_velocity}
 
 
+def scan_speed(config: Config) -> dict:
+    """A scan's speed against its timing budget before it runs: the highest velocity at which the
+    timing keeps within capture.scan_wanted_u per target and pass (`campaign.stream.scan.
+    timing_speed_limit`, as the scan's own limit after it ran), with the alignment uncertainty a
+    follow-up scan's speed assumes (SCAN_TIMING_INTERVALS of the laser's sample interval) and no
+    sample jitter (unknown before a scan); the timing uncertainty at capture.scan_velocity and a
+    warning when that is above the limit (axis unit/s, s, deviation unit)."""
+    from campaign.discovery.followup import SCAN_TIMING_INTERVALS
+    from campaign.stream.scan import timing_speed_limit, timing_u
+
+    c, rate, kind = config.capture, config.instrument.rate_hz, config.axis.kind
+    velocity = c.scan_velocity or 0.0
+    alignment_s = SCAN_TIMING_INTERVALS / rate
+    limit = timing_speed_limit(alignment_s, 0.0, rate, c.scan_window, c.scan_wanted_u, kind)
+    u, _ = timing_u(velocity, alignment_s, 0.0, rate, c.scan_window, kind)
+    pos, dev = UNITS[kind][0], unit_label(UNITS[kind][1])
+    assumed = (f"assuming the alignment leaves {alignment_s * 1e6:.3g} µs, {SCAN_TIMING_INTERVALS:g} of the laser's "
+               f"sample interval at {rate:g} Hz, and no sample jitter")
+    warning = None
+    if velocity > limit * (1 + 1e-9):
+        warning = (f"capture.scan_velocity = {velocity:g} {pos}/s is too fast: the timing alone gives {u:.2g} {dev} "
+                   f"per target and pass, more than capture.scan_wanted_u = {c.scan_wanted_u:g} {dev}; scan at "
+                   f"most {limit:.3g} {pos}/s ({assumed}; the scan states its own limit after it ran)")
+    return {"velocity": velocity, "speed_limit": round(limit, 6), "timing_u": round(u, 6),
+            "wanted_u": c.scan_wanted_u, "assumed_alignment_s": alignment_s, "warning": warning,
+            "text": f"{limit:.3g} {pos}/s keeps the timing within {c.scan_wanted_u:g} {dev} per target and pass "
+                    f"({u:.2g} {dev} at {velocity:g} {pos}/s; {assumed})"}
+
+
 def run(args: argparse.Namespace) -> int:
     config = load_config(args.config)
     plan = build_plan(config)
     check_plan(plan, config.axis)
     info = summary(config, plan)
+    speed = scan_speed(config) if plan.sweeps else None
+    if speed is not None:
+        info["scan"] = {k: v for k, v in speed.items() if k != "text"}
     if args.json:
         if args.steps:
             info["steps"] = plan_records(plan)[1:]
@@ -61,6 +93,7 @@ def run(args: argparse.Namespace) -> int:
         table.add_row("scan", f"{info['points']} sweeps ({info['runs']} {'pass' if info['runs'] == 1 else 'passes'} up and down at {v:g} {u}/s, "
                               f"a rest of {config.plan.dwell_s:g} s at each end); the table at {len(plan.targets)} "
                               "targets × 2 directions per pass comes from the streams: a diagnostic (docs/scan.md)")
+        table.add_row("speed limit", speed["text"] if speed else "")
     else:
         table.add_row("points", f"{info['points']} ({len(plan.targets)} targets × 2 directions × "
                                 f"{counted(info['runs'], 'run')})" if info["cycle"] == "linear" else str(info["points"]))
@@ -70,6 +103,8 @@ def run(args: argparse.Namespace) -> int:
     table.add_row("soft limits", f"[{info['soft_limits'][0]:g}, {info['soft_limits'][1]:g}] {u}; "
                                  f"max velocity {info['max_velocity']:g} {u}/s — plan within limits")
     console.print(table)
+    if speed and speed["warning"]:
+        console.print(f"[yellow]warning:[/] {speed['warning']}", highlight=False)
     if args.steps:
         console.print(steps_table(plan, config))
     return 0

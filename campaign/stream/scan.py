@@ -237,34 +237,55 @@ def sample_jitter_s(prof: Profile, speed: float, noise: float) -> float:
     return math.sqrt(excess) / (speed * scale) if excess > 0 else 0.0
 
 
+def timing_u(velocity: float, alignment_s: float, jitter_s: float, rate_hz: float, window: float,
+             kind: str = "linear") -> tuple[float, float]:
+    """The timing part of one target's per-pass uncertainty at `velocity` (axis unit/s), deviation
+    unit: v·√(u_align² + jitter²/n), with `alignment_s` the alignment's standard uncertainty and
+    `jitter_s` the sample jitter (s), n the samples a `window` (axis unit) holds per pass at
+    `rate_hz`; and n."""
+    scale = DEVIATION_SCALE[UNITS[kind][0]]
+    n = max(window / velocity * rate_hz, 1.0) if velocity > 0 else math.inf
+    return velocity * scale * math.sqrt(alignment_s**2 + jitter_s**2 / n), n
+
+
+def timing_speed_limit(alignment_s: float, jitter_s: float, rate_hz: float, window: float, wanted_u: float,
+                       kind: str = "linear") -> float:
+    """The highest velocity (axis unit/s) at which `timing_u` stays within `wanted_u` (deviation
+    unit). A scan's own limit (`speed_limit`, from its alignment and jitter) and the limit
+    `axiscal plan` predicts (from an expected alignment) both come from here."""
+    lo, hi = 0.0, 1e4
+    for _ in range(100):
+        mid = (lo + hi) / 2
+        if timing_u(mid, alignment_s, jitter_s, rate_hz, window, kind)[0] <= wanted_u:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+def _alignment_u_s(alignment: Alignment, moves: list[Move]) -> float:
+    """The alignment's standard uncertainty, s: the largest over the scan's moves' ends."""
+    times = np.array([t for m in moves for t in (m.start_s, m.end_s)])
+    return float(np.max(alignment.timing_uncertainty_s(times)))
+
+
 def timing_budget(alignment: Alignment, moves: list[Move], jitter_s: float, rate_hz: float, window: float,
                   kind: str = "linear", velocity_: float | None = None) -> TimingBudget:
     """The timing part of one target's per-pass uncertainty at `velocity_` (axis unit/s; default
-    the scan's): v·√(u_align² + jitter²/n), n the samples a window holds per pass at `rate_hz`.
-    The alignment's uncertainty is the largest over the scan's moves."""
+    the scan's): `timing_u` with the alignment's uncertainty, the largest over the scan's moves."""
     v = velocity_ if velocity_ is not None else float(np.median([m.speed for m in moves]))
-    scale = DEVIATION_SCALE[UNITS[kind][0]]
-    times = np.array([t for m in moves for t in (m.start_s, m.end_s)])
-    u_align = float(np.max(alignment.timing_uncertainty_s(times)))
-    n = max(window / v * rate_hz, 1.0)
-    u = v * scale * math.sqrt(u_align**2 + jitter_s**2 / n)
+    u_align = _alignment_u_s(alignment, moves)
+    u, n = timing_u(v, u_align, jitter_s, rate_hz, window, kind)
     return TimingBudget(v, u_align, jitter_s, n, u)
 
 
 def speed_limit(alignment: Alignment, moves: list[Move], jitter_s: float, rate_hz: float, window: float,
                 wanted_u: float, kind: str = "linear") -> float:
     """The highest velocity (axis unit/s) at which the timing budget stays within `wanted_u`
-    (deviation unit), with this scan's alignment and jitter. The alignment's uncertainty is taken
-    as it is at this scan's speed (a faster scan's ramps align somewhat better: the limit is on the
-    safe side)."""
-    lo, hi = 0.0, 1e4
-    for _ in range(100):
-        mid = (lo + hi) / 2
-        if timing_budget(alignment, moves, jitter_s, rate_hz, window, kind, mid).deviation_u <= wanted_u:
-            lo = mid
-        else:
-            hi = mid
-    return lo
+    (deviation unit), with this scan's alignment and jitter (`timing_speed_limit`). The alignment's
+    uncertainty is taken as it is at this scan's speed (a faster scan's ramps align somewhat better:
+    the limit is on the safe side)."""
+    return timing_speed_limit(_alignment_u_s(alignment, moves), jitter_s, rate_hz, window, wanted_u, kind)
 
 
 def scan_warnings(budget: TimingBudget, limit: float, wanted_u: float, moves: list[Move], targets: tuple[float, ...] |

@@ -1,0 +1,60 @@
+"""`axiscal plan` of a scan says the speed that keeps the timing within capture.scan_wanted_u and
+warns when capture.scan_velocity is above it (issue 33: "a scan planned faster is warned about"),
+from the same timing budget a scan states after it ran (campaign.stream.scan.timing_speed_limit)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from tests.conftest import ROOT
+
+DEMO = (ROOT / "data/configs/scan-demo.toml").read_text()
+
+
+def config_text(rate_hz: float, velocity: float, wanted_u: float, rotary: bool) -> str:
+    text = DEMO.replace("rate_hz = 500.0", f"rate_hz = {rate_hz}").replace("scan_velocity = 10.0",
+                                                                        f"scan_velocity = {velocity}")
+    text = text.replace("[capture]\n", f"[capture]\nscan_wanted_u = {wanted_u}\n")
+    if rotary:
+        text = (text.replace('kind = "linear"', 'kind = "rotary"').replace('unit = "mm"', 'unit = "deg"')
+                .replace("soft_limit_max = 610.0", "soft_limit_max = 350.0").replace("length = 600.0", "length = 300.0"))
+    return text
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3, 4, 5])
+def test_plan_states_the_speed_limit_and_warns_a_faster_scan(cli, tmp_path, seed):
+    rng = np.random.default_rng([seed, 33])
+    rate, wanted = round(float(rng.uniform(100, 1000)), 1), round(float(rng.uniform(0.05, 1.0)), 3)
+    rotary = bool(seed % 2)
+    scale = 3600.0 if rotary else 1000.0  # deviation unit per axis unit: arcsec/deg, µm/mm
+    # no jitter assumed: the timing is speed × the alignment's 0.01 sample intervals
+    limit = wanted / (0.01 / rate * scale)
+    for velocity, warned in ((round(limit * 0.8, 4), False), (round(limit * 1.3, 4), True)):
+        if velocity > 50.0:  # axis.max_velocity
+            continue
+        path = tmp_path / f"scan-{velocity}.toml"
+        path.write_text(config_text(rate, velocity, wanted, rotary))
+        got = cli("plan", str(path), "--json")
+        assert got.code == 0, got.err
+        scan = json.loads(got.out)["scan"]
+        assert scan["speed_limit"] == pytest.approx(limit, rel=1e-6, abs=2e-6)
+        assert scan["timing_u"] == pytest.approx(velocity * 0.01 / rate * scale, rel=1e-6, abs=2e-6)
+        assert (scan["warning"] is not None) == warned, scan
+        text = cli("plan", str(path))
+        assert text.code == 0 and f"{limit:.3g} {'deg' if rotary else 'mm'}/s keeps the timing" in " ".join(text.out.split())
+        assert ("warning: capture.scan_velocity" in text.out) == warned
+
+
+def test_the_run_time_limit_is_the_same_budget():
+    """A scan's own limit and the planned one are one function of the alignment's uncertainty and
+    the jitter: with no jitter, speed × alignment = wanted."""
+    from campaign.stream.scan import timing_speed_limit, timing_u
+
+    for alignment_s, rate in ((20e-6, 500.0), (3e-6, 1000.0), (1e-4, 100.0)):
+        limit = timing_speed_limit(alignment_s, 0.0, rate, 1.0, 0.2)
+        assert limit * alignment_s * 1000 == pytest.approx(0.2, rel=1e-9)
+        jittered = timing_speed_limit(alignment_s, 50e-6, rate, 1.0, 0.2)  # jitter only lowers it
+        assert jittered < limit and timing_u(jittered, alignment_s, 50e-6, rate, 1.0)[0] == pytest.approx(0.2, rel=1e-6)
