@@ -94,6 +94,11 @@ AxisUnit = Literal["mm", "deg"]
 Cycle = Literal["linear", "pilgrim"]
 Offsets = Literal["none", "random", "golden"]
 ControllerType = Literal["sim", "ads", "linuxcnc", "epics"]
+STREAMING_CONTROLLERS: frozenset[ControllerType] = frozenset({"sim", "ads"})
+"""The controllers whose driver's axis streams its actual position with the controller's time
+stamps (a `protocols.hardware.StreamingAxis`: drivers/ads_axis.py's ADS device notifications, on a
+real PLC or the simulated one), which a scan needs; the LinuxCNC and EPICS axes do not. The
+drivers hold the fact; tests/test_capture_methods.py checks this set against them."""
 InstrumentType = Literal["sim", "serial"]
 InstrumentMode = Literal["stream", "query"]
 AirCorrection = Literal["none", "edlen"]
@@ -207,6 +212,11 @@ class ControllerSpec:
     reconnect_s: float = key(float, 30.0,
         "how long to wait for a lost ADS connection to come back, s", min=0, resume=True)
     read_only: bool = key(bool, False, "dry run: talk to the PLC read-only, command nothing", resume=True)
+
+    @property
+    def streams_position(self) -> bool:
+        """This controller streams its actual position with its own time stamps (a scan needs it)."""
+        return self.type in STREAMING_CONTROLLERS
 
 
 @dataclass(frozen=True, kw_only=True)

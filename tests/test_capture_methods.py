@@ -111,6 +111,25 @@ def test_a_scan_on_an_axis_that_cannot_stream_its_position_is_refused_before_any
     assert machine.openings[0].axis.position == parse_config(scan, "scan.toml").driver.start_position  # never moved
 
 
+def test_the_controllers_said_to_stream_their_position_are_those_whose_axis_streams_it():
+    """campaign.specs.STREAMING_CONTROLLERS (what discovery's follow-up reads) against the drivers' axes
+    (drivers/factory.py opens AdsAxis for ads and for the simulated PLC)."""
+    from typing import get_args
+
+    from campaign.specs import STREAMING_CONTROLLERS, ControllerSpec, ControllerType
+    from drivers.ads_axis import AdsAxis
+    from drivers.epics.axis import EpicsAxis
+    from drivers.linuxcnc.axis import LinuxCncAxis
+    from protocols.hardware import StreamingAxis
+
+    axis_of = {"ads": AdsAxis, "sim": AdsAxis, "linuxcnc": LinuxCncAxis, "epics": EpicsAxis}
+    assert set(axis_of) == set(get_args(ControllerType))
+    for name, axis in axis_of.items():
+        streams = callable(getattr(axis, "stream_positions", None))
+        assert streams == (name in STREAMING_CONTROLLERS) == ControllerSpec(type=name).streams_position, name  # type: ignore[arg-type]
+        assert streams == all(callable(getattr(axis, m, None)) for m in dir(StreamingAxis) if not m.startswith("_"))
+
+
 def test_a_scan_config_is_checked_before_anything_runs():
     scan = SMALL + 'method = "scan"\n'
     with pytest.raises(InputError, match="campaign.purpose.*not an ISO 230-2 test"):

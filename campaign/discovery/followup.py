@@ -11,7 +11,7 @@ campaign (its targets, capture and cycles). The part an effect asks for is its m
 - a periodic error whose period is not identifiable (or that rivals the bow): a cluster of targets
   at most a quarter of the shortest candidate period apart, over a few of the longest candidate
   periods, in the middle of the travel measured; or, when the controller streams its position
-  (STREAMING_CONTROLLERS) and every part is the cluster or a region where a local error rivals the
+  (campaign.specs.STREAMING_CONTROLLERS) and every part is the cluster or a region where a local error rivals the
   period, a slow scan over their span (`_scan`: one sweep each way, its speed from the timing
   budget and the period to resolve), whose dense profile the joint fit reads;
 - thermal drift against linear scale (or the environment): twice the first campaign's runs at its
@@ -43,6 +43,7 @@ from campaign.discovery.search import RIVAL_MARGIN
 from campaign.effects import REGISTRY
 from campaign.model import is_model_name
 from campaign.plan import build_plan, check_plan, estimate_duration_s
+from campaign.specs import STREAMING_CONTROLLERS
 from protocols.units import DEVIATION_SCALE, UNITS, unit_label
 
 WAITS_S = (0.5, 5.0)
@@ -66,9 +67,6 @@ CLUSTER_STEP = 5
 """Nominal targets per shortest candidate period in the cluster; with golden offsets of
 CLUSTER_OFFSET of the spacing no two targets are more than a quarter of that period apart."""
 CLUSTER_OFFSET = 0.2
-STREAMING_CONTROLLERS = ("ads", "sim")
-"""The controllers that stream their actual position with their own time stamps (ADS device
-notifications), which a scan needs (campaign/measure/executor.py refuses a scan on any other)."""
 SCAN_RATE_HZ = 500.0
 """The laser's rate a follow-up scan asks for at least ([instrument] rate_hz, axiscal's tick), Hz."""
 SCAN_SAMPLES_PER_PERIOD = 20
@@ -208,10 +206,10 @@ def scan_speed(config: Config, shortest: float, what: str = "shortest candidate 
 def _scan(config: Config, stops: _Ask, shortest: float, what: str = "shortest candidate period") -> tuple[_Ask | None, str]:
     """A slow scan over the span of the targets `stops` asks for instead of stopping at them,
     resolving `shortest` (axis unit: a period, a region's width), or None and why not."""
-    if config.controller.type not in STREAMING_CONTROLLERS:
+    if not config.controller.streams_position:
         return None, (f"a stop-and-go cluster, not a scan: axis_driver.type = \"{config.controller.type}\" does not "
                       "stream its actual position with the controller's time stamps, which a scan needs (ADS device "
-                      f"notifications: {', '.join(STREAMING_CONTROLLERS)})")
+                      f"notifications: {', '.join(sorted(STREAMING_CONTROLLERS))})")
     targets = stops.targets or []
     speed, rate, how = scan_speed(config, shortest, what)
     unit = config.axis.unit

@@ -46,7 +46,7 @@ from campaign.record import (
     StateData,
     SweepData,
 )
-from campaign.specs import AxisSpec
+from campaign.specs import STREAMING_CONTROLLERS, AxisSpec
 from protocols.hardware import (
     Axis,
     AxisError,
@@ -351,7 +351,7 @@ class Executor:
         if not isinstance(axis, StreamingAxis):
             raise InputError(f"axis_driver.type = \"{self.controller.type}\": this axis cannot stream its actual "
                              "position with the controller's time stamps, which a scan needs (ADS device "
-                             "notifications: the ads and sim drivers)")
+                             f"notifications: the {' and '.join(sorted(STREAMING_CONTROLLERS))} drivers)")
         self.position_stream = axis.stream_positions(0.0, 0.05)
 
     def _run_points(self, todo: list[int]) -> list[int]:
