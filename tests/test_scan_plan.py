@@ -58,3 +58,32 @@ def test_the_run_time_limit_is_the_same_budget():
         assert limit * alignment_s * 1000 == pytest.approx(0.2, rel=1e-9)
         jittered = timing_speed_limit(alignment_s, 50e-6, rate, 1.0, 0.2)  # jitter only lowers it
         assert jittered < limit and timing_u(jittered, alignment_s, 50e-6, rate, 1.0)[0] == pytest.approx(0.2, rel=1e-6)
+
+
+def test_the_progress_of_a_scan_counts_sweeps_and_passes():
+    """A scan's plan points are its sweeps, two per pass: the bars say so, not points and runs."""
+    import io
+    import re
+
+    from rich.console import Console
+
+    from campaign.config import parse_config
+    from campaign.measure.progress import RichProgress
+    from campaign.plan import build_plan
+    from campaign.record import Event
+
+    shown = RichProgress("mm")
+    shown.console = Console(file=io.StringIO(), width=100, force_terminal=True, color_system=None)
+    shown.progress.live.console = shown.console
+    plan = build_plan(parse_config(DEMO, "scan-demo.toml"))  # 3 passes: 6 sweeps
+    shown.started(plan, list(range(len(plan.points))))
+    for p in plan.points[:3]:
+        shown.emit(Event(10.0 * (p.index + 1), "sweep", f"sweep {p.index + 1}", p.index,
+                         {"run": p.run, "direction": p.direction, "end": p.target, "samples": 10, "positions": 10}))
+    shown.progress.refresh()
+    shown.progress.stop()
+    screen = re.sub(r"\x1b\[[0-9;?]*[a-zA-Z]", "", shown.console.file.getvalue()).replace("\r", "\n")
+    last = screen.strip().splitlines()[-2:]
+    assert last[0].split()[0] == "sweeps" and "3/6" in last[0], screen
+    assert last[1].startswith("pass 2/3") and "1/2" in last[1], screen
+    assert "campaign" not in screen and "run " not in screen

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 
 import numpy as np
 import pytest
@@ -390,3 +391,4 @@ def test_axiscal_run_with_on_fault_skip_during_a_scan_says_interrupted_and_resum
     assert proc.returncode == 3, (proc.stdout, proc.stderr)
     assert "error:" not in proc.stderr and "campaign interrupted" in proc.stdout
     assert "pass 1" in proc.stdout and "Continue with: axiscal resume" in " ".join(proc.stdout.split())
+    assert re.search(r"campaign interrupted: \d/4 sweeps in", proc.stdout), proc.stdout  # a scan's points are sweeps

@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
+from campaign import capture_methods
 from campaign.commands import SUMMARY, YES_HELP, hardware_opener, positive_number, stop_leftover_controller
 from campaign.config import Config, config_with, load_config
 from campaign.errors import InputError
 from campaign.measure import Opener, Outcome, RichProgress, dry_run, start_campaign
 from campaign.plot import check_plot_path, plot_evaluation
-from campaign.record import SWEEPS_FILE, scan_results_written
+from campaign.record import SWEEPS_FILE, open_campaign, scan_results_written
 from campaign.views import make_console, print_evaluation, print_json
 from protocols.hardware import AxisError, InstrumentError
 
@@ -89,7 +91,8 @@ def print_outcome(outcome: Outcome, args: argparse.Namespace, extra: dict | None
         for line in outlier_lines(a.outliers, a.evaluation.unit):
             console.print(line, markup=False)
         console.print(verdict_line(a.verdict))
-    console.print(f"campaign {outcome.status}: {outcome.points}/{outcome.planned} points in "
+    counted_as = "sweeps" if is_scan(outcome.dir) else "points"
+    console.print(f"campaign {outcome.status}: {outcome.points}/{outcome.planned} {counted_as} in "
                   f"{outcome.duration_s / 60:.1f} min (campaign time), recorded in {outcome.dir}")
     if outcome.status != "completed":
         console.print(f"[red]stopped:[/] {outcome.message}. Continue with: axiscal resume {outcome.dir}")
@@ -99,6 +102,11 @@ def print_outcome(outcome: Outcome, args: argparse.Namespace, extra: dict | None
     if args.plot and a is not None:
         console.print(f"plot written to {args.plot}")
     return 0 if outcome.status == "completed" else 3
+
+
+def is_scan(directory: Path) -> bool:
+    """The campaign recorded in `directory` is a scan (its capture method sweeps): its points are sweeps."""
+    return open_campaign(directory).meta.get("capture") in capture_methods.names(sweeps=True)
 
 
 def run_config(config: Config, args: argparse.Namespace, extra: dict | None = None, opener: Opener | None = None,

@@ -47,6 +47,7 @@ class RichProgress(Observer):
         self.overall: TaskID | None = None
         self.run_task: TaskID | None = None
         self.per_run = 0
+        self.run_word = "run"
         self._last_reading_t = -1.0
 
     def __enter__(self) -> Self:
@@ -63,8 +64,11 @@ class RichProgress(Observer):
         self.per_run = len(self.points) // self.runs
         self.done = {p.index for p in self.points} - set(todo)
         run = self.points[todo[0]].run if todo else self.runs
-        self.overall = self.progress.add_task("campaign", total=len(self.points), completed=len(self.done), live="")
-        self.run_task = self.progress.add_task(f"run {run}/{self.runs}", total=self.per_run,
+        # a scan's points are its sweeps, two per pass: the bars count them as such
+        self.run_word = "pass" if plan.sweeps else "run"
+        self.overall = self.progress.add_task("sweeps" if plan.sweeps else "campaign", total=len(self.points),
+                                              completed=len(self.done), live="")
+        self.run_task = self.progress.add_task(f"{self.run_word} {run}/{self.runs}", total=self.per_run,
                                                completed=self._done_in(run), live="")
 
     def _done_in(self, run: int) -> int:
@@ -84,6 +88,7 @@ class RichProgress(Observer):
             run = event.data["run"]
             self.done.add(event.point)
             self.progress.update(self.overall, completed=len(self.done))
-            self.progress.update(self.run_task, description=f"run {run}/{self.runs}", completed=self._done_in(run))
+            self.progress.update(self.run_task, description=f"{self.run_word} {run}/{self.runs}",
+                                 completed=self._done_in(run))
         elif event.kind not in ("start", "stop", "state"):  # the run states: the bars show the work
             self.console.print(f"[yellow]{event.kind}:[/] {event.message}")
