@@ -22,6 +22,7 @@ from campaign import capture_methods
 from campaign.config import Config, capture_spec
 from campaign.errors import InputError, SafetyError
 from campaign.specs import AxisSpec, CaptureSpec, PlanSpec
+from protocols.units import DEVIATION_SCALE, UNITS
 
 GOLDEN = (math.sqrt(5) - 1) / 2
 
@@ -454,3 +455,43 @@ def plan_from_records(records: list[dict[str, Any]], where: str, capture: Captur
         raise InputError(f"{where}: holds {len(steps)} steps and {len(plan.points)} points, its header "
                          f"{header.get('steps')} and {header.get('points')} (a torn file?)")
     return plan
+
+
+EXPECTED_TIMING_U_S = 25e-6
+"""The timing uncertainty a scan is expected to leave before it ran, s: the worst the simulated
+machine's bench scans stated (7-25 µs at 10 and 25 mm/s: the alignment's offset and rate, 2-7 µs,
+with the laser clock's wander and sample jitter; bench/results/scan.json). `axiscal plan`'s speed
+limit and a follow-up scan's speed assume it; a scan states its own after it ran."""
+
+
+def planned_timing(velocity: float, wanted_u: float, kind: str = "linear") -> tuple[float, float]:
+    """Before a scan ran: the highest velocity (axis unit/s) whose timing stays within `wanted_u`
+    (deviation unit) with EXPECTED_TIMING_U_S, and the timing's part at `velocity` (deviation unit)."""
+    limit = timing_speed_limit(EXPECTED_TIMING_U_S, 0.0, 1.0, 1.0, wanted_u, kind)
+    return limit, timing_u(velocity, EXPECTED_TIMING_U_S, 0.0, 1.0, 1.0, kind)[0]
+
+
+def timing_u(velocity: float, alignment_s: float, jitter_s: float, rate_hz: float, window: float,
+             kind: str = "linear") -> tuple[float, float]:
+    """The timing part of one target's per-pass uncertainty at `velocity` (axis unit/s), deviation
+    unit: v·√(u_align² + jitter²/n), with `alignment_s` the alignment's standard uncertainty and
+    `jitter_s` the sample jitter (s), n the samples a `window` (axis unit) holds per pass at
+    `rate_hz`; and n."""
+    scale = DEVIATION_SCALE[UNITS[kind][0]]
+    n = max(window / velocity * rate_hz, 1.0) if velocity > 0 else math.inf
+    return velocity * scale * math.sqrt(alignment_s**2 + jitter_s**2 / n), n
+
+
+def timing_speed_limit(alignment_s: float, jitter_s: float, rate_hz: float, window: float, wanted_u: float,
+                       kind: str = "linear") -> float:
+    """The highest velocity (axis unit/s) at which `timing_u` stays within `wanted_u` (deviation
+    unit). A scan's own limit (`speed_limit`, from its alignment and jitter) and the limit
+    `axiscal plan` predicts (from an expected alignment) both come from here."""
+    lo, hi = 0.0, 1e4
+    for _ in range(100):
+        mid = (lo + hi) / 2
+        if timing_u(mid, alignment_s, jitter_s, rate_hz, window, kind)[0] <= wanted_u:
+            lo = mid
+        else:
+            hi = mid
+    return lo

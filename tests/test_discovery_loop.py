@@ -219,7 +219,8 @@ def test_the_scan_planning_rule(tmp_path, controller):
     followup.scan_speed, within a quarter of the first campaign's machine time; on one that does
     not it is the stop-and-go cluster, and the why says so; merged with a part that stops, it stops."""
     from campaign.discovery.fit import linear_fit
-    from campaign.discovery.followup import SCAN_SAMPLES_PER_PERIOD, SCAN_TIMING_INTERVALS, plan_follow_up
+    from campaign.discovery.followup import SCAN_SAMPLES_PER_PERIOD, plan_follow_up
+    from campaign.plan import EXPECTED_TIMING_U_S
 
     text = user_config().text.replace('[axis_driver]\ntype = "sim"', f'[axis_driver]\ntype = "{controller}"')
     if controller == "ads":
@@ -239,7 +240,7 @@ def test_the_scan_planning_rule(tmp_path, controller):
         assert capture.method == "scan" and follow.config.plan.cycles == 1 and speed is not None
         assert 4 * follow.duration_s <= follow.first_duration_s
         by_samples = rate * 4.4 / SCAN_SAMPLES_PER_PERIOD
-        by_timing = capture.scan_wanted_u / (SCAN_TIMING_INTERVALS / rate * 1000)
+        by_timing = capture.scan_wanted_u / (EXPECTED_TIMING_U_S * 1000)
         assert 0.9 * min(by_samples, by_timing, config.axis.max_velocity) <= speed <= min(by_samples, by_timing)
         targets = follow.config.plan.targets or []
         assert targets[-1] - targets[0] >= 3 * 15.9 * 0.99  # the cluster's span
@@ -265,7 +266,8 @@ def test_an_aliased_period_is_followed_up_by_a_slow_scan(cli, tmp_path, seed):
     rules of followup.scan_speed (samples per shortest candidate period, the timing within
     capture.scan_wanted_u, the axis), at most a quarter of the first campaign's machine time; its
     header says to fit its profile.csv. On LinuxCNC the same draw keeps the stops and says why."""
-    from campaign.discovery.followup import SCAN_SAMPLES_PER_PERIOD, SCAN_TIMING_INTERVALS
+    from campaign.discovery.followup import SCAN_SAMPLES_PER_PERIOD
+    from campaign.plan import EXPECTED_TIMING_U_S
 
     lead = {"periodic_lead": {"amplitude_um": 1.0, "period_mm": 10.0, "phase_rad": 0.3}}
     first, config, out = written_follow_up(cli, tmp_path, user_config(seed=seed).text, {**BOW, **lead}, seed)
@@ -278,9 +280,9 @@ def test_an_aliased_period_is_followed_up_by_a_slow_scan(cli, tmp_path, seed):
     rate, speed = scan.instrument.rate_hz, scan.capture.scan_velocity
     assert rate >= config.instrument.rate_hz and speed == follow["scan_velocity"]
     assert rate * min(candidates) / speed >= SCAN_SAMPLES_PER_PERIOD
-    assert speed * SCAN_TIMING_INTERVALS / rate * 1000 <= scan.capture.scan_wanted_u * 1.0001
+    assert speed * EXPECTED_TIMING_U_S * 1000 <= scan.capture.scan_wanted_u * 1.0001
     assert speed <= scan.axis.max_velocity and speed >= 0.5 * min(  # not needlessly slow
-        rate * min(candidates) / SCAN_SAMPLES_PER_PERIOD, scan.capture.scan_wanted_u / (SCAN_TIMING_INTERVALS / rate * 1000))
+        rate * min(candidates) / SCAN_SAMPLES_PER_PERIOD, scan.capture.scan_wanted_u / (EXPECTED_TIMING_U_S * 1000))
     assert max(follow["targets"]) - min(follow["targets"]) >= 2 * max(candidates)  # over the cluster
     assert cli("plan", tmp_path / "follow.toml").code == 0
     assert "NEW/profile.csv" in (tmp_path / "follow.toml").read_text()

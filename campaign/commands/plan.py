@@ -43,31 +43,27 @@ def summary(config: Config, plan: Plan) -> dict:
             "soft_limits": [a.soft_limit_min, a.soft_limit_max], "max_velocity": a.max_velocity}
 
 
-def scan_speed(config: Config) -> dict:
+def planned_speed_limit(config: Config) -> dict:
     """A scan's speed against its timing budget before it runs: the highest velocity at which the
-    timing keeps within capture.scan_wanted_u per target and pass (`campaign.stream.scan.
-    timing_speed_limit`, as the scan's own limit after it ran), with the alignment uncertainty a
-    follow-up scan's speed assumes (SCAN_TIMING_INTERVALS of the laser's sample interval) and no
-    sample jitter (unknown before a scan); the timing uncertainty at capture.scan_velocity and a
-    warning when that is above the limit (axis unit/s, s, deviation unit)."""
-    from campaign.discovery.followup import SCAN_TIMING_INTERVALS
-    from campaign.stream.scan import timing_speed_limit, timing_u
+    timing keeps within capture.scan_wanted_u per target and pass with the timing uncertainty a scan
+    is expected to leave (`campaign.plan.planned_timing`, as a follow-up scan's speed); the
+    timing's part at capture.scan_velocity and a warning when that is above the limit (axis unit/s,
+    deviation unit). The scan states its own limit after it ran, from its own alignment."""
+    from campaign.plan import EXPECTED_TIMING_U_S, planned_timing
 
-    c, rate, kind = config.capture, config.instrument.rate_hz, config.axis.kind
+    c, kind = config.capture, config.axis.kind
     velocity = c.scan_velocity or 0.0
-    alignment_s = SCAN_TIMING_INTERVALS / rate
-    limit = timing_speed_limit(alignment_s, 0.0, rate, c.scan_window, c.scan_wanted_u, kind)
-    u, _ = timing_u(velocity, alignment_s, 0.0, rate, c.scan_window, kind)
+    limit, u = planned_timing(velocity, c.scan_wanted_u, kind)
     pos, dev = UNITS[kind][0], unit_label(UNITS[kind][1])
-    assumed = (f"assuming the alignment leaves {alignment_s * 1e6:.3g} µs, {SCAN_TIMING_INTERVALS:g} of the laser's "
-               f"sample interval at {rate:g} Hz, and no sample jitter")
+    assumed = (f"assuming a timing uncertainty of {EXPECTED_TIMING_U_S * 1e6:.3g} µs, the worst the simulated "
+               f"machine's scans left; the scan states its own limit after it ran")
     warning = None
     if velocity > limit * (1 + 1e-9):
         warning = (f"capture.scan_velocity = {velocity:g} {pos}/s is too fast: the timing alone gives {u:.2g} {dev} "
                    f"per target and pass, more than capture.scan_wanted_u = {c.scan_wanted_u:g} {dev}; scan at "
-                   f"most {limit:.3g} {pos}/s ({assumed}; the scan states its own limit after it ran)")
+                   f"most {limit:.3g} {pos}/s ({assumed})")
     return {"velocity": velocity, "speed_limit": round(limit, 6), "timing_u": round(u, 6),
-            "wanted_u": c.scan_wanted_u, "assumed_alignment_s": alignment_s, "warning": warning,
+            "wanted_u": c.scan_wanted_u, "assumed_timing_u_s": EXPECTED_TIMING_U_S, "warning": warning,
             "text": f"{limit:.3g} {pos}/s keeps the timing within {c.scan_wanted_u:g} {dev} per target and pass "
                     f"({u:.2g} {dev} at {velocity:g} {pos}/s; {assumed})"}
 
@@ -77,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
     plan = build_plan(config)
     check_plan(plan, config.axis)
     info = summary(config, plan)
-    speed = scan_speed(config) if plan.sweeps else None
+    speed = planned_speed_limit(config) if plan.sweeps else None
     if speed is not None:
         info["scan"] = {k: v for k, v in speed.items() if k != "text"}
     if args.json:

@@ -11,7 +11,7 @@ from campaign.config import Config, config_with, load_config
 from campaign.errors import InputError
 from campaign.measure import Opener, Outcome, RichProgress, dry_run, start_campaign
 from campaign.plot import check_plot_path, plot_evaluation
-from campaign.record import SWEEPS_FILE, open_campaign, scan_results_written
+from campaign.record import open_campaign, scan_results_written
 from campaign.views import make_console, print_evaluation, print_json
 from protocols.hardware import AxisError, InstrumentError
 
@@ -70,7 +70,8 @@ def print_outcome(outcome: Outcome, args: argparse.Namespace, extra: dict | None
     result = {"dir": str(outcome.dir), "status": outcome.status, "points": outcome.points,
               "planned": outcome.planned, "duration_s": round(outcome.duration_s, 3), **(extra or {})}
     # a scan's points.csv is its table, written only once every pass is recorded (its sweeps are not points)
-    unfinished_scan = (outcome.dir / SWEEPS_FILE).exists() and not scan_results_written(outcome.dir)
+    scan = is_scan(outcome.dir)
+    unfinished_scan = scan and not scan_results_written(outcome.dir)
     a = assess_path(outcome.dir) if outcome.points and not unfinished_scan else None
     if a is not None:
         ev = a.evaluation
@@ -91,13 +92,13 @@ def print_outcome(outcome: Outcome, args: argparse.Namespace, extra: dict | None
         for line in outlier_lines(a.outliers, a.evaluation.unit):
             console.print(line, markup=False)
         console.print(verdict_line(a.verdict))
-    counted_as = "sweeps" if is_scan(outcome.dir) else "points"
+    counted_as = "sweeps" if scan else "points"
     console.print(f"campaign {outcome.status}: {outcome.points}/{outcome.planned} {counted_as} in "
                   f"{outcome.duration_s / 60:.1f} min (campaign time), recorded in {outcome.dir}")
     if outcome.status != "completed":
         console.print(f"[red]stopped:[/] {outcome.message}. Continue with: axiscal resume {outcome.dir}")
     elif missing:
-        console.print(f"[yellow]{missing} point(s) skipped after faults[/]: measure them with: "
+        console.print(f"[yellow]{missing} {counted_as[:-1]}(s) skipped after faults[/]: measure them with: "
                       f"axiscal resume {outcome.dir}")
     if args.plot and a is not None:
         console.print(f"plot written to {args.plot}")

@@ -42,9 +42,9 @@ from campaign.discovery.records import Unresolved
 from campaign.discovery.search import RIVAL_MARGIN
 from campaign.effects import REGISTRY
 from campaign.model import is_model_name
-from campaign.plan import build_plan, check_plan, estimate_duration_s
+from campaign.plan import EXPECTED_TIMING_U_S, build_plan, check_plan, estimate_duration_s, planned_timing
 from campaign.specs import STREAMING_CONTROLLERS
-from protocols.units import DEVIATION_SCALE, UNITS, unit_label
+from protocols.units import UNITS, unit_label
 
 WAITS_S = (0.5, 5.0)
 """The waits before capture of the dwell part, s: a decade (stretched upwards to include the first
@@ -71,11 +71,6 @@ SCAN_RATE_HZ = 500.0
 """The laser's rate a follow-up scan asks for at least ([instrument] rate_hz, axiscal's tick), Hz."""
 SCAN_SAMPLES_PER_PERIOD = 20
 """A scan takes at least this many laser samples per shortest candidate period."""
-SCAN_TIMING_INTERVALS = 0.01
-"""The timing uncertainty a scan's alignment is expected to leave, in laser sample intervals (20 µs
-at 500 Hz: about six times what the alignment stated on the simulated machine's scans, 1.8-3.4 µs,
-docs/scan.md); a scan's speed keeps speed × that within the wanted deviation uncertainty
-(capture.scan_wanted_u), the budget campaign/stream/scan.py computes from a scan's own data."""
 MAX_CYCLES = 1000
 """The most cycles a plan may have ([plan] cycles)."""
 
@@ -181,16 +176,15 @@ def scan_speed(config: Config, shortest: float, what: str = "shortest candidate 
     """The speed (axis unit/s) of a follow-up scan resolving periods down to `shortest` (axis unit),
     the laser rate it asks for (Hz) and why: at most SCAN_SAMPLES_PER_PERIOD samples per `shortest`
     at the rate; the timing's share of the deviation (speed × the alignment's expected timing
-    uncertainty, SCAN_TIMING_INTERVALS sample intervals) within capture.scan_wanted_u; the axis's
+    uncertainty, campaign.plan.EXPECTED_TIMING_U_S) within capture.scan_wanted_u; the axis's
     velocity; a ramp within half the overrun (the targets' ends at constant velocity)."""
     rate = max(config.instrument.rate_hz, SCAN_RATE_HZ)
     unit = config.axis.unit
     dev_unit = unit_label(UNITS[config.axis.kind][1])
-    scale = DEVIATION_SCALE[unit]
-    timing_s = SCAN_TIMING_INTERVALS / rate
     wanted = config.capture.scan_wanted_u
+    by_timing = planned_timing(0.0, wanted, config.axis.kind)[0]
     limits = {"the period": shortest * rate / SCAN_SAMPLES_PER_PERIOD,
-              "the timing": wanted / (timing_s * scale),
+              "the timing": by_timing,
               "axis.max_velocity": config.axis.max_velocity,
               "the ramp within half the overrun": math.sqrt(config.axis.max_acceleration * config.plan.overrun)}
     binding = min(limits, key=lambda k: limits[k])
@@ -198,7 +192,7 @@ def scan_speed(config: Config, shortest: float, what: str = "shortest candidate 
     speed = math.floor(limits[binding] / digits) * digits
     why = (f"{speed:.3g} {unit}/s (set by {binding}): the laser at {rate:g} Hz takes {shortest * rate / speed:.0f} "
            f"samples per {what} ({shortest:.3g} {unit}, at least {SCAN_SAMPLES_PER_PERIOD}); the "
-           f"alignment's expected timing uncertainty, {timing_s * 1e6:.0f} µs, costs {speed * timing_s * scale:.2g} "
+           f"expected timing uncertainty, {EXPECTED_TIMING_U_S * 1e6:.0f} µs, costs {planned_timing(speed, wanted, config.axis.kind)[1]:.2g} "
            f"{dev_unit}, within the wanted {wanted:g} {dev_unit} (capture.scan_wanted_u)")
     return speed, rate, why
 

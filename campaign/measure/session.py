@@ -286,7 +286,8 @@ def continue_campaign(r: Resumption, **kwargs: Any) -> Outcome:
         r.recorder.stop(r.t_last, "completed", "nothing left to measure")
         r.recorder.close()
         return Outcome(r.path, "completed", len(r.plan.points), len(r.plan.points), r.t_last, "nothing left to measure")
-    text = f"resumed: {len(r.todo)} of {len(r.plan.points)} points to measure, from point {r.todo[0] + 1}"
+    noun = "sweep" if r.plan.sweeps else "point"
+    text = f"resumed: {len(r.todo)} of {len(r.plan.points)} {noun}s to measure, from {noun} {r.todo[0] + 1}"
     if r.again:
         text += f"; measured again after a skip: {', '.join(str(i + 1) for i in r.again)}"
     resumed = Event(r.t_last, "resume", text, r.todo[0],

@@ -332,22 +332,37 @@ def load_raw(directory: Path) -> pd.DataFrame:
 
 def last_raw_state(directory: Path) -> tuple[float, float | None]:
     """(campaign time of the last sample recorded in s, last known axis position or None). The
-    time is the latest of raw.csv's and a scan's positions.csv's last rows: the two streams are
+    state is the later of raw.csv's and a scan's positions.csv's last rows: the two streams are
     buffered apart, so a kill can leave either ahead, and a resumed run's campaign time must start
     after both (its segment of the streams would otherwise take the earlier run's last samples)."""
     raw = load_raw(directory)
-    last_position_s = _last_stream_time_s(directory / POSITIONS_FILE)
-    if raw.empty:
-        return last_position_s or 0.0, None
+    stream = _last_position_sample(directory / POSITIONS_FILE)
     positions = raw.axis_position.dropna()
-    t_s = max(float(raw.t_s.iloc[-1]), last_position_s or float("-inf"))
-    return t_s, float(positions.iloc[-1]) if len(positions) else None
+    raw_state = (float(raw.t_s.iloc[-1]), float(positions.iloc[-1]) if len(positions) else None) if len(raw) else None
+    if stream is None:
+        return raw_state or (0.0, None)
+    if raw_state is None or stream[0] > raw_state[0]:
+        return stream
+    return raw_state
 
 
-def _last_stream_time_s(path: Path) -> float | None:
-    """The campaign time (first column, s) of an appended stream's last whole line; None without one."""
+def _last_position_sample(path: Path) -> tuple[float, float] | None:
+    """(campaign time s, actual position) of positions.csv's last whole line (POSITION_COLUMNS: t_s,
+    step, controller time, actual); None without one. A last line that cannot be read is an error:
+    what a kill leaves is a torn line after the last newline, which is not read."""
     if not path.is_file():
         return None
+    with open(path, "rb") as f:
+        f.seek(max(0, path.stat().st_size - 4096))
+        tail = f.read()
+    lines = tail[:tail.rfind(b"\n") + 1].splitlines()
+    if not lines or lines[-1].decode("utf-8", "replace").split(",") == list(POSITION_COLUMNS):
+        return None  # the header alone: no sample yet
+    fields = lines[-1].split(b",")
+    try:
+        return float(fields[0]), float(fields[3])
+    except (ValueError, IndexError):
+        raise InputError(f"{path}: last line {lines[-1][:80]!r} is not a position sample") from None
     with open(path, "rb") as f:
         f.seek(max(0, path.stat().st_size - 4096))
         tail = f.read()

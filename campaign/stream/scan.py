@@ -29,6 +29,7 @@ import numpy as np
 
 from campaign import capture_methods
 from campaign.errors import InputError
+from campaign.plan import timing_speed_limit, timing_u
 from campaign.pointtable import PointTable, write_points_text
 from campaign.stream.align import (
     Alignment,
@@ -235,32 +236,6 @@ def sample_jitter_s(prof: Profile, speed: float, noise: float) -> float:
     scatter2 = float(np.mean(np.concatenate(diffs) ** 2)) / 2
     excess = scatter2 - noise**2
     return math.sqrt(excess) / (speed * scale) if excess > 0 else 0.0
-
-
-def timing_u(velocity: float, alignment_s: float, jitter_s: float, rate_hz: float, window: float,
-             kind: str = "linear") -> tuple[float, float]:
-    """The timing part of one target's per-pass uncertainty at `velocity` (axis unit/s), deviation
-    unit: v·√(u_align² + jitter²/n), with `alignment_s` the alignment's standard uncertainty and
-    `jitter_s` the sample jitter (s), n the samples a `window` (axis unit) holds per pass at
-    `rate_hz`; and n."""
-    scale = DEVIATION_SCALE[UNITS[kind][0]]
-    n = max(window / velocity * rate_hz, 1.0) if velocity > 0 else math.inf
-    return velocity * scale * math.sqrt(alignment_s**2 + jitter_s**2 / n), n
-
-
-def timing_speed_limit(alignment_s: float, jitter_s: float, rate_hz: float, window: float, wanted_u: float,
-                       kind: str = "linear") -> float:
-    """The highest velocity (axis unit/s) at which `timing_u` stays within `wanted_u` (deviation
-    unit). A scan's own limit (`speed_limit`, from its alignment and jitter) and the limit
-    `axiscal plan` predicts (from an expected alignment) both come from here."""
-    lo, hi = 0.0, 1e4
-    for _ in range(100):
-        mid = (lo + hi) / 2
-        if timing_u(mid, alignment_s, jitter_s, rate_hz, window, kind)[0] <= wanted_u:
-            lo = mid
-        else:
-            hi = mid
-    return lo
 
 
 def _alignment_u_s(alignment: Alignment, moves: list[Move]) -> float:
