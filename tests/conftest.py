@@ -5,6 +5,7 @@ at once saying so, so `pytest -m "not machine"` stays fast and honest."""
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 from pathlib import Path
 
@@ -113,6 +114,41 @@ def pytest_runtest_protocol(item, nextitem):
         yield
     finally:
         monkeypatch.undo()
+
+
+@pytest.fixture(scope="session")
+def demo_campaign(tmp_path_factory):
+    """`demo_campaign(*options)`: the campaign of `axiscal demo --json --plot PNG *options` (its --json
+    result, its directory, the plot), recorded once for the whole `pytest` run and shared by every
+    xdist worker (a lock and a directory beside the workers' own temporary directories). The demo
+    is the same campaign every time (its seeds are in demo.toml), so the dozen tests that only read
+    one share it instead of each recording its own (about 5 s of CPU each, more when a module's
+    fixture ran again on each worker). Read only: a test that writes into it copies it first."""
+    import fcntl
+    import json
+    import sys
+
+    base = tmp_path_factory.getbasetemp()
+    root = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+    done: dict[tuple[str, ...], tuple[dict, Path, Path]] = {}
+
+    def record(*options: str) -> tuple[dict, Path, Path]:
+        if options not in done:
+            shared = root / ("shared-demo" + "".join(options).replace("-", "_"))
+            with open(f"{shared}.lock", "w") as lock:
+                fcntl.flock(lock, fcntl.LOCK_EX)
+                result = shared / "result.json"
+                if not result.exists():
+                    shutil.rmtree(shared, ignore_errors=True)
+                    proc = subprocess.run([sys.executable, "-m", "campaign", "demo", "--out", str(shared / "demo"),
+                                           "--json", "--plot", str(shared / "demo.png"), *options],
+                                          capture_output=True, text=True, timeout=180, cwd=ROOT, check=False)
+                    assert proc.returncode == 0, proc.stderr[-2000:]
+                    result.write_text(proc.stdout)
+            done[options] = json.loads(result.read_text()), shared / "demo", shared / "demo.png"
+        return done[options]
+
+    return record
 
 
 class CliResult:

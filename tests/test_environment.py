@@ -29,13 +29,12 @@ def rows(path):
 
 
 @pytest.fixture(scope="module")
-def corrected(tmp_path_factory):
+def corrected(tmp_path_factory, demo_campaign):
     base = tmp_path_factory.mktemp("env")
     (base / "c.toml").write_text(CORRECTED)
     proc = axiscal("run", base / "c.toml", "--out", base / "run", "--json")
     assert proc.returncode == 0, proc.stderr[-1500:]
-    plain = axiscal("demo", "--out", base / "plain", "--json")
-    return base, json.loads(proc.stdout), json.loads(plain.stdout)
+    return base, json.loads(proc.stdout), demo_campaign()[0]
 
 
 @pytest.mark.machine
