@@ -5,6 +5,7 @@ at once saying so, so `pytest -m "not machine"` stays fast and honest."""
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 from pathlib import Path
 
@@ -113,6 +114,51 @@ def pytest_runtest_protocol(item, nextitem):
         yield
     finally:
         monkeypatch.undo()
+
+
+def once_per_run(tmp_path_factory: pytest.TempPathFactory, name: str, make) -> Path:
+    """The directory `make(directory)` fills, made once for the whole `pytest` run and shared by every
+    xdist worker (beside the workers' own temporary directories, under a lock: the first worker to
+    ask makes it, the others wait for it). For a module's expensive set-up whose result its tests
+    only read: a module-scoped fixture ran once on each worker that got one of the module's tests.
+    A test that writes into it copies it first."""
+    import fcntl
+
+    base = tmp_path_factory.getbasetemp()
+    directory = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / f"once-{name}"
+    with open(f"{directory}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        done = Path(f"{directory}.done")
+        if not done.exists():
+            shutil.rmtree(directory, ignore_errors=True)
+            directory.mkdir()
+            make(directory)
+            done.touch()
+    return directory
+
+
+@pytest.fixture(scope="session")
+def demo_campaign(tmp_path_factory):
+    """`demo_campaign(*options)`: the campaign of `axiscal demo --json --plot PNG *options` (its --json
+    result, its directory, the plot), recorded once for the whole `pytest` run (once_per_run). The
+    demo is the same campaign every time (its seeds are in demo.toml), so the dozen tests that only
+    read one share it instead of each recording its own (about 5 s of CPU each)."""
+    import json
+    import sys
+
+    def make(options: tuple[str, ...], shared: Path) -> None:
+        proc = subprocess.run([sys.executable, "-m", "campaign", "demo", "--out", str(shared / "demo"), "--json",
+                               "--plot", str(shared / "demo.png"), *options],
+                              capture_output=True, text=True, timeout=180, cwd=ROOT, check=False)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        (shared / "result.json").write_text(proc.stdout)
+
+    def record(*options: str) -> tuple[dict, Path, Path]:
+        name = "demo" + "".join(options).replace("-", "_")
+        shared = once_per_run(tmp_path_factory, name, lambda directory: make(options, directory))
+        return json.loads((shared / "result.json").read_text()), shared / "demo", shared / "demo.png"
+
+    return record
 
 
 class CliResult:

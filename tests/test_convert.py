@@ -253,11 +253,8 @@ def test_format_by_option_and_unknown_extension(cli, tmp_path):
 
 
 @pytest.mark.machine
-def test_demo_points_to_rtl_and_back_keep_every_iso_value(cli, tmp_path):
-    from tests.test_demo_e2e import axiscal
-
-    assert axiscal("demo", "--out", tmp_path / "demo").returncode == 0
-    points = tmp_path / "demo" / "points.csv"
+def test_demo_points_to_rtl_and_back_keep_every_iso_value(cli, tmp_path, demo_campaign):
+    points = demo_campaign()[1] / "points.csv"
     assert cli("convert", points, "-o", tmp_path / "d.rtl").code == 0
     text = (tmp_path / "d.rtl").read_text()
     sections = [line for line in text.splitlines() if line.endswith("::")]

@@ -20,12 +20,9 @@ def axiscal(*args, timeout=120):
 
 
 @pytest.fixture(scope="module")
-def demo(tmp_path_factory):
+def demo(demo_campaign):
     """The demo with its fixed 4 s dwell: (its --json result, its directory, the plot)."""
-    tmp = tmp_path_factory.mktemp("demo")
-    proc = axiscal("demo", "--out", tmp / "demo", "--json", "--plot", tmp / "demo.png")
-    assert proc.returncode == 0, proc.stderr
-    return json.loads(proc.stdout), tmp / "demo", tmp / "demo.png"
+    return demo_campaign()
 
 
 @pytest.mark.machine
@@ -61,13 +58,11 @@ def test_the_complete_demo_passes_with_its_uncertainty_and_a_tight_tolerance_is_
 
 
 @pytest.mark.machine
-def test_stable_capture_agrees_with_the_dwell_and_waits_at_most_half(demo, tmp_path):
-    proc = axiscal("demo", "--out", tmp_path / "s", "--capture", "stable", "--json")
-    assert proc.returncode == 0, proc.stderr
-    data = json.loads(proc.stdout)
+def test_stable_capture_agrees_with_the_dwell_and_waits_at_most_half(demo, demo_campaign):
+    data, stable, _ = demo_campaign("--capture", "stable")
     assert data["points"] == 110
     assert data["A"] == pytest.approx(demo[0]["A"], rel=0.05)  # the same axis, the same scatter per approach
-    waits = read_points(tmp_path / "s" / "points.csv").extra["capture_wait_s"]
+    waits = read_points(stable / "points.csv").extra["capture_wait_s"]
     assert np.mean(waits) <= 0.5 * 4.0 and min(waits) >= 0.7  # half the 4 s dwell; never before the window
 
 

@@ -8,7 +8,6 @@ import math
 
 import pytest
 
-from tests.test_demo_e2e import axiscal
 from tests.test_discovery import BASE, HIDDEN, NOISE_UM, PLAN
 
 MACHINE_PLAN = PLAN.replace("dwell_s = 2.0", "dwell_s = 2.0\ndwell_jitter = 0.8")
@@ -21,16 +20,16 @@ def effects_toml(effects: dict) -> str:
 
 @pytest.mark.machine
 @pytest.mark.parametrize("hidden", list(HIDDEN))
-def test_one_hidden_effect_on_the_simulated_machine(tmp_path, hidden):
+def test_one_hidden_effect_on_the_simulated_machine(cli, tmp_path, hidden):
     true_params, checked = HIDDEN[hidden]
     (tmp_path / "c.toml").write_text(MACHINE_PLAN + effects_toml({**BASE, hidden: true_params}))
-    run = axiscal("run", tmp_path / "c.toml", "--out", tmp_path / "m")
-    assert run.returncode == 0, run.stderr[-1500:]
+    run = cli("run", tmp_path / "c.toml", "--out", tmp_path / "m")  # in-process, as a subprocess would
+    assert run.code == 0, run.err[-1500:]
     start = [name for name in BASE if name not in (hidden, "noise")]
     (tmp_path / "start.toml").write_text("".join(f"[effects.{name}]\n" for name in start))
-    proc = axiscal("discover", tmp_path / "m" / "points.csv", "--model", tmp_path / "start.toml", "--json")
-    assert proc.returncode == 0, proc.stderr[-1500:]
-    data = json.loads(proc.stdout)
+    found = cli("discover", tmp_path / "m" / "points.csv", "--model", tmp_path / "start.toml", "--json")
+    assert found.code == 0, found.err[-1500:]
+    data = json.loads(found.out)
     assert data["added"] == [hidden], data["notes"]
     found = data["model"][hidden]
     for key in checked:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from campaign.edlen import refractive_index, undo_corrections_mm
-from tests.conftest import ROOT, events
+from tests.conftest import ROOT, events, once_per_run
 from tests.test_demo_e2e import axiscal
 
 CORRECTED = (ROOT / "campaign" / "demo.toml").read_text() + """
@@ -29,13 +29,17 @@ def rows(path):
 
 
 @pytest.fixture(scope="module")
-def corrected(tmp_path_factory):
-    base = tmp_path_factory.mktemp("env")
-    (base / "c.toml").write_text(CORRECTED)
-    proc = axiscal("run", base / "c.toml", "--out", base / "run", "--json")
-    assert proc.returncode == 0, proc.stderr[-1500:]
-    plain = axiscal("demo", "--out", base / "plain", "--json")
-    return base, json.loads(proc.stdout), json.loads(plain.stdout)
+def corrected(tmp_path_factory, demo_campaign):
+    """The demo with the environment corrections (once_per_run, read only), and the plain demo's result."""
+
+    def make(base):
+        (base / "c.toml").write_text(CORRECTED)
+        proc = axiscal("run", base / "c.toml", "--out", base / "run", "--json")
+        assert proc.returncode == 0, proc.stderr[-1500:]
+        (base / "run.json").write_text(proc.stdout)
+
+    base = once_per_run(tmp_path_factory, "environment", make)
+    return base, json.loads((base / "run.json").read_text()), demo_campaign()[0]
 
 
 @pytest.mark.machine

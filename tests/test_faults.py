@@ -26,10 +26,8 @@ FAULTS = {
 
 
 @pytest.fixture(scope="module")
-def fault_free(tmp_path_factory):
-    out = tmp_path_factory.mktemp("free") / "demo"
-    assert axiscal("demo", "--out", out).returncode == 0
-    return point_keys(out / "points.csv")
+def fault_free(demo_campaign):
+    return point_keys(demo_campaign()[1] / "points.csv")
 
 
 @pytest.mark.machine

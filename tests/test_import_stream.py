@@ -3,6 +3,7 @@ that do not match the plan, and bad files, end with one `error:` line (exit 2)."
 
 import contextlib
 import io
+import shutil
 import tempfile
 from pathlib import Path
 
@@ -18,7 +19,6 @@ from campaign.plan import build_plan
 from campaign.pointtable import read_points
 from campaign.stream.synth import synthetic_stream
 from tests.conftest import assert_one_line_error
-from tests.test_demo_e2e import axiscal
 
 SMALL = """
 [campaign]
@@ -58,11 +58,8 @@ def write_stream(tmp_path, config, name="stream.csv", **kwargs):
 
 
 @pytest.fixture(scope="module")
-def demo_dir(tmp_path_factory):
-    out = tmp_path_factory.mktemp("demo") / "campaign"
-    proc = axiscal("demo", "--out", out)
-    assert proc.returncode == 0, proc.stderr
-    return out
+def demo_dir(tmp_path_factory, demo_campaign):
+    return shutil.copytree(demo_campaign()[1], tmp_path_factory.mktemp("demo") / "campaign")
 
 
 @pytest.mark.machine

@@ -14,18 +14,14 @@ import pytest
 from campaign.iso230 import evaluate
 from campaign.pointtable import read_points
 from tests.conftest import assert_one_line_error
-from tests.test_demo_e2e import axiscal
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 WINDOW = (1200, 1600)  # px
 
 
 @pytest.fixture(scope="module")
-def demo_dir(tmp_path_factory):
-    out = tmp_path_factory.mktemp("demo") / "after"
-    proc = axiscal("demo", "--out", out)
-    assert proc.returncode == 0, proc.stderr
-    return out
+def demo_dir(tmp_path_factory, demo_campaign):
+    return shutil.copytree(demo_campaign()[1], tmp_path_factory.mktemp("demo") / "after")
 
 
 def scaled_copy(source, target, factor):

@@ -4,6 +4,7 @@ overrun in its own direction."""
 
 import json
 import os
+import shutil
 import signal
 
 import pytest
@@ -19,10 +20,8 @@ def point_keys(path):
 
 
 @pytest.fixture(scope="module")
-def uninterrupted(tmp_path_factory):
-    out = tmp_path_factory.mktemp("full") / "demo"
-    assert axiscal("demo", "--out", out).returncode == 0
-    return point_keys(out / "points.csv")
+def uninterrupted(demo_campaign):
+    return point_keys(demo_campaign()[1] / "points.csv")
 
 
 @pytest.mark.machine
@@ -74,17 +73,15 @@ def test_resume_reapproaches_from_the_overrun(tmp_path):
 
 
 @pytest.mark.machine
-def test_resume_refuses_completed_and_non_campaign(cli, tmp_path):
+def test_resume_refuses_completed_and_non_campaign(cli, tmp_path, demo_campaign):
     assert_one_line_error(cli("resume", tmp_path), "not a campaign directory")
-    out = tmp_path / "done"
-    assert axiscal("demo", "--out", out).returncode == 0
+    out = shutil.copytree(demo_campaign()[1], tmp_path / "done")  # a completed demo
     assert_one_line_error(cli("resume", out), "already completed")
 
 
 @pytest.mark.machine
-def test_demo_refuses_to_overwrite_a_campaign(tmp_path):
-    out = tmp_path / "d"
-    assert axiscal("demo", "--out", out).returncode == 0
+def test_demo_refuses_to_overwrite_a_campaign(tmp_path, demo_campaign):
+    out = shutil.copytree(demo_campaign()[1], tmp_path / "d")  # a completed demo
     again = axiscal("demo", "--out", out)
     assert again.returncode == 2 and again.stderr.startswith("error: ") and "resume" in again.stderr
 

@@ -7,7 +7,7 @@ import re
 import pytest
 
 from campaign.compensation.table_file import read_comp_json
-from tests.conftest import ROOT, assert_one_line_error
+from tests.conftest import ROOT, assert_one_line_error, once_per_run
 from tests.test_demo_e2e import axiscal
 
 CONFIGS = ROOT / "data" / "configs"
@@ -15,16 +15,21 @@ CONFIGS = ROOT / "data" / "configs"
 
 @pytest.fixture(scope="module")
 def vertical(tmp_path_factory):
-    """The vertical axis of Li et al. 2022 (490 µm reversal): baseline, bidirectional table, verification."""
-    base = tmp_path_factory.mktemp("vertical")
-    assert axiscal("run", CONFIGS / "vertical-sim.toml", "--out", base / "before").returncode == 0
-    comp = axiscal("compensate", base / "before" / "points.csv", "--format", "json", "-o", base / "t.json",
-                   "--overrun", "5")
-    assert comp.returncode == 0, comp.stderr
-    proc = axiscal("verify", CONFIGS / "vertical-sim.toml", "--comp", base / "t.json", "--before", base / "before",
-                   "--out", base / "after", "--json")
-    assert proc.returncode == 0, proc.stderr
-    return base, json.loads(proc.stdout)
+    """The vertical axis of Li et al. 2022 (490 µm reversal): baseline, bidirectional table, verification.
+    Made once per run (once_per_run), read only."""
+
+    def make(base):
+        assert axiscal("run", CONFIGS / "vertical-sim.toml", "--out", base / "before").returncode == 0
+        comp = axiscal("compensate", base / "before" / "points.csv", "--format", "json", "-o", base / "t.json",
+                       "--overrun", "5")
+        assert comp.returncode == 0, comp.stderr
+        proc = axiscal("verify", CONFIGS / "vertical-sim.toml", "--comp", base / "t.json", "--before",
+                       base / "before", "--out", base / "after", "--json")
+        assert proc.returncode == 0, proc.stderr
+        (base / "verify.json").write_text(proc.stdout)
+
+    base = once_per_run(tmp_path_factory, "vertical", make)
+    return base, json.loads((base / "verify.json").read_text())
 
 
 @pytest.mark.machine
@@ -116,14 +121,14 @@ def test_simulated_plc_takes_a_rewritten_table(tmp_path):
 
 
 @pytest.mark.machine
-def test_verify_takes_a_linuxcnc_table_like_the_json_one(vertical):
+def test_verify_takes_a_linuxcnc_table_like_the_json_one(vertical, tmp_path):
     """The same compensation written as a LinuxCNC comp file (1 nm resolution) verifies to the
     same result as the JSON table: the simulated machine draws the same readings."""
     base, from_json = vertical
-    comp = axiscal("compensate", base / "before" / "points.csv", "--format", "linuxcnc", "-o", base / "t.comp",
+    comp = axiscal("compensate", base / "before" / "points.csv", "--format", "linuxcnc", "-o", tmp_path / "t.comp",
                    "--overrun", "5")
     assert comp.returncode == 0, comp.stderr
-    proc = axiscal("verify", CONFIGS / "vertical-sim.toml", "--comp", base / "t.comp", "--out", base / "after-lcnc",
+    proc = axiscal("verify", CONFIGS / "vertical-sim.toml", "--comp", tmp_path / "t.comp", "--out", tmp_path / "after-lcnc",
                    "--json")
     assert proc.returncode == 0, proc.stderr
     from_file = json.loads(proc.stdout)
