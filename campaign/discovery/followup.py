@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from campaign.config import Config, config_toml, config_with, parse_config
-from campaign.discovery.data import CampaignData
+from campaign.discovery.data import SCAN_TIMING_INTERVALS, CampaignData
 from campaign.discovery.fit import Fit, Term, linear_fit
 from campaign.discovery.records import Unresolved
 from campaign.discovery.search import RIVAL_MARGIN
@@ -73,11 +73,6 @@ SCAN_RATE_HZ = 500.0
 """The laser's rate a follow-up scan asks for at least ([instrument] rate_hz, axiscal's tick), Hz."""
 SCAN_SAMPLES_PER_PERIOD = 20
 """A scan takes at least this many laser samples per shortest candidate period."""
-SCAN_TIMING_INTERVALS = 0.01
-"""The timing uncertainty a scan's alignment is expected to leave, in laser sample intervals (20 µs
-at 500 Hz: about six times what the alignment stated on the simulated machine's scans, 1.8-3.4 µs,
-docs/scan.md); a scan's speed keeps speed × that within the wanted deviation uncertainty
-(capture.scan_wanted_u), the budget campaign/stream/scan.py computes from a scan's own data."""
 MAX_CYCLES = 1000
 """The most cycles a plan may have ([plan] cycles)."""
 
