@@ -1,7 +1,6 @@
 """A stop-and-go table and a scan profile fitted together (issue 34, the aliased lead's follow-up; issue
 33's scan): each table is weighed by its own uncertainty (the table's repeatability, the profile's bin
-scatter) and each sweep of the profile has its own offset and slope, so that the profile's thousands
-of bins, each far more precise than a stop-and-go point, do not make its systematic errors (the rest
+scatter), each sweep of the profile has its own offset and slope, so that its thousands of bins, each far more precise than a stop-and-go point, do not make its systematic errors (the rest
 it is referred to, the clocks' offset and rate) look like effects. The first table from the fast
 simulator, the profile from the simulated scan streams with an instrument clock drawn at random
 (tests/test_discovery_profile.py), aligned and profiled as a real scan is; truths drawn per seed."""
@@ -15,6 +14,7 @@ import pytest
 
 from campaign.cli import main
 from campaign.discovery.data import join_campaigns, read_campaign, read_profile
+from campaign.discovery.fit import design
 from campaign.discovery.simulate import simulate_campaign
 from campaign.model import ErrorModel
 from campaign.pointtable import write_points
@@ -55,7 +55,8 @@ def _tables(tmp_path, seed: int, machine: dict, rng: np.random.Generator) -> tup
 
 def test_each_table_is_weighed_by_its_own_uncertainty(tmp_path):
     """The profile's bins carry their scatter as uncertainty (a small fraction of the table's
-    repeatability); each sweep its own offset and slope; the table's points its repeatability."""
+    repeatability); each sweep its own offset and, beside the table, its own slope; the table's
+    points its repeatability."""
     rng = np.random.default_rng(41)
     first, profile = _tables(tmp_path, 41, _machine(rng, lead=True), rng)
     table, _ = read_profile(profile)
@@ -66,7 +67,8 @@ def test_each_table_is_weighed_by_its_own_uncertainty(tmp_path):
     assert 0.005 < float(np.median(scan.u)) < 0.1  # a bin's mean of a few samples of 0.02-0.1 µm noise
     assert both.u is not None and 0.25 < float(both.u[0]) < 0.45  # the table's repeatability: 0.34 µm
     assert both.datums == 3 and both.row_scale is not None and both.row_scale[-1] > 3
-
+    assert design(both, [])[0].shape[1] == 5  # three offsets, the two sweeps' slopes
+    assert design(scan, [])[0].shape[1] == 2  # alone: its two sweeps' offsets
 
 @pytest.mark.parametrize("seed, lead", [(51, True), (52, True), (53, True), (54, False), (55, False)])
 def test_a_table_and_a_scan_profile_name_nothing_the_machine_lacks(tmp_path, capsys, seed, lead):

@@ -45,8 +45,9 @@ class CampaignData:
     datum: which offset each point has (0, 1, ...; None: one per campaign). A scan profile's every
     sweep (pass and direction) has its own: its level is referred to one rest and shifted by the
     clocks' offset times the velocity, with the sign of the direction (docs/scan.md).
-    sloped: True at the points whose datum has its own slope along the axis too (None: none has):
-    a scan profile's sweeps, whose scale is the clocks' rate, known to tenths of a ppm.
+    sloped: True at the points whose datum has its own slope along the axis too, when fitted with
+    another table (None: none has): a scan profile's sweeps, whose timing error grows along each
+    with the clocks' rate error (tenths of a ppm) and their wander, differently in each sweep.
     """
 
     x: np.ndarray
@@ -239,7 +240,7 @@ def campaign_data(table: PointTable, capture: dict[str, np.ndarray] | None = Non
     t, w = sample_times(end, wait if wait is not None else np.zeros(n), samples, period)
     env = {k: v for k, v in table.optional.items() if k not in ("time_s", *CAPTURE_COLUMNS)}
     u, datum, sloped = None, None, None
-    if PROFILE_U in table.extra:  # a scan profile's bins: their uncertainty, each sweep its own offset and slope
+    if PROFILE_U in table.extra:  # a scan profile's bins: their uncertainty, each sweep its own offset
         u = table.extra[PROFILE_U].astype(float)
         datum = _renumbered(table.run.astype(np.int64) * 2 + (table.direction > 0))
         sloped = np.ones(n, dtype=bool)
@@ -416,7 +417,8 @@ def profile_uncertainty(run: np.ndarray, direction: np.ndarray, target: np.ndarr
     independent bins; a screw lead or a bow hardly changes a second difference over a fraction of a
     millimetre). What the timing adds that averaging does not shrink is the same along a sweep
     (the clocks' offset times the velocity) or grows along it (their rate error, as a scale error):
-    it is no weight but each sweep's own offset and slope (read_campaign, CampaignData.datum)."""
+    it is no weight but each sweep's own offset and slope (read_campaign, CampaignData.datum and
+    sloped)."""
     out = np.zeros(len(target))
     for p, s in set(zip(run.tolist(), direction.tolist())):
         bins = np.flatnonzero((run == p) & (direction == s))

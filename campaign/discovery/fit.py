@@ -132,8 +132,8 @@ def _fixed_deviation(data: CampaignData, terms: list[Term]) -> np.ndarray:
 
 def design(data: CampaignData, terms: list[Term]) -> tuple[np.ndarray, list[slice]]:
     """The regressors: one offset column per datum (ones at its points: each campaign has its own
-    laser datum, a scan profile's every sweep its own: data.datum) and a slope for each sweep
-    (datum_columns), then each free term's kept columns."""
+    laser datum, a scan profile's every sweep its own: data.datum) and a scan profile's sweeps'
+    slopes beside another table (datum_columns), then each free term's kept columns."""
     offsets = datum_columns(data)
     blocks, slices, start = [offsets], [], offsets.shape[1]
     for term in terms:
@@ -145,16 +145,17 @@ def design(data: CampaignData, terms: list[Term]) -> tuple[np.ndarray, list[slic
 
 
 def datum_columns(data: CampaignData) -> np.ndarray:
-    """One offset column per datum (ones at its points), then one slope column per datum whose
-    points are data.sloped (position less the datum's mean position, over its span): a scan
-    profile's sweep, whose scale is its clock's (remembered)."""
+    """One offset column per datum (ones at its points); then, when campaigns are fitted together,
+    one slope column per datum whose points are data.sloped (position less the datum's mean
+    position, over its span): a scan profile's sweep, whose timing error grows along it with the
+    clocks' rate error and wander, differently in each sweep (remembered)."""
     return remembered(data, ("datums",), lambda: _datum_columns(data))
 
 
 def _datum_columns(data: CampaignData) -> np.ndarray:
     index = data.datum_index
     offsets = (index[:, None] == np.arange(data.datums)[None, :]).astype(float)
-    if data.sloped is None or not data.sloped.any():
+    if data.sloped is None or not data.sloped.any() or data.campaigns < 2:
         return offsets
     slopes = []
     for k in np.unique(index[data.sloped]):
