@@ -72,7 +72,8 @@ def test_the_follow_up_scans_a_10_mm_lead(cli, tmp_path, seed):
     """Issue 33 item 4: the follow-up of an aliased lead on the simulated PLC (which streams its
     position) is a slow scan over the period cluster, at most a quarter of the first campaign's
     machine time (the estimate and the time recorded); its profile fitted with the first table
-    names the lead, period within 1 %, nothing unresolved."""
+    names the lead, period within 1 %, nothing unresolved, nothing the machine lacks and no region
+    left after the fit (each table weighed by its own uncertainty, each sweep its own offset and slope)."""
     first = first_campaign(cli, tmp_path, "[effects.periodic_lead]\namplitude_um = 1.0\nperiod_mm = 10.0\n"
                                           "phase_rad = 0.3\n", seed=seed)
     alone, both = the_loop(cli, tmp_path, first)
@@ -83,6 +84,10 @@ def test_the_follow_up_scans_a_10_mm_lead(cli, tmp_path, seed):
     assert 4 * machine_time_s(tmp_path / "second") <= machine_time_s(first)
     assert "periodic_lead" in both["added"] and not both["unresolved"], (both["added"], both["unresolved"])
     assert both["model"]["periodic_lead"]["period_mm"] == pytest.approx(10.0, rel=0.01)
+    # nothing the machine lacks (issue 34): the lead, its bow and scale alone; nothing left located
+    assert set(both["added"]) <= {"periodic_lead", "nonlinear_lead", "linear_scale"}, both["added"]
+    assert not both["located"]["after"]["regions"], both["located"]["after"]["regions"]
+    assert not both["local_errors"], both["local_errors"]
 
 
 @pytest.mark.machine

@@ -39,6 +39,15 @@ class CampaignData:
     fitted together (`join_campaigns`) share the effects and get an offset each (a new laser datum);
     their times and runs are each their own campaign's.
     kind: the axis kind, "linear" (mm, µm) or "rotary" (deg, arcsec): x and y are in its units.
+    u: each point's standard uncertainty, deviation unit (None: every point alike). The fit weighs
+    each point by 1/u² and the significance tests use it (docs/discovery.md, "Tables fitted
+    together"): a table's repeatability, or a scan profile's bin uncertainty (`profile_uncertainty`).
+    datum: which offset each point has (0, 1, ...; None: one per campaign). A scan profile's every
+    sweep (pass and direction) has its own: its level is referred to one rest and shifted by the
+    clocks' offset times the velocity, with the sign of the direction (docs/scan.md).
+    sloped: True at the points whose datum has its own slope along the axis too, when fitted with
+    another table (None: none has): a scan profile's sweeps, whose timing error grows along each
+    with the clocks' rate error (tenths of a ppm) and their wander, differently in each sweep.
     """
 
     x: np.ndarray
@@ -52,6 +61,9 @@ class CampaignData:
     air_index_change: np.ndarray | None = None
     campaign: np.ndarray | None = None
     kind: str = "linear"
+    u: np.ndarray | None = None
+    datum: np.ndarray | None = None
+    sloped: np.ndarray | None = None
     remembered: OrderedDict = field(default_factory=OrderedDict, init=False, repr=False, compare=False)
     """Arrays computed from this data set once (campaign.discovery.fit.remembered): its arrays
     are not to be changed in place."""
@@ -80,6 +92,24 @@ class CampaignData:
         return np.zeros(len(self.y), dtype=int) if self.campaign is None else self.campaign
 
     @property
+    def datum_index(self) -> np.ndarray:
+        """The offset (datum) of each point: its sweep's on a scan profile, else its campaign's."""
+        return self.campaign_index if self.datum is None else self.datum
+
+    @property
+    def datums(self) -> int:
+        """How many offsets are fitted (one per datum)."""
+        return int(self.datum_index.max()) + 1 if len(self.y) else 1
+
+    @property
+    def row_scale(self) -> np.ndarray | None:
+        """Each point's weight's square root, u_ref / u (u_ref: the first point's u, so that a
+        weighted residual is in the first table's deviation unit); None when every point is alike."""
+        if self.u is None or not len(self.u) or np.all(self.u == self.u[0]):
+            return None
+        return np.asarray(self.u[0] / self.u)
+
+    @property
     def campaigns(self) -> int:
         """How many campaigns are fitted together."""
         return int(self.campaign_index.max()) + 1 if len(self.y) else 1
@@ -95,7 +125,18 @@ def keep_rows(data: CampaignData, keep: np.ndarray) -> CampaignData:
                         w=None if data.w is None else data.w[keep], time_source=data.time_source,
                         env={k: v[keep] for k, v in data.env.items()},
                         air_index_change=None if data.air_index_change is None else data.air_index_change[keep],
-                        campaign=None if data.campaign is None else data.campaign[keep], kind=data.kind)
+                        campaign=None if data.campaign is None else data.campaign[keep], kind=data.kind,
+                        u=None if data.u is None else data.u[keep],
+                        datum=None if data.datum is None else _renumbered(data.datum[keep]),
+                        sloped=None if data.sloped is None else data.sloped[keep])
+
+
+def _renumbered(index: np.ndarray) -> np.ndarray:
+    """Group numbers 0, 1, ... in the order of their first appearance kept (rows left out may
+    have emptied a group)."""
+    _, first, inverse = np.unique(index, return_index=True, return_inverse=True)
+    order = np.argsort(np.argsort(first))
+    return np.asarray(order[inverse.ravel()])
 
 
 def _padded(rows: list[np.ndarray]) -> np.ndarray:
@@ -129,6 +170,10 @@ def join_campaigns(parts: list[CampaignData], names: list[str]) -> CampaignData:
     for p in parts:
         runs.append(p.run - p.run.min() + 1 + first)
         first = int(runs[-1].max())
+    datums, first = [], 0
+    for p in parts:
+        datums.append(p.datum_index + first)
+        first += p.datums
     waits = None if any(p.w is None for p in parts) else _padded([p.w for p in parts if p.w is not None])
     env_keys = set.intersection(*(set(p.env) for p in parts))
     air = None if any(p.air_index_change is None for p in parts) else np.concatenate(
@@ -139,7 +184,35 @@ def join_campaigns(parts: list[CampaignData], names: list[str]) -> CampaignData:
                         env={k: np.concatenate([p.env[k] for p in parts]) for k in sorted(env_keys)},
                         air_index_change=air,
                         campaign=np.concatenate([np.full(len(p), i) for i, p in enumerate(parts)]),
-                        kind=parts[0].kind)
+                        kind=parts[0].kind,
+                        u=np.concatenate([p.u if p.u is not None else np.full(len(p), repeatability(p)) for p in parts]),
+                        datum=np.concatenate(datums),
+                        sloped=np.concatenate([p.sloped if p.sloped is not None else np.zeros(len(p), dtype=bool)
+                                               for p in parts]))
+
+
+def repeatability(data: CampaignData) -> float:
+    """A stop-and-go table's repeatability, deviation unit: the scatter of its points left when
+    each (target, direction) has its mean and each run its level (the run-to-run drift of a warming
+    axis is not scatter), pooled; the RMS about the mean when nothing is repeated. The unit of its
+    points' weights in a joint fit (`join_campaigns`)."""
+    _, cell = np.unique(data.target_index * 2 + (data.d > 0), return_inverse=True)
+    _, run = np.unique(data.run, return_inverse=True)
+    cell, run = cell.ravel(), run.ravel()
+    cells, runs = int(cell.max()) + 1 if len(cell) else 0, int(run.max()) + 1 if len(run) else 0
+    dof = len(data) - cells - runs + 1
+    if dof <= 0 or runs < 2:
+        return float(np.std(data.y)) or 1.0
+    left, level = data.y.astype(float), np.zeros(runs)
+    for _ in range(100):  # the two-way means by alternating (backfitting): linear in the rows
+        by_cell = np.bincount(cell, left - level[run], cells) / np.bincount(cell, minlength=cells)
+        new = np.bincount(run, left - by_cell[cell], runs) / np.bincount(run, minlength=runs)
+        if np.max(np.abs(new - level)) < 1e-9:
+            level = new
+            break
+        level = new
+    residual = left - by_cell[cell] - level[run]
+    return float(np.sqrt(np.sum(residual**2) / dof)) or 1.0
 
 
 def campaign_data(table: PointTable, capture: dict[str, np.ndarray] | None = None,
@@ -166,9 +239,15 @@ def campaign_data(table: PointTable, capture: dict[str, np.ndarray] | None = Non
         period = sample_period_s or 1.0  # samples are known only with a sample period
     t, w = sample_times(end, wait if wait is not None else np.zeros(n), samples, period)
     env = {k: v for k, v in table.optional.items() if k not in ("time_s", *CAPTURE_COLUMNS)}
+    u, datum, sloped = None, None, None
+    if PROFILE_U in table.extra:  # a scan profile's bins: their uncertainty, each sweep its own offset
+        u = table.extra[PROFILE_U].astype(float)
+        datum = _renumbered(table.run.astype(np.int64) * 2 + (table.direction > 0))
+        sloped = np.ones(n, dtype=bool)
     return CampaignData(x=table.target.astype(float), d=table.direction.astype(float), run=table.run,
                         y=table.deviation.astype(float), t=t, w=w if wait is not None else None,
-                        time_source=source, env=env, air_index_change=air_index_change(env, n), kind=table.kind)
+                        time_source=source, env=env, air_index_change=air_index_change(env, n), kind=table.kind,
+                        u=u, datum=datum, sloped=sloped)
 
 
 AIR_STANDARD = {"air_temp_c": 20.0, "air_pressure_hpa": 1013.25, "humidity_pct": 50.0}
@@ -308,13 +387,38 @@ def profile_table(samples: np.ndarray, kind: str, meta: dict[str, str], name: st
         raise InputError(f"{name}: no position is covered by every pass in both directions: nothing to compare")
     order = np.flatnonzero(keep)[np.argsort(mean_time[keep], kind="stable")]
     target = np.round(keys[order, 2] * width, 6)
+    u = profile_uncertainty(keys[order, 0], keys[order, 1], target, mean_dev[order])
     off = float(np.max(np.abs(mean_pos[order] - target)))
     unit = UNITS[kind][0]
     table = PointTable(kind=kind, run=keys[order, 0].astype(int), direction=keys[order, 1].astype(int),
                        target=target, deviation=mean_dev[order],
                        optional={"time_s": mean_time[order] - float(time.min())},
-                       meta={**meta, "profile_bin": f"{width:g} {unit}"}, extra={}, source=name)
+                       meta={**meta, "profile_bin": f"{width:g} {unit}"}, extra={PROFILE_U: u}, source=name)
     said = (f"{name}: a scan's profile: {len(dev)} samples averaged per pass and direction over bins "
             f"{width:g} {unit} wide, {len(common)} positions from {target.min():g} to {target.max():g} {unit} "
             f"({len(table)} points; a bin's mean position is within {off:.2g} {unit} of its centre)")
     return table, said
+
+
+PROFILE_U = "uncertainty"
+"""The column of a profile's point table (`profile_table`, its `extra`) with each bin's standard
+uncertainty, deviation unit (`profile_uncertainty`)."""
+
+
+def profile_uncertainty(run: np.ndarray, direction: np.ndarray, target: np.ndarray, deviation: np.ndarray) -> np.ndarray:
+    """Each bin's standard uncertainty (deviation unit), one value per sweep (pass and direction):
+    the bins' own scatter, from the second differences of the bins along the sweep (var = 6·u² for
+    independent bins; a screw lead or a bow hardly changes a second difference over a fraction of a
+    millimetre). What the timing adds that averaging does not shrink is the same along a sweep
+    (the clocks' offset times the velocity) or grows along it (their rate error, as a scale error):
+    it is no weight but each sweep's own offset and slope (read_campaign, CampaignData.datum and
+    sloped)."""
+    out = np.zeros(len(target))
+    for p, s in set(zip(run.tolist(), direction.tolist())):
+        bins = np.flatnonzero((run == p) & (direction == s))
+        bins = bins[np.argsort(target[bins])]
+        second = np.diff(deviation[bins], 2)
+        out[bins] = math.sqrt(float(np.mean(second**2)) / 6) if len(second) else math.nan
+    if np.all(np.isnan(out)):
+        return np.ones(len(target))
+    return np.where(np.isnan(out), np.nanmax(out), np.maximum(out, 1e-6))

@@ -77,11 +77,23 @@ def full_columns(data: CampaignData, term: Term) -> np.ndarray:
     return remembered(data, _key(term), lambda: form_of(term.name).columns(data, term.shape, term.held))
 
 
+def weighted(data: CampaignData, rows: np.ndarray) -> np.ndarray:
+    """`rows` (one per point: a vector or a matrix's rows) times each point's weight's square root
+    (data.row_scale: u of the first point / u): least squares on weighted rows weighs each point
+    by 1/u². Unchanged when every point is alike."""
+    scale = data.row_scale
+    if scale is None:
+        return rows
+    return rows * (scale if rows.ndim == 1 else scale[:, None])
+
+
 @dataclass
 class Fit:
     """Fitted terms: coefficients per free term (in the form's full column order), offset µm (the
-    first campaign's), prediction µm per point, residual sum of squares µm², number of fitted
-    parameters, and the offset of every campaign fitted together, µm."""
+    first campaign's), prediction µm per point, residual sum of squares µm² (weighted: each
+    residual times its point's data.row_scale), number of fitted parameters, and the offset of
+    every campaign fitted together, µm (a campaign of several datums, a scan profile's sweeps:
+    their mean)."""
 
     terms: list[Term]
     coefs: list[np.ndarray]
@@ -119,16 +131,40 @@ def _fixed_deviation(data: CampaignData, terms: list[Term]) -> np.ndarray:
 
 
 def design(data: CampaignData, terms: list[Term]) -> tuple[np.ndarray, list[slice]]:
-    """The regressors: one offset column per campaign (ones at its points: each campaign has its
-    own laser datum), then each free term's kept columns."""
-    offsets = (data.campaign_index[:, None] == np.arange(data.campaigns)[None, :]).astype(float)
-    blocks, slices, start = [offsets], [], data.campaigns
+    """The regressors: one offset column per datum (ones at its points: each campaign has its own
+    laser datum, a scan profile's every sweep its own: data.datum) and a scan profile's sweeps'
+    slopes beside another table (datum_columns), then each free term's kept columns."""
+    offsets = datum_columns(data)
+    blocks, slices, start = [offsets], [], offsets.shape[1]
     for term in terms:
         cols = np.zeros((len(data), 0)) if term.fixed else term.columns(data)
         blocks.append(cols)
         slices.append(slice(start, start + cols.shape[1]))
         start += cols.shape[1]
     return np.hstack(blocks), slices
+
+
+def datum_columns(data: CampaignData) -> np.ndarray:
+    """One offset column per datum (ones at its points); then, when campaigns are fitted together,
+    one slope column per datum whose points are data.sloped (position less the datum's mean
+    position, over its span): a scan profile's sweep, whose timing error grows along it with the
+    clocks' rate error and wander, differently in each sweep (remembered)."""
+    return remembered(data, ("datums",), lambda: _datum_columns(data))
+
+
+def _datum_columns(data: CampaignData) -> np.ndarray:
+    index = data.datum_index
+    offsets = (index[:, None] == np.arange(data.datums)[None, :]).astype(float)
+    if data.sloped is None or not data.sloped.any() or data.campaigns < 2:
+        return offsets
+    slopes = []
+    for k in np.unique(index[data.sloped]):
+        mine = index == k
+        x = data.x[mine]
+        col = np.zeros(len(data))
+        col[mine] = (x - x.mean()) / (float(np.ptp(x)) or 1.0)
+        slopes.append(col)
+    return np.column_stack([offsets, *slopes])
 
 
 NORMAL_COND = 1e4
@@ -223,7 +259,7 @@ def linear_fit(data: CampaignData, terms: list[Term]) -> Fit:
     """Fit the coefficients for the terms' current shapes."""
     base = fixed_deviation(data, terms)
     a, slices = design(data, terms)
-    beta = _solve(a, data.y - base)
+    beta = _solve(weighted(data, a), weighted(data, data.y - base))
     prediction = base + _times(a, beta)
     coefs = []
     for term, sl in zip(terms, slices):
@@ -233,8 +269,12 @@ def linear_fit(data: CampaignData, terms: list[Term]) -> Fit:
             full[list(np.flatnonzero(keep))] = beta[sl]
         coefs.append(full)
     n_params = a.shape[1] + sum(len(t.searched) for t in terms)
-    return Fit(terms, coefs, float(beta[0]), prediction, float(np.sum((data.y - prediction) ** 2)), n_params,
-               tuple(float(b) for b in beta[:data.campaigns]))
+    datums = beta[:data.datums]
+    first = np.bincount(data.datum_index, data.campaign_index, data.datums) / np.bincount(data.datum_index,
+                                                                                        minlength=data.datums)
+    offsets = tuple(float(np.mean(datums[first == c])) for c in range(data.campaigns))
+    return Fit(terms, coefs, float(beta[0]), prediction, float(np.sum(weighted(data, data.y - prediction) ** 2)),
+               n_params, offsets)
 
 
 def shape_bounds(data: CampaignData, name: str, key: str) -> tuple[float, float]:
@@ -282,6 +322,8 @@ def reduced_residual(data: CampaignData, terms: list[Term], moving: list[int],
             break
     else:
         return None
+    if data.row_scale is not None:  # weighted rows: a column of position alone is not so on them
+        return None
     still = [t for i, t in enumerate(terms) if i not in moving]
     y = data.y - fixed_deviation(data, terms)
     b = design(data, still)[0]
@@ -327,7 +369,7 @@ def refine(data: CampaignData, terms: list[Term]) -> Fit:
         if reduced is not None:
             return reduced(with_shapes(logs))
         f = linear_fit(data, with_shapes(logs))
-        return data.y - f.prediction
+        return weighted(data, data.y - f.prediction)
 
     from scipy import optimize
 
@@ -371,14 +413,16 @@ def periodogram_periods(data: CampaignData, fit: Fit, top: int = 3) -> list[floa
     low, high = period_limits(data)
     travel = float(np.ptp(data.x)) or 1.0
     freqs = np.arange(1 / high, 1 / low, 1 / (8 * travel))
-    q = thin_q(design(data, fit.terms)[0])
-    r = data.y - fit.prediction
+    q = thin_q(weighted(data, design(data, fit.terms)[0]))
+    r = weighted(data, data.y - fit.prediction)
     # a sine of x takes one value per distinct position: every sum below is over those, with the
-    # residual's and the basis's sums there (exactly the sums over the rows)
+    # residual's and the basis's sums there (exactly the sums over the weighted rows: a row's sine
+    # is its weight's square root, `root`, times the sine at its position)
     xs, where = np.unique(data.x, return_inverse=True)
-    count = np.bincount(where).astype(float)
-    r_at = np.bincount(where, r)
-    q_at = np.column_stack([np.bincount(where, col, minlength=len(xs)) for col in q.T])
+    root = data.row_scale if data.row_scale is not None else np.ones(len(data))
+    count = np.bincount(where, root**2)
+    r_at = np.bincount(where, root * r)
+    q_at = np.column_stack([np.bincount(where, root * col, minlength=len(xs)) for col in q.T])
     qr = q.T @ r
     power = np.zeros(len(freqs))
     block = max(1, PERIODOGRAM_CELLS // max(len(xs), 1))  # frequencies at a time: memory linear in the rows
@@ -431,10 +475,11 @@ that size squared)."""
 
 def cv_rms_um(data: CampaignData, terms: list[Term], groups: np.ndarray) -> float:
     """Cross-validated RMS, µm: each group (a target or a run) predicted from the others, shapes
-    held at their fitted values (a direction the fold cannot determine is left out: CV_RCOND)."""
+    held at their fitted values (a direction the fold cannot determine is left out: CV_RCOND);
+    on weighted rows (`weighted`), as the fit."""
     base = fixed_deviation(data, terms)
-    a, _ = design(data, terms)
-    y = data.y - base
+    a = weighted(data, design(data, terms)[0])
+    y = weighted(data, data.y - base)
     names, index = np.unique(groups, return_inverse=True)
     if len(names) > CV_FOLDS_REFITTED:
         return _cv_from_hat(a, y, index)
@@ -572,12 +617,13 @@ def term_params(term: Term, coefs: np.ndarray) -> dict[str, float]:
 def standard_errors(data: CampaignData, fit: Fit, step: float = 1e-4) -> dict[str, dict[str, float]]:
     """1-σ standard errors of every fitted parameter (and derived quantity, DERIVED), in their
     units: cov = s²·(JᵀJ)⁻¹ over the offset, every coefficient and the log of every searched shape
-    (s² = RSS/(n - p)), carried to each parameter by its gradient (the delta method: a periodic
+    (s² = RSS/(n - p); J and the RSS on weighted rows, `weighted`), carried to each parameter by its gradient (the delta method: a periodic
     amplitude and phase from the sine and cosine coefficients, thermal drift's pivot from its two
     coefficients). Parameters the user gave, and fixed shapes (the bow's span), get none.
     Asymptotic (linearised) values: the spread over repeated campaigns, not a guarantee; a phase's
     error is meaningless when the amplitude is not different from zero."""
     jac, labels = jacobian(data, fit, step)
+    jac = weighted(data, jac)
     n, p = jac.shape
     if n <= p:
         return {}

@@ -37,6 +37,7 @@ from campaign.discovery.fit import (
     linear_fit,
     reduced_residual,
     thin_q,
+    weighted,
 )
 
 ALPHA = 0.001
@@ -266,14 +267,17 @@ def _grid_best(data: CampaignData, fit: Fit) -> tuple[str, float, float] | None:
     targets = _targets(data)
     step = max(float(np.median(np.diff(targets))) / 4, float(np.ptp(targets)) / MAX_CENTRES)
     centres = np.arange(targets[0], targets[-1] + step / 2, step)
-    q = thin_q(design(data, fit.terms)[0])
-    r = data.y - fit.prediction
+    q = thin_q(weighted(data, design(data, fit.terms)[0]))
+    r = weighted(data, data.y - fit.prediction)
     # a local shape takes one value per distinct position: the sums below are over those, with the
-    # residual's and the basis's sums there (exactly the sums over the rows)
+    # residual's and the basis's sums there (exactly the sums over the weighted rows: a row's shape
+    # is its weight's square root, `root`, times the shape at its position)
     xs, where = np.unique(data.x, return_inverse=True)
-    count = np.bincount(where).astype(float)
+    root = data.row_scale if data.row_scale is not None else np.ones(len(data))
+    count = np.bincount(where, root**2)
     # per position: the residual's sum, then the basis's (one product gives both)
-    sums = np.column_stack([np.bincount(where, col, minlength=len(xs)) for col in np.column_stack([r, q]).T])
+    sums = np.column_stack([np.bincount(where, root * col, minlength=len(xs))
+                            for col in np.column_stack([r, q]).T])
     qr = q.T @ r
     above = np.vstack([np.cumsum(sums[::-1], axis=0)[::-1], np.zeros((1, sums.shape[1]))])  # sums from k on
     count_above = np.append(np.cumsum(count[::-1])[::-1], 0.0)
@@ -334,7 +338,7 @@ def _refine(data: CampaignData, terms: list[Term], start: tuple[float, float], k
     reduced = reduced_residual(data, at(x0), [len(terms)], [at(x0), at(nearby)])  # the same steps, fewer rows
 
     def residual(v: np.ndarray) -> np.ndarray:
-        return reduced(at(v)) if reduced is not None else data.y - fit_at(v).prediction
+        return reduced(at(v)) if reduced is not None else weighted(data, data.y - fit_at(v).prediction)
 
     result = optimize.least_squares(residual, x0, bounds=(lower, upper),
                                     x_scale=np.array([widths[0], widths[0]]), diff_step=1e-4)
@@ -357,7 +361,7 @@ def _errors(data: CampaignData, fit: Fit, name: str, step: float = 1e-3) -> dict
         h = step * term.shape["width_mm"]
         moved = replace(term, shape={**term.shape, key: term.shape[key] + h})
         extra.append((moved.columns(data) - term.columns(data)) @ coefs / h)
-    jac = np.column_stack([a, *extra])
+    jac = weighted(data, np.column_stack([a, *extra]))
     n, p = jac.shape
     if n <= p:
         return {}
@@ -378,12 +382,12 @@ def _time_test(data: CampaignData, fit: Fit, name: str) -> tuple[float, float, f
     growth = term.columns(data).sum(axis=1) * (tm - tm.mean()) / span
     base = fixed_deviation(data, fit.terms)
     full = np.column_stack([design(data, fit.terms)[0], growth])
-    beta = np.linalg.lstsq(full, data.y - base, rcond=None)[0]
+    beta = np.linalg.lstsq(weighted(data, full), weighted(data, data.y - base), rcond=None)[0]
     prediction = base + full @ beta
-    grown = replace(fit, prediction=prediction, rss=float(np.sum((data.y - prediction) ** 2)),
+    grown = replace(fit, prediction=prediction, rss=float(np.sum(weighted(data, data.y - prediction) ** 2)),
                     n_params=fit.n_params + 1)
     n, p = full.shape
-    cov = np.linalg.pinv(full.T @ full) * grown.rss / max(n - p, 1)
+    cov = np.linalg.pinv(weighted(data, full).T @ weighted(data, full)) * grown.rss / max(n - p, 1)
     return f_test_p(fit, grown, len(data)), float(beta[-1]), float(math.sqrt(max(cov[-1, -1], 0.0)))
 
 

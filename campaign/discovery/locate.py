@@ -5,7 +5,8 @@ shape in words (step, bump, slope change, wave, or a level over the whole travel
 
 The smoother is a penalised cubic B-spline (a P-spline: at most MAX_BASIS basis functions, a
 second-difference penalty). Over position it smooths the residual's mean per target and
-direction (weights: the points in each), and its flexibility (the penalty) is chosen by
+direction (weights: the points in each, each weighed by 1/u² when tables of different uncertainty
+are fitted together, CampaignData.u), and its flexibility (the penalty) is chosen by
 leave-one-target-out cross-validation, which for a linear smoother is exact from the hat matrix's
 diagonal. Over time it smooths what the targets' means leave (the change from run to run) as a
 level and a slope along the axis that both vary in time (a varying-coefficient P-spline), its
@@ -246,7 +247,11 @@ def _quantile(dof: float) -> float:
 
 
 def pooled_noise_um(data: CampaignData, residual: np.ndarray) -> float:
-    """Run-to-run scatter of the residual per point, pooled over (campaign, target, direction), µm."""
+    """Run-to-run scatter of the residual per point, pooled over (campaign, target, direction), µm;
+    of the weighted residual (each point's times data.row_scale: in the first table's unit) when
+    the tables fitted together are weighed by their uncertainty."""
+    if data.row_scale is not None:
+        residual = residual * data.row_scale
     keys = (data.campaign_index * (data.target_index.max() + 1) + data.target_index) * 2 + (data.d > 0)
     _, group = np.unique(keys, return_inverse=True)
     count = np.bincount(group)
@@ -268,9 +273,10 @@ def position_curves(data: CampaignData, residual: np.ndarray, noise_um: float) -
             continue
         keys = data.campaign_index[pick] * (data.target_index.max() + 1) + data.target_index[pick]
         _, group = np.unique(keys, return_inverse=True)
-        count = np.bincount(group).astype(float)
-        means = np.bincount(group, residual[pick]) / count
-        where = np.bincount(group, data.x[pick]) / count
+        weight = np.ones(int(pick.sum())) if data.row_scale is None else data.row_scale[pick] ** 2
+        count = np.bincount(group, weight)  # the points in each, each weighed by 1/u² (data.row_scale)
+        means = np.bincount(group, weight * residual[pick]) / count
+        where = np.bincount(group, weight * data.x[pick]) / count
         if len(means) < 4:
             continue
         smoother = _Smoother(lo, hi, min(MAX_BASIS, len(np.unique(np.round(where, 6))) + 2))

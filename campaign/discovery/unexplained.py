@@ -18,7 +18,17 @@ import numpy as np
 
 from campaign.discovery.data import CampaignData
 from campaign.discovery.effects import region_basis
-from campaign.discovery.fit import Fit, Term, bic, cv_rms_um, design, f_test_p, fixed_deviation, linear_fit
+from campaign.discovery.fit import (
+    Fit,
+    Term,
+    bic,
+    cv_rms_um,
+    design,
+    f_test_p,
+    fixed_deviation,
+    linear_fit,
+    weighted,
+)
 from campaign.discovery.local import LocalError, look_elsewhere, passes
 from campaign.discovery.locate import Located, Region
 
@@ -96,7 +106,8 @@ def describe_region(data: CampaignData, fit: Fit, name: str, without: Fit) -> Lo
     shape = term.shape
     a, slices = design(data, fit.terms)
     n, p = a.shape
-    cov = np.linalg.pinv(a.T @ a) * fit.rss / max(n - p, 1)
+    aw = weighted(data, a)
+    cov = np.linalg.pinv(aw.T @ aw) * fit.rss / max(n - p, 1)
     block = cov[slices[i], slices[i]]
     at = np.array([params["peak_at_mm"]])
     b = region_basis(at, shape["start_mm"], shape["end_mm"], int(shape["pieces"]), shape["open_end"] > 0,
@@ -115,11 +126,11 @@ def describe_region(data: CampaignData, fit: Fit, name: str, without: Fit) -> Lo
     span = float(np.ptp(tm)) or 1.0
     fitted = term.columns(data) @ coefs
     growth = fitted * (tm - tm.mean()) / span
-    full = np.column_stack([a, growth])
+    full = weighted(data, np.column_stack([a, growth]))
     base = fixed_deviation(data, fit.terms)
-    beta = np.linalg.lstsq(full, data.y - base, rcond=None)[0]
-    prediction = base + full @ beta
-    rss = float(np.sum((data.y - prediction) ** 2))
+    beta = np.linalg.lstsq(full, weighted(data, data.y - base), rcond=None)[0]
+    prediction = base + np.column_stack([a, growth]) @ beta
+    rss = float(np.sum(weighted(data, data.y - prediction) ** 2))
     grown = Fit(fit.terms, fit.coefs, fit.offset_um, prediction, rss, fit.n_params + 1, fit.offsets_um)
     time_p = f_test_p(fit, grown, n)
     change_cov = np.linalg.pinv(full.T @ full) * rss / max(n - p - 1, 1)
@@ -128,6 +139,7 @@ def describe_region(data: CampaignData, fit: Fit, name: str, without: Fit) -> Lo
         other = "local_region_" + ("minus" if direction == "+" else "plus") + "#0"
         beside = linear_fit(data, [*fit.terms, Term(other, {}, False, dict(shape))])
         ob, oslices = design(data, beside.terms)
+        ob = weighted(data, ob)
         ocov = np.linalg.pinv(ob.T @ ob) * beside.rss / max(len(data) - ob.shape[1], 1)
         j = len(beside.terms) - 1
         shown["other_um"] = float(b @ beside.coefs[j])
@@ -173,9 +185,10 @@ def wave_over_part(data: CampaignData, fit: Fit, name: str = "periodic_lead") ->
     others = [t for t in fit.terms if t is not term]
     a, _ = design(data, others)
     base = fixed_deviation(data, others)
-    full = np.column_stack([a, split])
-    beta = np.linalg.lstsq(full, data.y - base, rcond=None)[0]
-    rss = float(np.sum((data.y - base - full @ beta) ** 2))
+    full = weighted(data, np.column_stack([a, split]))
+    y = weighted(data, data.y - base)
+    beta = np.linalg.lstsq(full, y, rcond=None)[0]
+    rss = float(np.sum((y - full @ beta) ** 2))
     n, p = full.shape
     cov = np.linalg.pinv(full.T @ full) * rss / max(n - p, 1)
     width = cols.shape[1]
