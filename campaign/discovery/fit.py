@@ -616,3 +616,95 @@ def standard_errors(data: CampaignData, fit: Fit, step: float = 1e-4) -> dict[st
                 continue
             out.setdefault(term.name, {})[k] = float(math.sqrt(max(float(g @ sub @ g), 0.0)))
     return out
+
+
+def _span(scaled: np.ndarray, largest: float | None = None) -> tuple[np.ndarray, float]:
+    """An orthonormal basis of the column-normalised `scaled`'s span, directions whose singular value is
+    below CV_RCOND of the largest (`largest`, else its own) left out, from the eigenvectors of its normal
+    matrix (as _cv_from_hat); and that largest singular value."""
+    eig, vectors = np.linalg.eigh(scaled.T @ scaled)
+    sv = np.sqrt(np.maximum(eig, 0.0))
+    top = float(sv.max()) if largest is None and len(sv) else (largest or 0.0)
+    keep = sv > CV_RCOND * top if len(sv) else np.zeros(0, dtype=bool)
+    return scaled @ (vectors[:, keep] / sv[keep]), top
+
+
+class GrowingFit:
+    """Terms added one at a time beside a fit, each tried without refitting the model: the residual,
+    the RSS and the leave-one-group-out CV of the model plus one term come from the current model's
+    orthonormal basis Q (n × r) and its hat matrix's diagonal blocks per group (kept), in O(n·r·k) for a
+    term of k columns instead of O(n·r²) for a refit and again for its CV. The numbers are those of
+    linear_fit and cv_rms_um's hat-matrix route (_cv_from_hat) up to rounding (the new term's part
+    outside the model is cut at CV_RCOND of the model's largest singular value, as there). For a dense
+    table only: `start` gives None when the groups are few (cv_rms_um refits each fold then) or one is
+    above CV_BLOCK_MAX rows."""
+
+    def __init__(self, data: CampaignData, fit: Fit, groups: np.ndarray):
+        self.data, self.fit = data, fit
+        a, _ = design(data, fit.terms)
+        self.y = data.y - fixed_deviation(data, fit.terms)
+        norms = np.linalg.norm(a, axis=0)
+        norms[norms == 0] = 1.0
+        self.q, self.largest = _span(a / norms)
+        self.residual = self.y - self.q @ (self.q.T @ self.y)
+        self.rss = float(self.residual @ self.residual)
+        self.n_params = fit.n_params
+        self.terms = list(fit.terms)
+        _, index = np.unique(groups, return_inverse=True)
+        order = np.argsort(index, kind="stable")
+        sizes = np.bincount(index)
+        starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+        self.buckets: list[tuple[np.ndarray, np.ndarray]] = []  # (rows: groups × size, hat blocks)
+        for size in np.unique(sizes[sizes > 0]):
+            chosen = np.flatnonzero(sizes == size)
+            rows = order[starts[chosen][:, None] + np.arange(size)[None, :]]
+            qg = self.q[rows]
+            self.buckets.append((rows, qg @ np.swapaxes(qg, 1, 2)))
+        self.cv_um = self._cv(self.residual, [h for _, h in self.buckets])
+
+    @classmethod
+    def start(cls, data: CampaignData, fit: Fit, groups: np.ndarray) -> GrowingFit | None:
+        sizes = np.unique(groups, return_counts=True)[1]
+        if len(sizes) <= CV_FOLDS_REFITTED or int(sizes.max()) > CV_BLOCK_MAX:
+            return None
+        return cls(data, fit, groups)
+
+    def _cv(self, residual: np.ndarray, hats: list[np.ndarray]) -> float:
+        total = 0.0
+        for (rows, _), hat in zip(self.buckets, hats):
+            size = rows.shape[1]
+            block = np.eye(size) - hat
+            plain = np.trace(hat, axis1=1, axis2=2) < 1 - CV_RCOND
+            rg = residual[rows][..., None]
+            if plain.any():
+                total += float(np.sum(np.linalg.solve(block[plain], rg[plain]) ** 2))
+            if not plain.all():
+                total += float(np.sum((np.linalg.pinv(block[~plain], rcond=CV_RCOND) @ rg[~plain]) ** 2))
+        return float(np.sqrt(total / len(residual)))
+
+    def trial(self, term: Term) -> tuple[float, int, float, tuple]:
+        """The model plus `term`: its RSS (µm²), number of parameters, leave-one-group-out CV RMS (µm),
+        and what `add` needs to keep it."""
+        cols = term.columns(self.data)
+        norms = np.linalg.norm(cols, axis=0)
+        norms[norms == 0] = 1.0
+        scaled = cols / norms
+        outside = scaled - self.q @ (self.q.T @ scaled)
+        qt, _ = _span(outside, self.largest)
+        along = qt.T @ self.residual
+        residual = self.residual - qt @ along
+        hats = []
+        for rows, hat in self.buckets:
+            tg = qt[rows]
+            hats.append(hat + tg @ np.swapaxes(tg, 1, 2))
+        rss = float(residual @ residual)
+        n_params, cv = self.n_params + cols.shape[1], self._cv(residual, hats)
+        return rss, n_params, cv, (term, qt, residual, rss, n_params, cv, hats)
+
+    def add(self, kept: tuple) -> None:
+        """Keep a term tried (`trial`'s last value) in the model."""
+        term, qt, residual, rss, n_params, cv, hats = kept
+        self.q = np.hstack([self.q, qt])
+        self.residual, self.rss, self.n_params, self.cv_um = residual, rss, n_params, cv
+        self.buckets = [(rows, hat) for (rows, _), hat in zip(self.buckets, hats)]
+        self.terms.append(term)
