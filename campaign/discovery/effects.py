@@ -93,8 +93,14 @@ def region_basis(x: np.ndarray, start_mm: float, end_mm: float, pieces: int, ope
     pieces = max(int(pieces), 1 if open_end or open_start else 2)
     inner = np.linspace(start_mm, end_mm, pieces + 1)
     knots = np.r_[[start_mm] * 3, inner, [end_mm] * 3]
-    u = np.clip(np.asarray(x, dtype=float), start_mm, end_mm)
-    cols = BSpline.design_matrix(u, knots, 3).toarray()
+    x = np.asarray(x, dtype=float)
+    cols = np.zeros((len(x), pieces + 3))
+    inside = (x > start_mm) & (x < end_mm)  # outside, a clamped spline holds its end values: 1 in the end column
+    if np.any(inside):
+        rows = BSpline.design_matrix(x[inside], knots, 3).tocoo()
+        cols[np.flatnonzero(inside)[rows.row], rows.col] = rows.data
+    cols[x <= start_mm, 0] = 1.0
+    cols[x >= end_mm, -1] = 1.0
     if not open_start:
         cols = cols[:, 2:]
         cols[np.asarray(x) < start_mm] = 0.0
