@@ -47,10 +47,11 @@ class Term:
         return cols if self.keep is None else cols[:, list(self.keep)]
 
 
-REMEMBERED = 32
-"""Arrays remembered per data set (`remembered`): a search computes the same term's columns over and
-over (every candidate beside the same model, every step of a shape refinement beside the same other
-terms); at 100,000 rows these are 32 arrays of one or two columns, about 50 MB at most."""
+REMEMBERED_MB = 256.0
+"""Memory of the arrays remembered per data set (`remembered`), MB: a search computes the same term's
+columns over and over (every candidate beside the same model, every step of a shape refinement beside
+the same other terms, and on a dense table every fit beside tens of local terms of a few columns each:
+at 100,000 rows one such term is about 5 MB, so 256 MB holds about fifty)."""
 
 
 def _key(term: Term) -> tuple:
@@ -58,8 +59,8 @@ def _key(term: Term) -> tuple:
 
 
 def remembered(data: CampaignData, key: tuple, make: Callable[[], np.ndarray]) -> np.ndarray:
-    """make() for `data`, computed once while among the REMEMBERED most recently used (per data
-    set, in data.remembered). The array is shared: callers must not change it in place."""
+    """make() for `data`, computed once while among the most recently used that fit in REMEMBERED_MB
+    (per data set, in data.remembered). The array is shared: callers must not change it in place."""
     store = data.remembered
     if key in store:
         store.move_to_end(key)
@@ -67,7 +68,7 @@ def remembered(data: CampaignData, key: tuple, make: Callable[[], np.ndarray]) -
     value = make()
     value.flags.writeable = False
     store[key] = value
-    if len(store) > REMEMBERED:
+    while len(store) > 1 and sum(v.nbytes for v in store.values()) > REMEMBERED_MB * 2**20:
         store.popitem(last=False)
     return value
 
