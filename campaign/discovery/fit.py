@@ -47,11 +47,11 @@ class Term:
         return cols if self.keep is None else cols[:, list(self.keep)]
 
 
-REMEMBERED_MB = 256.0
+REMEMBERED_MB = 128.0
 """Memory of the arrays remembered per data set (`remembered`), MB: a search computes the same term's
 columns over and over (every candidate beside the same model, every step of a shape refinement beside
 the same other terms, and on a dense table every fit beside tens of local terms of a few columns each:
-at 100,000 rows one such term is about 5 MB, so 256 MB holds about fifty)."""
+at 100,000 rows one such term is about 5 MB, so 128 MB holds about twenty-five)."""
 
 
 def _key(term: Term) -> tuple:
@@ -523,6 +523,7 @@ def _cv_from_hat(a: np.ndarray, y: np.ndarray, index: np.ndarray) -> float:
     sv = np.sqrt(np.maximum(eig, 0.0))
     keep = sv > CV_RCOND * sv.max() if len(sv) else np.zeros(0, dtype=bool)
     q = scaled @ (vectors[:, keep] / sv[keep])
+    del scaled  # (n × p: on a dense table hundreds of MB)
     r = y - q @ (q.T @ y)
     order = np.argsort(index, kind="stable")
     sizes = np.bincount(index)
@@ -536,7 +537,8 @@ def _cv_from_hat(a: np.ndarray, y: np.ndarray, index: np.ndarray) -> float:
                 e = y[out] - a[out] @ _fold_solve(a[~out], y[~out])
                 total += float(e @ e)
             continue
-        for part in np.array_split(chosen, max(1, len(chosen) * int(size) ** 2 // 4_000_000 + 1)):
+        cells = len(chosen) * int(size) * max(int(size), q.shape[1])  # the blocks' and their rows' of Q
+        for part in np.array_split(chosen, max(1, cells // 4_000_000 + 1)):
             rows = order[starts[part][:, None] + np.arange(size)[None, :]]  # groups × size
             qg = q[rows]
             block = np.eye(size) - qg @ np.swapaxes(qg, 1, 2)
@@ -700,8 +702,12 @@ class GrowingFit:
         for size in np.unique(sizes[sizes > 0]):
             chosen = np.flatnonzero(sizes == size)
             rows = order[starts[chosen][:, None] + np.arange(size)[None, :]]
-            qg = self.q[rows]
-            self.buckets.append((rows, qg @ np.swapaxes(qg, 1, 2)))
+            hats = np.zeros((len(chosen), size, size))
+            step = max(1, 4_000_000 // (int(size) * max(self.q.shape[1], 1)))  # Q's rows gathered a part at a time
+            for lo in range(0, len(chosen), step):
+                qg = self.q[rows[lo:lo + step]]
+                hats[lo:lo + step] = qg @ np.swapaxes(qg, 1, 2)
+            self.buckets.append((rows, hats))
         self.cv_um = self._cv(self.residual, [h for _, h in self.buckets])
 
     @classmethod
