@@ -79,6 +79,25 @@ def _local_columns(kind: str, by_direction: bool) -> Callable[[Samples, Shape, S
     return columns
 
 
+def _cubic_basis(x: np.ndarray, knots: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The four cubic B-splines not zero at each x inside the knots (Cox-de Boor, vectorised): the
+    first one's column per x, and their values (len(x) × 4)."""
+    span = np.clip(np.searchsorted(knots, x, side="right") - 1, 3, len(knots) - 5)
+    values = np.zeros((len(x), 4))
+    values[:, 0] = 1.0
+    left, right = np.zeros((len(x), 4)), np.zeros((len(x), 4))
+    for d in range(1, 4):
+        left[:, d] = x - knots[span + 1 - d]
+        right[:, d] = knots[span + d] - x
+        saved = np.zeros(len(x))
+        for r in range(d):
+            temp = values[:, r] / (right[:, r + 1] + left[:, d - r])
+            values[:, r] = saved + right[:, r + 1] * temp
+            saved = left[:, d - r] * temp
+        values[:, d] = saved
+    return span - 3, values
+
+
 def region_basis(x: np.ndarray, start_mm: float, end_mm: float, pieces: int, open_end: bool = True,
                  open_start: bool = False) -> np.ndarray:
     """A local term whose shape follows the data over [start_mm, end_mm]: cubic B-splines on `pieces`
@@ -88,13 +107,19 @@ def region_basis(x: np.ndarray, start_mm: float, end_mm: float, pieces: int, ope
     any shape). open_start: the two at the start stay (a region that begins at the first target, where
     nothing is measured before it). pieces + 3 columns less two for each closed side (pieces at least
     2 when both are closed)."""
-    from scipy.interpolate import BSpline
-
     pieces = max(int(pieces), 1 if open_end or open_start else 2)
     inner = np.linspace(start_mm, end_mm, pieces + 1)
     knots = np.r_[[start_mm] * 3, inner, [end_mm] * 3]
-    u = np.clip(np.asarray(x, dtype=float), start_mm, end_mm)
-    cols = BSpline.design_matrix(u, knots, 3).toarray()
+    x = np.asarray(x, dtype=float)
+    cols = np.zeros((len(x), pieces + 3))
+    inside = (x > start_mm) & (x < end_mm)  # outside, a clamped spline holds its end values: 1 in the end column
+    if np.any(inside):
+        at = np.flatnonzero(inside)
+        first, values = _cubic_basis(x[at], knots)
+        for r in range(4):
+            cols[at, first + r] = values[:, r]
+    cols[x <= start_mm, 0] = 1.0
+    cols[x >= end_mm, -1] = 1.0
     if not open_start:
         cols = cols[:, 2:]
         cols[np.asarray(x) < start_mm] = 0.0

@@ -47,10 +47,11 @@ class Term:
         return cols if self.keep is None else cols[:, list(self.keep)]
 
 
-REMEMBERED = 32
-"""Arrays remembered per data set (`remembered`): a search computes the same term's columns over and
-over (every candidate beside the same model, every step of a shape refinement beside the same other
-terms); at 100,000 rows these are 32 arrays of one or two columns, about 50 MB at most."""
+REMEMBERED_MB = 128.0
+"""Memory of the arrays remembered per data set (`remembered`), MB: a search computes the same term's
+columns over and over (every candidate beside the same model, every step of a shape refinement beside
+the same other terms, and on a dense table every fit beside tens of local terms of a few columns each:
+at 100,000 rows one such term is about 5 MB, so 128 MB holds about twenty-five)."""
 
 
 def _key(term: Term) -> tuple:
@@ -58,8 +59,8 @@ def _key(term: Term) -> tuple:
 
 
 def remembered(data: CampaignData, key: tuple, make: Callable[[], np.ndarray]) -> np.ndarray:
-    """make() for `data`, computed once while among the REMEMBERED most recently used (per data
-    set, in data.remembered). The array is shared: callers must not change it in place."""
+    """make() for `data`, computed once while among the most recently used that fit in REMEMBERED_MB
+    (per data set, in data.remembered). The array is shared: callers must not change it in place."""
     store = data.remembered
     if key in store:
         store.move_to_end(key)
@@ -67,7 +68,7 @@ def remembered(data: CampaignData, key: tuple, make: Callable[[], np.ndarray]) -
     value = make()
     value.flags.writeable = False
     store[key] = value
-    if len(store) > REMEMBERED:
+    while len(store) > 1 and sum(v.nbytes for v in store.values()) > REMEMBERED_MB * 2**20:
         store.popitem(last=False)
     return value
 
@@ -347,6 +348,38 @@ def reduced_residual(data: CampaignData, terms: list[Term], moving: list[int],
     return residual
 
 
+PROJECT_COLUMNS = 20
+"""A shape search beside at least this many columns that do not move (a dense table's local terms)
+runs with them projected out once (projected_residual)."""
+
+
+def projected_residual(data: CampaignData, terms: list[Term],
+                       moving: list[int]) -> Callable[[list[Term]], np.ndarray] | None:
+    """The residual of a shape search with the columns that do not move (the offsets and every term
+    not in `moving`) projected out once: for the moving terms' columns C at new shapes, the residual
+    of the joint least squares is (I - P)(y - Cβ) with β the fit of (I - P)C to (I - P)y (Frisch-Waugh-
+    Lovell), the same vector as linear_fit's in O(n·p·k) instead of O(n·p²) (p the columns held, k the
+    moving ones). None below PROJECT_COLUMNS held columns (a refit is as cheap)."""
+    still = [t for i, t in enumerate(terms) if i not in moving]
+    b = weighted(data, design(data, still)[0])  # on weighted rows, as the refit it stands for
+    if b.shape[1] < PROJECT_COLUMNS:
+        return None
+    norms = np.linalg.norm(b, axis=0)
+    norms[norms == 0] = 1.0
+    eig, vectors = np.linalg.eigh((b / norms).T @ (b / norms))
+    keep = eig > 1e-14 * max(float(eig.max()), 1e-300)  # the span of what is held, to rounding
+    q = (b / norms) @ (vectors[:, keep] / np.sqrt(eig[keep]))
+    y = weighted(data, data.y - fixed_deviation(data, terms))
+    y_out = y - q @ (q.T @ y)
+
+    def residual(new: list[Term]) -> np.ndarray:
+        cols = weighted(data, np.hstack([new[i].columns(data) for i in moving]))
+        c_out = cols - q @ (q.T @ cols)
+        return np.asarray(y_out - c_out @ _solve(c_out, y_out))
+
+    return residual
+
+
 def refine(data: CampaignData, terms: list[Term]) -> Fit:
     """Refine every searched shape parameter from its current value (least_squares on logs)."""
     slots = [(i, key) for i, term in enumerate(terms) for key in term.searched]
@@ -364,10 +397,13 @@ def refine(data: CampaignData, terms: list[Term]) -> Fit:
 
     moving = sorted({i for i, _ in slots})
     reduced = reduced_residual(data, terms, moving, [with_shapes(start), with_shapes(start + 0.1)])
+    projected = projected_residual(data, terms, moving) if reduced is None else None
 
     def residual(logs: np.ndarray) -> np.ndarray:
         if reduced is not None:
             return reduced(with_shapes(logs))
+        if projected is not None:
+            return projected(with_shapes(logs))
         f = linear_fit(data, with_shapes(logs))
         return weighted(data, data.y - f.prediction)
 
@@ -476,7 +512,13 @@ that size squared)."""
 def cv_rms_um(data: CampaignData, terms: list[Term], groups: np.ndarray) -> float:
     """Cross-validated RMS, µm: each group (a target or a run) predicted from the others, shapes
     held at their fitted values (a direction the fold cannot determine is left out: CV_RCOND);
-    on weighted rows (`weighted`), as the fit."""
+    on weighted rows (`weighted`), as the fit; computed once per model and grouping (remembered:
+    every candidate of a step compares with the same model)."""
+    key = ("cv", *((_key(t), t.keep, t.fixed) for t in terms), hash(np.asarray(groups).tobytes()))
+    return float(remembered(data, key, lambda: np.array([_cv_rms_um(data, terms, groups)]))[0])
+
+
+def _cv_rms_um(data: CampaignData, terms: list[Term], groups: np.ndarray) -> float:
     base = fixed_deviation(data, terms)
     a = weighted(data, design(data, terms)[0])
     y = weighted(data, data.y - base)
@@ -526,6 +568,7 @@ def _cv_from_hat(a: np.ndarray, y: np.ndarray, index: np.ndarray) -> float:
     sv = np.sqrt(np.maximum(eig, 0.0))
     keep = sv > CV_RCOND * sv.max() if len(sv) else np.zeros(0, dtype=bool)
     q = scaled @ (vectors[:, keep] / sv[keep])
+    del scaled  # (n × p: on a dense table hundreds of MB)
     r = y - q @ (q.T @ y)
     order = np.argsort(index, kind="stable")
     sizes = np.bincount(index)
@@ -539,7 +582,8 @@ def _cv_from_hat(a: np.ndarray, y: np.ndarray, index: np.ndarray) -> float:
                 e = y[out] - a[out] @ _fold_solve(a[~out], y[~out])
                 total += float(e @ e)
             continue
-        for part in np.array_split(chosen, max(1, len(chosen) * int(size) ** 2 // 4_000_000 + 1)):
+        cells = len(chosen) * int(size) * max(int(size), q.shape[1])  # the blocks' and their rows' of Q
+        for part in np.array_split(chosen, max(1, cells // 4_000_000 + 1)):
             rows = order[starts[part][:, None] + np.arange(size)[None, :]]  # groups × size
             qg = q[rows]
             block = np.eye(size) - qg @ np.swapaxes(qg, 1, 2)
@@ -662,3 +706,99 @@ def standard_errors(data: CampaignData, fit: Fit, step: float = 1e-4) -> dict[st
                 continue
             out.setdefault(term.name, {})[k] = float(math.sqrt(max(float(g @ sub @ g), 0.0)))
     return out
+
+
+def _span(scaled: np.ndarray, largest: float | None = None) -> tuple[np.ndarray, float]:
+    """An orthonormal basis of the column-normalised `scaled`'s span, directions whose singular value is
+    below CV_RCOND of the largest (`largest`, else its own) left out, from the eigenvectors of its normal
+    matrix (as _cv_from_hat); and that largest singular value."""
+    eig, vectors = np.linalg.eigh(scaled.T @ scaled)
+    sv = np.sqrt(np.maximum(eig, 0.0))
+    top = float(sv.max()) if largest is None and len(sv) else (largest or 0.0)
+    keep = sv > CV_RCOND * top if len(sv) else np.zeros(0, dtype=bool)
+    return scaled @ (vectors[:, keep] / sv[keep]), top
+
+
+class GrowingFit:
+    """Terms added one at a time beside a fit, each tried without refitting the model: the residual,
+    the RSS and the leave-one-group-out CV of the model plus one term come from the current model's
+    orthonormal basis Q (n × r) and its hat matrix's diagonal blocks per group (kept), in O(n·r·k) for a
+    term of k columns instead of O(n·r²) for a refit and again for its CV. The numbers are those of
+    linear_fit and cv_rms_um's hat-matrix route (_cv_from_hat) up to rounding (the new term's part
+    outside the model is cut at CV_RCOND of the model's largest singular value, as there). For a dense
+    table only: `start` gives None when the groups are few (cv_rms_um refits each fold then) or one is
+    above CV_BLOCK_MAX rows."""
+
+    def __init__(self, data: CampaignData, fit: Fit, groups: np.ndarray):
+        self.data, self.fit = data, fit
+        a = weighted(data, design(data, fit.terms)[0])  # on weighted rows, as linear_fit and cv_rms_um
+        self.y = weighted(data, data.y - fixed_deviation(data, fit.terms))
+        norms = np.linalg.norm(a, axis=0)
+        norms[norms == 0] = 1.0
+        self.q, self.largest = _span(a / norms)
+        self.residual = self.y - self.q @ (self.q.T @ self.y)
+        self.rss = float(self.residual @ self.residual)
+        self.n_params = fit.n_params
+        self.terms = list(fit.terms)
+        _, index = np.unique(groups, return_inverse=True)
+        order = np.argsort(index, kind="stable")
+        sizes = np.bincount(index)
+        starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+        self.buckets: list[tuple[np.ndarray, np.ndarray]] = []  # (rows: groups × size, hat blocks)
+        for size in np.unique(sizes[sizes > 0]):
+            chosen = np.flatnonzero(sizes == size)
+            rows = order[starts[chosen][:, None] + np.arange(size)[None, :]]
+            hats = np.zeros((len(chosen), size, size))
+            step = max(1, 4_000_000 // (int(size) * max(self.q.shape[1], 1)))  # Q's rows gathered a part at a time
+            for lo in range(0, len(chosen), step):
+                qg = self.q[rows[lo:lo + step]]
+                hats[lo:lo + step] = qg @ np.swapaxes(qg, 1, 2)
+            self.buckets.append((rows, hats))
+        self.cv_um = self._cv(self.residual, [h for _, h in self.buckets])
+
+    @classmethod
+    def start(cls, data: CampaignData, fit: Fit, groups: np.ndarray) -> GrowingFit | None:
+        sizes = np.unique(groups, return_counts=True)[1]
+        if len(sizes) <= CV_FOLDS_REFITTED or int(sizes.max()) > CV_BLOCK_MAX:
+            return None
+        return cls(data, fit, groups)
+
+    def _cv(self, residual: np.ndarray, hats: list[np.ndarray]) -> float:
+        total = 0.0
+        for (rows, _), hat in zip(self.buckets, hats):
+            size = rows.shape[1]
+            block = np.eye(size) - hat
+            plain = np.trace(hat, axis1=1, axis2=2) < 1 - CV_RCOND
+            rg = residual[rows][..., None]
+            if plain.any():
+                total += float(np.sum(np.linalg.solve(block[plain], rg[plain]) ** 2))
+            if not plain.all():
+                total += float(np.sum((np.linalg.pinv(block[~plain], rcond=CV_RCOND) @ rg[~plain]) ** 2))
+        return float(np.sqrt(total / len(residual)))
+
+    def trial(self, term: Term) -> tuple[float, int, float, tuple]:
+        """The model plus `term`: its RSS (µm²), number of parameters, leave-one-group-out CV RMS (µm),
+        and what `add` needs to keep it."""
+        cols = weighted(self.data, term.columns(self.data))
+        norms = np.linalg.norm(cols, axis=0)
+        norms[norms == 0] = 1.0
+        scaled = cols / norms
+        outside = scaled - self.q @ (self.q.T @ scaled)
+        qt, _ = _span(outside, self.largest)
+        along = qt.T @ self.residual
+        residual = self.residual - qt @ along
+        hats = []
+        for rows, hat in self.buckets:
+            tg = qt[rows]
+            hats.append(hat + tg @ np.swapaxes(tg, 1, 2))
+        rss = float(residual @ residual)
+        n_params, cv = self.n_params + cols.shape[1], self._cv(residual, hats)
+        return rss, n_params, cv, (term, qt, residual, rss, n_params, cv, hats)
+
+    def add(self, kept: tuple) -> None:
+        """Keep a term tried (`trial`'s last value) in the model."""
+        term, qt, residual, rss, n_params, cv, hats = kept
+        self.q = np.hstack([self.q, qt])
+        self.residual, self.rss, self.n_params, self.cv_um = residual, rss, n_params, cv
+        self.buckets = [(rows, hat) for (rows, _), hat in zip(self.buckets, hats)]
+        self.terms.append(term)

@@ -438,15 +438,19 @@ def find_locals(data: CampaignData, fit: Fit) -> list[LocalError]:
     return found
 
 
-def passes(data: CampaignData, without: Fit, with_local: Fit) -> bool:
+def passes(data: CampaignData, without: Fit, with_local: Fit,
+           cv_um: tuple[float, float] | None = None) -> bool:
     """Does the local term in `with_local` pass the tests against the same model without it (BIC
-    and F-test with the search's look-elsewhere factor, leave-one-target-out CV)?"""
+    and F-test with the search's look-elsewhere factor, leave-one-target-out CV)? `cv_um`: the two
+    models' CV RMS (without, with) when already known (campaign.discovery.fit.GrowingFit)."""
     n, factor = len(data), look_elsewhere(data)
     delta_bic = bic(with_local, n) - bic(without, n) + 2 * math.log(factor)
     p_value = min(1.0, f_test_p(without, with_local, n) * factor)
+    if not (delta_bic < -BIC_MARGIN and p_value < ALPHA):
+        return False
     groups = data.target_index
-    return bool(delta_bic < -BIC_MARGIN and p_value < ALPHA
-                and cv_rms_um(data, with_local.terms, groups) < cv_rms_um(data, without.terms, groups))
+    before, after = cv_um or (cv_rms_um(data, without.terms, groups), cv_rms_um(data, with_local.terms, groups))
+    return bool(after < before)
 
 
 def describe(data: CampaignData, fit: Fit, name: str, **tests: float) -> LocalError:

@@ -13,6 +13,7 @@ Units: positions mm (deg), deviations µm (arcsec), times s (or point order).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -20,6 +21,7 @@ from campaign.discovery.data import CampaignData
 from campaign.discovery.effects import region_basis
 from campaign.discovery.fit import (
     Fit,
+    GrowingFit,
     Term,
     bic,
     cv_rms_um,
@@ -85,9 +87,17 @@ def region_terms(data: CampaignData, fit: Fit, located: Located | None) -> list[
     kept: list[Term] = []
     current = fit
     regions = sorted(candidate_regions(data, located), key=lambda r: -abs(r.peak_um))
+    growing = GrowingFit.start(data, fit, data.target_index) if regions else None
     for region in regions:
         term = region_term(data, region, len(kept) + 1)
         if term is None:
+            continue
+        if growing is not None:  # a dense table: each term tried beside the model without refitting it
+            rss, n_params, cv_um, grown = growing.trial(term)
+            before = replace(current, rss=growing.rss, n_params=growing.n_params)
+            if passes(data, before, replace(current, rss=rss, n_params=n_params), (growing.cv_um, cv_um)):
+                kept.append(term)
+                growing.add(grown)
             continue
         trial = linear_fit(data, [*current.terms, term])
         if passes(data, current, trial):
