@@ -56,7 +56,16 @@ from campaign.discovery.fit import (
     shape_bounds,
     standard_errors,
 )
-from campaign.discovery.local import LocalError, find_locals, look_elsewhere, passes, refit_local
+from campaign.discovery.local import MAX_REGIONS as MAX_LOCALS
+from campaign.discovery.local import (
+    LocalError,
+    describe,
+    find_local,
+    find_locals,
+    look_elsewhere,
+    passes,
+    refit_local,
+)
 from campaign.discovery.locate import Located, locate
 from campaign.discovery.records import Choice, LocalRival, StandIn, StartingEffect, Unresolved
 from campaign.discovery.unexplained import describe_region, region_terms, wave_over_part
@@ -652,6 +661,7 @@ def unnamed_beside_regions(data: CampaignData, result: Discovery) -> Discovery:
     at few targets."""
     if any("periodic_lead" in u.effects for u in result.unresolved):
         return result
+    changed = False
     for step in list(result.steps):
         name = step.effect
         if name not in {t.name for t in result.final.terms}:
@@ -662,28 +672,73 @@ def unnamed_beside_regions(data: CampaignData, result: Discovery) -> Discovery:
         index = 1 + sum(1 for t in result.final.terms if t.name.startswith("local_region"))
         terms = [replace(t, name=t.name.split("#")[0] + (f"#{index + k}" if index + k > 1 else ""))
                  for k, t in enumerate(region_terms(data, without, locate(data, data.y - without.prediction)))]
-        if not terms:
-            continue
-        local = linear_fit(data, [*without.terms, *terms])
         named_cv = cv_rms_um(data, result.final.terms, data.target_index)
-        local_cv = cv_rms_um(data, local.terms, data.target_index)
+        if terms:
+            local = linear_fit(data, [*without.terms, *terms])
+            local_cv = cv_rms_um(data, local.terms, data.target_index)
+        else:
+            local, local_cv = result.final, math.inf
+        fixed, found = bumps_and_steps_without(data, result, name)
+        if fixed is not None and (fixed_cv := cv_rms_um(data, fixed.terms, data.target_index)) <= min(named_cv,
+                                                                                                        local_cv):
+            result.steps.remove(step)
+            result.final, result.local_errors, changed = fixed, found, True
+            _note(result.notes, f"{name} is not named: local terms (bumps, steps) in its place predict left-out "
+                                f"targets as well (CV {fixed_cv:.3f} against {named_cv:.3f} {data.deviation_unit})")
+            continue
         if local_cv > named_cv:
             continue
         result.steps.remove(step)
-        result.final = local
+        result.final, changed = local, True
         result.local_errors = [e for e in result.local_errors if e.term.name in {t.name for t in local.terms}] + [
             describe_region(data, local, t.name, linear_fit(data, [u for u in local.terms if u.name != t.name]))
             for t in terms]
         _note(result.notes, f"{name} is not named: local terms over the regions it explains predict left-out targets "
                             f"as well (CV {local_cv:.3f} against {named_cv:.3f} {data.deviation_unit}); they stay in "
                             "the model as unexplained local errors")
-    if result.local_errors and any(e.kind == "region" for e in result.local_errors):
+    if changed:
         final = result.final
         result.gap_after_um = final.rms_um(data.y)
         result.noise_um = pooled_scatter_um(data, data.y - final.prediction)
         result.disagreement_after = disagreement(data, data.y - final.prediction)
         result.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_")}
     return result
+
+
+def bumps_and_steps_without(data: CampaignData, result: Discovery, name: str) -> tuple[Fit | None, list[LocalError]]:
+    """The final model without the named effect `name`, its bump and step terms refitted in its place
+    and more looked for beside them (campaign.discovery.local, up to MAX_REGIONS in all), each kept
+    only while it passes its tests beside the rest: the fit and its local errors; None when no local
+    term is left (the comparison is then with the region terms alone)."""
+    fit = linear_fit(data, [t for t in result.final.terms if t.name != name])
+    kept: list[LocalError] = []
+    for local in result.local_errors:
+        if local.kind == "region" or local.term.name not in {t.name for t in fit.terms}:
+            continue
+        fit, refined = refit_local(data, fit, local)
+        kept.append(refined)
+    taken = {int(e.term.name.split("#")[1]) if "#" in e.term.name else 1 for e in kept}
+    for index in range(1, MAX_LOCALS + 1):
+        if len(kept) >= MAX_LOCALS:
+            break
+        if index in taken:
+            continue
+        more = find_local(data, fit, index)
+        if more is None:
+            break
+        kept.append(more)
+        fit = linear_fit(data, [*fit.terms, more.term])
+    for local in list(kept):
+        without = linear_fit(data, [t for t in fit.terms if t.name != local.term.name])
+        if not passes(data, without, fit):
+            kept.remove(local)
+            fit = without
+    if not kept:
+        return None, []
+    return fit, [describe(data, fit, e.term.name, explained_pct=e.explained_pct, delta_bic=e.delta_bic,
+                          p_value=e.p_value, cv_before_um=e.cv_before_um, cv_after_um=e.cv_after_um,
+                          gap_without_um=e.gap_without_um) for e in kept] + [
+        e for e in result.local_errors if e.kind == "region" and e.term.name in {t.name for t in fit.terms}]
 
 
 def with_regions(data: CampaignData, model: ErrorModel, given: dict[str, set[str]], vocabulary: Discovery,
