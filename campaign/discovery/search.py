@@ -27,7 +27,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from campaign.discovery.data import CampaignData
+from campaign.discovery.data import CampaignData, keep_rows
 from campaign.discovery.effects import (
     ENVIRONMENT_RANGES,
     FORMS,
@@ -406,9 +406,35 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
     elif not failed and name == "periodic_lead" and (partial := wave_over_part(data, best)):
         cand.verdict = f"not named ({partial})"  # an identified period whose wave is not on every turn
         failed.append(partial)
+    elif not failed and name == "periodic_lead" and (single := one_target(data, current, best, name,
+                                                                            look_elsewhere)):
+        cand.verdict = f"not named ({single})"  # a screw lead shows on every turn, not at one target
+        failed.append(single)
     if env_note and not failed:  # which log it follows matters only when it explains something
         _note(notes, *env_note)
     return cand
+
+
+def one_target(data: CampaignData, without: Fit, fit: Fit, name: str, factor: float) -> str | None:
+    """Is what `name` explains in `fit` (beside `without`, the model before it) carried by one target?
+    The target whose squared residual it lowers most is left out and the term, its shape held, tested
+    again on the others (F-test, with the look-elsewhere factor `factor` of its search): why in
+    words when it is then no longer significant (ALPHA), None otherwise. An error that one target
+    alone shows is a local error seen there (narrower than the spacing of the targets), not an effect
+    that repeats along the travel."""
+    targets = data.target_index
+    gain = np.bincount(targets, (data.y - without.prediction) ** 2 - (data.y - fit.prediction) ** 2)
+    if len(gain) < 4:
+        return None
+    worst = int(np.argmax(gain))
+    rest = keep_rows(data, targets != worst)
+    others = [t for t in fit.terms if t.name != name]
+    p_value = min(1.0, f_test_p(linear_fit(rest, others), linear_fit(rest, fit.terms), len(rest)) * factor)
+    if p_value < ALPHA:
+        return None
+    at = float(np.mean(data.x[targets == worst]))
+    return (f"carried by one target: without the one at {at:.4g} {data.position_unit} it is not significant "
+            f"(p = {p_value:.2g})")
 
 
 def gate_failures(data: CampaignData, fit: Fit, name: str) -> list[str]:
