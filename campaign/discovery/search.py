@@ -407,7 +407,8 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
         cand.verdict = f"not named ({partial})"  # an identified period whose wave is not on every turn
         failed.append(partial)
     elif not failed and name == "periodic_lead" and (single := one_target(data, current, best, name,
-                                                                            look_elsewhere)):
+                                                                            look_elsewhere)
+                                                     or zero_at_targets(data, best, name)):
         cand.verdict = f"not named ({single})"  # a screw lead shows on every turn, not at one target
         failed.append(single)
     if env_note and not failed:  # which log it follows matters only when it explains something
@@ -435,6 +436,33 @@ def one_target(data: CampaignData, without: Fit, fit: Fit, name: str, factor: fl
     at = float(np.mean(data.x[targets == worst]))
     return (f"carried by one target: without the one at {at:.4g} {data.position_unit} it is not significant "
             f"(p = {p_value:.2g})")
+
+
+WAVE_Z = 3.0
+"""A fitted wave whose mean square at the targets is this many standard errors below that of a wave
+sampled at random phases (half its amplitude squared) is not a screw lead seen at the targets."""
+
+
+def zero_at_targets(data: CampaignData, fit: Fit, name: str) -> str | None:
+    """Is the wave `name` of `fit` near zero at most targets, its amplitude carried by a few? A screw
+    lead sampled at targets that do not follow its period is seen at random phases: the mean of
+    sin² over N targets is 1/2 with a standard error of (1/√8)/√N. A period chosen so that most
+    targets sit near its zero crossings fits what a few targets show (a local error), not a wave that
+    repeats on every turn: why in words when the mean is WAVE_Z standard errors below 1/2."""
+    i = next(k for k, t in enumerate(fit.terms) if t.name == name)
+    coefs = fit.coefs[i]
+    amplitude = float(np.hypot(*coefs[:2])) if len(coefs) >= 2 else float(abs(coefs[0]))
+    if amplitude <= 0:
+        return None
+    wave = fit.terms[i].columns(data) @ coefs
+    _, where = np.unique(np.round(data.x, 6), return_inverse=True)
+    at_targets = np.bincount(where, wave) / np.bincount(where)
+    share = float(np.mean(at_targets**2)) / amplitude**2
+    z = (share - 0.5) / (math.sqrt(1 / 8) / math.sqrt(len(at_targets)))
+    if z >= -WAVE_Z:
+        return None
+    return (f"near zero at most targets: its mean square there is {share:.2f} of its amplitude squared, where a "
+            f"lead seen at random phases gives 0.5 ± {math.sqrt(1 / 8 / len(at_targets)):.2f}")
 
 
 def gate_failures(data: CampaignData, fit: Fit, name: str) -> list[str]:
@@ -683,10 +711,15 @@ def unnamed_beside_regions(data: CampaignData, result: Discovery) -> Discovery:
     found (campaign.discovery.unexplained, each passing its tests); when that model's
     leave-one-target-out CV is not above the named one's, the effect is not named and the regions
     stay in the model as unexplained local errors (a note says so), in place of the effect and of any
-    bump or step term beside it. Not beside an unresolved period: the regions may be that period seen
-    at few targets."""
-    if any("periodic_lead" in u.effects for u in result.unresolved):
+    bump or step term beside it. Beside an unresolved period the regions may be that period seen at few
+    targets: they are then also listed as its rivals (add_local_rivals)."""
+    periodic = any("periodic_lead" in u.effects for u in result.unresolved)
+    # beside an unresolved period both sides are compared with its best candidate in (a stand-in, not
+    # named): otherwise the regions would be credited with the period's residual
+    period = next((c for c in result.remaining if c.name == "periodic_lead" and c.fit is not None), None)
+    if periodic and period is None:
         return result
+    beside = [t for t in period.fitted.terms if t.name == "periodic_lead"] if periodic and period else []
     changed = False
     for step in list(result.steps):
         name = step.effect
@@ -694,17 +727,17 @@ def unnamed_beside_regions(data: CampaignData, result: Discovery) -> Discovery:
             continue
         # without it, and without the fixed-shape local terms (a bump or a step it may stand beside)
         without = linear_fit(data, [t for t in result.final.terms if t.name != name
-                                    and not t.name.startswith("local_error")])
+                                    and not t.name.startswith("local_error")] + beside)
         index = 1 + sum(1 for t in result.final.terms if t.name.startswith("local_region"))
         terms = [replace(t, name=t.name.split("#")[0] + (f"#{index + k}" if index + k > 1 else ""))
                  for k, t in enumerate(region_terms(data, without, locate(data, data.y - without.prediction)))]
-        named_cv = cv_rms_um(data, result.final.terms, data.target_index)
+        named_cv = cv_rms_um(data, [*result.final.terms, *beside], data.target_index)
         if terms:
-            local = linear_fit(data, [*without.terms, *terms])
-            local_cv = cv_rms_um(data, local.terms, data.target_index)
+            local = linear_fit(data, [t for t in without.terms if t not in beside] + terms)
+            local_cv = cv_rms_um(data, [*local.terms, *beside], data.target_index)
         else:
             local, local_cv = result.final, math.inf
-        fixed, found = bumps_and_steps_without(data, result, name)
+        fixed, found = (None, []) if beside else bumps_and_steps_without(data, result, name)
         if fixed is not None and (fixed_cv := cv_rms_um(data, fixed.terms, data.target_index)) <= min(named_cv,
                                                                                                         local_cv):
             result.steps.remove(step)
@@ -722,6 +755,8 @@ def unnamed_beside_regions(data: CampaignData, result: Discovery) -> Discovery:
         _note(result.notes, f"{name} is not named: local terms over the regions it explains predict left-out targets "
                             f"as well (CV {local_cv:.3f} against {named_cv:.3f} {data.deviation_unit}); they stay in "
                             "the model as unexplained local errors")
+    if changed and periodic:
+        add_local_rivals(result, result.local_errors)
     if changed:
         final = result.final
         result.gap_after_um = final.rms_um(data.y)
