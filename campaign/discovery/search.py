@@ -745,7 +745,13 @@ def unnamed_beside_regions(data: CampaignData, result: Discovery) -> Discovery:
             _note(result.notes, f"{name} is not named: local terms (bumps, steps) in its place predict left-out "
                                 f"targets as well (CV {fixed_cv:.3f} against {named_cv:.3f} {data.deviation_unit})")
             continue
-        if local_cv > named_cv:
+        if local_cv > named_cv and beside:
+            # the regions may stand for the unresolved period too: is the effect still needed beside them?
+            regions, terms = needed_beside_regions(data, result.final, name, index)
+            if regions is None:
+                continue
+            local, local_cv = regions, cv_rms_um(data, regions.terms, data.target_index)
+        elif local_cv > named_cv:
             continue
         result.steps.remove(step)
         result.final, changed = local, True
@@ -764,6 +770,22 @@ def unnamed_beside_regions(data: CampaignData, result: Discovery) -> Discovery:
         result.disagreement_after = disagreement(data, data.y - final.prediction)
         result.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_")}
     return result
+
+
+def needed_beside_regions(data: CampaignData, final: Fit, name: str, index: int) -> tuple[Fit | None, list[Term]]:
+    """Beside an unresolved period: region terms located beside `final` without `name` (and without any
+    period), and the fit of them without `name` when `name` added to them does not predict left-out
+    targets better (None when it does, or when no region term passes its tests)."""
+    without = linear_fit(data, [t for t in final.terms if t.name != name and not t.name.startswith("local_error")])
+    terms = [replace(t, name=t.name.split("#")[0] + (f"#{index + k}" if index + k > 1 else ""))
+             for k, t in enumerate(region_terms(data, without, locate(data, data.y - without.prediction)))]
+    if not terms:
+        return None, []
+    regions = linear_fit(data, [*without.terms, *terms])
+    named = linear_fit(data, [*regions.terms, next(t for t in final.terms if t.name == name)])
+    if cv_rms_um(data, named.terms, data.target_index) < cv_rms_um(data, regions.terms, data.target_index):
+        return None, []
+    return regions, terms
 
 
 def bumps_and_steps_without(data: CampaignData, result: Discovery, name: str) -> tuple[Fit | None, list[LocalError]]:
