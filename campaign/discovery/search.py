@@ -612,6 +612,9 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     result.located_before = start_located if result.start is vocabulary.start else locate(
         data, data.y - result.start.prediction)
     result.located_after = locate(data, data.y - result.final.prediction)
+    if any("periodic_lead" in u.effects for u in result.unresolved):
+        # what single targets show beside an unresolved period is that period seen at few targets: said there
+        result.located_after.regions[:] = [r for r in result.located_after.regions if not r.one_target]
     result.noise_measured = noise_measured(data)
     return result
 
