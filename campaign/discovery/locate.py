@@ -79,7 +79,8 @@ class Region:
     def as_dict(self) -> dict:
         return {"over": self.over, "what": self.what, "from": round(self.start, 3), "to": round(self.end, 3),
                 "peak_um": round(self.peak_um, 4), "peak_at": round(self.peak_at, 3), "direction": self.direction,
-                "shape": self.shape, "unit": self.unit, "sentence": self.sentence()}
+                "shape": self.shape, "unit": self.unit, "sentence": self.sentence(),
+                **({"one_target": True} if self.one_target else {})}
 
 
 def _article(shape: str) -> str:
