@@ -735,6 +735,8 @@ def unnamed_beside_regions(data: CampaignData, result: Discovery) -> Discovery:
         terms = [replace(t, name=t.name.split("#")[0] + (f"#{index + k}" if index + k > 1 else ""))
                  for k, t in enumerate(region_terms(data, without, locate(data, data.y - without.prediction)))]
         named_cv = cv_rms_um(data, [*result.final.terms, *beside], data.target_index)
+        if not all(within_targets(data, t) for t in terms):
+            terms = []  # a region that reaches the end of the travel may be the effect's own slope or bow
         if terms:
             local = linear_fit(data, [t for t in without.terms if t not in beside] + terms)
             local_cv = cv_rms_um(data, [*local.terms, *beside], data.target_index)
@@ -775,6 +777,21 @@ def unnamed_beside_regions(data: CampaignData, result: Discovery) -> Discovery:
     return result
 
 
+def within_targets(data: CampaignData, term: Term) -> bool:
+    """Does the local term `term` (a bump from one width below its centre to one above, a step over its
+    rise, a region from its start to its end) lie between the outer targets? One that reaches past
+    them is seen on one side only: the data cannot tell it from a slope or a bow rising to the end of
+    the travel, which the vocabulary holds; it may not take a named effect's place."""
+    first, last = float(np.min(data.x)), float(np.max(data.x))
+    shape = term.shape
+    if "start_mm" in shape and "end_mm" in shape:
+        lo, hi = shape["start_mm"], shape["end_mm"]
+    else:
+        reach = shape["width_mm"] if "step" not in term.name else shape["width_mm"] / 2
+        lo, hi = shape["centre_mm"] - reach, shape["centre_mm"] + reach
+    return bool(lo > first and hi < last)
+
+
 def needed_beside_regions(data: CampaignData, final: Fit, name: str, index: int) -> tuple[Fit | None, list[Term]]:
     """Beside an unresolved period: region terms located beside `final` without `name` (and without any
     period), and the fit of them without `name` when `name` added to them does not predict left-out
@@ -782,7 +799,7 @@ def needed_beside_regions(data: CampaignData, final: Fit, name: str, index: int)
     without = linear_fit(data, [t for t in final.terms if t.name != name and not t.name.startswith("local_error")])
     terms = [replace(t, name=t.name.split("#")[0] + (f"#{index + k}" if index + k > 1 else ""))
              for k, t in enumerate(region_terms(data, without, locate(data, data.y - without.prediction)))]
-    if not terms:
+    if not terms or not all(within_targets(data, t) for t in terms):
         return None, []
     regions = linear_fit(data, [*without.terms, *terms])
     named = linear_fit(data, [*regions.terms, next(t for t in final.terms if t.name == name)])
@@ -810,7 +827,7 @@ def bumps_and_steps_without(data: CampaignData, result: Discovery, name: str) ->
         if index in taken:
             continue
         more = find_local(data, fit, index)
-        if more is None:
+        if more is None or not within_targets(data, more.term):
             break
         kept.append(more)
         fit = linear_fit(data, [*fit.terms, more.term])
