@@ -38,9 +38,6 @@ def test_null_machines_name_nothing_and_locate_nothing():
 
 
 @pytest.mark.machine  # 36 simulated campaigns and discoveries
-@pytest.mark.xfail(strict=True, reason="issue 34's goal, not met yet: 3 of these 36 draws (8 %) name an effect the "
-                   "machine lacks (the bow for a skewed bump: on 11 golden targets alone, on 21 beside a step term); "
-                   "bench/discovery_draws.py, seed 0: 5 of 144 (96.5 % name none)")
 def test_out_of_vocabulary_draws_name_no_effect_the_machine_lacks():
     """Over random out-of-vocabulary draws (every shape, 11 and 21 targets, golden and uniform): no
     vocabulary effect the machine lacks is named in at least 95 % of draws."""

@@ -145,3 +145,27 @@ def test_the_cost_is_linear_in_the_rows():
     regions = locate(data, y).regions
     assert time.perf_counter() - started < 20.0  # about 1.5 s on a quiet machine
     assert len(regions) == 1 and abs(regions[0].peak_at - 300.0) < 3.0 and regions[0].shape == "bump", regions
+
+
+@pytest.mark.parametrize("seed", range(40, 46))
+def test_an_error_only_one_target_sees_is_located_at_that_target(seed):
+    """An error narrower than the spacing of the targets (one target reads 2-4 µm off, its neighbours
+    do not) cannot be followed by a smoother cross-validated by leaving targets out; the locator says
+    where it is from that target's mean against its own noise: a region from the target before to the
+    one after, holding the target, marked as one target's."""
+    rng, count, noise, golden, _, _, size = drawn(seed)
+    probe = table(rng, count, lambda x, d, t: 0.0 * x, noise, golden)
+    targets = np.unique(probe.x)
+    at = float(targets[int(rng.integers(2, count - 2))])
+    data = table(rng, count, lambda x, d, t: size * (np.abs(x - at) < 1e-6), noise, golden)
+    regions = [r for r in locate(data, detrended(data)).along if r.start <= at <= r.end]
+    assert regions, locate(data, detrended(data)).along
+    assert any(r.one_target and r.peak_at == pytest.approx(at) and r.direction == "both" for r in regions)
+
+
+@pytest.mark.parametrize("seed", range(50, 56))
+def test_no_target_is_odd_on_a_smooth_table(seed):
+    """A bow and a reversal with noise only: no target is said to be odd."""
+    rng, count, noise, golden, _, _, _ = drawn(seed)
+    data = table(rng, count, lambda x, d, t: 1.5 * ((x - 300.0) / 300.0) ** 2 - 0.8 * d, noise, golden)
+    assert not [r for r in locate(data, detrended(data)).along if r.one_target]

@@ -114,9 +114,12 @@ class LocalError:
     @property
     def region_mm(self) -> tuple[float, float]:
         """Where it acts: a bump from one width below its centre to one above; a step over its
-        rise (at least a millimetre either side)."""
+        rise (at least a millimetre either side), or, when no target lies on its rise, between the
+        two targets either side of it (where between them the data do not say)."""
         if self.kind == "region":
             return self.params["start_mm"], self.params["end_mm"]
+        if self.kind == "step" and self.between_mm is not None:
+            return self.between_mm
         c, w = self.params["centre_mm"], self.params["width_mm"]
         half = w if self.kind == "bump" else max(w / 2, 1.0)
         return c - half, c + half

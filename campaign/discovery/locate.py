@@ -58,6 +58,8 @@ class Region:
     shape: str
     unit: str = "mm"
     deviation_unit: str = "µm"
+    one_target: bool = False
+    """Shown by one target alone (odd_targets): narrower than the spacing of the targets."""
 
     @property
     def centre(self) -> float:
@@ -78,7 +80,8 @@ class Region:
     def as_dict(self) -> dict:
         return {"over": self.over, "what": self.what, "from": round(self.start, 3), "to": round(self.end, 3),
                 "peak_um": round(self.peak_um, 4), "peak_at": round(self.peak_at, 3), "direction": self.direction,
-                "shape": self.shape, "unit": self.unit, "sentence": self.sentence()}
+                "shape": self.shape, "unit": self.unit, "sentence": self.sentence(),
+                **({"one_target": True} if self.one_target else {})}
 
 
 def _article(shape: str) -> str:
@@ -492,6 +495,57 @@ def _steps_joined(regions: list[tuple[Region, np.ndarray]], at: np.ndarray, trav
     return out
 
 
+def odd_targets(data: CampaignData, residual: np.ndarray, noise_um: float, curves: list[Curve],
+                regions: list[Region]) -> list[Region]:
+    """Targets whose mean residual departs from the smoothed curve of its direction beyond their own
+    noise (noise / √points, the normal quantile of BAND_ALPHA over every target and direction), outside
+    the regions already found: an error narrower than the spacing of the targets, which one target
+    shows and its neighbours do not (the smoother, cross-validated by leaving targets out, cannot
+    follow it). Each is a bump from the target before to the one after (where between them it begins
+    and ends the data do not say), in the direction(s) that show it."""
+    from scipy.stats import norm
+
+    targets = np.unique(np.round(data.x, 6))
+    if len(targets) < 4 or noise_um <= 0:
+        return []
+    by_direction = {c.direction: c for c in curves if c.over == "position"}
+    departures: dict[int, dict[str, tuple[float, float]]] = {}
+    tests = 0
+    for sign, name in DIRECTIONS.items():
+        curve = by_direction.get(name)
+        if curve is None:
+            continue
+        pick = data.d == sign
+        where = np.searchsorted(targets, np.round(data.x[pick], 6))
+        count = np.bincount(where, minlength=len(targets))
+        seen = count > 0
+        means = np.bincount(where, residual[pick], minlength=len(targets))[seen] / count[seen]
+        left = means - np.interp(targets[seen], curve.at, curve.value_um)
+        z = left / (noise_um / np.sqrt(count[seen]))
+        tests += int(seen.sum())
+        for at, zk, dk in zip(np.flatnonzero(seen), z, left):
+            departures.setdefault(int(at), {})[name] = (float(zk), float(dk))
+    limit = float(norm.isf(BAND_ALPHA / (2 * max(tests, 1))))
+    out = []
+    for k, sides in sorted(departures.items()):  # k: the target's index
+        odd = {name: v for name, v in sides.items() if abs(v[0]) > limit}
+        if not odd:
+            continue
+        x = float(targets[k])
+        if any(r.start <= x <= r.end for r in regions):
+            continue
+        signs = {math.copysign(1.0, v[1]) for v in sides.values()}
+        both = len(odd) == 2 or (len(sides) == 2 and len(signs) == 1
+                                 and all(abs(v[0]) > limit / 2 for v in sides.values()))
+        direction = "both" if both else next(iter(odd))
+        peak = float(np.mean([v[1] for v in (sides if both else odd).values()]))
+        start = float(targets[k - 1 if k > 0 else 0])
+        end = float(targets[k + 1 if k + 1 < len(targets) else k])
+        out.append(Region("position", "deviation", start, end, peak, x, direction, "bump", data.position_unit,
+                          data.deviation_unit, one_target=True))
+    return out
+
+
 def locate(data: CampaignData, residual: np.ndarray) -> Located:
     """The regions where `residual` (µm per point: measured - model) departs from zero beyond the
     noise, along the axis per direction and in time, and the curves they come from."""
@@ -502,6 +556,7 @@ def locate(data: CampaignData, residual: np.ndarray) -> Located:
     curves = position_curves(data, residual, noise)
     travel = float(np.ptp(data.x)) or 1.0
     regions = _regions_of(curves, travel, data.position_unit, data.deviation_unit, SMALLEST * noise)
+    regions = sorted(regions + odd_targets(data, residual, noise, curves, regions), key=lambda r: r.start)
     timed = time_curves(data, residual, noise)
     time_unit = "s" if data.time_source == "time_s" else "points"
     for curve in timed:

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from campaign.discovery.data import CampaignData
+from campaign.discovery.data import CampaignData, keep_rows
 from campaign.discovery.effects import (
     ENVIRONMENT_RANGES,
     FORMS,
@@ -56,7 +56,16 @@ from campaign.discovery.fit import (
     shape_bounds,
     standard_errors,
 )
-from campaign.discovery.local import LocalError, find_locals, look_elsewhere, passes, refit_local
+from campaign.discovery.local import MAX_REGIONS as MAX_LOCALS
+from campaign.discovery.local import (
+    LocalError,
+    describe,
+    find_local,
+    find_locals,
+    look_elsewhere,
+    passes,
+    refit_local,
+)
 from campaign.discovery.locate import Located, locate
 from campaign.discovery.records import Choice, LocalRival, StandIn, StartingEffect, Unresolved
 from campaign.discovery.unexplained import describe_region, region_terms, wave_over_part
@@ -397,9 +406,63 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
     elif not failed and name == "periodic_lead" and (partial := wave_over_part(data, best)):
         cand.verdict = f"not named ({partial})"  # an identified period whose wave is not on every turn
         failed.append(partial)
+    elif not failed and name == "periodic_lead" and (single := one_target(data, current, best, name,
+                                                                            look_elsewhere)
+                                                     or zero_at_targets(data, best, name)):
+        cand.verdict = f"not named ({single})"  # a screw lead shows on every turn, not at one target
+        failed.append(single)
     if env_note and not failed:  # which log it follows matters only when it explains something
         _note(notes, *env_note)
     return cand
+
+
+def one_target(data: CampaignData, without: Fit, fit: Fit, name: str, factor: float) -> str | None:
+    """Is what `name` explains in `fit` (beside `without`, the model before it) carried by one target?
+    The target whose squared residual it lowers most is left out and the term, its shape held, tested
+    again on the others (F-test, with the look-elsewhere factor `factor` of its search): why in
+    words when it is then no longer significant (ALPHA), None otherwise. An error that one target
+    alone shows is a local error seen there (narrower than the spacing of the targets), not an effect
+    that repeats along the travel."""
+    targets = data.target_index
+    gain = np.bincount(targets, (data.y - without.prediction) ** 2 - (data.y - fit.prediction) ** 2)
+    if len(gain) < 4:
+        return None
+    worst = int(np.argmax(gain))
+    rest = keep_rows(data, targets != worst)
+    others = [t for t in fit.terms if t.name != name]
+    p_value = min(1.0, f_test_p(linear_fit(rest, others), linear_fit(rest, fit.terms), len(rest)) * factor)
+    if p_value < ALPHA:
+        return None
+    at = float(np.mean(data.x[targets == worst]))
+    return (f"carried by one target: without the one at {at:.4g} {data.position_unit} it is not significant "
+            f"(p = {p_value:.2g})")
+
+
+WAVE_Z = 3.0
+"""A fitted wave whose mean square at the targets is this many standard errors below that of a wave
+sampled at random phases (half its amplitude squared) is not a screw lead seen at the targets."""
+
+
+def zero_at_targets(data: CampaignData, fit: Fit, name: str) -> str | None:
+    """Is the wave `name` of `fit` near zero at most targets, its amplitude carried by a few? A screw
+    lead sampled at targets that do not follow its period is seen at random phases: the mean of
+    sin² over N targets is 1/2 with a standard error of (1/√8)/√N. A period chosen so that most
+    targets sit near its zero crossings fits what a few targets show (a local error), not a wave that
+    repeats on every turn: why in words when the mean is WAVE_Z standard errors below 1/2."""
+    i = next(k for k, t in enumerate(fit.terms) if t.name == name)
+    coefs = fit.coefs[i]
+    amplitude = float(np.hypot(*coefs[:2])) if len(coefs) >= 2 else float(abs(coefs[0]))
+    if amplitude <= 0:
+        return None
+    wave = fit.terms[i].columns(data) @ coefs
+    _, where = np.unique(np.round(data.x, 6), return_inverse=True)
+    at_targets = np.bincount(where, wave) / np.bincount(where)
+    share = float(np.mean(at_targets**2)) / amplitude**2
+    z = (share - 0.5) / (math.sqrt(1 / 8) / math.sqrt(len(at_targets)))
+    if z >= -WAVE_Z:
+        return None
+    return (f"near zero at most targets: its mean square there is {share:.2f} of its amplitude squared, where a "
+            f"lead seen at random phases gives 0.5 ± {math.sqrt(1 / 8 / len(at_targets)):.2f}")
 
 
 def gate_failures(data: CampaignData, fit: Fit, name: str) -> list[str]:
@@ -549,6 +612,9 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     result.located_before = start_located if result.start is vocabulary.start else locate(
         data, data.y - result.start.prediction)
     result.located_after = locate(data, data.y - result.final.prediction)
+    if any("periodic_lead" in u.effects for u in result.unresolved):
+        # what single targets show beside an unresolved period is that period seen at few targets: said there
+        result.located_after.regions[:] = [r for r in result.located_after.regions if not r.one_target]
     result.noise_measured = noise_measured(data)
     return result
 
@@ -648,42 +714,134 @@ def unnamed_beside_regions(data: CampaignData, result: Discovery) -> Discovery:
     found (campaign.discovery.unexplained, each passing its tests); when that model's
     leave-one-target-out CV is not above the named one's, the effect is not named and the regions
     stay in the model as unexplained local errors (a note says so), in place of the effect and of any
-    bump or step term beside it. Not beside an unresolved period: the regions may be that period seen
-    at few targets."""
-    if any("periodic_lead" in u.effects for u in result.unresolved):
+    bump or step term beside it. Beside an unresolved period the regions may be that period seen at few
+    targets: they are then also listed as its rivals (add_local_rivals)."""
+    periodic = any("periodic_lead" in u.effects for u in result.unresolved)
+    # beside an unresolved period both sides are compared with its best candidate in (a stand-in, not
+    # named): otherwise the regions would be credited with the period's residual
+    period = next((c for c in result.remaining if c.name == "periodic_lead" and c.fit is not None), None)
+    if periodic and period is None:
         return result
+    beside = [t for t in period.fitted.terms if t.name == "periodic_lead"] if periodic and period else []
+    changed = False
     for step in list(result.steps):
         name = step.effect
         if name not in {t.name for t in result.final.terms}:
             continue
         # without it, and without the fixed-shape local terms (a bump or a step it may stand beside)
         without = linear_fit(data, [t for t in result.final.terms if t.name != name
-                                    and not t.name.startswith("local_error")])
+                                    and not t.name.startswith("local_error")] + beside)
         index = 1 + sum(1 for t in result.final.terms if t.name.startswith("local_region"))
         terms = [replace(t, name=t.name.split("#")[0] + (f"#{index + k}" if index + k > 1 else ""))
                  for k, t in enumerate(region_terms(data, without, locate(data, data.y - without.prediction)))]
-        if not terms:
+        named_cv = cv_rms_um(data, [*result.final.terms, *beside], data.target_index)
+        if not all(within_targets(data, t) for t in terms):
+            terms = []  # a region that reaches the end of the travel may be the effect's own slope or bow
+        if terms:
+            local = linear_fit(data, [t for t in without.terms if t not in beside] + terms)
+            local_cv = cv_rms_um(data, [*local.terms, *beside], data.target_index)
+        else:
+            local, local_cv = result.final, math.inf
+        fixed, found = (None, []) if beside else bumps_and_steps_without(data, result, name)
+        if fixed is not None and (fixed_cv := cv_rms_um(data, fixed.terms, data.target_index)) <= min(named_cv,
+                                                                                                        local_cv):
+            result.steps.remove(step)
+            result.final, result.local_errors, changed = fixed, found, True
+            _note(result.notes, f"{name} is not named: local terms (bumps, steps) in its place predict left-out "
+                                f"targets as well (CV {fixed_cv:.3f} against {named_cv:.3f} {data.deviation_unit})")
             continue
-        local = linear_fit(data, [*without.terms, *terms])
-        named_cv = cv_rms_um(data, result.final.terms, data.target_index)
-        local_cv = cv_rms_um(data, local.terms, data.target_index)
-        if local_cv > named_cv:
+        if local_cv > named_cv and beside:
+            # the regions may stand for the unresolved period too: is the effect still needed beside them?
+            regions, terms = needed_beside_regions(data, result.final, name, index)
+            if regions is None:
+                continue
+            local, local_cv = regions, cv_rms_um(data, regions.terms, data.target_index)
+        elif local_cv > named_cv:
             continue
         result.steps.remove(step)
-        result.final = local
+        result.final, changed = local, True
         result.local_errors = [e for e in result.local_errors if e.term.name in {t.name for t in local.terms}] + [
             describe_region(data, local, t.name, linear_fit(data, [u for u in local.terms if u.name != t.name]))
             for t in terms]
         _note(result.notes, f"{name} is not named: local terms over the regions it explains predict left-out targets "
                             f"as well (CV {local_cv:.3f} against {named_cv:.3f} {data.deviation_unit}); they stay in "
                             "the model as unexplained local errors")
-    if result.local_errors and any(e.kind == "region" for e in result.local_errors):
+    if changed and periodic:
+        add_local_rivals(result, result.local_errors)
+    if changed:
         final = result.final
         result.gap_after_um = final.rms_um(data.y)
         result.noise_um = pooled_scatter_um(data, data.y - final.prediction)
         result.disagreement_after = disagreement(data, data.y - final.prediction)
         result.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_")}
     return result
+
+
+def within_targets(data: CampaignData, term: Term) -> bool:
+    """Does the local term `term` (a bump from one width below its centre to one above, a step over its
+    rise, a region from its start to its end) lie between the outer targets? One that reaches past
+    them is seen on one side only: the data cannot tell it from a slope or a bow rising to the end of
+    the travel, which the vocabulary holds; it may not take a named effect's place."""
+    first, last = float(np.min(data.x)), float(np.max(data.x))
+    shape = term.shape
+    if "start_mm" in shape and "end_mm" in shape:
+        lo, hi = shape["start_mm"], shape["end_mm"]
+    else:
+        reach = shape["width_mm"] if "step" not in term.name else shape["width_mm"] / 2
+        lo, hi = shape["centre_mm"] - reach, shape["centre_mm"] + reach
+    return bool(lo > first and hi < last)
+
+
+def needed_beside_regions(data: CampaignData, final: Fit, name: str, index: int) -> tuple[Fit | None, list[Term]]:
+    """Beside an unresolved period: region terms located beside `final` without `name` (and without any
+    period), and the fit of them without `name` when `name` added to them does not predict left-out
+    targets better (None when it does, or when no region term passes its tests)."""
+    without = linear_fit(data, [t for t in final.terms if t.name != name and not t.name.startswith("local_error")])
+    terms = [replace(t, name=t.name.split("#")[0] + (f"#{index + k}" if index + k > 1 else ""))
+             for k, t in enumerate(region_terms(data, without, locate(data, data.y - without.prediction)))]
+    if not terms or not all(within_targets(data, t) for t in terms):
+        return None, []
+    regions = linear_fit(data, [*without.terms, *terms])
+    named = linear_fit(data, [*regions.terms, next(t for t in final.terms if t.name == name)])
+    if cv_rms_um(data, named.terms, data.target_index) < cv_rms_um(data, regions.terms, data.target_index):
+        return None, []
+    return regions, terms
+
+
+def bumps_and_steps_without(data: CampaignData, result: Discovery, name: str) -> tuple[Fit | None, list[LocalError]]:
+    """The final model without the named effect `name`, its bump and step terms refitted in its place
+    and more looked for beside them (campaign.discovery.local, up to MAX_REGIONS in all), each kept
+    only while it passes its tests beside the rest: the fit and its local errors; None when no local
+    term is left (the comparison is then with the region terms alone)."""
+    fit = linear_fit(data, [t for t in result.final.terms if t.name != name])
+    kept: list[LocalError] = []
+    for local in result.local_errors:
+        if local.kind == "region" or local.term.name not in {t.name for t in fit.terms}:
+            continue
+        fit, refined = refit_local(data, fit, local)
+        kept.append(refined)
+    taken = {int(e.term.name.split("#")[1]) if "#" in e.term.name else 1 for e in kept}
+    for index in range(1, MAX_LOCALS + 1):
+        if len(kept) >= MAX_LOCALS:
+            break
+        if index in taken:
+            continue
+        more = find_local(data, fit, index)
+        if more is None or not within_targets(data, more.term):
+            break
+        kept.append(more)
+        fit = linear_fit(data, [*fit.terms, more.term])
+    for local in list(kept):
+        without = linear_fit(data, [t for t in fit.terms if t.name != local.term.name])
+        if not passes(data, without, fit):
+            kept.remove(local)
+            fit = without
+    if not kept:
+        return None, []
+    return fit, [describe(data, fit, e.term.name, explained_pct=e.explained_pct, delta_bic=e.delta_bic,
+                          p_value=e.p_value, cv_before_um=e.cv_before_um, cv_after_um=e.cv_after_um,
+                          gap_without_um=e.gap_without_um) for e in kept] + [
+        e for e in result.local_errors if e.kind == "region" and e.term.name in {t.name for t in fit.terms}]
 
 
 def with_regions(data: CampaignData, model: ErrorModel, given: dict[str, set[str]], vocabulary: Discovery,

@@ -48,11 +48,13 @@ def _targets(data: CampaignData) -> np.ndarray:
 
 def candidate_regions(data: CampaignData, located: Located | None) -> list[Region]:
     """The located regions along the axis a local term may hold: not a reversal over the travel, not
-    wider than REGION_SHARE of it."""
+    wider than REGION_SHARE of it, not one target's odd reading (a local error there, or an aliased
+    period: a term over it and its neighbours would fit either)."""
     if located is None:
         return []
     travel = float(np.ptp(data.x)) or 1.0
-    return [r for r in located.along if r.direction != "opposite" and r.end - r.start <= REGION_SHARE * travel]
+    return [r for r in located.along if r.direction != "opposite" and r.end - r.start <= REGION_SHARE * travel
+            and not r.one_target]
 
 
 def region_term(data: CampaignData, region: Region, index: int) -> Term | None:
