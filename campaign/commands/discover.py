@@ -364,8 +364,9 @@ def located_lines(result: Discovery) -> list[str]:
     """Where the campaign departs from the starting model, model-free, before anything is named; and
     what the final model leaves unexplained, with its regions (only when there is some)."""
     lines = []
-    if result.located_before is not None:
-        lines.append(f"located: {regions_said(result.located_before)}")
+    if result.located_before is not None:  # after a named line: said as what it is, the departures before naming
+        said = "located before naming" if result.steps and result.located_before.regions else "located"
+        lines.append(f"{said}: {regions_said(result.located_before)}")
     if result.located_after is not None and result.located_after.regions:
         lines.append(f"[yellow]left unexplained:[/] {regions_said(result.located_after)}")
     return lines
