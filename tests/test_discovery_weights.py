@@ -81,6 +81,11 @@ def test_a_table_and_a_scan_profile_name_nothing_the_machine_lacks(tmp_path, cap
     first, profile = _tables(tmp_path, seed, machine, rng)
     assert main(["discover", first, profile, "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
+    assert main(["discover", profile, first, "--json"]) == 0  # the other order: the same conclusions
+    reversed_ = json.loads(capsys.readouterr().out)
+    assert set(reversed_["added"]) == set(out["added"]), (reversed_["added"], out["added"])
+    assert not reversed_["located"]["after"]["regions"], reversed_["located"]["after"]["regions"]
+    assert not reversed_["local_errors"] and len(reversed_["unresolved"]) == len(out["unresolved"])
     assert set(out["added"]) <= set(machine) - {"noise"}, (out["added"], machine)
     if lead:
         assert "periodic_lead" in out["added"], out["added"]

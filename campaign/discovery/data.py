@@ -103,11 +103,12 @@ class CampaignData:
 
     @property
     def row_scale(self) -> np.ndarray | None:
-        """Each point's weight's square root, u_ref / u (u_ref: the first point's u, so that a
-        weighted residual is in the first table's deviation unit); None when every point is alike."""
+        """Each point's weight's square root, u_ref / u (u_ref: the largest u, the coarsest table's,
+        so that a weighted residual is in that table's deviation unit whatever order the tables were
+        given in); None when every point is alike."""
         if self.u is None or not len(self.u) or np.all(self.u == self.u[0]):
             return None
-        return np.asarray(self.u[0] / self.u)
+        return np.asarray(float(np.max(self.u)) / self.u)
 
     @property
     def campaigns(self) -> int:

@@ -80,7 +80,7 @@ def full_columns(data: CampaignData, term: Term) -> np.ndarray:
 
 def weighted(data: CampaignData, rows: np.ndarray) -> np.ndarray:
     """`rows` (one per point: a vector or a matrix's rows) times each point's weight's square root
-    (data.row_scale: u of the first point / u): least squares on weighted rows weighs each point
+    (data.row_scale: the largest u / u): least squares on weighted rows weighs each point
     by 1/u². Unchanged when every point is alike."""
     scale = data.row_scale
     if scale is None:

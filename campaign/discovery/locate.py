@@ -251,7 +251,7 @@ def _quantile(dof: float) -> float:
 
 def pooled_noise_um(data: CampaignData, residual: np.ndarray) -> float:
     """Run-to-run scatter of the residual per point, pooled over (campaign, target, direction), µm;
-    of the weighted residual (each point's times data.row_scale: in the first table's unit) when
+    of the weighted residual (each point's times data.row_scale: in the coarsest table's unit) when
     the tables fitted together are weighed by their uncertainty."""
     if data.row_scale is not None:
         residual = residual * data.row_scale
@@ -517,11 +517,12 @@ def odd_targets(data: CampaignData, residual: np.ndarray, noise_um: float, curve
             continue
         pick = data.d == sign
         where = np.searchsorted(targets, np.round(data.x[pick], 6))
-        count = np.bincount(where, minlength=len(targets))
+        weight = np.ones(int(pick.sum())) if data.row_scale is None else data.row_scale[pick] ** 2
+        count = np.bincount(where, weight, minlength=len(targets))  # points weighed by 1/u² (row_scale), as the curves
         seen = count > 0
-        means = np.bincount(where, residual[pick], minlength=len(targets))[seen] / count[seen]
+        means = np.bincount(where, weight * residual[pick], minlength=len(targets))[seen] / count[seen]
         left = means - np.interp(targets[seen], curve.at, curve.value_um)
-        z = left / (noise_um / np.sqrt(count[seen]))
+        z = left / (noise_um / np.sqrt(count[seen]))  # noise_um: a point's of unit weight
         tests += int(seen.sum())
         for at, zk, dk in zip(np.flatnonzero(seen), z, left):
             departures.setdefault(int(at), {})[name] = (float(zk), float(dk))

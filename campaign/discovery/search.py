@@ -49,12 +49,14 @@ from campaign.discovery.fit import (
     derived,
     drop_collinear,
     f_test_p,
+    full_columns,
     independent_periods,
     linear_fit,
     periodogram_periods,
     refine,
     shape_bounds,
     standard_errors,
+    weighted,
 )
 from campaign.discovery.local import MAX_REGIONS as MAX_LOCALS
 from campaign.discovery.local import (
@@ -424,7 +426,8 @@ def one_target(data: CampaignData, without: Fit, fit: Fit, name: str, factor: fl
     alone shows is a local error seen there (narrower than the spacing of the targets), not an effect
     that repeats along the travel."""
     targets = data.target_index
-    gain = np.bincount(targets, (data.y - without.prediction) ** 2 - (data.y - fit.prediction) ** 2)
+    gain = np.bincount(targets, weighted(data, data.y - without.prediction) ** 2  # on weighted rows, as the F-test
+                       - weighted(data, data.y - fit.prediction) ** 2)
     if len(gain) < 4:
         return None
     worst = int(np.argmax(gain))
@@ -454,8 +457,11 @@ def zero_at_targets(data: CampaignData, fit: Fit, name: str) -> str | None:
     amplitude = float(np.hypot(*coefs[:2])) if len(coefs) >= 2 else float(abs(coefs[0]))
     if amplitude <= 0:
         return None
-    wave = fit.terms[i].columns(data) @ coefs
-    _, where = np.unique(np.round(data.x, 6), return_inverse=True)
+    wave = full_columns(data, fit.terms[i]) @ coefs  # coefs in the form's full column order
+    positions, where = np.unique(np.round(data.x, 6), return_inverse=True)
+    period = fit.terms[i].shape.get("period_mm")
+    if period and len(positions) > 1 and float(np.median(np.diff(positions))) < period / 4:
+        return None  # sampled along its period, not at random phases: the wave is seen whole
     at_targets = np.bincount(where, wave) / np.bincount(where)
     share = float(np.mean(at_targets**2)) / amplitude**2
     z = (share - 0.5) / (math.sqrt(1 / 8) / math.sqrt(len(at_targets)))
