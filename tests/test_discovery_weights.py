@@ -70,6 +70,7 @@ def test_each_table_is_weighed_by_its_own_uncertainty(tmp_path):
     assert design(both, [])[0].shape[1] == 5  # three offsets, the two sweeps' slopes
     assert design(scan, [])[0].shape[1] == 2  # alone: its two sweeps' offsets
 
+@pytest.mark.machine  # 10 simulated campaigns and scans, each discovered in both file orders: about 40 s of CPU
 @pytest.mark.parametrize("seed, lead", [(51, True), (52, True), (53, True), (54, False), (55, False)])
 def test_a_table_and_a_scan_profile_name_nothing_the_machine_lacks(tmp_path, capsys, seed, lead):
     """Fitted together: only what the machine has is named (the bow, the scale, its backlash, its
