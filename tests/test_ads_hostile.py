@@ -170,6 +170,7 @@ def many_clients(ip: str, net_id: str, count: int, timeout_s: float) -> int:
     return len(answered)
 
 
+@pytest.mark.machine  # about a second: the fast tier stays under a minute
 def test_every_hostile_probe_is_refused_or_closed_and_a_normal_client_is_served_within_1_s(server):
     proc, ip = server
     net_id = f"{ip}.1.1"

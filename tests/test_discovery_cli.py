@@ -205,6 +205,7 @@ def test_save_without_a_time_column_does_not_save_a_time_constant_in_points(cli,
     assert refit["model"]["thermal_drift"]["tau_s"] == pytest.approx(data["model"]["thermal_drift"]["tau_s"], rel=0.05)
 
 
+@pytest.mark.machine  # about a second: the fast tier stays under a minute
 def test_environment_from_a_file_is_named_with_its_error_and_left_out_of_the_saved_model(cli, tmp_path):
     config = parse_config(REAL_PLAN.replace("dwell_s = 1.0", "dwell_s = 10.0").replace("cycles = 4", "cycles = 10"))
     env = Environment(air_temp_c=(20.0, 24.0), air_pressure_hpa=(1015.0, 1011.0), humidity_pct=(45.0, 45.0))

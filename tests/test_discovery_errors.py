@@ -87,6 +87,7 @@ def test_cross_validation_does_not_blow_up_where_a_fold_loses_a_column(seed):
             assert c.cv_after_um < 1.5 * c.cv_before_um, (c.name, c.cv_before_um, c.cv_after_um)
 
 
+@pytest.mark.machine  # about a second: the fast tier stays under a minute
 def test_nothing_named_but_something_there_is_said_in_plain_words(cli, tmp_path):
     true = ErrorModel({"linear_scale": {"ppm": -12.4}, "periodic_lead": {**LEAD, "amplitude_um": 1.5},
                        "noise": {"sigma_um": 0.3, "reading_sigma_um": 0.05}})

@@ -100,6 +100,7 @@ def test_a_start_model_with_the_simulators_bump(cli, tmp_path):
 
 
 @pytest.mark.parametrize("seed", sweep(1, 2, 3))
+@pytest.mark.machine  # about a second in all: the fast tier stays under a minute
 def test_the_bow_beside_an_unresolved_period_is_not_biased(seed):
     """A 1 µm, 10 mm lead at 11 targets stays unresolved; the bow fitted without it took the wave's
     values at the targets: P3 came out 0.30 to 0.44 µm low on these seeds (true 0.73 µm) with the
@@ -299,6 +300,7 @@ def test_an_aliased_period_is_followed_up_by_a_slow_scan(cli, tmp_path, seed):
     assert "not a scan" in why and 'axis_driver.type = "linuxcnc"' in why and "stream" in why
 
 
+@pytest.mark.machine  # about a second: the fast tier stays under a minute
 def test_the_follow_up_stays_within_the_limits_and_says_why(cli, tmp_path):
     lead = {"periodic_lead": {"amplitude_um": 1.0, "period_mm": 10.0, "phase_rad": 0.3}}
     text = user_config().text.replace("soft_limit_max = 610.0", "soft_limit_max = 601.5")
@@ -309,6 +311,7 @@ def test_the_follow_up_stays_within_the_limits_and_says_why(cli, tmp_path):
     assert followed.axis == config.axis and cli("plan", tmp_path / "follow.toml").code == 0
 
 
+@pytest.mark.machine  # about a second: the fast tier stays under a minute
 def test_nothing_unresolved_writes_no_follow_up(cli, tmp_path):
     _, _, out = written_follow_up(cli, tmp_path, user_config().text, BOW)
     assert out["follow_up"] is None and not (tmp_path / "follow.toml").exists()
@@ -385,6 +388,7 @@ def test_the_follow_up_of_a_config_with_sub_tables_keeps_them(cli, tmp_path, ext
     assert cli("plan", tmp_path / "follow.toml").code == 0
 
 
+@pytest.mark.machine  # about a second: the fast tier stays under a minute
 def test_the_findings_are_printed_when_the_follow_up_cannot_be_written(cli, tmp_path):
     directory = tmp_path / "first"
     directory.mkdir()
@@ -398,6 +402,7 @@ def test_the_findings_are_printed_when_the_follow_up_cannot_be_written(cli, tmp_
     assert said.code == 2 and json.loads(said.out)["follow_up_error"].startswith("-o ")
 
 
+@pytest.mark.machine  # about a second in all: the fast tier stays under a minute
 def test_the_bow_is_averaged_when_a_bump_is_not_added_beside_an_unresolved_period():
     """A 10 mm lead at 11 targets and a +3 µm bump 150 mm wide: the bump would fit, but the period
     stays unresolved beside it, so the bump is not added. That branch returned the search's result
@@ -478,6 +483,7 @@ def test_the_thermal_part_spans_the_travel_with_twice_the_runs_and_is_not_planne
     assert "whole travel" in follow.parts[0].why and "over a longer time" not in follow.parts[0].why
 
 
+@pytest.mark.machine  # about a second: the fast tier stays under a minute
 def test_the_growing_backlash_part_spans_the_travel(tmp_path):
     from campaign.plan import build_plan
 
@@ -507,6 +513,7 @@ def test_a_follow_up_is_marked_as_one_and_never_longer_than_the_first_campaign(t
         assert len(smaller.parts) + len(smaller.unplanned) == 3
 
 
+@pytest.mark.machine  # about a second: the fast tier stays under a minute
 def test_a_cluster_is_bounded_and_says_so():
     """Candidates 0.5 mm and about 20 mm: a quarter of the shortest apart over three of the longest
     would be over 600 targets."""

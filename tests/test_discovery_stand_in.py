@@ -68,6 +68,7 @@ def test_an_aliased_period_gets_no_stand_in(cli, tmp_path):
 
 
 @pytest.mark.parametrize("seed", sweep(2, 1))
+@pytest.mark.machine  # about a second: the fast tier stays under a minute
 def test_no_stand_in_where_the_waits_vary(seed):
     """Waits varying by ±10 % about 4 s and a slow settling (τ 8 s): backlash and settling are rivals
     (the rivals path, not the constant-wait one). The old code put a stand-in in the model on seed 1

@@ -8,6 +8,7 @@ import json
 import re
 
 import numpy as np
+import pytest
 from rich.cells import cell_len
 
 from tests.test_discovery_stand_in import iso_table
@@ -40,6 +41,7 @@ def test_the_summary_comes_first_within_ten_lines_at_80_columns(cli, monkeypatch
     assert max(cell_len(line) for line in verbose.out.splitlines()) <= 80  # wrapped, never cut
 
 
+@pytest.mark.machine  # about a second in all: the fast tier stays under a minute
 def test_a_named_effect_is_in_the_summary_with_its_size(cli, monkeypatch, tmp_path):
     monkeypatch.setenv("COLUMNS", "80")
     table = iso_table(tmp_path / "b.csv", lambda x, d, rng: 8e-6 * (x - 300.0) ** 2 + rng.normal(0, 0.3))

@@ -53,6 +53,7 @@ def _tables(tmp_path, seed: int, machine: dict, rng: np.random.Generator) -> tup
     return str(first), str(tmp_path / "profile.csv")
 
 
+@pytest.mark.machine  # about a second in all: the fast tier stays under a minute
 def test_each_table_is_weighed_by_its_own_uncertainty(tmp_path):
     """The profile's bins carry their scatter as uncertainty (a small fraction of the table's
     repeatability); each sweep its own offset and, beside the table, its own slope; the table's
