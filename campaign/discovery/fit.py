@@ -590,12 +590,20 @@ def _cv_from_hat(a: np.ndarray, y: np.ndarray, index: np.ndarray) -> float:
             # the block's eigenvalues are 1 - σ²(Q_g) >= 1 - Σ leverages: above CV_RCOND (of at most 1)
             # its pseudo-inverse is its inverse, and a solve does
             plain = (qg**2).sum(axis=(1, 2)) < 1 - CV_RCOND
-            rg = r[rows][..., None]
-            if plain.any():
-                total += float(np.sum(np.linalg.solve(block[plain], rg[plain]) ** 2))
-            if not plain.all():
-                total += float(np.sum((np.linalg.pinv(block[~plain], rcond=CV_RCOND) @ rg[~plain]) ** 2))
+            total += _left_out_ss(block, plain, r[rows][..., None])
     return float(np.sqrt(total / len(y)))
+
+
+def _left_out_ss(block: np.ndarray, plain: np.ndarray, rg: np.ndarray) -> float:
+    """The sum of squared left-out residuals of groups of one size, (I - H_g)⁻¹ r_g for each group's
+    block I - H_g and residual r_g (µm): by a solve where the block is well conditioned (`plain`),
+    by a pseudo-inverse cut at CV_RCOND where a fold cannot determine a direction."""
+    total = 0.0
+    if plain.any():
+        total += float(np.sum(np.linalg.solve(block[plain], rg[plain]) ** 2))
+    if not plain.all():
+        total += float(np.sum((np.linalg.pinv(block[~plain], rcond=CV_RCOND) @ rg[~plain]) ** 2))
+    return total
 
 
 def bic(fit: Fit, n: int) -> float:
@@ -769,11 +777,7 @@ class GrowingFit:
             size = rows.shape[1]
             block = np.eye(size) - hat
             plain = np.trace(hat, axis1=1, axis2=2) < 1 - CV_RCOND
-            rg = residual[rows][..., None]
-            if plain.any():
-                total += float(np.sum(np.linalg.solve(block[plain], rg[plain]) ** 2))
-            if not plain.all():
-                total += float(np.sum((np.linalg.pinv(block[~plain], rcond=CV_RCOND) @ rg[~plain]) ** 2))
+            total += _left_out_ss(block, plain, residual[rows][..., None])
         return float(np.sqrt(total / len(residual)))
 
     def trial(self, term: Term) -> tuple[float, int, float, tuple]:
