@@ -59,6 +59,7 @@ def test_demo_on_linuxcnc_with_its_own_compensation(tmp_path):
     assert second.returncode == 3 and second.stderr.startswith("error: another axiscal is running LinuxCNC")
     table = tmp_path / "second" / "points.csv"
     assert not table.exists() or data_rows(table) == 0  # no point was measured on the first one's axis
+    assert _axiscal_linuxcnc_processes() == []  # nothing of either LinuxCNC runs on
 
 
 @pytest.mark.skipif(INSTALLED, reason="checks the message when LinuxCNC is missing")
@@ -317,6 +318,7 @@ def test_after_kill_9_of_the_demo_the_next_run_stops_the_linuxcnc_it_left_and_co
         assert foreign._hal is not session and session.poll() is not None
     finally:
         foreign.stop()
+    assert _axiscal_linuxcnc_processes() == []
 
 
 @pytest.mark.parametrize("whose", ["ours", "zero", "init"])
@@ -397,4 +399,48 @@ def test_a_linuxcnc_whose_record_cannot_be_written_is_stopped_again(monkeypatch)
     with pytest.raises(AxisError, match="cannot record the LinuxCNC axiscal starts"):
         process.LinuxCnc(axis)
     assert started and process._group(started[0]) == []
-    assert process.find_leftover() is None
+    assert process.find_leftover() is None and _axiscal_linuxcnc_processes() == []
+
+
+def _axiscal_linuxcnc_processes() -> list[int]:
+    """Every live process of a LinuxCNC axiscal started (INI_FILE_NAME in one of its directories)."""
+    import tempfile
+
+    return sorted(pid for entry in Path(tempfile.gettempdir()).glob(f"{process.DIR_PREFIX}*")
+                  for pid in process.instance_processes(entry))
+
+
+@pytest.mark.linuxcnc  # a real-time LinuxCNC: one per machine, so one after another on one worker
+@pytest.mark.xdist_group("linuxcnc")
+@pytest.mark.machine
+@pytest.mark.skipif(not INSTALLED, reason="LinuxCNC is not installed (tests/setup_system.sh installs "
+                    "linuxcnc-uspace)")
+def test_a_linuxcnc_whose_script_is_killed_before_its_cleanup_leaves_no_realtime_running():
+    """When the linuxcnc script does not end within the wait after SIGINT, it is killed before its
+    cleanup ends; its rtapi_app (the servo thread) and linuxcncsvr run in sessions of their own and
+    ran on after every such stop, loading the machine for everything after (the suite grew by a
+    minute a run). Stopping ends them too, and the next LinuxCNC starts as before; a leftover whose
+    script is gone but whose realtime runs on is still found and stopped."""
+    axis = linuxcnc_config(demo_config_text()).axis
+    for leftover_found in (False, True):
+        linuxcnc = process.LinuxCnc(axis)
+        try:
+            realtime = process.instance_processes(linuxcnc.dir)
+            os.killpg(linuxcnc.proc.pid, signal.SIGKILL)  # as when its cleanup outlasts the wait: killed
+            linuxcnc.proc.wait(10)
+            deadline = time.monotonic() + 10
+            while process._group(linuxcnc.proc.pid) and time.monotonic() < deadline:
+                time.sleep(0.1)
+            stragglers = process.instance_processes(linuxcnc.dir)
+            assert stragglers and set(stragglers) < set(realtime), "the script's group alone was not killed"
+            if leftover_found:  # axiscal itself killed too: the next run finds what is left
+                assert linuxcnc._lock is not None
+                linuxcnc._lock.close()
+                linuxcnc._lock = None
+                leftover = process.find_leftover()
+                assert leftover is not None and set(stragglers) <= set(leftover.pids)
+                leftover.stop()
+                assert process.find_leftover() is None
+        finally:
+            linuxcnc.stop()
+        assert process.instance_processes(linuxcnc.dir) == [] and _axiscal_linuxcnc_processes() == []

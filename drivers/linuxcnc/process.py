@@ -220,6 +220,7 @@ class LinuxCnc:
             except subprocess.TimeoutExpired:
                 os.killpg(self.proc.pid, signal.SIGKILL)
                 self.proc.wait(timeout=10)
+        _end_stragglers(self.dir)
         self.log.close()
         shutil.rmtree(self.dir, ignore_errors=True)
         _remove_record(self._record)
@@ -297,7 +298,8 @@ class Leftover:
             else:
                 raise AxisError(f"LinuxCNC's process group {pgid} did not end after SIGKILL")
             directory = Path(self.record.dir)
-            if directory.parent == Path(tempfile.gettempdir()) and directory.name.startswith(DIR_PREFIX):
+            if _started_here(directory):
+                _end_stragglers(directory)
                 shutil.rmtree(directory, ignore_errors=True)
             _remove_record(self.record, self.record_file)
 
@@ -306,8 +308,8 @@ def find_leftover(record_file: Path = RECORD_FILE, lock_file: Path = LOCK_FILE) 
     """The LinuxCNC an earlier axiscal started and left running, or None: none recorded, an
     axiscal holds the lock (it runs its LinuxCNC and will stop it), or the recorded one has ended
     (the stale record is removed then). Trusted only as written by this user, in this boot, its
-    process group alive, not axiscal's own nor 0 or 1, and, while its leader lives, the leader the
-    very process recorded."""
+    process group (or its realtime, found by instance_processes) alive, not axiscal's own nor 0 or
+    1, and, while its leader lives, the leader the very process recorded."""
     with _held(lock_file) as lock:
         if lock is None:
             return None
@@ -316,7 +318,11 @@ def find_leftover(record_file: Path = RECORD_FILE, lock_file: Path = LOCK_FILE) 
             return None
         # never a group of its own or none (killpg(0) signals the caller's group): a hand-edited or
         # foreign record would have axiscal stop itself and its shell
-        pids = _group(record.pgid) if record.pgid > 1 and record.pgid != os.getpgrp() else []
+        pids: list[int] = []
+        if record.pgid > 1 and record.pgid != os.getpgrp():
+            pids = _group(record.pgid)
+            if _started_here(Path(record.dir)):  # with its realtime, out of the group (the script may be gone)
+                pids = sorted({*pids, *instance_processes(Path(record.dir))})
         leader_ok = record.pgid not in pids or _start_ticks(record.pgid) == record.start_ticks
         if record.boot_id != _boot_id() or not pids or not leader_ok or os.getpid() in pids:
             _remove_record(record, record_file)
@@ -444,6 +450,45 @@ def _group(pgid: int) -> list[int]:
                 and fields[0] != "Z"):
             members.append(int(entry.name))
     return members
+
+
+def _started_here(directory: Path) -> bool:
+    """Whether `directory` is one LinuxCnc makes (DIR_PREFIX in the temporary directory)."""
+    return directory.parent == Path(tempfile.gettempdir()) and directory.name.startswith(DIR_PREFIX)
+
+
+def instance_processes(directory: Path) -> list[int]:
+    """The live processes of the LinuxCNC whose files are in `directory`: every process the
+    `linuxcnc` script starts inherits INI_FILE_NAME (its INI there), including the realtime's
+    rtapi_app and linuxcncsvr, which run in sessions of their own, outside the script's process
+    group. Processes this user cannot read are not counted (they are not axiscal's)."""
+    tag = f"INI_FILE_NAME={directory / 'axiscal.ini'}".encode()
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            environ = (entry / "environ").read_bytes()
+        except OSError:
+            continue
+        if tag in environ.split(b"\0") and (fields := _stat_fields(int(entry.name))) and fields[0] != "Z":
+            found.append(int(entry.name))
+    return found
+
+
+def _end_stragglers(directory: Path, wait_s: float = 5.0) -> None:
+    """End what is left of the LinuxCNC in `directory` once its script has ended: when the script
+    was killed before its cleanup finished (it did not end within the wait after SIGINT), its
+    rtapi_app (the servo thread) and linuxcncsvr would run on, out of its process group, taking a
+    core's share from everything after. SIGTERM, then SIGKILL after `wait_s`."""
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        pids = instance_processes(directory)
+        for pid in pids:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, sig)
+        deadline = time.monotonic() + wait_s
+        while pids and instance_processes(directory) and time.monotonic() < deadline:
+            time.sleep(0.1)
 
 
 def _boot_id() -> str:
