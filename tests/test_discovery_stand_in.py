@@ -104,3 +104,28 @@ def test_the_stand_in_is_the_backlash_even_when_settling_is_tried_beside():
     result = discover(data, ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
     assert result.stand_in is not None and result.stand_in.effect == "backlash"
     assert abs(result.stand_in.params["b_um"]) == pytest.approx(3.0, abs=0.5)
+
+
+@pytest.mark.parametrize("seed", sweep(3, 7))
+def test_one_short_capture_in_a_fixed_dwell_campaign_does_not_make_the_waits_vary(seed):
+    """A fixed-dwell campaign where one point (or a few) was captured with fewer samples or a
+    shorter wait: one wait cannot tell settling from a constant reversal (it made the waits 'vary'
+    and backlash was named outright on a 4,000-point table). A ladder of waits at a few targets, as
+    a follow-up asks, does vary them."""
+    import dataclasses
+
+    from campaign.discovery.data import campaign_data
+    from campaign.discovery.search import VARIED_WAIT_POINTS, waits_vary
+    from campaign.discovery.simulate import simulate_campaign
+    from campaign.model import ErrorModel
+    from tests.test_discovery_loop import BOW, user_config
+
+    rng = np.random.default_rng(seed)
+    data = campaign_data(simulate_campaign(user_config(), ErrorModel({**BOW, "backlash": {"b_um": 3.0}}), seed=seed))
+    assert data.w is not None and not waits_vary(data)
+    typical = float(np.nanmedian(data.w))
+    for changed in (1, VARIED_WAIT_POINTS - 1, VARIED_WAIT_POINTS):
+        w = data.w.copy()
+        rows = rng.choice(len(data), changed, replace=False)
+        w[rows] = w[rows] * rng.choice([0.5, 0.8, 1.5, 2.5], (changed, 1))  # the ladder's other waits
+        assert waits_vary(dataclasses.replace(data, w=w)) == (changed >= VARIED_WAIT_POINTS), (changed, typical)

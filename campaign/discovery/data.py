@@ -186,24 +186,45 @@ def join_campaigns(parts: list[CampaignData], names: list[str]) -> CampaignData:
                         air_index_change=air,
                         campaign=np.concatenate([np.full(len(p), i) for i, p in enumerate(parts)]),
                         kind=parts[0].kind,
-                        u=np.concatenate([p.u if p.u is not None else np.full(len(p), repeatability(p)) for p in parts]),
+                        u=np.concatenate([np.full(len(p), own) if np.isscalar(own) else own
+                                          for p, own in zip(parts, _own_uncertainties(parts))]),
                         datum=np.concatenate(datums),
                         sloped=np.concatenate([p.sloped if p.sloped is not None else np.zeros(len(p), dtype=bool)
                                                for p in parts]))
 
 
+def _own_uncertainties(parts: list[CampaignData]) -> list[np.ndarray | float]:
+    """Each part's points' uncertainty in a joint fit, deviation unit: a profile's own per bin, a
+    stop-and-go table's repeatability; a table that repeats nothing (one run, as a follow-up of one
+    cycle) cannot show its scatter, and takes the pooled repeatability of the parts that can (one
+    axis, one laser): the spread of its deviations would be the size of the errors sought, and
+    its points would weigh next to nothing. The spread only when no part repeats anything."""
+    own: list[np.ndarray | float | None] = [p.u if p.u is not None else repeated_scatter(p) for p in parts]
+    known = [float(o) for o in own if isinstance(o, float)]
+    pooled = float(np.sqrt(np.mean(np.square(known)))) if known else None
+    return [o if o is not None else (pooled if pooled is not None else repeatability(p))
+            for p, o in zip(parts, own)]
+
+
 def repeatability(data: CampaignData) -> float:
-    """A stop-and-go table's repeatability, deviation unit: the scatter of its points left when
-    each (target, direction) has its mean and each run its level (the run-to-run drift of a warming
-    axis is not scatter), pooled; the RMS about the mean when nothing is repeated. The unit of its
-    points' weights in a joint fit (`join_campaigns`)."""
+    """A stop-and-go table's repeatability, deviation unit (`repeated_scatter`); the RMS about the
+    mean when nothing is repeated."""
+    scatter = repeated_scatter(data)
+    return scatter if scatter is not None else (float(np.std(data.y)) or 1.0)
+
+
+def repeated_scatter(data: CampaignData) -> float | None:
+    """The scatter of a stop-and-go table's points left when each (target, direction) has its mean
+    and each run its level (the run-to-run drift of a warming axis is not scatter), pooled,
+    deviation unit; None when nothing is repeated (one run). The unit of its points' weights in a
+    joint fit (`join_campaigns`)."""
     _, cell = np.unique(data.target_index * 2 + (data.d > 0), return_inverse=True)
     _, run = np.unique(data.run, return_inverse=True)
     cell, run = cell.ravel(), run.ravel()
     cells, runs = int(cell.max()) + 1 if len(cell) else 0, int(run.max()) + 1 if len(run) else 0
     dof = len(data) - cells - runs + 1
     if dof <= 0 or runs < 2:
-        return float(np.std(data.y)) or 1.0
+        return None
     left, level = data.y.astype(float), np.zeros(runs)
     for _ in range(100):  # the two-way means by alternating (backfitting): linear in the rows
         by_cell = np.bincount(cell, left - level[run], cells) / np.bincount(cell, minlength=cells)

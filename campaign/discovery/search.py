@@ -90,6 +90,10 @@ PERIOD_LIST = 10.0
 
 DWELL_SPREAD = 0.05
 """Relative spread of the wait since arrival below which settling is not looked for."""
+VARIED_WAIT_POINTS = 8
+"""Points whose wait departs from the typical one by more than DWELL_SPREAD that it takes to tell
+settling (two parameters, one per wait) from a constant reversal: one short capture in a
+fixed-dwell campaign does not."""
 
 
 @dataclass
@@ -338,12 +342,14 @@ def candidate_names(data: CampaignData, terms: list[Term], notes: list[str]) -> 
 
 
 def waits_vary(data: CampaignData) -> bool:
-    """Does the wait since arrival before each capture vary enough (DWELL_SPREAD) to tell settling
-    from a constant reversal? False when it is not recorded."""
+    """Does the wait since arrival before each capture vary enough to tell settling from a
+    constant reversal: at least VARIED_WAIT_POINTS points whose wait departs from the median wait by
+    DWELL_SPREAD of it or more? False when it is not recorded."""
     if data.w is None:
         return False
     waits = np.nanmean(data.w, axis=1)
-    return bool(np.ptp(waits) >= DWELL_SPREAD * max(float(np.mean(waits)), 1e-9))
+    typical = max(float(np.nanmedian(waits)), 1e-9)
+    return int(np.sum(np.abs(waits - typical) >= DWELL_SPREAD * typical)) >= VARIED_WAIT_POINTS
 
 
 def _note(notes: list[str], text: str, topic: str | None = None) -> None:
