@@ -1247,6 +1247,8 @@ def rival_entry(best: Candidate, rivals: list[Candidate]) -> Unresolved:
 def period_entry(cand: Candidate, data: CampaignData) -> Unresolved:
     """The `unresolved` record of a periodic error whose period is not identifiable."""
     shown = ", ".join(f"{p:.4g} mm (ΔBIC {d:+.1f})" for p, d in cand.periods[:6])
+    if len(cand.periods) > 6:
+        shown += f" and {len(cand.periods) - 6} more"
     targets = len(np.unique(np.round(data.x, 6)))
     return Unresolved(("periodic_lead",),
                       f"a periodic error explains {cand.explained_pct:.1f} % of the residual, but its period is not "
