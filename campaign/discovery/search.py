@@ -890,11 +890,50 @@ def beside_unresolved_period(data: CampaignData, result: Discovery) -> Discovery
     candidates. Left out, the wave's values at the targets go into the bow: on 11 targets with a
     1 µm, 10 mm lead its P3 came out about 0.3 µm low on every seed. The aliases agree at the
     targets, so the bow beside any of them is much the same. The gap stays that of the model
-    without a period (nothing is added for it)."""
+    without a period (nothing is added for it). A named effect whose averaged size is then under
+    SIZE_SIGMAS of its error (the candidates disagree on it) is not named after all: the size gate
+    holds for the values and errors reported."""
     entry = next((u for u in result.unresolved if u.effects == ("periodic_lead",) and u.periods_mm), None)
     cand = next((c for c in result.remaining if c.name == "periodic_lead" and c.fit is not None), None)
     if entry is None or cand is None:
         return result
+    while True:
+        averages = _averaged_over_periods(data, result, entry, cand)
+        failing = {name: small for name, (values, errors) in averages.items() if name in result.added
+                   and (small := [f"{k} {values[k]:.3g} ± {errors[k]:.2g}" for k in FORMS[name].sizes
+                                  if k in values and k in errors and abs(values[k]) < SIZE_SIGMAS * errors[k]])}
+        if not failing:
+            break
+        for name, small in failing.items():
+            result.steps[:] = [step for step in result.steps if step.effect != name]
+            _note(result.notes, f"{name} is not named: beside the candidate periods of the unresolved periodic "
+                                f"error its size is under {SIZE_SIGMAS:g}σ ({', '.join(small)}; the error includes "
+                                "the spread over the candidates)")
+        final = linear_fit(data, [t for t in result.final.terms if t.name not in failing])
+        result.final = final
+        result.gap_after_um = final.rms_um(data.y)
+        result.noise_um = pooled_scatter_um(data, data.y - final.prediction)
+        result.disagreement_after = disagreement(data, data.y - final.prediction)
+        result.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_")}
+    for name, (values, errors) in averages.items():
+        params = {k: v for k, v in values.items() if k in result.final.params()[name]}
+        result.averaged[name] = params
+        result.errors[name] = errors
+        result.steps[:] = [replace(step, params=dict(params), errors=dict(errors)) if step.effect == name
+                           else step for step in result.steps]
+        if name in result.starting:
+            result.starting[name] = replace(result.starting[name], params=params, errors=errors)
+    _note(result.notes, f"the named effects' values are fitted beside each of the {len(entry.periods_mm or ())} "
+                        "candidate periods of the unresolved periodic error and averaged (weights exp(-ΔBIC/2)), their "
+                        "errors include the spread over them: left out, the wave's values at the targets would bias "
+                        "the bow")
+    return result
+
+
+def _averaged_over_periods(data: CampaignData, result: Discovery, entry: Unresolved,
+                           cand: Candidate) -> dict[str, tuple[dict[str, float], dict[str, float]]]:
+    """Per free effect of the final model: its parameters and derived sizes averaged over the
+    unresolved period's candidates (and none), and their errors with the spread over them."""
     free = [t for t in result.final.terms if not t.fixed and t.name in EFFECT_PARAMS]
     fits = [(result.final, -cand.delta_bic)]
     for period, delta in zip(entry.periods_mm or (), entry.period_delta_bic):
@@ -903,8 +942,9 @@ def beside_unresolved_period(data: CampaignData, result: Discovery) -> Discovery
     weights = np.exp(-(np.array([d for _, d in fits]) - min(d for _, d in fits)) / 2)
     weights /= weights.sum()
     beside = standard_errors(data, fits[int(np.argmax(weights))][0])
+    out = {}
     for term in free:
-        values = [f.params()[term.name] for f, _ in fits]
+        values = [{**(p := f.params()[term.name]), **derived(term.name, p)} for f, _ in fits]
         averaged, errors = {}, dict(result.errors.get(term.name, {}))
         for key, value in values[0].items():
             if not isinstance(value, float) or key in term.held or key in ("start_mm", "end_mm"):
@@ -916,16 +956,8 @@ def beside_unresolved_period(data: CampaignData, result: Discovery) -> Discovery
             averaged[key] = mean
             if key in beside.get(term.name, {}):
                 errors[key] = math.hypot(beside[term.name][key], spread)
-        result.averaged[term.name] = averaged
-        result.errors[term.name] = errors
-        result.steps[:] = [replace(step, params=dict(averaged), errors=dict(errors)) if step.effect == term.name
-                           else step for step in result.steps]
-        if term.name in result.starting:
-            result.starting[term.name] = replace(result.starting[term.name], params=averaged, errors=errors)
-    _note(result.notes, f"the named effects' values are fitted beside each of the {len(fits) - 1} candidate periods "
-                        "of the unresolved periodic error and averaged (weights exp(-ΔBIC/2)), their errors include "
-                        "the spread over them: left out, the wave's values at the targets would bias the bow")
-    return result
+        out[term.name] = (averaged, errors)
+    return out
 
 
 def may_soak(name: str) -> bool:
