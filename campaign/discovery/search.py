@@ -620,7 +620,8 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     result.located_after = locate(data, data.y - result.final.prediction)
     if any("periodic_lead" in u.effects for u in result.unresolved):
         # single targets' departures over the travel are the unresolved period seen at few targets: said there
-        result.located_after.regions[:] = beside_period(result.located_after.regions, float(np.ptp(data.x)) or 1.0)
+        for located in (result.located_before, result.located_after):
+            located.regions[:] = beside_period(located.regions, float(np.ptp(data.x)) or 1.0)
     result.noise_measured = noise_measured(data)
     return result
 
