@@ -6,8 +6,11 @@ time; 2-4 µm, 1-150 mm wide; beside a random bow, backlash and scale; noise 0.3
 test axis at 11, 17 and 21 targets, golden and uniform, 5 runs, recorded with the fast simulator; and
 null machines (the vocabulary part alone). For each shape × plan: how many draws the targets can see
 at all, how many of those are located (a region within its width, a step within 10 mm; a linear
-drift named), how many name an effect the machine lacks, how many end within 1.3 × the noise.
-Writes bench/results/discovery_draws.json and the table quoted in docs/discovery.md.
+drift named), how many stated (located, or a region in what the final model leaves; a linear growth:
+the slope departing in time), how many more are steps said to lie between the two targets either side
+(bracketed: where the plan lets them be placed, coarser than 10 mm), how many name an effect the
+machine lacks, how many end within 1.3 × the noise, and on the nulls how many leave a region along the
+axis (not a reversal) in what the final model leaves. Writes bench/results/discovery_draws.json and the table quoted in docs/discovery.md.
 
     .venv/bin/python bench/discovery_draws.py [--draws N] [--seed S]
 """
@@ -45,8 +48,8 @@ def main() -> None:
             for offsets in ("golden", "none"):
                 config = plan_config(count, offsets)
                 tally = {"shape": shape, "targets": count, "offsets": offsets, "draws": 0, "visible": 0,
-                         "located": 0, "stated": 0, "seen": 0, "false_names": 0, "gap_within_1_3": 0,
-                         "bad_names": 0, "false": []}
+                         "located": 0, "stated": 0, "bracketed": 0, "seen": 0, "false_names": 0, "gap_within_1_3": 0,
+                         "bad_names": 0, "regions_after": 0, "false": []}
                 for k in range(args.draws):
                     seed = args.seed + 7919 * k + 31 * count + (0 if offsets == "none" else 1)
                     truth = draw(np.random.default_rng(seed), shape, config)
@@ -55,10 +58,13 @@ def main() -> None:
                     result = discover(data, ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
                     judged = judge(result, truth)
                     found_local = shape == "null" and bool(result.local_errors)
+                    after = result.located_after.along if result.located_after is not None else []
+                    tally["regions_after"] += any(r.direction != "opposite" for r in after)  # not a reversal
                     tally["draws"] += 1
                     tally["visible"] += truth.visible
                     tally["located"] += truth.visible and judged.located
                     tally["stated"] += truth.visible and judged.stated
+                    tally["bracketed"] += truth.visible and judged.bracketed and not judged.stated
                     tally["seen"] += truth.visible and judged.seen
                     tally["bad_names"] += bool(named_out_of_gates(data, result))
                     tally["false_names"] += bool(judged.false_names) or found_local
@@ -71,15 +77,16 @@ def main() -> None:
     out = {"draws_per_cell": args.draws, "seed": args.seed, "seconds": round(time.perf_counter() - started, 1),
            "totals": totals(rows), "rows": rows}
     (RESULTS / "discovery_draws.json").write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
-    print("| shape | targets | golden: visible · seen · located · stated · false names · gap ≤ 1.3σ | uniform: "
-          "the same |")
+    print("| shape | targets | golden: visible · seen · located · stated (+ bracketed) · false names · gap ≤ 1.3σ "
+          "| uniform: the same |")
     print("|---|---|---|---|")
     for shape in (*SHAPES, "null"):
         for count in (11, 17, 21):
             cells = []
             for offsets in ("golden", "none"):
                 r = next(r for r in rows if (r["shape"], r["targets"], r["offsets"]) == (shape, count, offsets))
-                cells.append(f"{r['visible']}/{r['draws']} · {r['seen']} · {r['located']} · {r['stated']} · "
+                stated = f"{r['stated']}" + (f" + {r['bracketed']}" if r["bracketed"] else "")
+                cells.append(f"{r['visible']}/{r['draws']} · {r['seen']} · {r['located']} · {stated} · "
                              f"{r['false_names']} · {r['gap_within_1_3']}")
             print(f"| {shape} | {count} | {cells[0]} | {cells[1]} |")
     print(json.dumps(out["totals"]))
@@ -90,10 +97,10 @@ def totals(rows: list[dict]) -> dict:
     are stated in."""
     oov = [r for r in rows if r["shape"] != "null"]
     nulls = [r for r in rows if r["shape"] == "null"]
-    total = {k: sum(r[k] for r in oov) for k in ("draws", "visible", "seen", "located", "stated", "false_names",
-                                                  "gap_within_1_3", "bad_names")}
+    total = {k: sum(r[k] for r in oov) for k in ("draws", "visible", "seen", "located", "stated", "bracketed",
+                                                  "false_names", "gap_within_1_3", "bad_names")}
     total["no_false_share"] = round(1 - total["false_names"] / max(total["draws"], 1), 4)
-    total["nulls"] = {k: sum(r[k] for r in nulls) for k in ("draws", "false_names", "bad_names")}
+    total["nulls"] = {k: sum(r[k] for r in nulls) for k in ("draws", "false_names", "bad_names", "regions_after")}
     return total
 
 

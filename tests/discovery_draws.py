@@ -152,7 +152,8 @@ class Judged:
     width, a step within 10 mm, by a local term of the final model), false names (vocabulary
     effects named that the machine lacks), the gap after against the noise estimate; stated: located
     by a local term, or said as unexplained structure (a region the locator finds in what the final
-    model leaves) within the same tolerance; seen: a region the locator finds before anything is named
+    model leaves) within the same tolerance (a linear growth: the slope along the travel departing in
+    time, in what the final model leaves); seen: a region the locator finds before anything is named
     within it."""
 
     located: bool
@@ -161,6 +162,9 @@ class Judged:
     said: str
     stated: bool = False
     seen: bool = False
+    bracketed: bool = False
+    """A step said to lie between two targets (LocalError.between_mm) that hold it, with no target
+    between them: where the plan lets it be placed, when that is coarser than 10 mm (not `located`)."""
 
 
 def _near(truth: Truth, centres: list[float]) -> bool:
@@ -187,11 +191,18 @@ def judge(result: Discovery, truth: Truth) -> Judged:
     said = f"added {result.added}, local {[e.sentence() for e in result.local_errors]}"
     after = result.located_after.along if result.located_after is not None else []
     before = result.located_before.along if result.located_before is not None else []
-    stated = located or _near(truth, [r.centre for r in after])
+    if truth.shape == "linear_growth":  # said as the slope along the travel departing in time, not a place
+        timed = result.located_after.regions if result.located_after is not None else []
+        stated = located or any(r.over == "time" and r.what == "slope" for r in timed)
+    else:
+        stated = located or _near(truth, [r.centre for r in after])
     seen = _near(truth, [r.centre for r in before]) or (truth.shape == "linear_growth" and result.located_before
                                                           is not None and any(r.over == "time"
                                                                               for r in result.located_before.regions))
-    return Judged(located, false, gap_ratio, said, stated, seen)
+    bracketed = truth.shape == "step" and any(
+        e.between_mm is not None and e.between_mm[0] <= centre <= e.between_mm[1]
+        for e in result.local_errors for centre, _ in truth.regions)
+    return Judged(located, false, gap_ratio, said, stated, seen, bracketed)
 
 
 def named_out_of_gates(data: CampaignData, result: Discovery) -> list[str]:

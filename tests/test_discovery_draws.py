@@ -50,3 +50,26 @@ def test_out_of_vocabulary_draws_name_no_effect_the_machine_lacks():
                 if judged.false_names:
                     false.append((shape, count, offsets, seed, judged.said))
     assert len(false) <= 0.05 * len(SHAPES) * 3 * 2, false
+
+
+@pytest.mark.machine  # 48 simulated campaigns and discoveries, about a minute
+def test_out_of_vocabulary_errors_are_located_or_stated_with_their_region():
+    """Issue 34's done-when: every visible out-of-vocabulary error located (a region within its width,
+    a step within 10 mm), or stated as unexplained structure with its region (a region the locator finds
+    in what the final model leaves, within the same tolerance), or a step said to lie between the two
+    targets either side of it: in at least 90 % of the visible draws of bumps, two regions, waves over
+    part of the travel and steps (11, 17 and 21 targets, golden and uniform; seeds the bench does not
+    use). Among them: errors one target sees beside a reversal, and waves shorter than the spacing
+    beside an unresolved period."""
+    visible, missed = 0, []
+    for shape in ("bump", "two_regions", "partial_wave", "step"):
+        for count, offsets in ((11, "golden"), (17, "none"), (21, "golden"), (17, "golden")):
+            for seed in (601, 602, 603):
+                truth, result = discovered(shape, count, offsets, seed)
+                if not truth.visible:
+                    continue
+                visible += 1
+                judged = judge(result, truth)
+                if not (judged.stated or judged.bracketed):
+                    missed.append((shape, count, offsets, seed, judged.said))
+    assert visible >= 30 and len(missed) <= 0.1 * visible, missed

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from campaign.discovery.data import CampaignData
-from campaign.discovery.locate import locate
+from campaign.discovery.locate import Region, beside_period, locate
 
 TRAVEL = 600.0
 
@@ -169,3 +169,39 @@ def test_no_target_is_odd_on_a_smooth_table(seed):
     rng, count, noise, golden, _, _, _ = drawn(seed)
     data = table(rng, count, lambda x, d, t: 1.5 * ((x - 300.0) / 300.0) ** 2 - 0.8 * d, noise, golden)
     assert not [r for r in locate(data, detrended(data)).along if r.one_target]
+
+
+@pytest.mark.parametrize("seed", range(60, 66))
+def test_an_error_one_target_sees_beside_a_reversal_is_located_at_that_target(seed):
+    """A reversal over the whole travel (the two directions 1-2.5 µm apart: a region "opposite in the two
+    directions" from end to end) does not say what one target shows: a target 2-4 µm off its neighbours
+    is still located, at that target (its centre)."""
+    rng, count, noise, golden, _, _, size = drawn(seed)
+    probe = table(rng, count, lambda x, d, t: 0.0 * x, noise, golden)
+    targets = np.unique(probe.x)
+    at = float(targets[int(rng.integers(2, count - 2))])
+    half = float(rng.uniform(0.5, 1.25))
+    data = table(rng, count, lambda x, d, t: size * (np.abs(x - at) < 1e-6) + half * d, noise, golden)
+    along = locate(data, detrended(data)).along
+    assert any(r.direction == "opposite" and r.end - r.start > 0.9 * TRAVEL for r in along), along
+    assert any(r.one_target and r.centre == pytest.approx(at) for r in along), along
+
+
+def single(at: float, spacing: float, peak: float) -> Region:
+    """One target's departure at `at` (its region from the target before to the one after)."""
+    return Region("position", "deviation", at - spacing, at + spacing, peak, at, "both", "bump", one_target=True)
+
+
+def test_single_targets_beside_a_period_in_part_of_the_travel_are_one_region():
+    """Beside an unresolved period, neighbouring targets that depart singly in part of the travel are
+    structure there (a screw lead repeats on every turn): one region over them, a wave when they change
+    sign; spread over the travel they are the period seen at few targets and are left out."""
+    wave = [single(400.0, 30.0, -2.0), single(430.0, 30.0, 2.5), single(460.0, 30.0, 1.0)]
+    joined = beside_period(wave, 600.0)
+    assert len(joined) == 1 and not joined[0].one_target and joined[0].shape == "wave"
+    assert (joined[0].start, joined[0].end, joined[0].peak_um) == (370.0, 490.0, 2.5)
+    assert beside_period([single(40.0, 30.0, 1.0), *wave], 600.0) == joined  # a far single alone: left out
+    spread = [single(x, 30.0, (-1.0) ** k * 2.0) for k, x in enumerate((60.0, 90.0, 300.0, 330.0, 540.0, 570.0))]
+    assert beside_period(spread, 600.0) == []
+    reversal = Region("position", "deviation", 0.0, 600.0, -1.0, 0.0, "opposite", "level")
+    assert beside_period([reversal, single(200.0, 30.0, 2.0)], 600.0) == [reversal, single(200.0, 30.0, 2.0)]

@@ -63,8 +63,10 @@ class Region:
 
     @property
     def centre(self) -> float:
-        """The middle of the region; a step's place is where it changes most (peak_at)."""
-        return self.peak_at if self.shape == "step" else (self.start + self.end) / 2
+        """The middle of the region; a step's place is where it changes most (peak_at); one target's
+        departure is at that target (peak_at: the error reaches it, wherever between its neighbours
+        it begins and ends)."""
+        return self.peak_at if self.shape == "step" or self.one_target else (self.start + self.end) / 2
 
     def sentence(self) -> str:
         """'a bump of +2.9 µm from 231 to 268 mm (peak at 250 mm), both directions'."""
@@ -495,19 +497,25 @@ def _steps_joined(regions: list[tuple[Region, np.ndarray]], at: np.ndarray, trav
     return out
 
 
+WIDE = 0.5
+"""A region wider than this share of the travel (a reversal over the travel, a bow) is the vocabulary's:
+a target inside it that departs from its direction's curve is still said as one target's departure."""
+
+
 def odd_targets(data: CampaignData, residual: np.ndarray, noise_um: float, curves: list[Curve],
                 regions: list[Region]) -> list[Region]:
     """Targets whose mean residual departs from the smoothed curve of its direction beyond their own
     noise (noise / √points, the normal quantile of BAND_ALPHA over every target and direction), outside
-    the regions already found: an error narrower than the spacing of the targets, which one target
-    shows and its neighbours do not (the smoother, cross-validated by leaving targets out, cannot
-    follow it). Each is a bump from the target before to the one after (where between them it begins
+    the regions already found (but for those over most of the travel, WIDE): an error narrower than the
+    spacing of the targets, which one target shows and its neighbours do not (the smoother,
+    cross-validated by leaving targets out, cannot follow it). Each is a bump from the target before to the one after (where between them it begins
     and ends the data do not say), in the direction(s) that show it."""
     from scipy.stats import norm
 
     targets = np.unique(np.round(data.x, 6))
     if len(targets) < 4 or noise_um <= 0:
         return []
+    travel = float(np.ptp(targets)) or 1.0
     by_direction = {c.direction: c for c in curves if c.over == "position"}
     departures: dict[int, dict[str, tuple[float, float]]] = {}
     tests = 0
@@ -533,8 +541,8 @@ def odd_targets(data: CampaignData, residual: np.ndarray, noise_um: float, curve
         if not odd:
             continue
         x = float(targets[k])
-        if any(r.start <= x <= r.end for r in regions):
-            continue
+        if any(r.start <= x <= r.end for r in regions if r.end - r.start <= WIDE * travel):
+            continue  # a region over most of the travel (a reversal, a bow) does not say what one target shows
         signs = {math.copysign(1.0, v[1]) for v in sides.values()}
         both = len(odd) == 2 or (len(sides) == 2 and len(signs) == 1
                                  and all(abs(v[0]) > limit / 2 for v in sides.values()))
@@ -545,6 +553,38 @@ def odd_targets(data: CampaignData, residual: np.ndarray, noise_um: float, curve
         out.append(Region("position", "deviation", start, end, peak, x, direction, "bump", data.position_unit,
                           data.deviation_unit, one_target=True))
     return out
+
+
+def beside_period(regions: list[Region], travel: float) -> list[Region]:
+    """The regions left beside an unresolved period. One target's departures are that period seen at few
+    targets (said by its unresolved group) when they spread over more than WIDE of the travel; in part
+    of it they are structure there, finer than the target spacing (a screw lead repeats on every turn):
+    neighbouring ones (their regions overlap) said as one region from the first's neighbour to the
+    last's, a wave when they change sign, a bump when not. When all of them spread wider, the
+    neighbouring ones are still said when they are all within WIDE (one target alone is left out)."""
+    singles = sorted((r for r in regions if r.one_target), key=lambda r: r.start)
+    rest = [r for r in regions if not r.one_target]
+    groups: list[list[Region]] = []
+    for r in singles:
+        if groups and r.start < groups[-1][-1].end:
+            groups[-1].append(r)
+        else:
+            groups.append([r])
+    if singles and max(r.end for r in singles) - singles[0].start > WIDE * travel:
+        groups = [g for g in groups if len(g) > 1]
+        if groups and groups[-1][-1].end - groups[0][0].start > WIDE * travel:
+            groups = []
+    for group in groups:
+        if len(group) == 1:
+            rest.append(group[0])
+            continue
+        peak = max(group, key=lambda r: abs(r.peak_um))
+        sides = {r.direction for r in group}
+        shape = "wave" if len({r.peak_um > 0 for r in group}) > 1 else "bump"
+        rest.append(Region("position", "deviation", group[0].start, max(r.end for r in group), peak.peak_um,
+                           peak.peak_at, sides.pop() if len(sides) == 1 else "both", shape, peak.unit,
+                           peak.deviation_unit))
+    return sorted(rest, key=lambda r: r.start)
 
 
 def locate(data: CampaignData, residual: np.ndarray) -> Located:

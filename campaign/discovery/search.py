@@ -68,7 +68,7 @@ from campaign.discovery.local import (
     passes,
     refit_local,
 )
-from campaign.discovery.locate import Located, locate
+from campaign.discovery.locate import Located, beside_period, locate
 from campaign.discovery.records import Choice, LocalRival, StandIn, StartingEffect, Unresolved
 from campaign.discovery.unexplained import describe_region, region_terms, wave_over_part
 from campaign.effects import RegistryView, effect, effects
@@ -625,8 +625,9 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
         data, data.y - result.start.prediction)
     result.located_after = locate(data, data.y - result.final.prediction)
     if any("periodic_lead" in u.effects for u in result.unresolved):
-        # what single targets show beside an unresolved period is that period seen at few targets: said there
-        result.located_after.regions[:] = [r for r in result.located_after.regions if not r.one_target]
+        # single targets' departures over the travel are the unresolved period seen at few targets: said there
+        for located in (result.located_before, result.located_after):
+            located.regions[:] = beside_period(located.regions, float(np.ptp(data.x)) or 1.0)
     result.noise_measured = noise_measured(data)
     return result
 
