@@ -574,7 +574,8 @@ def test_a_region_after_a_dense_follow_up_takes_the_first_campaigns_spacing(tmp_
 
     config = parse_config(user_config().text, str(tmp_path / "first" / "config.toml"))
     first = campaign_data(simulate_campaign(config, ErrorModel(BOW), seed=2))
-    dense = parse_config(user_config(count=121).text, str(tmp_path / "first" / "config.toml"))
+    dense = parse_config(user_config(count=121).text.replace("start = 0.0", "start = 400.0").replace(
+        "length = 600.0", "length = 150.0"), str(tmp_path / "first" / "config.toml"))  # dense, beside the region
     data = join_campaigns([first, campaign_data(simulate_campaign(dense, ErrorModel(BOW), seed=3))], ["a", "b"])
     spacing = float(np.median(np.diff(np.unique(np.round(first.x, 6)))))
     follow = plan_follow_up([], [], data, linear_fit(data, []), config, None, 0.34, tmp_path / "f.toml",
@@ -584,3 +585,31 @@ def test_a_region_after_a_dense_follow_up_takes_the_first_campaigns_spacing(tmp_
     assert f"the first campaign's are {spacing:.3g} mm apart" in part.why
     step = float(np.median(np.diff(follow.config.plan.targets or [])))
     assert spacing / 4 * 0.9 <= step <= spacing / 4 * 1.1, (step, spacing)
+    # the same region measured that densely already: not measured again, nothing to plan
+    again = parse_config(user_config(count=121).text.replace("length = 600.0", "length = 250.0").replace(
+        "start = 0.0", "start = 125.0"), str(tmp_path / "first" / "config.toml"))
+    data = join_campaigns([first, campaign_data(simulate_campaign(again, ErrorModel(BOW), seed=4))], ["a", "b"])
+    assert plan_follow_up([], [], data, linear_fit(data, []), config, None, 0.34, tmp_path / "f.toml",
+                          ["a/points.csv", "b/points.csv"], [(150.0, 350.0)]) is None
+
+
+@pytest.mark.machine
+@pytest.mark.parametrize("seed", sweep(5, 6))
+def test_the_loop_ends_when_the_tables_together_leave_nothing(cli, tmp_path, seed):
+    """A located bump: the follow-up measures its region densely; fitted together, nothing is
+    unresolved and what is left is noise, so the loop ends: no follow-up proposed, none written
+    (exit 0), and --follow-up says so (it planned a third campaign over the same region before)."""
+    machine = {**BOW, "local_defect": BUMP}
+    first, _, out = written_follow_up(cli, tmp_path, user_config(count=21, seed=seed).text, machine, seed)
+    assert out["follow_up"] is not None and out["follow_up"]["campaigns"], out["follow_up"]
+    tables = []
+    for i, campaign in enumerate(out["follow_up"]["campaigns"]):
+        config = load_config(campaign["file"])
+        tables.append(tmp_path / f"second-{i}.csv")
+        write_points(tables[-1], simulate_campaign(config, ErrorModel(machine), seed=seed + 100 + i,
+                                                   dwell_jitter=config.plan.dwell_jitter))
+    both = json.loads(cli("discover", first, *tables, "--json").out)
+    assert not both["unresolved"] and both["gap_after_um"] <= 1.3 * both["noise_um"], both["unresolved"]
+    said = cli("discover", first, *tables, "--follow-up", "-o", tmp_path / "third.toml")
+    assert said.code == 0 and not (tmp_path / "third.toml").exists()
+    assert "no file written" in said.out and "--follow-up" not in said.out.split("follow-up:")[0]

@@ -62,6 +62,10 @@ from backlash (sets the dwell part's points by a rule of thumb, `_dwell_points`)
 MAX_CLUSTER_TARGETS = 121
 """The most targets a cluster gets: a longer span than that allows is cut, and the why says so."""
 
+DENSE_ENOUGH = 1.5
+"""A region whose measured targets are nowhere more than this many times the step a follow-up would
+take apart is not measured again (a follow-up already measured it: the loop ends there)."""
+
 CLUSTER_LEADS = 3.0
 """The cluster spans at least this many of the longest plausible candidate periods."""
 CLUSTER_STEP = 5
@@ -360,10 +364,14 @@ def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData
     first_t = _first_targets(data)
     spacing = float(np.median(np.diff(first_t))) if len(first_t) > 1 else 1.0
     lo, hi = float(_targets(data)[0]), float(_targets(data)[-1])
+    every = _targets(data)
     for start, end in _joined(regions):
         step = max(min(spacing / 4, (end - start) / 8), 1e-3)
         a, b = max(start - step, lo), min(end + step, hi)
         count = min(int((b - a) / step) + 1, MAX_CLUSTER_TARGETS)
+        inside = every[(every >= start) & (every <= end)]
+        if len(inside) >= 2 and float(np.max(np.diff(inside))) <= DENSE_ENOUGH * (b - a) / max(count - 1, 1):
+            continue  # already measured as densely as a follow-up would: the tables hold its shape
         targets = [round(a + (b - a) * i / max(count - 1, 1), 4) for i in range(count)]
         dense = _Ask(Part(["local error"], (
             f"where measurement and model disagree beyond the noise, {start:.4g} to {end:.4g} mm: {count} targets "
