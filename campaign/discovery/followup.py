@@ -125,7 +125,8 @@ class FollowUp:
     that ask for different cycles or waits are campaigns of their own, so that each keeps them."""
 
     def as_dict(self) -> dict[str, Any]:
-        return {"campaigns": [c.as_dict() for c in self.campaigns],"parts": [{"effects": p.effects, "why": p.why} for p in self.parts], "unplanned": self.unplanned,
+        return {"campaigns": [c.as_dict() for c in self.campaigns],
+                "parts": [{"effects": p.effects, "why": p.why} for p in self.parts], "unplanned": self.unplanned,
                 "duration_s": round(self.duration_s, 1), "first_duration_s": round(self.first_duration_s, 1),
                 "longer_warning": self.longer,
                 "targets": list(build_plan(self.config).targets), "cycles": self.config.plan.cycles,
