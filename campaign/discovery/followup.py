@@ -576,7 +576,7 @@ def plan_follow_up(unresolved: list[Unresolved], remaining: list[Any], data: Cam
                    + (f", {duration / 60:.1f} min with the other campaigns" if len(groups) > 1 else "")
                    + f"; the first campaign's: {first / 60:.1f} min (budget {budget / 60:.1f} min)"
                    + (f"; a stable capture counted with the {stable_wait:.2g} s it waited a point in the first "
-                      "campaign" if stable_wait > 0.05 else "") + "."), ""]
+                      "campaign" if stable_wait > 0.05 and followed.capture.method == "stable" else "") + "."), ""]
         campaigns.append(Campaign(followed, "\n".join(header) + "\n" + config_toml(followed.data), path, parts, took))
     return FollowUp(campaigns[0].config, campaigns[0].text, [a.part for a in chosen], unplanned, duration, first, None,
                     campaigns)
