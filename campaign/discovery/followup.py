@@ -509,7 +509,9 @@ def plan_follow_up(unresolved: list[Unresolved], remaining: list[Any], data: Cam
     elif any(a.stops is None for a in asks if _kind(a) == "targets"):  # one campaign has one capture method:
         asks = [_stopped(a) if _kind(a) == "targets" else a for a in asks]  # a scan does not stop where the others do
     stable_wait = measured_stable_wait_s(data, config)
-    first = estimate_duration_s(build_plan(config), config.axis) + stable_wait * len(build_plan(config).points)
+    first_plan = build_plan(config)
+    first = estimate_duration_s(first_plan, config.axis) + stable_wait * len(first_plan.points)
+    home = first_plan.stops()[0].position  # a follow-up starts with the move from where the first campaign began
     budget = first if budget_s is None else budget_s
     follows = str(Path(sources[0]).parent) if sources else ""
 
@@ -534,7 +536,7 @@ def plan_follow_up(unresolved: list[Unresolved], remaining: list[Any], data: Cam
         plan_built = build_plan(followed)
         check_plan(plan_built, followed.axis)
         waited = stable_wait if followed.capture.method == "stable" else 0.0
-        return followed, estimate_duration_s(plan_built, followed.axis) + waited * len(plan_built.points)
+        return followed, estimate_duration_s(plan_built, followed.axis, home) + waited * len(plan_built.points)
 
     def cost(chosen: list[_Ask]) -> float:
         return sum(build(group)[1] for group in _campaigns(chosen))
