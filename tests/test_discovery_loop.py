@@ -249,11 +249,20 @@ def test_the_scan_planning_rule(tmp_path, controller):
         stopping = Unresolved(("backlash", "settling"), "a reversal", "vary the wait")
         merged = plan_follow_up([group, stopping], [], data, linear_fit(data, []), config, 1.5, 0.34,
                                 tmp_path / "f.toml", ["first/points.csv"])
-        assert merged is not None and merged.config.capture.method == "dwell"
-        assert any("one capture method" in p.why for p in merged.parts)
+        # the wait ladder is a campaign of its own (its waits and cycles), the cluster another, measured
+        # once; stopped, not scanned: a profile has no waits, and the joint fit would lose the ladder's
+        assert merged is not None and len(merged.campaigns) == 2
+        ladder, cluster = sorted(merged.campaigns, key=lambda c: c.config.plan.dwell_jitter, reverse=True)
+        assert [p.effects for p in ladder.parts] == [["backlash", "settling"]] and ladder.config.plan.dwell_jitter > 0
+        assert [p.effects for p in cluster.parts] == [["periodic_lead"]] and cluster.config.plan.cycles == 1
+        assert cluster.config.capture.method != "scan" and "wait ladder would be lost" in cluster.parts[0].why
+        assert cluster.config.plan.dwell_jitter == config.plan.dwell_jitter
+        assert merged.duration_s == pytest.approx(ladder.duration_s + cluster.duration_s)
+        assert ladder.path == tmp_path / "f.toml" or cluster.path == tmp_path / "f.toml"
         alone_region = plan_follow_up([group], [], data, linear_fit(data, []), config, None, 0.34,
                                       tmp_path / "f.toml", ["first/points.csv"], [(240.0, 260.0)])
         assert alone_region is not None and alone_region.config.capture.method == "dwell"  # a local error of its own
+        assert any("one capture method" in p.why for p in alone_region.parts)
     else:
         assert capture.method == "dwell" and "NEW/points.csv" in follow.text
         assert f'not a scan: axis_driver.type = "{controller}" does not stream its actual position' in why
@@ -525,3 +534,82 @@ def test_a_cluster_is_bounded_and_says_so():
     targets, why = _cluster(data, result.final, [0.5, 20.0, 20.5], [], result.noise_um)
     assert len(targets) == MAX_CLUSTER_TARGETS and f"bounded to {MAX_CLUSTER_TARGETS} targets" in why
     assert max(np.diff(targets)) <= 0.5 / 4 + 1e-9
+
+
+def test_a_scan_over_a_cluster_and_a_rival_region_keeps_its_windows_apart(tmp_path):
+    """A cluster's targets and a rival region's (merged into one scan) may fall a hair apart: the
+    written config must read back (no window shorter than the laser's sample spacing, none taking
+    a neighbour's samples) and overlapping regions are measured once (one part, not two)."""
+    from campaign.discovery.fit import linear_fit
+    from campaign.discovery.followup import plan_follow_up
+    from campaign.discovery.records import LocalRival
+
+    config = parse_config(user_config().text, str(tmp_path / "first" / "config.toml"))
+    lead = {"periodic_lead": {"amplitude_um": 1.0, "period_mm": 10.0, "phase_rad": 0.3}}
+    data = campaign_data(simulate_campaign(config, ErrorModel({**BOW, **lead}), seed=1))
+    rng = np.random.default_rng(7)
+    for start in rng.uniform(260.0, 320.0, 4):
+        region = (round(float(start), 3), round(float(start) + float(rng.uniform(5.0, 30.0)), 3))
+        group = Unresolved(("periodic_lead",), "aliased", "more targets", periods_mm=(10.0, 15.9, 4.4),
+                           period_delta_bic=(0.0, 1.0, 2.0), local_rivals=(LocalRival("a bump", region),))
+        follow = plan_follow_up([group], [], data, linear_fit(data, []), config, None, 0.34, tmp_path / "f.toml",
+                                ["first/points.csv"], [region, region, (region[0] + 1.0, region[1] + 5.0)])
+        assert follow is not None and len(follow.campaigns) == 1
+        scan = load_config(tmp_path / "f.toml") if (tmp_path / "f.toml").exists() else None
+        written = parse_config(follow.text, str(tmp_path / "f.toml"))  # reads back: its windows are valid
+        assert scan is None or scan.plan.targets == written.plan.targets
+        assert written.capture.method == "scan"
+        sample = written.capture.scan_velocity / written.instrument.rate_hz
+        gaps = np.diff(written.plan.targets)
+        assert gaps.min() >= 2 * sample * 0.999 and written.capture.scan_window <= gaps.min() + 1e-9
+        assert written.capture.scan_window >= sample
+        assert [p.effects for p in follow.parts].count(["local error"]) == 1, [p.why for p in follow.parts]
+
+
+def test_a_region_after_a_dense_follow_up_takes_the_first_campaigns_spacing(tmp_path):
+    """Fitted with a dense follow-up, a region's targets are a quarter of the FIRST campaign's
+    spacing apart, and its why says that spacing (not that of the union of the tables' targets)."""
+    from campaign.discovery.fit import linear_fit
+    from campaign.discovery.followup import plan_follow_up
+
+    config = parse_config(user_config().text, str(tmp_path / "first" / "config.toml"))
+    first = campaign_data(simulate_campaign(config, ErrorModel(BOW), seed=2))
+    dense = parse_config(user_config(count=121).text.replace("start = 0.0", "start = 400.0").replace(
+        "length = 600.0", "length = 150.0"), str(tmp_path / "first" / "config.toml"))  # dense, beside the region
+    data = join_campaigns([first, campaign_data(simulate_campaign(dense, ErrorModel(BOW), seed=3))], ["a", "b"])
+    spacing = float(np.median(np.diff(np.unique(np.round(first.x, 6)))))
+    follow = plan_follow_up([], [], data, linear_fit(data, []), config, None, 0.34, tmp_path / "f.toml",
+                            ["a/points.csv", "b/points.csv"], [(150.0, 350.0)])
+    assert follow is not None
+    [part] = follow.parts
+    assert f"the first campaign's are {spacing:.3g} mm apart" in part.why
+    step = float(np.median(np.diff(follow.config.plan.targets or [])))
+    assert spacing / 4 * 0.9 <= step <= spacing / 4 * 1.1, (step, spacing)
+    # the same region measured that densely already: not measured again, nothing to plan
+    again = parse_config(user_config(count=121).text.replace("length = 600.0", "length = 250.0").replace(
+        "start = 0.0", "start = 125.0"), str(tmp_path / "first" / "config.toml"))
+    data = join_campaigns([first, campaign_data(simulate_campaign(again, ErrorModel(BOW), seed=4))], ["a", "b"])
+    assert plan_follow_up([], [], data, linear_fit(data, []), config, None, 0.34, tmp_path / "f.toml",
+                          ["a/points.csv", "b/points.csv"], [(150.0, 350.0)]) is None
+
+
+@pytest.mark.machine
+@pytest.mark.parametrize("seed", sweep(5, 6))
+def test_the_loop_ends_when_the_tables_together_leave_nothing(cli, tmp_path, seed):
+    """A located bump: the follow-up measures its region densely; fitted together, nothing is
+    unresolved and what is left is noise, so the loop ends: no follow-up proposed, none written
+    (exit 0), and --follow-up says so (it planned a third campaign over the same region before)."""
+    machine = {**BOW, "local_defect": BUMP}
+    first, _, out = written_follow_up(cli, tmp_path, user_config(count=21, seed=seed).text, machine, seed)
+    assert out["follow_up"] is not None and out["follow_up"]["campaigns"], out["follow_up"]
+    tables = []
+    for i, campaign in enumerate(out["follow_up"]["campaigns"]):
+        config = load_config(campaign["file"])
+        tables.append(tmp_path / f"second-{i}.csv")
+        write_points(tables[-1], simulate_campaign(config, ErrorModel(machine), seed=seed + 100 + i,
+                                                   dwell_jitter=config.plan.dwell_jitter))
+    both = json.loads(cli("discover", first, *tables, "--json").out)
+    assert not both["unresolved"] and both["gap_after_um"] <= 1.3 * both["noise_um"], both["unresolved"]
+    said = cli("discover", first, *tables, "--follow-up", "-o", tmp_path / "third.toml")
+    assert said.code == 0 and not (tmp_path / "third.toml").exists()
+    assert "no file written" in said.out and "--follow-up" not in said.out.split("follow-up:")[0]

@@ -377,7 +377,7 @@ def next_command(result: Discovery, files: list[str]) -> str | None:
     noise is left: the follow-up that would tell (within the first campaign's machine time), or a
     look at where the residual is."""
     said = " ".join(files)
-    if result.unresolved or result.local_errors:
+    if result.unresolved or (result.local_errors and not loop_ends(result, files)):
         return f"next: axiscal discover {said} --follow-up -o FOLLOW.toml"
     if noise_verdict(result) != "noise":
         return f"next: axiscal discover {said} --plot residual.png"
@@ -589,10 +589,11 @@ def run(args: argparse.Namespace) -> int:
         try:  # the findings are printed even when the follow-up cannot be planned or written
             follow = plan_follow_up(result.unresolved, result.remaining, data, result.final, config,
                                     reversal_um(result), result.noise_um, Path(args.output), args.files,
-                                    regions_to_measure(result),
+                                    [] if loop_ends(result, args.files) else regions_to_measure(result),
                                     None if args.budget_min is None else 60 * args.budget_min)
             if follow is not None and follow.parts:
-                write_follow_up(Path(args.output), follow.text)
+                for campaign in follow.campaigns:
+                    write_follow_up(campaign.path, campaign.text)
         except Exception as exc:  # noqa: BLE001 - raised again once the findings are out
             failed = exc
     if plot_path:
@@ -629,27 +630,43 @@ def write_follow_up(path: Path, text: str) -> None:
         raise InputError(f"-o {path}: cannot write the follow-up config ({exc.strerror or exc})") from None
 
 
+def loop_ends(result: Discovery, files: list[str]) -> bool:
+    """Tables fitted together (a follow-up measured) leave nothing unresolved and what is left is
+    noise: the loop ends there, whatever local error the model holds (it is determined)."""
+    return len(files) > 1 and not result.unresolved and noise_verdict(result) == "noise"
+
+
 def regions_to_measure(result: Discovery) -> list[tuple[float, float]]:
-    """Where a follow-up should measure densely: the located local errors' regions when what is left
-    (or what they explain) is more than noise."""
+    """Where a follow-up should measure densely: the located local errors' regions, those where a
+    local error rivals an unresolved effect, and what the final model leaves unexplained along the
+    axis (but a reversal over the travel). A region the
+    tables already measure densely is left out by the planner (the loop ends there)."""
     rivals = [r.region_mm for u in result.unresolved for r in u.local_rivals]
-    return [zone.region_mm for zone in zones(result.local_errors)] + rivals
+    left = [(r.start, r.end) for r in (result.located_after.along if result.located_after else [])
+            if r.direction != "opposite"]
+    return [zone.region_mm for zone in zones(result.local_errors)] + rivals + left
 
 
 def follow_up_lines(follow: FollowUp | None, path: str) -> list[str]:
     """What the follow-up campaign is for, part by part, and its machine time against the first's."""
     if follow is None:
-        return ["follow-up: nothing is unresolved that another campaign could separate; no file written"]
+        return [("follow-up: nothing is unresolved that another campaign could separate, and no region is left to "
+                 "measure densely; no file written")]
     if not follow.parts:
         return ["follow-up: no part fits within the budget; no file written",
                 *(f"  [yellow]not planned:[/] {u}" for u in follow.unplanned)]
-    scan = follow.config.capture.method == "scan"  # its points are sweeps; its profile is fitted
-    lines = [(f"follow-up written to {path}: {len(build_plan(follow.config).points)} {'sweeps' if scan else 'points'}, "
-             f"{follow.duration_s / 60:.1f} min of machine time (the first campaign: {follow.first_duration_s / 60:.1f} "
-             f"min); measure it, then discover {'the first table with its profile.csv' if scan else 'both tables'} "
-             "together")]
+    lines = []
+    for campaign in follow.campaigns:
+        scan = campaign.config.capture.method == "scan"  # its points are sweeps; its profile is fitted
+        lines.append(f"follow-up written to {campaign.path}: {len(build_plan(campaign.config).points)} "
+                     f"{'sweeps' if scan else 'points'}, {campaign.duration_s / 60:.1f} min of machine time")
+        lines += [f"  for {' or '.join(p.effects)}: {p.why}" for p in campaign.parts]
+    several = len(follow.campaigns) > 1
+    lines.append(f"{'together ' if several else ''}{follow.duration_s / 60:.1f} min (the first campaign: "
+                 f"{follow.first_duration_s / 60:.1f} min); measure {'each' if several else 'it'}, then discover the "
+                 f"first table and {'theirs' if several else 'its'} together (a scan's: its profile.csv; the "
+                 "command is in the file's header)")
     if follow.longer:
         lines.append(f"  [yellow]warning:[/] {follow.longer}")
-    lines += [f"  for {' or '.join(p.effects)}: {p.why}" for p in follow.parts]
     lines += [f"  [yellow]not planned:[/] {u}" for u in follow.unplanned]
     return lines

@@ -1,8 +1,10 @@
 """The follow-up campaign: a campaign config for the same axis that would separate every group
 discovery left unresolved, within the axis's limits and as short as it can be.
 
-Each unresolved group asks for one part of the plan (`Part`), and the parts are merged into one
-campaign (its targets, capture and cycles). The part an effect asks for is its module's
+Each unresolved group (and each located region) asks for one part of the plan (`Part`); parts of
+one kind (`_kind`: the wait ladder, repeated runs, targets measured once) are merged into one
+campaign (its targets, capture and cycles), parts of different kinds are campaigns of their own,
+so that each keeps its cycles and waits and their machine times add up. The part an effect asks for is its module's
 `follow_up` (campaign/effects/): a group gets the first of these that one of its effects asks for
 ("travel" only when all do):
 - settling against backlash (or position-dependent backlash): waits before capture that vary over
@@ -17,8 +19,7 @@ campaign (its targets, capture and cycles). The part an effect asks for is its m
 - thermal drift against linear scale (or the environment): twice the first campaign's runs at its
   targets over the whole travel (a slope is seen over the travel), so about twice its time;
 - a growing against a constant reversal: both directions at targets over the whole travel.
-Parts that ask for different targets get the union of them. A follow-up longer than the first
-campaign says so (`longer`).
+Parts of one campaign that ask for different targets get the union of them.
 A group none of these fits is said, not planned.
 
 Units: positions in the axis unit (mm or deg), times s, deviations µm.
@@ -61,6 +62,10 @@ from backlash (sets the dwell part's points by a rule of thumb, `_dwell_points`)
 MAX_CLUSTER_TARGETS = 121
 """The most targets a cluster gets: a longer span than that allows is cut, and the why says so."""
 
+DENSE_ENOUGH = 1.5
+"""A region whose measured targets are nowhere more than this many times the step a follow-up would
+take apart is not measured again (a follow-up already measured it: the loop ends there)."""
+
 CLUSTER_LEADS = 3.0
 """The cluster spans at least this many of the longest plausible candidate periods."""
 CLUSTER_STEP = 5
@@ -84,6 +89,24 @@ class Part:
 
 
 @dataclass
+class Campaign:
+    """One campaign of the follow-up: its config, the TOML text, where it is written, its parts and
+    its machine time (the project's estimate, s)."""
+
+    config: Config
+    text: str
+    path: Path
+    parts: list[Part]
+    duration_s: float
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"file": str(self.path), "effects": [p.effects for p in self.parts],
+                "duration_s": round(self.duration_s, 1), "points": len(build_plan(self.config).points),
+                "targets": list(build_plan(self.config).targets), "cycles": self.config.plan.cycles,
+                "capture": self.config.capture.method}
+
+
+@dataclass
 class FollowUp:
     """The follow-up campaign: its config (validated, within the limits), the TOML text to write,
     the parts and why each is there, the groups it cannot plan for, and the machine time of the
@@ -97,9 +120,13 @@ class FollowUp:
     first_duration_s: float = 0.0
     longer: str | None = None
     """A warning when the follow-up takes longer than the first campaign (None: it does not)."""
+    campaigns: list[Campaign] = field(default_factory=list)
+    """The campaigns written (config and text above are the first's; duration_s is their sum): parts
+    that ask for different cycles or waits are campaigns of their own, so that each keeps them."""
 
     def as_dict(self) -> dict[str, Any]:
-        return {"parts": [{"effects": p.effects, "why": p.why} for p in self.parts], "unplanned": self.unplanned,
+        return {"campaigns": [c.as_dict() for c in self.campaigns],
+                "parts": [{"effects": p.effects, "why": p.why} for p in self.parts], "unplanned": self.unplanned,
                 "duration_s": round(self.duration_s, 1), "first_duration_s": round(self.first_duration_s, 1),
                 "longer_warning": self.longer,
                 "targets": list(build_plan(self.config).targets), "cycles": self.config.plan.cycles,
@@ -112,11 +139,19 @@ def _targets(data: CampaignData) -> np.ndarray:
     return np.unique(np.round(data.x, 6))
 
 
+def _first_targets(data: CampaignData) -> np.ndarray:
+    """The first campaign's targets (of tables fitted together, the first table's: its spacing is
+    the one a follow-up refines, not that of a dense follow-up already measured)."""
+    if data.campaign is None:
+        return _targets(data)
+    return np.unique(np.round(data.x[data.campaign == 0], 6))
+
+
 def _few(data: CampaignData) -> list[float]:
     """FEW_TARGETS targets FEW_SPACING of the travel apart about the middle of the targets measured:
     where the first campaign already holds the shape along the travel, the follow-up needs only to
     see the reversal, and short moves keep it short."""
-    t = _targets(data)
+    t = _first_targets(data)
     step = FEW_SPACING * float(t[-1] - t[0])
     middle = float(np.median(t)) - step * (FEW_TARGETS - 1) / 2
     return [round(middle + i * step, 3) for i in range(FEW_TARGETS)]
@@ -225,7 +260,7 @@ def _dwell_points(reversal_um: float, noise_um: float) -> int:
 
 def _with_travel(targets: list[float] | None, data: CampaignData) -> list[float]:
     """The first campaign's targets over the whole travel, with those another part asked for."""
-    return sorted({*(targets or []), *(round(float(v), 3) for v in _targets(data))})
+    return sorted({*(targets or []), *(round(float(v), 3) for v in _first_targets(data))})
 
 
 def _periods_of(group: Unresolved, remaining: list[Any]) -> list[float]:
@@ -269,7 +304,7 @@ class _Ask:
 def _spread(data: CampaignData) -> list[float]:
     """FEW_TARGETS of the first campaign's targets spread over its whole travel (a slope is seen
     over the travel; few targets keep the campaign short)."""
-    t = _targets(data)
+    t = _first_targets(data)
     picks = np.unique(np.round(np.linspace(0, len(t) - 1, min(FEW_TARGETS, len(t)))).astype(int))
     return [round(float(t[i]), 3) for i in picks]
 
@@ -326,24 +361,57 @@ def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData
                                                  f"{FEW_TARGETS} targets over the whole travel"), _spread(data), 1))
         else:
             unplanned.append(f"{' or '.join(group.effects)}: {group.how_to_tell}")
-    rivals = {tuple(r.region_mm) for group in unresolved for r in group.local_rivals}
-    for start, end in regions:
-        spacing = float(np.median(np.diff(_targets(data)))) if len(_targets(data)) > 1 else 1.0
+    rivals = [tuple(r.region_mm) for group in unresolved for r in group.local_rivals]
+    first_t = _first_targets(data)
+    spacing = float(np.median(np.diff(first_t))) if len(first_t) > 1 else 1.0
+    lo, hi = float(_targets(data)[0]), float(_targets(data)[-1])
+    every = _targets(data)
+    for start, end in _joined(regions):
         step = max(min(spacing / 4, (end - start) / 8), 1e-3)
-        lo, hi = float(_targets(data)[0]), float(_targets(data)[-1])
         a, b = max(start - step, lo), min(end + step, hi)
         count = min(int((b - a) / step) + 1, MAX_CLUSTER_TARGETS)
+        inside = every[(every >= start) & (every <= end)]
+        if len(inside) >= 2 and float(np.max(np.diff(inside))) <= DENSE_ENOUGH * (b - a) / max(count - 1, 1):
+            continue  # already measured as densely as a follow-up would: the tables hold its shape
         targets = [round(a + (b - a) * i / max(count - 1, 1), 4) for i in range(count)]
         dense = _Ask(Part(["local error"], (
             f"where measurement and model disagree beyond the noise, {start:.4g} to {end:.4g} mm: {count} targets "
-            f"{(b - a) / max(count - 1, 1):.3g} mm apart over it (the first campaign's are {spacing:.3g} mm apart), "
-            "to see its shape")), targets, 1)
+            f"{(b - a) / max(count - 1, 1):.3g} mm apart over it (the first campaign's are {spacing:.3g} mm apart"
+            + (f"; a quarter of that would take more than {MAX_CLUSTER_TARGETS} targets" if count == MAX_CLUSTER_TARGETS
+               and (b - a) / (count - 1) > step * 1.001 else "") + "), to see its shape")), targets, 1)
         # scanned only where a local error rivals a period (its cluster is scanned too): a located local
         # error of its own keeps its stops (its scan's profile, fitted with the first table, named
         # effects the machine lacked: docs/scan.md)
-        scanned = _scan(config, dense, max(b - a, step), "region")[0] if (start, end) in rivals else None
+        rival = any(r0 < end and start < r1 for r0, r1 in rivals)
+        scanned = _scan(config, dense, max(b - a, step), "region")[0] if rival else None
         asks.append(scanned or dense)
     return asks, unplanned
+
+
+def measured_stable_wait_s(data: CampaignData, config: Config) -> float:
+    """What a stable capture takes at a target beyond its stability window, as the first campaign
+    measured it, s per point (0 when it did not capture with the stable method or recorded no
+    waits): the median wait before its samples (their middle, so plus half the window) less the
+    window the project's estimate counts. On a machine that settles slowly it is seconds a point
+    (a follow-up of 300 stable captures took four times its estimate when it was left out)."""
+    if config.capture.method != "stable" or data.w is None:
+        return 0.0
+    first = data.w if data.campaign is None else data.w[data.campaign == 0]
+    waits = np.nanmean(first, axis=1) if first.size else np.array([])
+    if not np.isfinite(waits).any():
+        return 0.0
+    return max(0.0, float(np.nanmedian(waits)) - config.capture.stable_window_s / 2)
+
+
+def _joined(regions: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    """The regions with those that overlap (or touch) joined into one: each place is measured once."""
+    out: list[list[float]] = []
+    for start, end in sorted((min(r), max(r)) for r in regions):
+        if out and start <= out[-1][1]:
+            out[-1][1] = max(out[-1][1], end)
+        else:
+            out.append([start, end])
+    return [(a, b) for a, b in out]
 
 
 def _merged(asks: list[_Ask], data: CampaignData) -> tuple[list[float], int, dict[str, Any], dict[str, Any],
@@ -370,14 +438,50 @@ def _merged(asks: list[_Ask], data: CampaignData) -> tuple[list[float], int, dic
     return targets, cycles, plan, capture, instrument
 
 
-def _stopped(ask: _Ask) -> _Ask:
+BESIDE_STOPS = "the other parts stop at targets, and one campaign has one capture method"
+BESIDE_WAITS = ("a scan's profile has no wait before capture, and tables fitted together use the waits only when "
+                "every table has them (the wait ladder would be lost)")
+
+
+def _stopped(ask: _Ask, why: str = BESIDE_STOPS) -> _Ask:
     """A scan's stop-and-go cluster, saying why it is not scanned; any other part as it is."""
     if ask.stops is None:
         return ask
     cluster = ask.stops
-    cluster.part.why += ("; a stop-and-go cluster, not a scan: the other parts stop at targets, and one campaign has "
-                         "one capture method")
+    cluster.part.why += f"; a stop-and-go cluster, not a scan: {why}"
     return cluster
+
+
+def _kind(ask: _Ask) -> str:
+    """Which campaign of the follow-up a part goes to: the waits varied over a decade ("waits"), runs
+    repeated ("runs") or targets measured once, stopped at or scanned ("targets"). Parts of one kind
+    are merged; parts of different kinds are campaigns of their own, so that the waits vary only at
+    the wait ladder's targets and a cluster is measured once with the first campaign's capture."""
+    if ask.capture.get("method") == "dwell":
+        return "waits"
+    return "runs" if ask.cycles > 1 else "targets"
+
+
+def _campaigns(chosen: list[_Ask]) -> list[list[_Ask]]:
+    kinds: dict[str, list[_Ask]] = {}
+    for ask in chosen:
+        kinds.setdefault(_kind(ask), []).append(ask)
+    return list(kinds.values())
+
+
+def _path(out: Path, index: int) -> Path:
+    """Where the follow-up's campaign `index` (0, 1, ...) is written: -o FOLLOW.toml, FOLLOW-2.toml, ..."""
+    return out if index == 0 else out.with_name(f"{out.stem}-{index + 1}{out.suffix}")
+
+
+def _thinned(targets: list[float], gap: float) -> list[float]:
+    """The targets with any closer than `gap` to the one kept before it left out (a union of parts'
+    targets may hold two a hair apart, which a scan's windows cannot tell apart)."""
+    kept: list[float] = []
+    for v in targets:
+        if not kept or v - kept[-1] >= gap:
+            kept.append(v)
+    return kept
 
 
 def plan_follow_up(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData, final: Fit,
@@ -390,58 +494,91 @@ def plan_follow_up(unresolved: list[Unresolved], remaining: list[Any], data: Cam
     fitted; None when there is nothing to plan for. `reversal_um`: the size of a reversal kept as a
     stand-in or named rival (sets the dwell part's points).
 
-    Its machine time is at most `budget_s` by construction (default: the first campaign's): the
-    parts are taken cheapest first while the campaign stays within it; a part that does not fit is
-    said, with what it alone would take. The config is marked `[campaign] purpose = "follow-up"`,
-    `follows` the first campaign's directory, so that it is never taken for an acceptance test."""
+    Parts of different kinds (`_kind`: the wait ladder, repeated runs, targets measured once) are
+    campaigns of their own, written to `out` and beside it (FOLLOW-2.toml, ...), each with its own
+    cycles, capture and waits. Their machine time together is at most `budget_s` by construction
+    (default: the first campaign's): the parts are taken cheapest first while the campaigns stay
+    within it; a part that does not fit is said, with what it alone would take. Each config is
+    marked `[campaign] purpose = "follow-up"`, `follows` the first campaign's directory, so that it
+    is never taken for an acceptance test."""
     asks, unplanned = _asks(unresolved, remaining, data, final, config, reversal_um, noise_um, regions or [])
     if not asks:
         return None
-    if any(a.stops is None for a in asks):  # one campaign has one capture method: a scan does not stop
-        asks = [_stopped(a) for a in asks]  # where the other parts do
-    first = estimate_duration_s(build_plan(config), config.axis)
+    if any(_kind(a) == "waits" for a in asks):
+        asks = [_stopped(a, BESIDE_WAITS) for a in asks]
+    elif any(a.stops is None for a in asks if _kind(a) == "targets"):  # one campaign has one capture method:
+        asks = [_stopped(a) if _kind(a) == "targets" else a for a in asks]  # a scan does not stop where the others do
+    stable_wait = measured_stable_wait_s(data, config)
+    first_plan = build_plan(config)
+    first = estimate_duration_s(first_plan, config.axis) + stable_wait * len(first_plan.points)
+    home = first_plan.stops()[0].position  # a follow-up starts with the move from where the first campaign began
     budget = first if budget_s is None else budget_s
     follows = str(Path(sources[0]).parent) if sources else ""
 
-    def build(chosen: list[_Ask]) -> tuple[Config, float]:
+    def build(chosen: list[_Ask], path: Path = out) -> tuple[Config, float]:
         targets, cycles, plan, capture, instrument = _merged(chosen, data)
+        if "scan_velocity" in capture:  # a target's window never takes its neighbour's samples, and
+            # holds at least two of the laser's samples
+            rate = instrument.get("rate_hz", config.instrument.rate_hz)
+            targets = _thinned(targets, 2 * capture["scan_velocity"] / rate)
+            gaps = [b - a for a, b in itertools.pairwise(targets)]
+            if gaps:
+                capture["scan_window"] = min(config.capture.scan_window, min(gaps))
+        else:
+            targets = _thinned(targets, 1e-3)
         plan.update(targets=targets, cycles=cycles, length=None, count=None)
-        gaps = [b - a for a, b in itertools.pairwise(targets) if b > a]
-        if "scan_velocity" in capture and gaps:  # a target's window never takes its neighbour's samples
-            capture["scan_window"] = min(config.capture.scan_window, min(gaps))
         said = "; ".join(" or ".join(a.part.effects) for a in chosen)
         changed = config_with(config, {"plan": plan, "capture": capture, "instrument": instrument,
-                                       **_moved_paths(config, out.parent),
+                                       **_moved_paths(config, path.parent),
                                        "campaign": {"description": f"follow-up of {', '.join(sources)}: to tell {said}",
                                                     "purpose": "follow-up", "follows": follows}})
-        followed = parse_config(config_toml(changed.data), str(out))  # as it will be read from where it is written
+        followed = parse_config(config_toml(changed.data), str(path))  # as it will be read from where it is written
         plan_built = build_plan(followed)
         check_plan(plan_built, followed.axis)
-        return followed, estimate_duration_s(plan_built, followed.axis)
+        waited = stable_wait if followed.capture.method == "stable" else 0.0
+        return followed, estimate_duration_s(plan_built, followed.axis, home) + waited * len(plan_built.points)
+
+    def cost(chosen: list[_Ask]) -> float:
+        return sum(build(group)[1] for group in _campaigns(chosen))
 
     alone = [(a, build([a])[1]) for a in asks]
     chosen: list[_Ask] = []
-    for ask, cost in sorted(alone, key=lambda pair: pair[1]):
-        if build([*chosen, ask])[1] <= budget:
+    for ask, alone_s in sorted(alone, key=lambda pair: pair[1]):
+        if cost([*chosen, ask]) <= budget:
             chosen.append(ask)
         else:
             unplanned.append(f"{' or '.join(ask.part.effects)}: not within the budget of {budget / 60:.1f} min of "
                              f"machine time (the first campaign took {first / 60:.1f} min); it alone would take "
-                             f"{cost / 60:.1f} min: measure it as a follow-up of its own (--budget-min to allow it)")
+                             f"{alone_s / 60:.1f} min: measure it as a follow-up of its own (--budget-min to allow it)")
     if not chosen:
         return FollowUp(config, "", [], unplanned, 0.0, first, None)
     chosen.sort(key=asks.index)
-    followed, duration = build(chosen)
-    parts = [a.part for a in chosen]
-    body = config_toml(followed.data)
-    table = "profile.csv" if followed.capture.method == "scan" else "points.csv"  # a scan's dense profile
-    header = [f"# Follow-up campaign written by `axiscal discover {' '.join(sources)} --follow-up`.",
-              "# It would separate what the first campaign left unresolved; measure it on the same axis, then",
-              f"# fit both together: axiscal discover {' '.join(sources)} NEW/{table}",
-              "# It is a follow-up ([campaign] purpose), not an acceptance test: it gets no pass/fail.",
-              *(f"# - {', '.join(p.effects)}: {p.why}" for p in parts),
-              *(f"# - not planned: {u}" for u in unplanned),
-              (f"# Machine time (estimate): {duration / 60:.1f} min; the first campaign's: {first / 60:.1f} min "
-               f"(budget {budget / 60:.1f} min)."), ""]
-    text = "\n".join(header) + "\n" + body
-    return FollowUp(followed, text, parts, unplanned, duration, first, None)
+    groups = _campaigns(chosen)
+    paths = [_path(out, i) for i in range(len(groups))]
+    built = [build(group, path) for group, path in zip(groups, paths)]
+    tables = [f"NEW{i + 1 if len(groups) > 1 else ''}/{'profile.csv' if c.capture.method == 'scan' else 'points.csv'}"
+              for i, (c, _) in enumerate(built)]  # a scan's dense profile
+    duration = sum(d for _, d in built)
+    campaigns = []
+    for i, (group, path, (followed, took)) in enumerate(zip(groups, paths, built)):
+        parts = [a.part for a in group]
+        measured = (f"# Measure it on the same axis (axiscal run {path.name} --out {tables[i].split('/')[0]}), then fit"
+                    if len(groups) == 1 else
+                    f"# It is campaign {i + 1} of {len(groups)} of the follow-up ({', '.join(p.name for p in paths)}: their "
+                    "parts ask for different cycles or waits); measure each on the same axis (axiscal run "
+                    f"{path.name} --out {tables[i].split('/')[0]}), then fit")
+        header = [f"# Follow-up campaign written by `axiscal discover {' '.join(sources)} --follow-up`.",
+                  "# It would separate what the first campaign left unresolved.",
+                  measured,
+                  f"# all together: axiscal discover {' '.join(sources)} {' '.join(tables)}",
+                  "# It is a follow-up ([campaign] purpose), not an acceptance test: it gets no pass/fail.",
+                  *(f"# - {', '.join(p.effects)}: {p.why}" for p in parts),
+                  *(f"# - not planned: {u}" for u in unplanned),
+                  (f"# Machine time (estimate): {took / 60:.1f} min"
+                   + (f", {duration / 60:.1f} min with the other campaigns" if len(groups) > 1 else "")
+                   + f"; the first campaign's: {first / 60:.1f} min (budget {budget / 60:.1f} min)"
+                   + (f"; a stable capture counted with the {stable_wait:.2g} s it waited a point in the first "
+                      "campaign" if stable_wait > 0.05 and followed.capture.method == "stable" else "") + "."), ""]
+        campaigns.append(Campaign(followed, "\n".join(header) + "\n" + config_toml(followed.data), path, parts, took))
+    return FollowUp(campaigns[0].config, campaigns[0].text, [a.part for a in chosen], unplanned, duration, first, None,
+                    campaigns)
