@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from campaign.cli import main
-from campaign.discovery.data import join_campaigns, read_campaign, read_profile
+from campaign.discovery.data import campaign_data, join_campaigns, read_campaign, read_profile
 from campaign.discovery.fit import design
 from campaign.discovery.simulate import simulate_campaign
 from campaign.model import ErrorModel
@@ -70,6 +70,35 @@ def test_each_table_is_weighed_by_its_own_uncertainty(tmp_path):
     assert both.datums == 3 and both.row_scale is not None and both.row_scale[-1] > 3
     assert design(both, [])[0].shape[1] == 5  # three offsets, the two sweeps' slopes
     assert design(scan, [])[0].shape[1] == 2  # alone: its two sweeps' offsets
+
+
+@pytest.mark.machine  # about 5 s (a scan simulated): the fast tier stays under a minute
+def test_a_scan_profile_beside_tables_keeps_their_waits_and_counts_as_settled(tmp_path):
+    """A scan profile has no wait column (its bins are captured moving). The waits of the tables
+    beside it were dropped: with a follow-up's wait ladder and a scanned cluster, settling was then
+    never looked for and backlash-or-settling stayed unresolved. The profile's bins count as long
+    settled (an infinite wait); whether the waits vary is decided by the points captured at a stop."""
+    import dataclasses
+
+    from campaign.discovery.search import candidate_names, waits_vary
+    from campaign.discovery.simulate import simulate_campaign
+
+    rng = np.random.default_rng(43)
+    machine = _machine(rng, lead=False) | {"settling": {"e0_um": 3.0, "tau_s": 2.0}}
+    first, profile = _tables(tmp_path, 43, machine, rng)
+    scan = read_campaign(profile, read_profile(profile)[0])
+    fixed = read_campaign(first)
+    ladder = campaign_data(simulate_campaign(user_config(seed=44), ErrorModel(machine), seed=44, dwell_jitter=0.8))
+    for stops in (fixed, ladder):
+        for parts in ([stops, scan], [scan, stops]):
+            both = join_campaigns(parts, ["a", "b"])
+            assert both.w is not None and stops.w is not None
+            at_scan = both.campaign == (0 if parts[0] is scan else 1)
+            assert np.isinf(both.w[at_scan][:, 0]).all() and np.isfinite(both.w[~at_scan][:, 0]).all()
+            assert waits_vary(both) == waits_vary(stops) == (stops is ladder)
+            assert ("settling" in candidate_names(both, [], [])) == (stops is ladder)
+    assert join_campaigns([dataclasses.replace(fixed, w=None), scan], ["a", "b"]).w is None  # its waits unknown
+
 
 @pytest.mark.machine  # 10 simulated campaigns and scans, each discovered in both file orders: about 40 s of CPU
 @pytest.mark.parametrize("seed, lead", [(51, True), (52, True), (53, True), (54, False), (55, False)])

@@ -175,7 +175,10 @@ def join_campaigns(parts: list[CampaignData], names: list[str]) -> CampaignData:
     for p in parts:
         datums.append(p.datum_index + first)
         first += p.datums
-    waits = None if any(p.w is None for p in parts) else _padded([p.w for p in parts if p.w is not None])
+    # a scan profile's bins are captured moving, long after any arrival: an infinite wait (settled)
+    moving = [p.w if p.w is not None else np.full((len(p), 1), np.inf) if p.u is not None else None for p in parts]
+    waits = None if any(w is None for w in moving) or all(p.w is None for p in parts) else _padded(
+        [w for w in moving if w is not None])
     env_keys = set.intersection(*(set(p.env) for p in parts))
     air = None if any(p.air_index_change is None for p in parts) else np.concatenate(
         [p.air_index_change for p in parts if p.air_index_change is not None])

@@ -42,6 +42,7 @@ from campaign.discovery.fit import Fit, Term, linear_fit
 from campaign.discovery.records import Unresolved
 from campaign.discovery.search import RIVAL_MARGIN
 from campaign.effects import REGISTRY
+from campaign.effects.base import stop_waits
 from campaign.model import is_model_name
 from campaign.plan import EXPECTED_TIMING_U_S, build_plan, check_plan, estimate_duration_s, planned_timing
 from campaign.specs import STREAMING_CONTROLLERS
@@ -328,8 +329,8 @@ def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData
         names = set(group.effects)
         parts = {part_of(name) for name in names}
         if "dwells" in parts:
-            waits = data.w if data.w is not None else np.array([[config.plan.dwell_s]])
-            high = max(WAITS_S[1], 1.25 * float(np.nanmax(waits)))
+            waits = stop_waits(data) if len(stop_waits(data)) else np.array([config.plan.dwell_s])
+            high = max(WAITS_S[1], 1.25 * float(np.max(waits)))
             low = max(high / 10, WAITS_S[0] * high / WAITS_S[1])
             points = _dwell_points(reversal_um or 0.0, noise_um)
             asks.append(_Ask(Part(sorted(names), (
@@ -398,9 +399,10 @@ def measured_stable_wait_s(data: CampaignData, config: Config) -> float:
         return 0.0
     first = data.w if data.campaign is None else data.w[data.campaign == 0]
     waits = np.nanmean(first, axis=1) if first.size else np.array([])
-    if not np.isfinite(waits).any():
+    waits = waits[np.isfinite(waits)]  # a scan profile's bins: captured moving
+    if not len(waits):
         return 0.0
-    return max(0.0, float(np.nanmedian(waits)) - config.capture.stable_window_s / 2)
+    return max(0.0, float(np.median(waits)) - config.capture.stable_window_s / 2)
 
 
 def _joined(regions: list[tuple[float, float]]) -> list[tuple[float, float]]:

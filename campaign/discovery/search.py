@@ -72,6 +72,7 @@ from campaign.discovery.locate import Located, beside_period, locate
 from campaign.discovery.records import Choice, LocalRival, StandIn, StartingEffect, Unresolved
 from campaign.discovery.unexplained import describe_region, region_terms, wave_over_part
 from campaign.effects import RegistryView, effect, effects
+from campaign.effects.base import stop_waits
 from campaign.errors import InputError
 from campaign.model import DEFAULTS, EFFECT_PARAMS, ErrorModel
 
@@ -345,10 +346,10 @@ def waits_vary(data: CampaignData) -> bool:
     """Does the wait since arrival before each capture vary enough to tell settling from a
     constant reversal: at least VARIED_WAIT_POINTS points whose wait departs from the median wait by
     DWELL_SPREAD of it or more? False when it is not recorded."""
-    if data.w is None:
+    waits = stop_waits(data)
+    if not len(waits):
         return False
-    waits = np.nanmean(data.w, axis=1)
-    typical = max(float(np.nanmedian(waits)), 1e-9)
+    typical = max(float(np.median(waits)), 1e-9)
     return int(np.sum(np.abs(waits - typical) >= DWELL_SPREAD * typical)) >= VARIED_WAIT_POINTS
 
 
@@ -1187,8 +1188,8 @@ def hold_reversal(backlash: Candidate, ranking: list[Candidate], data: CampaignD
     significant growth along the travel is no settling and stays a candidate."""
     b = backlash.fitted.params()["backlash"].get("b_um")
     size = f"a reversal of {b:+.3g} µm" if b is not None else "a reversal"
-    wait = ("no wait before capture is recorded" if data.w is None else
-            f"the wait before every capture is about {float(np.nanmean(data.w)):.2g} s")
+    wait = ("no wait before capture is recorded" if not len(stop_waits(data)) else
+            f"the wait before every capture is about {float(np.mean(stop_waits(data))):.2g} s")
     unresolved.append(Unresolved(
         ("backlash", "settling"),
         f"{size} between the directions (backlash explains {backlash.explained_pct:.1f} %, ΔBIC "
@@ -1214,10 +1215,8 @@ def settling_is_constant(data: CampaignData, settling: Candidate) -> bool:
     constant at the top of its search (within 10 %), with waits varying by WAITS_DECADE or more:
     it then does not fade over the waits, and a settling that slow is a reversal (backlash) for
     every use of the axis at those waits."""
-    if data.w is None:
-        return False
-    waits = np.nanmean(data.w, axis=1)
-    if float(np.min(waits)) <= 0 or float(np.max(waits)) / float(np.min(waits)) < WAITS_DECADE:
+    waits = stop_waits(data)
+    if not len(waits) or float(np.min(waits)) <= 0 or float(np.max(waits)) / float(np.min(waits)) < WAITS_DECADE:
         return False
     tau = settling.fitted.params()["settling"]["tau_s"]
     return bool(tau >= 0.9 * shape_bounds(data, "settling", "tau_s")[1])

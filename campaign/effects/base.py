@@ -202,8 +202,8 @@ def dwell(data: Samples) -> float:
     """The typical wait before a capture, s (in points without a time column: one point)."""
     if data.time_source != "time_s":
         return 1.0
-    if data.w is not None and np.any(np.isfinite(data.w)):
-        return float(np.nanmedian(np.nanmean(data.w, axis=1)))
+    if len(stopped := stop_waits(data)):
+        return float(np.median(stopped))
     ends = np.sort(np.nanmax(data.t, axis=1))
     return float(np.median(np.diff(ends))) / 2 if len(ends) > 1 else 0.0
 
@@ -211,6 +211,16 @@ def dwell(data: Samples) -> float:
 def hours(data: Samples) -> np.ndarray:
     """Each capture's time, h (per 3600 points without a time column), averaged over its samples."""
     return mean_samples(data.t) / 3600
+
+
+def stop_waits(data: Samples) -> np.ndarray:
+    """Each point's wait since arrival before its capture (the mean over its samples), s, for the
+    points captured at a stop; empty when no wait is recorded. A scan profile's bins, captured
+    while moving at constant velocity, have an infinite wait (long settled) and are left out."""
+    if data.w is None:
+        return np.array([])
+    per_point = np.nanmean(data.w, axis=1)
+    return per_point[np.isfinite(per_point)]
 
 
 def waits(data: Samples) -> np.ndarray:

@@ -12,6 +12,7 @@ from campaign.effects.base import (
     Samples,
     Shape,
     mean_samples,
+    stop_waits,
     tau_grid,
     waits,
 )
@@ -33,7 +34,7 @@ def grid(data: Samples, held: Shape) -> list[Shape]:
 
 def ranges(data: Samples) -> Ranges:
     """A size within SIZE_UM and a time constant from 1 ms to ten times the longest wait."""
-    return {"e0_um": (-SIZE_UM, SIZE_UM), "tau_s": (1e-3, 10 * float(np.nanmax(waits(data))))}
+    return {"e0_um": (-SIZE_UM, SIZE_UM), "tau_s": (1e-3, 10 * float(np.max(stop_waits(data), initial=1e-3)))}
 
 
 EFFECT = Effect(
