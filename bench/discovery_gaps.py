@@ -30,44 +30,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from campaign.discovery.data import campaign_data
-from campaign.discovery.fit import design, fixed_deviation, weighted
 from campaign.discovery.search import discover
 from campaign.discovery.simulate import simulate_campaign
-from campaign.model import EFFECTS, ErrorModel, effect_um
+from campaign.model import ErrorModel
 from tests.discovery_draws import SHAPES, draw, judge, plan_config
-
-
-def out_of_vocabulary_um(truth, x: np.ndarray, d: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """The truth's out-of-vocabulary deviation at each row (µm)."""
-    total = np.zeros(len(x))
-    for name, p in truth.model.items():
-        if EFFECTS[name].simulator_only or name == "linear_drift":
-            params = {**EFFECTS[name].defaults, **p}
-            values = effect_um(name, params, x[:, None], d[:, None], t, np.full(t.shape, 2.0))
-            total += np.nanmean(np.where(np.isnan(t), np.nan, values), axis=1)
-    return total
-
-
-def oracle_ratio(data, result, column: np.ndarray) -> float:
-    """The gap ratio of the final model with the true out-of-vocabulary shape beside it."""
-    terms = result.final.terms
-    a, _ = design(data, terms)
-    a = np.column_stack([a, column])
-    y = data.y - fixed_deviation(data, terms)
-    beta = np.linalg.lstsq(weighted(data, a), weighted(data, y), rcond=None)[0]
-    rms = float(np.sqrt(np.mean((y - a @ beta) ** 2)))
-    return rms / max(result.noise_um, 1e-9)
-
-
-def holdable(truth, data, column: np.ndarray) -> str:
-    """Whether a local term could hold the error: shown at ≥ 2 targets above the noise, or a step."""
-    _, where = np.unique(np.round(data.x, 6), return_inverse=True)
-    at = np.bincount(where, column) / np.bincount(where)
-    at = at - np.median(at) if truth.shape != "step" else at
-    seen = int(np.sum(np.abs(at) > truth.noise_um))
-    if truth.shape == "step":
-        return f"step (targets above the noise: {seen})"
-    return f"{'yes' if seen >= 2 else 'no'} ({seen} targets above the noise)"
+from tests.discovery_gaps import holdable, oracle_ratio, out_of_vocabulary_um
 
 
 def cases(args) -> list[tuple[str, int, str, int]]:
@@ -90,7 +57,7 @@ def why(row: dict) -> str:
         return ("not the local error's: a reversal left unresolved (backlash against settling), held by nothing"
                 if reversal else "not the local error's: the model beside it leaves more than noise")
     if row["holdable"] is not None and row["holdable"].startswith("no"):
-        return "one target shows it: no local term can hold it"
+        return "no local term can hold it: " + row["holdable"][4:-1]
     beside = " beside an unresolved period" if periodic else ""
     if not row["local"]:
         return "no local term added" + beside

@@ -123,7 +123,7 @@ def _joint(seed: int):
     return join_campaigns(parts, ["fine.csv", "coarse.csv"]), parts
 
 
-@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize("seed", [0, *(pytest.param(s, marks=pytest.mark.machine) for s in (1, 2))])
 def test_a_joint_fits_gap_and_noise_weigh_each_table_as_the_fit_does(seed):
     """Two tables of different repeatability fitted together: the reported gap is the fit's own
     weighted RSS over the sum of the weights (not the plain RMS, which the coarse table's noise
