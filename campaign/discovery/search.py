@@ -840,10 +840,18 @@ def hold_what_is_left(data: CampaignData, result: Discovery) -> Discovery:
     listed as its rivals (the period seen at few targets would fit there too: add_local_rivals).
     Repeated (LEFT_ROUNDS) while a round adds a term: a region hidden beside a larger one shows once
     that one is held."""
+    before = result.final
+    result = both_directions(data, result)
+    # beside an unresolved period each term must also pass beside the period's best candidate (a
+    # stand-in, not named): what it holds is then more than that period seen at few targets
+    period = next((c for c in result.remaining if c.name == "periodic_lead" and c.fit is not None), None)
+    beside = ([t for t in period.fitted.terms if t.name == "periodic_lead"]
+              if period is not None and any("periodic_lead" in u.effects for u in result.unresolved) else [])
     added: list[LocalError] = []
     final = result.final
     taken = {int(t.name.split("#")[1]) if "#" in t.name else 1 for t in final.terms if t.name.startswith("local_error")}
-    for index in [k for k in range(1, MAX_LOCALS + 1) if k not in taken][:MAX_LOCALS - len(taken)]:
+    free = [k for k in range(1, MAX_LOCALS + 1) if k not in taken][:MAX_LOCALS - len(taken)]
+    for index in free if not beside else []:
         more = find_local(data, final, index)  # a bump or a step the earlier routes did not keep
         if more is None or not within_targets(data, more.term):
             break
@@ -851,35 +859,65 @@ def hold_what_is_left(data: CampaignData, result: Discovery) -> Discovery:
         added.append(more)
     for _ in range(LEFT_ROUNDS):
         index = 1 + sum(1 for t in final.terms if t.name.startswith("local_region"))
-        terms = held_regions(data, final, locate(data, data.y - final.prediction), index)
+        terms = held_regions(data, final, locate(data, data.y - final.prediction), index, beside)
         if not terms:
             break
         final = linear_fit(data, [*final.terms, *terms])
         added += [describe_region(data, final, t.name, linear_fit(data, [u for u in final.terms if u.name != t.name]))
                   for t in terms]
-    if not added:
+    if not added and final is before:
         return result
     result.final = final
     names = {t.name for t in final.terms}
     result.local_errors = [e for e in result.local_errors if e.term.name in names and e not in added] + added
-    if any("periodic_lead" in u.effects for u in result.unresolved):
+    if added and any("periodic_lead" in u.effects for u in result.unresolved):
         add_local_rivals(result, added)
     result.gap_after_um = gap_um(data, data.y - final.prediction)
     result.noise_um = pooled_scatter_um(data, data.y - final.prediction)
     result.disagreement_after = disagreement(data, data.y - final.prediction)
     result.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_")}
-    _note(result.notes, f"what the model left beyond the noise is held by {len(added)} local term"
-                        f"{'s' if len(added) > 1 else ''} over the regions located there (not named)",
-          "what the model left beyond the noise is held")
+    if added:
+        _note(result.notes, f"what the model left beyond the noise is held by {len(added)} local term"
+                            f"{'s' if len(added) > 1 else ''} over the regions located there (not named)",
+              "what the model left beyond the noise is held")
     return result
 
 
-def held_regions(data: CampaignData, fit: Fit, located: Located, index: int) -> list[Term]:
+def both_directions(data: CampaignData, result: Discovery) -> Discovery:
+    """A region term fitted in one direction whose other direction shows it too (the same spline fitted
+    there at 3σ or more: LocalError.other_um) is fitted in both when that predicts left-out targets
+    better (leave-one-target-out CV): the locator may call a region one-sided where one direction's
+    curve alone left its band."""
+    for local in list(result.local_errors):
+        if local.kind != "region" or local.directions not in ("+", "-"):
+            continue
+        other, error = local.params.get("other_um", 0.0), local.errors.get("other_um", math.inf)
+        if not abs(other) >= 3 * error:
+            continue
+        term = local.term
+        both = replace(term, name=term.name.replace("_plus", "").replace("_minus", ""))
+        if both.name in {t.name for t in result.final.terms}:
+            continue
+        trial = linear_fit(data, [both if t.name == term.name else t for t in result.final.terms])
+        if cv_rms_um(data, trial.terms, data.target_index) >= cv_rms_um(data, result.final.terms, data.target_index):
+            continue
+        without = linear_fit(data, [t for t in trial.terms if t.name != both.name])
+        again = describe_region(data, trial, both.name, without)
+        result.final = trial
+        result.local_errors = [again if e is local else e for e in result.local_errors]
+        _note(result.notes, f"{local.sentence()}: fitted in both directions, which predicts left-out targets better")
+    return result
+
+
+def held_regions(data: CampaignData, fit: Fit, located: Located, index: int,
+                 beside: list[Term] | None = None) -> list[Term]:
     """Region terms over the located regions beside `fit` (the largest first, each beside the ones
     kept before it), named from `index` on; each region's flexibility (its spline's pieces, from
     region_term's down to one) the one whose leave-one-target-out CV is lowest, kept only when it
-    passes the tests every local term passes (campaign.discovery.local.passes). A spline with about
-    as many pieces as targets in it fits them but cannot predict one left out: fewer pieces can."""
+    passes the tests every local term passes (campaign.discovery.local.passes), beside `fit` and,
+    when given, beside `fit` with the `beside` terms (an unresolved period's best candidate) too. A
+    spline with about as many pieces as targets in it fits them but cannot predict one left out:
+    fewer pieces can."""
     kept: list[Term] = []
     current = fit
     regions = sorted(candidate_regions(data, located), key=lambda r: -abs(r.peak_um))
@@ -894,9 +932,13 @@ def held_regions(data: CampaignData, fit: Fit, located: Located, index: int) -> 
             trial = linear_fit(data, [*current.terms, trial_term])
             tried.append((cv_rms_um(data, trial.terms, data.target_index), pieces, trial))
         cv_um, _, trial = min(tried, key=lambda c: (c[0], c[1]))
-        if passes(data, current, trial, (cv_rms_um(data, current.terms, data.target_index), cv_um)):
-            kept.append(trial.terms[-1])
-            current = trial
+        if not passes(data, current, trial, (cv_rms_um(data, current.terms, data.target_index), cv_um)):
+            continue
+        if beside and not passes(data, linear_fit(data, [*current.terms, *beside]),
+                                 linear_fit(data, [*trial.terms, *beside])):
+            continue
+        kept.append(trial.terms[-1])
+        current = trial
     return kept
 
 
