@@ -198,6 +198,20 @@ class LocalError:
                 "gap_without_um": round(self.gap_without_um, 4)}
 
 
+def point_weights(data: CampaignData) -> np.ndarray:
+    """Each point's weight in the fit (data.row_scale squared; ones when every point is alike)."""
+    scale = data.row_scale
+    return np.ones(len(data)) if scale is None else scale**2
+
+
+def gap_um(data: CampaignData, residual: np.ndarray) -> float:
+    """The RMS of the residual (µm) with each point weighed as the fit weighs it (campaign.discovery.fit
+    .weighted: 1/u² of its table, relative to the coarsest): the fit's own weighted RSS over the sum
+    of the weights. The plain RMS when every point is alike (one table)."""
+    w = point_weights(data)
+    return float(np.sqrt(np.sum(w * residual**2) / np.sum(w))) if len(residual) else 0.0
+
+
 def _targets(data: CampaignData) -> np.ndarray:
     return np.unique(np.round(data.x, 6))
 
@@ -425,7 +439,7 @@ def find_local(data: CampaignData, fit: Fit, index: int = 1) -> LocalError | Non
         return None
     return describe(data, best, best.terms[-1].name, explained_pct=100 * (1 - best.rss / fit.rss),
                     delta_bic=delta_bic, p_value=p_value, cv_before_um=cv_before, cv_after_um=cv_after,
-                    gap_without_um=fit.rms_um(data.y))
+                    gap_without_um=gap_um(data, data.y - fit.prediction))
 
 
 def find_locals(data: CampaignData, fit: Fit) -> list[LocalError]:
@@ -498,7 +512,7 @@ def refit_local(data: CampaignData, fit: Fit, found: LocalError) -> tuple[Fit, L
     best = refined if refined.rss <= fit.rss else fit
     again = describe(data, best, term.name, explained_pct=found.explained_pct, delta_bic=found.delta_bic,
                      p_value=found.p_value, cv_before_um=found.cv_before_um, cv_after_um=found.cv_after_um,
-                     gap_without_um=linear_fit(data, others).rms_um(data.y))
+                     gap_without_um=gap_um(data, data.y - linear_fit(data, others).prediction))
     return best, again
 
 

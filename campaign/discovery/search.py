@@ -64,13 +64,21 @@ from campaign.discovery.local import (
     describe,
     find_local,
     find_locals,
+    gap_um,
     look_elsewhere,
     passes,
+    point_weights,
     refit_local,
 )
 from campaign.discovery.locate import Located, beside_period, locate
 from campaign.discovery.records import Choice, LocalRival, StandIn, StartingEffect, Unresolved
-from campaign.discovery.unexplained import describe_region, region_terms, wave_over_part
+from campaign.discovery.unexplained import (
+    candidate_regions,
+    describe_region,
+    region_term,
+    region_terms,
+    wave_over_part,
+)
 from campaign.effects import RegistryView, effect, effects
 from campaign.effects.base import stop_waits
 from campaign.errors import InputError
@@ -196,6 +204,10 @@ class Discovery:
     (campaign.discovery.locate), before anything is named."""
     located_after: Located | None = None
     """The same for the final model: what it leaves unexplained, with its regions."""
+    tables: list[dict[str, float]] = field(default_factory=list)
+    """Tables fitted together: per table (campaign index order) its own gap and noise (gap_um,
+    noise_um: its points alone, unweighted); gap_after_um and noise_um weigh each table as the fit
+    does (campaign.discovery.local.gap_um). Empty for one table."""
     noise_measured: bool = True
     """False when no target is read twice in a direction: noise_um is then the residual itself, not
     a measured run-to-run scatter, and nothing can be said to be noise."""
@@ -298,12 +310,28 @@ def noise_measured(data: CampaignData) -> bool:
 
 def pooled_scatter_um(data: CampaignData, residual: np.ndarray) -> float:
     """Run-to-run scatter of the residual, pooled over (campaign, target, direction) groups, µm
-    (the residual's RMS when nothing is repeated: noise_measured is then False)."""
+    (the residual's RMS when nothing is repeated: noise_measured is then False). Each group weighed
+    as the fit weighs its points (gap_um), so that the gap and the noise compare like with like."""
     group, count = _repeat_groups(data)
-    mean = np.bincount(group, residual) / count
-    ss = float(np.sum((residual - mean[group]) ** 2))
-    dof = int(np.sum(count - 1))
-    return float(np.sqrt(ss / dof)) if dof > 0 else float(np.sqrt(np.mean(residual**2)))
+    w = point_weights(data)
+    mean = np.bincount(group, w * residual) / np.bincount(group, w)
+    ss = float(np.sum(w * (residual - mean[group]) ** 2))
+    dof = float(np.sum((np.bincount(group, w) / count) * (count - 1)))
+    return float(np.sqrt(ss / dof)) if dof > 0 else gap_um(data, residual)
+
+
+def by_table(data: CampaignData, residual: np.ndarray) -> list[dict[str, float]]:
+    """Per table fitted together (campaign index order): its gap (RMS of the residual on its points)
+    and its run-to-run noise, µm, each as if it were alone (unweighted); empty for one table."""
+    if data.campaigns < 2:
+        return []
+    out = []
+    for c in range(data.campaigns):
+        keep = data.campaign_index == c
+        part = keep_rows(data, keep)
+        out.append({"gap_um": round(float(np.sqrt(np.mean(residual[keep] ** 2))), 4),
+                    "noise_um": round(pooled_scatter_um(part, residual[keep]), 4)})
+    return out
 
 
 def candidate_names(data: CampaignData, terms: list[Term], notes: list[str]) -> list[str]:
@@ -432,6 +460,20 @@ def one_target(data: CampaignData, without: Fit, fit: Fit, name: str, factor: fl
     words when it is then no longer significant (ALPHA), None otherwise. An error that one target
     alone shows is a local error seen there (narrower than the spacing of the targets), not an effect
     that repeats along the travel."""
+    tested = one_target_p(data, without, fit, name, factor)
+    if tested is None or tested[0] < ALPHA:
+        return None
+    p_value, at = tested
+    return (f"carried by one target: without the one at {at:.4g} {data.position_unit} it is not significant "
+            f"(p = {p_value:.2g})")
+
+
+def one_target_p(data: CampaignData, without: Fit, fit: Fit, name: str, factor: float) -> tuple[float, float] | None:
+    """one_target's test: the p-value of `name` (its shape held) without the target whose squared
+    residual it lowers most, times the look-elsewhere factor `factor` of its search, and that target's
+    position; None with fewer than four targets. The held shape is not a fitted parameter here: its
+    search is paid for by `factor` alone (counted as a parameter too, a searched period would be
+    charged twice, and a lead that every target shows said to be carried by one)."""
     targets = data.target_index
     gain = np.bincount(targets, weighted(data, data.y - without.prediction) ** 2  # on weighted rows, as the F-test
                        - weighted(data, data.y - fit.prediction) ** 2)
@@ -440,12 +482,11 @@ def one_target(data: CampaignData, without: Fit, fit: Fit, name: str, factor: fl
     worst = int(np.argmax(gain))
     rest = keep_rows(data, targets != worst)
     others = [t for t in fit.terms if t.name != name]
-    p_value = min(1.0, f_test_p(linear_fit(rest, others), linear_fit(rest, fit.terms), len(rest)) * factor)
-    if p_value < ALPHA:
-        return None
-    at = float(np.mean(data.x[targets == worst]))
-    return (f"carried by one target: without the one at {at:.4g} {data.position_unit} it is not significant "
-            f"(p = {p_value:.2g})")
+    searched = len(next(t for t in fit.terms if t.name == name).searched)
+    reduced, full = linear_fit(rest, others), linear_fit(rest, fit.terms)
+    full = replace(full, n_params=full.n_params - searched)
+    p_value = min(1.0, f_test_p(reduced, full, len(rest)) * factor)
+    return p_value, float(np.mean(data.x[targets == worst]))
 
 
 WAVE_Z = 3.0
@@ -621,10 +662,12 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
             _note(routes[best].notes, f"{name} explained part of the residual before the local errors were located; "
                                       "beside them it is not significant: not named (it soaked up a local error)")
     result = unnamed_beside_regions(data, routes[best])
+    result = hold_what_is_left(data, result)
     result = beside_unresolved_period(data, result)
     result.located_before = start_located if result.start is vocabulary.start else locate(
         data, data.y - result.start.prediction)
     result.located_after = locate(data, data.y - result.final.prediction)
+    result.tables = by_table(data, data.y - result.final.prediction)
     if any("periodic_lead" in u.effects for u in result.unresolved):
         # single targets' departures over the travel are the unresolved period seen at few targets: said there
         for located in (result.located_before, result.located_after):
@@ -714,7 +757,7 @@ def with_local_terms(data: CampaignData, again: Discovery, vocabulary: Discovery
     again.final, again.local_errors = final, found
     again.start, again.gap_before_um = vocabulary.start, vocabulary.gap_before_um
     again.disagreement_before = vocabulary.disagreement_before
-    again.gap_after_um = final.rms_um(data.y)
+    again.gap_after_um = gap_um(data, data.y - final.prediction)
     again.noise_um = pooled_scatter_um(data, data.y - final.prediction)
     again.disagreement_after = disagreement(data, data.y - final.prediction)
     again.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_")}
@@ -784,11 +827,127 @@ def unnamed_beside_regions(data: CampaignData, result: Discovery) -> Discovery:
         add_local_rivals(result, result.local_errors)
     if changed:
         final = result.final
-        result.gap_after_um = final.rms_um(data.y)
+        result.gap_after_um = gap_um(data, data.y - final.prediction)
         result.noise_um = pooled_scatter_um(data, data.y - final.prediction)
         result.disagreement_after = disagreement(data, data.y - final.prediction)
         result.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_")}
     return result
+
+
+LEFT_ROUNDS = 3
+"""How many times what the final model leaves is located again and held by region terms."""
+
+
+def hold_what_is_left(data: CampaignData, result: Discovery) -> Discovery:
+    """Issue 34 item 2: what the final model still leaves beyond the noise, located again
+    (campaign.discovery.locate), is held by local terms whose shape follows the data over each region
+    (campaign.discovery.unexplained.region_terms: any number of regions, bumps of any shape, steps
+    with their rise, one direction or both), each only when it passes the tests every local term
+    passes beside the rest (BIC and F-test with the search's look-elsewhere factor,
+    leave-one-target-out CV); nothing is named for them. Beside an unresolved period they are also
+    listed as its rivals (the period seen at few targets would fit there too: add_local_rivals).
+    Repeated (LEFT_ROUNDS) while a round adds a term: a region hidden beside a larger one shows once
+    that one is held."""
+    before = result.final
+    result = both_directions(data, result)
+    # beside an unresolved period each term must also pass beside the period's best candidate (a
+    # stand-in, not named): what it holds is then more than that period seen at few targets
+    period = next((c for c in result.remaining if c.name == "periodic_lead" and c.fit is not None), None)
+    beside = ([t for t in period.fitted.terms if t.name == "periodic_lead"]
+              if period is not None and any("periodic_lead" in u.effects for u in result.unresolved) else [])
+    added: list[LocalError] = []
+    final = result.final
+    taken = {int(t.name.split("#")[1]) if "#" in t.name else 1 for t in final.terms if t.name.startswith("local_error")}
+    free = [k for k in range(1, MAX_LOCALS + 1) if k not in taken][:MAX_LOCALS - len(taken)]
+    for index in free if not beside else []:
+        more = find_local(data, final, index)  # a bump or a step the earlier routes did not keep
+        if more is None or not within_targets(data, more.term):
+            break
+        final = linear_fit(data, [*final.terms, more.term])
+        added.append(more)
+    for _ in range(LEFT_ROUNDS):
+        index = 1 + sum(1 for t in final.terms if t.name.startswith("local_region"))
+        terms = held_regions(data, final, locate(data, data.y - final.prediction), index, beside)
+        if not terms:
+            break
+        final = linear_fit(data, [*final.terms, *terms])
+        added += [describe_region(data, final, t.name, linear_fit(data, [u for u in final.terms if u.name != t.name]))
+                  for t in terms]
+    if not added and final is before:
+        return result
+    result.final = final
+    names = {t.name for t in final.terms}
+    result.local_errors = [e for e in result.local_errors if e.term.name in names and e not in added] + added
+    if added and any("periodic_lead" in u.effects for u in result.unresolved):
+        add_local_rivals(result, added)
+    result.gap_after_um = gap_um(data, data.y - final.prediction)
+    result.noise_um = pooled_scatter_um(data, data.y - final.prediction)
+    result.disagreement_after = disagreement(data, data.y - final.prediction)
+    result.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_")}
+    if added:
+        _note(result.notes, f"what the model left beyond the noise is held by {len(added)} local term"
+                            f"{'s' if len(added) > 1 else ''} over the regions located there (not named)",
+              "what the model left beyond the noise is held")
+    return result
+
+
+def both_directions(data: CampaignData, result: Discovery) -> Discovery:
+    """A region term fitted in one direction whose other direction shows it too (the same spline fitted
+    there at 3σ or more: LocalError.other_um) is fitted in both when that predicts left-out targets
+    better (leave-one-target-out CV): the locator may call a region one-sided where one direction's
+    curve alone left its band."""
+    for local in list(result.local_errors):
+        if local.kind != "region" or local.directions not in ("+", "-"):
+            continue
+        other, error = local.params.get("other_um", 0.0), local.errors.get("other_um", math.inf)
+        if not abs(other) >= 3 * error:
+            continue
+        term = local.term
+        both = replace(term, name=term.name.replace("_plus", "").replace("_minus", ""))
+        if both.name in {t.name for t in result.final.terms}:
+            continue
+        trial = linear_fit(data, [both if t.name == term.name else t for t in result.final.terms])
+        if cv_rms_um(data, trial.terms, data.target_index) >= cv_rms_um(data, result.final.terms, data.target_index):
+            continue
+        without = linear_fit(data, [t for t in trial.terms if t.name != both.name])
+        again = describe_region(data, trial, both.name, without)
+        result.final = trial
+        result.local_errors = [again if e is local else e for e in result.local_errors]
+        _note(result.notes, f"{local.sentence()}: fitted in both directions, which predicts left-out targets better")
+    return result
+
+
+def held_regions(data: CampaignData, fit: Fit, located: Located, index: int,
+                 beside: list[Term] | None = None) -> list[Term]:
+    """Region terms over the located regions beside `fit` (the largest first, each beside the ones
+    kept before it), named from `index` on; each region's flexibility (its spline's pieces, from
+    region_term's down to one) the one whose leave-one-target-out CV is lowest, kept only when it
+    passes the tests every local term passes (campaign.discovery.local.passes), beside `fit` and,
+    when given, beside `fit` with the `beside` terms (an unresolved period's best candidate) too. A
+    spline with about as many pieces as targets in it fits them but cannot predict one left out:
+    fewer pieces can."""
+    kept: list[Term] = []
+    current = fit
+    regions = sorted(candidate_regions(data, located), key=lambda r: -abs(r.peak_um))
+    for region in regions:
+        term = region_term(data, region, index + len(kept))
+        if term is None:
+            continue
+        least = 1 if term.shape["open_end"] > 0 or term.shape["open_start"] > 0 else 2
+        tried = []
+        for pieces in range(int(term.shape["pieces"]), least - 1, -1):
+            trial_term = replace(term, shape={**term.shape, "pieces": float(pieces)})
+            trial = linear_fit(data, [*current.terms, trial_term])
+            tried.append((cv_rms_um(data, trial.terms, data.target_index), pieces, trial))
+        cv_um, _, trial = min(tried, key=lambda c: (c[0], c[1]))
+        if not passes(data, current, trial, (cv_rms_um(data, current.terms, data.target_index), cv_um)):
+            continue
+        if beside and not passes(data, linear_fit(data, [*current.terms, *beside]),
+                                 linear_fit(data, [*trial.terms, *beside])):
+            continue
+        kept.append(trial.terms[-1])
+        current = trial
+    return kept
 
 
 def within_targets(data: CampaignData, term: Term) -> bool:
@@ -1032,7 +1191,8 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
             spreads[chosen.name] = period_spread_mm(chosen.periods)
         errors = standard_errors(data, after).get(chosen.name, {})
         add_period_spread(errors, chosen.name, spreads)
-        steps.append(Step(chosen.name, after.params()[chosen.name], current.rms_um(data.y), after.rms_um(data.y),
+        steps.append(Step(chosen.name, after.params()[chosen.name], gap_um(data, data.y - current.prediction),
+                          gap_um(data, data.y - after.prediction),
                           ranking, data.y - current.prediction, data.y - after.prediction, errors))
         current = after
     kept: StandIn | None = None
@@ -1042,7 +1202,7 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
     if remaining_beside is not None and group is not None and backlash is not None and not waits_vary(data):
         # only at a constant wait do backlash and settling predict the same deviation wherever the
         # axis is used at that wait; where the waits vary they differ, and neither stands in
-        without = current.rms_um(data.y)
+        without = gap_um(data, data.y - current.prediction)
         current = refine(data, backlash.fitted.terms)
         b_um = current.params()["backlash"]["b_um"]  # in the deviation unit (µm, arcsec)
         dev = data.deviation_unit
@@ -1056,7 +1216,7 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
         add_period_spread(all_errors[name], name, spreads)
     add_confounding_notes(data, current, notes)
     residual = data.y - current.prediction
-    return Discovery(steps, start, current, start.rms_um(data.y), current.rms_um(data.y),
+    return Discovery(steps, start, current, gap_um(data, data.y - start.prediction), gap_um(data, residual),
                      pooled_scatter_um(data, residual), data.time_source, notes,
                      disagreement(data, data.y - start.prediction), disagreement(data, residual), choices,
                      unresolved, errors=all_errors, remaining=remaining, remaining_beside=remaining_beside,

@@ -1,0 +1,64 @@
+"""Whether the gap a discovery leaves on a drawn machine (tests/discovery_draws.py) is one a local term
+could hold (issue 34: "gap after within 1.3 × the noise wherever a local term can hold it"): the truth's
+out-of-vocabulary deviation, the gap ratio were it fitted beside the final model (the oracle), and
+whether the targets show it so that a term predicting a left-out target can hold it. Used by
+tests/test_discovery_held.py and bench/discovery_gaps.py.
+
+Units: mm, µm, s.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from campaign.discovery.data import CampaignData
+from campaign.discovery.fit import design, fixed_deviation, weighted
+from campaign.discovery.search import Discovery
+from campaign.model import EFFECTS, effect_um
+from tests.discovery_draws import Truth
+
+
+def out_of_vocabulary_um(truth: Truth, x: np.ndarray, d: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The truth's out-of-vocabulary deviation at each row (µm)."""
+    total = np.zeros(len(x))
+    for name, p in truth.model.items():
+        if EFFECTS[name].simulator_only or name == "linear_drift":
+            params = {**EFFECTS[name].defaults, **p}
+            values = effect_um(name, params, x[:, None], d[:, None], t, np.full(t.shape, 2.0))
+            total += np.nanmean(np.where(np.isnan(t), np.nan, values), axis=1)
+    return total
+
+
+def oracle_ratio(data: CampaignData, result: Discovery, column: np.ndarray) -> float:
+    """The gap ratio of the final model with the true out-of-vocabulary shape beside it."""
+    terms = result.final.terms
+    a, _ = design(data, terms)
+    a = np.column_stack([a, column])
+    y = data.y - fixed_deviation(data, terms)
+    beta = np.linalg.lstsq(weighted(data, a), weighted(data, y), rcond=None)[0]
+    rms = float(np.sqrt(np.mean((y - a @ beta) ** 2)))
+    return rms / max(result.noise_um, 1e-9)
+
+
+def holdable(truth: Truth, data: CampaignData, column: np.ndarray) -> str:
+    """Whether a local term could hold the error: a step; or every region that some target sees
+    above the noise seen there by two targets or more (one target's reading is held by no term that
+    predicts a left-out target); a wave over part of the travel shorter than twice the target
+    spacing is aliased at the targets (its values there jump from target to target)."""
+    xs, where = np.unique(np.round(data.x, 6), return_inverse=True)
+    at = np.bincount(where, column) / np.bincount(where)
+    if truth.shape == "step":
+        return f"step (targets above the noise: {int(np.sum(np.abs(at) > truth.noise_um))})"
+    spacing = float(np.median(np.diff(xs)))
+    if truth.shape == "partial_wave" and truth.model["partial_wave"]["period_mm"] < 2 * spacing:
+        return (f"no (a wave of {truth.model['partial_wave']['period_mm']:.3g} mm at targets {spacing:.3g} mm "
+                "apart: aliased)")
+    if truth.shape == "linear_growth":
+        return "yes (a drift in time)"
+    counts = []
+    for centre, half in truth.regions:
+        near = np.abs(xs - centre) <= half + spacing
+        counts.append(int(np.sum(near & (np.abs(at) > truth.noise_um))))
+    seen = [c for c in counts if c > 0]
+    ok = bool(seen) and all(c >= 2 for c in seen)
+    return f"{'yes' if ok else 'no'} (targets above the noise per region: {counts})"

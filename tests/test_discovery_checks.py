@@ -1,0 +1,149 @@
+"""The checks discovery makes of a named period and the figures it reports (issue 34): the one-target
+test of a searched period charges the period's search once; zero_at_targets reads the form's full
+columns and is skipped where the targets sample the period densely; a joint fit's gap and noise
+weigh each table as the fit does. Machines drawn per seed."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from campaign.config import parse_config
+from campaign.discovery.data import campaign_data, join_campaigns
+from campaign.discovery.fit import Term, independent_periods, linear_fit, weighted
+from campaign.discovery.local import gap_um
+from campaign.discovery.search import discover, one_target_p, pooled_scatter_um, zero_at_targets
+from campaign.discovery.simulate import simulate_campaign
+from campaign.model import ErrorModel
+from tests.discovery_draws import plan_config
+
+DENSE = """
+[axis]
+soft_limit_min = -5.0
+soft_limit_max = 70.0
+max_velocity = 50.0
+max_acceleration = 200.0
+
+[plan]
+length = 60.0
+count = {count}
+overrun = 2.0
+cycles = 2
+dwell_s = 1.0
+velocity = 20.0
+offsets = "none"
+
+[capture]
+method = "dwell"
+average_s = 0.5
+"""
+
+
+def _lead_machine(rng: np.random.Generator, period_mm: float) -> dict:
+    return {"linear_scale": {"ppm": float(rng.uniform(-10, 10))},
+            "periodic_lead": {"amplitude_um": float(rng.uniform(0.8, 1.5)), "period_mm": period_mm,
+                              "phase_rad": float(rng.uniform(0, 2 * math.pi))},
+            "noise": {"sigma_um": float(rng.uniform(0.2, 0.4))}}
+
+
+def _lead_fit(data, period_mm: float, given: bool):
+    """The scale and a lead at `period_mm`, searched (its period a fitted shape) or given (held)."""
+    held = {"period_mm": period_mm} if given else {}
+    scale = Term("linear_scale")
+    without = linear_fit(data, [scale])
+    return without, linear_fit(data, [scale, Term("periodic_lead", held, False, {"period_mm": period_mm})])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_one_target_charges_a_searched_period_once(seed):
+    """A lead drawn at random on the 21-target golden plan: the one-target test (its period held,
+    the target it helps most left out) gives the p-value of the same lead with its period given,
+    times the search's look-elsewhere factor, and only that: counted as a fitted parameter as well,
+    the period was charged twice (the F-test's p is then larger than the given period's)."""
+    rng = np.random.default_rng(400 + seed)
+    config = plan_config(21, "golden")
+    period = float(rng.uniform(8, 30))
+    data = campaign_data(simulate_campaign(config, ErrorModel(_lead_machine(rng, period)), seed=400 + seed))
+    factor = independent_periods(data)
+    without, searched = _lead_fit(data, period, given=False)
+    _, given = _lead_fit(data, period, given=True)
+    p_searched, at = one_target_p(data, without, searched, "periodic_lead", factor)
+    p_given, at_given = one_target_p(data, without, given, "periodic_lead", factor)
+    assert at == at_given
+    assert p_searched == pytest.approx(p_given, rel=1e-9, abs=1e-300)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_zero_at_targets_reads_the_full_columns(seed):
+    """A lead whose second column was dropped (collinear with the model: keep mask) has its
+    coefficients in the form's full order, the dropped one 0: the check reads the full columns, and
+    says what it says of the same wave with both columns kept and that coefficient 0."""
+    rng = np.random.default_rng(500 + seed)
+    period = float(rng.uniform(8, 30))
+    data = campaign_data(simulate_campaign(plan_config(17, "golden"), ErrorModel(_lead_machine(rng, period)),
+                                           seed=500 + seed))
+    term = Term("periodic_lead", {}, False, {"period_mm": period}, keep=(True, False))
+    fit = linear_fit(data, [Term("linear_scale"), term])
+    assert fit.coefs[1][1] == 0.0
+    whole = linear_fit(data, [Term("linear_scale"), Term("periodic_lead", {}, False, {"period_mm": period})])
+    whole.coefs[1] = fit.coefs[1].copy()
+    assert zero_at_targets(data, fit, "periodic_lead") == zero_at_targets(data, whole, "periodic_lead")
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_a_lead_sampled_densely_is_not_said_to_be_zero_at_the_targets(seed):
+    """1,201 targets 0.05 mm apart over 60 mm (a dense table), a lead of 35 to 55 mm drawn at random: the targets follow
+    the wave along its period, so its mean square there is that of the travel's part of the wave, not
+    of random phases; zero_at_targets is skipped (its random-phase rule would call a lead whose travel
+    holds a fraction of a period 'near zero at most targets': about one draw in five)."""
+    rng = np.random.default_rng(600 + seed)
+    period = float(rng.uniform(35, 55))
+    config = parse_config(DENSE.format(count=1201).replace("cycles = 2", "cycles = 1"))
+    data = campaign_data(simulate_campaign(config, ErrorModel(_lead_machine(rng, period)), seed=600 + seed))
+    _, fit = _lead_fit(data, period, given=False)
+    assert zero_at_targets(data, fit, "periodic_lead") is None
+
+
+def _joint(seed: int):
+    """Two stop-and-go tables of one drawn machine (11 golden targets, 5 runs): the second with a
+    five times larger noise, so each is weighed by its own repeatability."""
+    rng = np.random.default_rng(700 + seed)
+    machine = {"linear_scale": {"ppm": float(rng.uniform(-10, 10))},
+               "backlash": {"b_um": float(rng.uniform(1, 3))},
+               "local_defect": {"amplitude_um": float(rng.uniform(2, 4)), "centre_mm": float(rng.uniform(150, 450)),
+                                "width_mm": float(rng.uniform(40, 80))}}
+    sigma = float(rng.uniform(0.3, 0.5))
+    parts = []
+    for k, scale in enumerate((1.0, 5.0)):
+        effects = {**machine, "noise": {"sigma_um": sigma * scale}}
+        table = simulate_campaign(plan_config(11, "golden"), ErrorModel(effects), seed=700 + 10 * seed + k)
+        parts.append(campaign_data(table))
+    return join_campaigns(parts, ["fine.csv", "coarse.csv"]), parts
+
+
+@pytest.mark.parametrize("seed", [0, *(pytest.param(s, marks=pytest.mark.machine) for s in (1, 2))])
+def test_a_joint_fits_gap_and_noise_weigh_each_table_as_the_fit_does(seed):
+    """Two tables of different repeatability fitted together: the reported gap is the fit's own
+    weighted RSS over the sum of the weights (not the plain RMS, which the coarse table's noise
+    fills), the noise is pooled with the same weights, and each table's own gap and noise are listed."""
+    data, parts = _joint(seed)
+    assert data.row_scale is not None
+    result = discover(data, ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
+    residual = data.y - result.final.prediction
+    rss = float(np.sum(weighted(data, residual) ** 2))
+    assert result.gap_after_um**2 * float(np.sum(data.row_scale**2)) == pytest.approx(rss, rel=1e-9)
+    assert result.noise_um == pytest.approx(pooled_scatter_um(data, residual))
+    plain = float(np.sqrt(np.mean(residual**2)))
+    assert result.gap_after_um < plain  # the fine table, weighed most, is the closer one
+    assert len(result.tables) == 2
+    for c, part in enumerate(parts):
+        keep = data.campaign_index == c
+        assert result.tables[c]["gap_um"] == pytest.approx(float(np.sqrt(np.mean(residual[keep] ** 2))), abs=1e-4)
+    assert result.tables[0]["noise_um"] < result.tables[1]["noise_um"]
+    # one table: the weighted figures are the plain ones
+    alone = parts[0]
+    fit = linear_fit(alone, [Term("linear_scale")])
+    r = alone.y - fit.prediction
+    assert gap_um(alone, r) == pytest.approx(float(np.sqrt(np.mean(r**2))))

@@ -1,0 +1,79 @@
+"""Issue 34, done when: "gap after within 1.3 × the noise wherever a local term can hold it". Machines
+drawn at random with an error discovery has no name for (tests/discovery_draws.py); where the targets
+show it so that a local term can hold it (tests/discovery_gaps.py: a step, or every region seen at two
+targets or more, and the final model beside the true deviation within 1.3 × the noise), the gap
+after is within 1.3 × the noise; and what the final model leaves holds no local term that passes
+the tests (campaign.discovery.search.hold_what_is_left)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from campaign.discovery.data import campaign_data
+from campaign.discovery.local import find_local, is_local
+from campaign.discovery.locate import locate
+from campaign.discovery.search import discover, held_regions, within_targets
+from campaign.discovery.simulate import simulate_campaign
+from campaign.model import ErrorModel
+from tests.discovery_draws import SHAPES, draw, judge, plan_config
+from tests.discovery_gaps import holdable, oracle_ratio, out_of_vocabulary_um
+
+LIMIT = 1.3
+
+
+def _discovered(shape: str, count: int, offsets: str, seed: int):
+    config = plan_config(count, offsets)
+    truth = draw(np.random.default_rng(seed), shape, config)
+    data = campaign_data(simulate_campaign(config, ErrorModel(truth.model), seed=seed + 3000, dwell_jitter=0.8))
+    return truth, data, discover(data, ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
+
+
+@pytest.mark.machine  # 40 simulated campaigns and discoveries, about a minute
+def test_the_gap_is_within_1_3_noise_wherever_a_local_term_can_hold_it():
+    """Every out-of-vocabulary shape at 17 and 21 targets, golden and uniform, drawn per seed: of the
+    draws whose error a local term can hold (and whose model beside the true error leaves noise only),
+    at most one in twenty ends above 1.3 × the noise (before the final model's leftovers were located
+    again and held, steps beside an unresolved period and waves seen at a few targets stayed there)."""
+    above, holdable_draws = [], 0
+    for shape in SHAPES:
+        for count, offsets in ((17, "golden"), (17, "none"), (21, "golden"), (21, "none")):
+            for seed in (911, 912):
+                truth, data, result = _discovered(shape, count, offsets, seed + 37 * count)
+                column = out_of_vocabulary_um(truth, data.x, data.d, data.t)
+                if not holdable(truth, data, column).startswith(("yes", "step")):
+                    continue
+                if oracle_ratio(data, result, column) > LIMIT:
+                    continue  # the rest of the model leaves more than noise: not a local term's gap
+                holdable_draws += 1
+                ratio = judge(result, truth).gap_ratio
+                if ratio > LIMIT:
+                    above.append((shape, count, offsets, seed, round(ratio, 2), result.added,
+                                  [e.sentence() for e in result.local_errors]))
+    assert holdable_draws >= 10
+    assert len(above) <= 0.05 * holdable_draws, (holdable_draws, above)
+
+
+@pytest.mark.machine  # 16 simulated campaigns and discoveries
+@pytest.mark.parametrize("shape", ["step", "bump", "two_regions", "partial_wave"])
+def test_what_the_final_model_leaves_holds_no_local_term(shape):
+    """What the final model leaves, located again: no region term over it (its flexibility chosen by
+    cross-validation) and no bump or step passes the local tests beside the final model. Beside an
+    unresolved period a region term must pass beside its best candidate too, and no bump or step is
+    tried (one there may be that period seen at a few targets: it is listed as the period's rival)."""
+    left = []
+    for count, offsets in ((17, "none"), (21, "golden")):
+        for seed in (921, 922):
+            _, data, result = _discovered(shape, count, offsets, seed + 37 * count)
+            final = result.final
+            index = 1 + sum(1 for t in final.terms if t.name.startswith("local_region"))
+            period = next((c for c in result.remaining if c.name == "periodic_lead" and c.fit is not None), None)
+            beside = ([t for t in period.fitted.terms if t.name == "periodic_lead"] if period is not None
+                      and any("periodic_lead" in u.effects for u in result.unresolved) else [])
+            regions = held_regions(data, final, locate(data, data.y - final.prediction), index, beside)
+            taken = {int(t.name.split("#")[1]) if "#" in t.name else 1 for t in final.terms
+                     if is_local(t) and not t.name.startswith("local_region")}
+            more = None if beside else find_local(data, final, max(taken, default=0) + 1)
+            if regions or (more is not None and within_targets(data, more.term)):
+                left.append((count, offsets, seed, [t.shape for t in regions], more and more.sentence()))
+    assert not left, left
