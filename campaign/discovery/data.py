@@ -67,6 +67,9 @@ class CampaignData:
     remembered: OrderedDict = field(default_factory=OrderedDict, init=False, repr=False, compare=False)
     """Arrays computed from this data set once (campaign.discovery.fit.remembered): its arrays
     are not to be changed in place."""
+    remembered_bytes: int = field(default=0, init=False, repr=False, compare=False)
+    """The bytes the arrays in `remembered` hold (kept as they come and go: summing them on every
+    call costs more than the products they save once there are thousands of small ones)."""
 
     @property
     def position_unit(self) -> str:

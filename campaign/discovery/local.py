@@ -387,7 +387,7 @@ def _time_test(data: CampaignData, fit: Fit, name: str) -> tuple[float, float, f
     full = np.column_stack([design(data, fit.terms)[0], growth])
     beta = np.linalg.lstsq(weighted(data, full), weighted(data, data.y - base), rcond=None)[0]
     prediction = base + full @ beta
-    grown = replace(fit, prediction=prediction, rss=float(np.sum(weighted(data, data.y - prediction) ** 2)),
+    grown = replace(fit, predicted=prediction, rss=float(np.sum(weighted(data, data.y - prediction) ** 2)),
                     n_params=fit.n_params + 1)
     n, p = full.shape
     cov = np.linalg.pinv(weighted(data, full).T @ weighted(data, full)) * grown.rss / max(n - p, 1)
