@@ -545,15 +545,32 @@ def reduced_residual(data: CampaignData, terms: list[Term], moving: list[int],
         return None
     still = [t for i, t in enumerate(terms) if i not in moving]
     y = data.y - fixed_deviation(data, terms)
-    b = design(data, still)[0]
-    b_means = np.column_stack([np.bincount(index, c) for c in b.T]) / count[:, None]
-    outside = b - b_means[index]  # the other terms' parts outside the pairs' indicators
+    blocks = Blocks(data, still)
+    # the other terms' block by block (never stacked): their means per pair, and their parts outside
+    # the pairs' indicators, which are zero (to rounding: below the cut of `kept`) for a block of
+    # position (or pair) alone (a screw lead, a local term, the offsets): only the other blocks' are formed
+    b_means = np.zeros((len(count), blocks.width))
+    moving_within = np.zeros(blocks.width, dtype=bool)
+    outside_parts = []
+    for i in range(len(blocks.keys)):
+        cols = blocks.block(i)
+        means = np.column_stack([np.bincount(index, c, len(count)) for c in cols.T]) / count[:, None] if cols.shape[1] \
+            else np.zeros((len(count), 0))
+        b_means[:, blocks.starts[i]:blocks.starts[i + 1]] = means
+        part = cols - means[index]
+        if np.max(np.abs(part), initial=0.0) > 1e-12 * max(1.0, float(np.max(np.abs(cols), initial=0.0))):
+            moving_within[blocks.starts[i]:blocks.starts[i + 1]] = True
+            outside_parts.append(part)
+    outside = np.hstack(outside_parts) if outside_parts else np.zeros((len(y), 0))
     eig, vectors = np.linalg.eigh(outside.T @ outside)
-    kept = eig > (1e-7 * max(float(np.linalg.norm(b)), 1e-300)) ** 2  # (what is below adds < 1e-14 to the RSS)
+    b_norm = math.sqrt(max(float(np.trace(blocks.gram())), 0.0))
+    kept = eig > (1e-7 * max(b_norm, 1e-300)) ** 2  # (what is below adds < 1e-14 to the RSS)
     u = outside @ (vectors[:, kept] / np.sqrt(eig[kept]))
     root = np.sqrt(count)
     y_small = np.concatenate([np.bincount(index, y) / root, u.T @ y])
-    b_small = np.vstack([b_means * root[:, None], u.T @ b])
+    u_b = np.zeros((u.shape[1], blocks.width))
+    u_b[:, moving_within] = u.T @ outside  # uᵀB: the pairs' means of B are orthogonal to u
+    b_small = np.vstack([b_means * root[:, None], u_b])
     rest = math.sqrt(max(float(y @ y - y_small @ y_small), 0.0))
     pairs = keep_rows(data, np.isin(np.arange(len(data)), first))  # one row per pair, in data order
     to_keys = np.argsort(np.argsort(first))  # the row of `pairs` of each key
@@ -571,6 +588,17 @@ PROJECT_COLUMNS = 20
 runs with them projected out once (projected_residual)."""
 
 
+def _basis_of(gram: np.ndarray, cut: float = 1e-14) -> np.ndarray:
+    """T (p × r) with A·T an orthonormal basis of A's span, from A's normal matrix AᵀA (`gram`):
+    the column-normalised matrix's eigenvectors, those whose eigenvalue is below `cut` of the largest
+    (so its singular value below √cut) left out."""
+    norms = np.sqrt(np.maximum(np.diag(gram), 0.0))
+    norms[norms == 0] = 1.0
+    eig, vectors = np.linalg.eigh(gram / np.outer(norms, norms))
+    keep = eig > cut * max(float(eig.max()), 1e-300) if len(eig) else np.zeros(0, dtype=bool)
+    return np.asarray((vectors[:, keep] / np.sqrt(eig[keep])) / norms[:, None])
+
+
 def projected_residual(data: CampaignData, terms: list[Term],
                        moving: list[int]) -> Callable[[list[Term]], np.ndarray] | None:
     """The residual of a shape search with the columns that do not move (the offsets and every term
@@ -579,20 +607,18 @@ def projected_residual(data: CampaignData, terms: list[Term],
     Lovell), the same vector as linear_fit's in O(n·p·k) instead of O(n·p²) (p the columns held, k the
     moving ones). None below PROJECT_COLUMNS held columns (a refit is as cheap)."""
     still = [t for i, t in enumerate(terms) if i not in moving]
-    b = weighted(data, design(data, still)[0])  # on weighted rows, as the refit it stands for
-    if b.shape[1] < PROJECT_COLUMNS:
+    blocks = Blocks(data, still)  # on weighted rows, as the refit it stands for
+    if blocks.width < PROJECT_COLUMNS:
         return None
-    norms = np.linalg.norm(b, axis=0)
-    norms[norms == 0] = 1.0
-    eig, vectors = np.linalg.eigh((b / norms).T @ (b / norms))
-    keep = eig > 1e-14 * max(float(eig.max()), 1e-300)  # the span of what is held, to rounding
-    q = (b / norms) @ (vectors[:, keep] / np.sqrt(eig[keep]))
-    y = weighted(data, data.y - fixed_deviation(data, terms))
-    y_out = y - q @ (q.T @ y)
+    to_q = _basis_of(blocks.gram())  # the span of what is held, to rounding: Q = (weighted B)·to_q
+
+    def outside(v: np.ndarray) -> np.ndarray:  # (I - QQᵀ) of v's weighted rows, from the blocks
+        return np.asarray(weighted(data, v - blocks.times(to_q @ (to_q.T @ blocks.t_times(v)))))
+
+    y_out = outside(data.y - fixed_deviation(data, terms))
 
     def residual(new: list[Term]) -> np.ndarray:
-        cols = weighted(data, np.hstack([new[i].columns(data) for i in moving]))
-        c_out = cols - q @ (q.T @ cols)
+        c_out = outside(np.hstack([new[i].columns(data) for i in moving]))
         return np.asarray(y_out - c_out @ _solve(c_out, y_out))
 
     return residual
@@ -664,7 +690,8 @@ def periodogram_periods(data: CampaignData, fit: Fit, top: int = 3) -> list[floa
     low, high = period_limits(data)
     travel = float(np.ptp(data.x)) or 1.0
     freqs = np.arange(1 / high, 1 / low, 1 / (8 * travel))
-    q = thin_q(weighted(data, design(data, fit.terms)[0]))
+    blocks = Blocks(data, fit.terms)
+    to_q = _basis_of(blocks.gram())  # Q = (weighted A)·to_q: an orthonormal basis of the model's span
     r = weighted(data, data.y - fit.prediction)
     # a sine of x takes one value per distinct position: every sum below is over those, with the
     # residual's and the basis's sums there (exactly the sums over the weighted rows: a row's sine
@@ -673,8 +700,10 @@ def periodogram_periods(data: CampaignData, fit: Fit, top: int = 3) -> list[floa
     root = data.row_scale if data.row_scale is not None else np.ones(len(data))
     count = np.bincount(where, root**2)
     r_at = np.bincount(where, root * r)
-    q_at = np.column_stack([np.bincount(where, root * col, minlength=len(xs)) for col in q.T])
-    qr = q.T @ r
+    a_at = np.column_stack([np.bincount(where, root**2 * blocks.block(i)[:, j], minlength=len(xs))
+                            for i in range(len(blocks.keys)) for j in range(blocks.widths[i])])
+    q_at = a_at @ to_q
+    qr = to_q.T @ blocks.t_times(data.y - fit.prediction)  # Qᵀr = to_qᵀ·AᵀW·(residual)
     power = np.zeros(len(freqs))
     block = max(1, PERIODOGRAM_CELLS // max(len(xs), 1))  # frequencies at a time: memory linear in the rows
     for lo in range(0, len(freqs), block):
@@ -871,27 +900,33 @@ ANGLES = ("phase_rad",)
 """Parameters that are angles: their differences are wrapped to (-π, π]."""
 
 
-def jacobian(data: CampaignData, fit: Fit, step: float = 1e-4) -> tuple[np.ndarray, list]:
-    """The Jacobian of the prediction with respect to the offsets, every fitted coefficient (label
-    (term index, "coef", column in the form's full order)) and the log of every searched shape
-    (label (term index, "log", key)); an offset's label is None."""
-    a, slices = design(data, fit.terms)
-    blocks = [a]
-    labels: list[tuple[int, str, int | str] | None] = [None] * a.shape[1]
-    for i, (term, sl) in enumerate(zip(fit.terms, slices)):
-        if term.fixed:
-            continue
-        count = len(fit.coefs[i])
-        kept = np.flatnonzero(term.keep if term.keep is not None else (True,) * count)
-        for j, col in zip(range(sl.start, sl.stop), kept):
+def jacobian_normal(data: CampaignData, fit: Fit, step: float = 1e-4) -> tuple[np.ndarray, list]:
+    """JᵀWJ of the Jacobian J of the prediction with respect to the offsets, every fitted coefficient
+    (label (term index, "coef", column in the form's full order)) and the log of every searched shape
+    (label (term index, "log", key)), on weighted rows (`weighted`); an offset's label is None. The
+    coefficients' part is the design's normal matrix (`Blocks`: not stacked)."""
+    blocks = Blocks(data, fit.terms)
+    labels: list[tuple[int, str, int | str] | None] = [None] * blocks.width
+    free = [i for i, t in enumerate(fit.terms) if not t.fixed]
+    for block, i in enumerate(free, start=1):
+        term = fit.terms[i]
+        kept = np.flatnonzero(term.keep if term.keep is not None else (True,) * len(fit.coefs[i]))
+        for j, col in zip(range(int(blocks.starts[block]), int(blocks.starts[block + 1])), kept):
             labels[j] = (i, "coef", int(col))
+    moves = []
     for i, (term, coefs) in enumerate(zip(fit.terms, fit.coefs)):
         for key in term.searched:
             base = form_of(term.name).columns(data, term.shape, term.held) @ coefs
             moved = {**term.shape, key: term.shape[key] * math.exp(step)}
-            blocks.append(((form_of(term.name).columns(data, moved, term.held) @ coefs - base) / step)[:, None])
+            moves.append((form_of(term.name).columns(data, moved, term.held) @ coefs - base) / step)
             labels.append((i, "log", key))
-    return np.hstack(blocks), labels
+    gram = blocks.gram()
+    if not moves:
+        return gram, labels
+    shapes = np.column_stack(moves)
+    cross = blocks.t_times(shapes)
+    own = shapes.T @ weighted(data, weighted(data, shapes))
+    return np.block([[gram, cross], [cross.T, own]]), labels
 
 
 def derived(effect: str, params: dict[str, float]) -> dict[str, float]:
@@ -914,12 +949,11 @@ def standard_errors(data: CampaignData, fit: Fit, step: float = 1e-4) -> dict[st
     coefficients). Parameters the user gave, and fixed shapes (the bow's span), get none.
     Asymptotic (linearised) values: the spread over repeated campaigns, not a guarantee; a phase's
     error is meaningless when the amplitude is not different from zero."""
-    jac, labels = jacobian(data, fit, step)
-    jac = weighted(data, jac)
-    n, p = jac.shape
+    normal, labels = jacobian_normal(data, fit, step)
+    n, p = len(data), len(labels)
     if n <= p:
         return {}
-    cov = np.linalg.pinv(jac.T @ jac) * fit.rss / (n - p)
+    cov = np.linalg.pinv(normal) * fit.rss / (n - p)
     out: dict[str, dict[str, float]] = {}
     for i, term in enumerate(fit.terms):
         index = [j for j, label in enumerate(labels) if label is not None and label[0] == i]
