@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 
@@ -259,14 +260,32 @@ class Blocks:
                 parts.append(part if self.kept[i] is None else part[self.kept[i]])
         return np.concatenate(parts) if parts else np.zeros((0, *v.shape[1:]))
 
-    def rows(self, index: np.ndarray) -> np.ndarray:
-        """A's rows `index` (len(index) × p)."""
-        out = np.zeros((len(index), self.width))
-        for i in range(len(self.keys)):
-            if self.widths[i]:
-                cols, kept = self.getters[i](), self.kept[i]
-                out[:, self.starts[i]:self.starts[i + 1]] = cols[index] if kept is None else cols[index][:, kept]
+    def rows(self, index: np.ndarray, which: np.ndarray | None = None) -> np.ndarray:
+        """A's rows `index` (len(index) × p); only the blocks where `which` (bool per block) when given."""
+        chosen = [i for i in range(len(self.keys)) if self.widths[i] and (which is None or which[i])]
+        out = np.zeros((len(index), sum(self.widths[i] for i in chosen)))
+        at = 0
+        for i in chosen:
+            cols, kept = self.getters[i](), self.kept[i]
+            out[:, at:at + self.widths[i]] = cols[index] if kept is None else cols[index][:, kept]
+            at += self.widths[i]
         return out
+
+    def columns_of(self, which: np.ndarray) -> np.ndarray:
+        """The design's columns (bool per column) of the blocks where `which` (bool per block)."""
+        return np.repeat(which, self.widths)
+
+    def constant_within(self, index: np.ndarray, groups_hash: int) -> np.ndarray:
+        """Bool per block: are its columns the same at every row of each group (`index`)? (A position's
+        function within targets; remembered per block and grouping.)"""
+        order = np.argsort(index, kind="stable")
+        same = index[order][1:] == index[order][:-1]  # neighbours of one group, in the group order
+
+        def check(i: int) -> np.ndarray:
+            cols = self.getters[i]()[order]
+            return np.array([bool(np.all(cols[1:][same] == cols[:-1][same]))])
+        return np.array([bool(remembered(self.data, ("constant", groups_hash, self.keys[i]), partial(check, i))[0])
+                         for i in range(len(self.keys))])
 
     def stacked(self) -> np.ndarray:
         """A itself (n × p): for the rare solve the normal equations cannot do."""
@@ -762,7 +781,7 @@ def _cv_rms_um(data: CampaignData, terms: list[Term], groups: np.ndarray) -> flo
     names, index = np.unique(groups, return_inverse=True)
     index = index.ravel()
     if len(names) > CV_FOLDS_REFITTED:
-        return _cv_from_hat(blocks, y, index)
+        return _cv_from_hat(blocks, y, index, hash(np.asarray(groups).tobytes()))
     return _cv_refitted(blocks, y, index, hash(np.asarray(groups).tobytes()))
 
 
@@ -818,13 +837,14 @@ HAT_CELLS = 4_000_000
 """Numbers gathered at a time by the hat route's blocks (about 32 MB per array)."""
 
 
-def _cv_from_hat(blocks: Blocks, y: np.ndarray, index: np.ndarray) -> float:
+def _cv_from_hat(blocks: Blocks, y: np.ndarray, index: np.ndarray, groups_hash: int) -> float:
     """The grouped leave-out RMS from the hat matrix of the whole fit (column-normalised, directions
     below CV_RCOND left out): e_g = (I - H_gg)⁻¹ r_g (a pseudo-inverse with CV_RCOND), the groups of
     one size at once. The basis of the fit's span, Q = A·T, comes from the eigenvectors of the p × p
     normal matrix (singular values above CV_RCOND of the largest only, so accurate to about 1e-10);
-    Q's rows are formed a few groups at a time from the design's blocks (never n × p at once). A group
-    above CV_BLOCK_MAX rows is refitted instead."""
+    Q's rows are formed a few groups at a time from the design's blocks (never n × p at once), a block
+    that is the same at every row of a group (a function of position, the groups being targets) once
+    per group. A group above CV_BLOCK_MAX rows is refitted instead."""
     data = blocks.data
     root = data.row_scale if data.row_scale is not None else np.ones(len(y))
     gram = blocks.gram()
@@ -839,6 +859,8 @@ def _cv_from_hat(blocks: Blocks, y: np.ndarray, index: np.ndarray) -> float:
     order = np.argsort(index, kind="stable")
     sizes = np.bincount(index)
     starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    same = blocks.constant_within(index, groups_hash)
+    same_cols = blocks.columns_of(same)
     total = 0.0
     for size in np.unique(sizes[sizes > 0]):
         chosen = np.flatnonzero(sizes == size)
@@ -854,7 +876,10 @@ def _cv_from_hat(blocks: Blocks, y: np.ndarray, index: np.ndarray) -> float:
         for part in np.array_split(chosen, max(1, cells // HAT_CELLS + 1)):
             rows = order[starts[part][:, None] + np.arange(size)[None, :]]  # groups × size
             flat = rows.ravel()
-            qg = ((root[flat, None] * blocks.rows(flat)) @ to_q).reshape(*rows.shape, -1)
+            qg = (blocks.rows(flat, ~same) @ to_q[~same_cols]).reshape(*rows.shape, -1)
+            if same.any():
+                qg += (blocks.rows(rows[:, 0], same) @ to_q[same_cols])[:, None, :]
+            qg *= root[rows][..., None]
             block = np.eye(size) - qg @ np.swapaxes(qg, 1, 2)
             # the block's eigenvalues are 1 - σ²(Q_g) >= 1 - Σ leverages: above CV_RCOND (of at most 1)
             # its pseudo-inverse is its inverse, and a solve does
