@@ -14,8 +14,10 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from functools import partial
+from typing import TypeVar
 
 import numpy as np
+from scipy import sparse
 
 from campaign.discovery.data import CampaignData, keep_rows
 from campaign.discovery.effects import form_of, period_limits
@@ -48,19 +50,22 @@ class Term:
         return cols if self.keep is None else cols[:, list(self.keep)]
 
 
-REMEMBERED_MB = 400.0
+REMEMBERED_MB = 256.0
 """Memory of the arrays remembered per data set (`remembered`), MB: a search computes the same term's
 columns over and over (every candidate beside the same model, every step of a shape refinement beside
 the same other terms, and on a dense table every fit beside tens of local terms of a few columns each:
-at 100,000 rows one such term is about 5 MB, so 400 MB holds about eighty: the fifty-odd regions a
-dense table's locator may find, and the model beside them, without each fit computing them again)."""
+at 100,000 rows one such term is about 5 MB, or a fraction of it when held sparse (`held_columns`):
+the fifty-odd regions a dense table's locator may find fit, with the model beside them)."""
 
 
 def _key(term: Term) -> tuple:
     return (term.name, tuple(sorted(term.shape.items())), tuple(sorted(term.held.items())))
 
 
-def remembered(data: CampaignData, key: tuple, make: Callable[[], np.ndarray]) -> np.ndarray:
+Remembered = TypeVar("Remembered", np.ndarray, sparse.csc_matrix)
+
+
+def remembered(data: CampaignData, key: tuple, make: Callable[[], Remembered]) -> Remembered:
     """make() for `data`, computed once while among the most recently used that fit in REMEMBERED_MB
     (per data set, in data.remembered). The array is shared: callers must not change it in place."""
     store = data.remembered
@@ -68,12 +73,20 @@ def remembered(data: CampaignData, key: tuple, make: Callable[[], np.ndarray]) -
         store.move_to_end(key)
         return store[key]
     value = make()
-    value.flags.writeable = False
+    if isinstance(value, np.ndarray):
+        value.flags.writeable = False
     store[key] = value
-    data.remembered_bytes += value.nbytes + ENTRY_BYTES
+    data.remembered_bytes += _nbytes(value)
     while len(store) > 1 and data.remembered_bytes > REMEMBERED_MB * 2**20:
-        data.remembered_bytes -= store.popitem(last=False)[1].nbytes + ENTRY_BYTES
+        data.remembered_bytes -= _nbytes(store.popitem(last=False)[1])
     return value
+
+
+def _nbytes(value: np.ndarray | sparse.csc_matrix) -> int:
+    """What a remembered entry holds, bytes (its arrays' data and about ENTRY_BYTES besides)."""
+    if isinstance(value, np.ndarray):
+        return int(value.nbytes) + ENTRY_BYTES
+    return int(value.data.nbytes + value.indices.nbytes + value.indptr.nbytes) + ENTRY_BYTES
 
 
 ENTRY_BYTES = 400
@@ -81,8 +94,24 @@ ENTRY_BYTES = 400
 
 
 def full_columns(data: CampaignData, term: Term) -> np.ndarray:
-    """The term's form's columns on `data`, every one (its keep mask not applied): remembered."""
-    return remembered(data, _key(term), lambda: form_of(term.name).columns(data, term.shape, term.held))
+    """The term's form's columns on `data`, every one (its keep mask not applied): remembered (as a
+    sparse matrix when mostly zero, `held_columns`)."""
+    held = held_columns(data, term)
+    return held if isinstance(held, np.ndarray) else np.asarray(held.toarray())
+
+
+def held_columns(data: CampaignData, term: Term) -> np.ndarray | sparse.csc_matrix:
+    """The term's full columns as remembered: a sparse matrix when at most SPARSE_SHARE of their numbers
+    is not zero (a local term's, zero outside its region: on a dense table fifty of them fit in a
+    fraction of the memory), else the array."""
+    def make() -> np.ndarray | sparse.csc_matrix:
+        cols = form_of(term.name).columns(data, term.shape, term.held)
+        return sparse.csc_matrix(cols) if np.count_nonzero(cols) <= SPARSE_SHARE * cols.size else cols
+    return remembered(data, _key(term), make)
+
+
+SPARSE_SHARE = 0.25
+"""A term's columns with at most this share of their numbers not zero are held as a sparse matrix."""
 
 
 def weighted(data: CampaignData, rows: np.ndarray) -> np.ndarray:
@@ -197,6 +226,9 @@ class Blocks:
         free = [t for t in terms if not t.fixed]
         self.keys: list[tuple] = [("datums",), *(_key(t) for t in free)]
         self.fetched: dict[int, np.ndarray] = {}
+        self.held: dict[int, np.ndarray | sparse.csc_matrix] = {}
+        self.holders: list[Callable[[], np.ndarray | sparse.csc_matrix]] = [lambda: datum_columns(data)]
+        self.holders += [lambda t=t: held_columns(data, t) for t in free]  # type: ignore[misc]
         self.makers: list[Callable[[], np.ndarray]] = [lambda: datum_columns(data)]
         self.makers += [lambda t=t: full_columns(data, t) for t in free]  # type: ignore[misc]
         self.getters = [lambda i=i: self._fetch(i) for i in range(len(self.makers))]
@@ -210,12 +242,17 @@ class Blocks:
             self.fetched[i] = self.makers[i]()
         return self.fetched[i]
 
+    def operand(self, i: int) -> np.ndarray | sparse.csc_matrix:
+        """Block i's full columns for products: as remembered (`held_columns`: sparse when mostly zero)."""
+        if i not in self.held:
+            self.held[i] = self.holders[i]()
+        return self.held[i]
+
     def _width(self, i: int) -> int:
         kept = self.kept[i]
         if kept is not None:
             return len(kept)
-        return int(remembered(self.data, ("width", self.keys[i]),
-                              lambda: np.array([self.getters[i]().shape[1]]))[0])
+        return int(self.operand(i).shape[1])
 
     @property
     def width(self) -> int:
@@ -234,7 +271,7 @@ class Blocks:
         kept = self.kept[i]
         if kept is None:
             return part
-        full = np.zeros((self.getters[i]().shape[1], *part.shape[1:]))
+        full = np.zeros((self.operand(i).shape[1], *part.shape[1:]))
         full[kept] = part
         return full
 
@@ -243,7 +280,7 @@ class Blocks:
         out = np.zeros((len(self.data), *beta.shape[1:]))
         for i in range(len(self.keys)):
             if self.widths[i]:
-                out += self.getters[i]() @ self._full(i, beta[self.starts[i]:self.starts[i + 1]])
+                out += self.operand(i) @ self._full(i, beta[self.starts[i]:self.starts[i + 1]])
         return out
 
     def t_times(self, v: np.ndarray, key: tuple | None = None) -> np.ndarray:
@@ -253,10 +290,10 @@ class Blocks:
         for i in range(len(self.keys)):
             if self.widths[i]:
                 if key is None:
-                    part = self.getters[i]().T @ wv
+                    part = np.asarray(self.operand(i).T @ wv)
                 else:
                     part = remembered(self.data, ("Aᵀy", self.w is not None, key, self.keys[i]),
-                                      lambda i=i: np.asarray(self.getters[i]().T @ wv))  # type: ignore[misc]
+                                      lambda i=i: np.asarray(self.operand(i).T @ wv))  # type: ignore[misc]
                 parts.append(part if self.kept[i] is None else part[self.kept[i]])
         return np.concatenate(parts) if parts else np.zeros((0, *v.shape[1:]))
 
@@ -266,8 +303,9 @@ class Blocks:
         out = np.zeros((len(index), sum(self.widths[i] for i in chosen)))
         at = 0
         for i in chosen:
-            cols, kept = self.getters[i](), self.kept[i]
-            out[:, at:at + self.widths[i]] = cols[index] if kept is None else cols[index][:, kept]
+            held, kept = self.operand(i), self.kept[i]
+            part = held[index].toarray() if sparse.issparse(held) else held[index]
+            out[:, at:at + self.widths[i]] = part if kept is None else part[:, kept]
             at += self.widths[i]
         return out
 
@@ -300,9 +338,13 @@ class Blocks:
             return np.swapaxes(remembered(self.data, swapped, lambda: np.zeros(0)), -1, -2)
 
         def make() -> np.ndarray:
-            left, right = self._weighted(self.getters[i]()), self.getters[j]()
             if groups is None:
-                return np.asarray(left.T @ right)
+                left, right = self.operand(i), self.operand(j)
+                if self.w is not None:
+                    right = sparse.diags(self.w) @ right if sparse.issparse(right) else right * self.w[:, None]
+                product = left.T @ right
+                return product.toarray() if sparse.issparse(product) else np.asarray(product)
+            left, right = self._weighted(self.getters[i]()), self.getters[j]()
             return np.stack([left[rows].T @ right[rows] for rows in groups[1]])
         return remembered(self.data, key, make)
 
