@@ -50,7 +50,7 @@ class Term:
         return cols if self.keep is None else cols[:, list(self.keep)]
 
 
-REMEMBERED_MB = 256.0
+REMEMBERED_MB = 128.0
 """Memory of the arrays remembered per data set (`remembered`), MB: a search computes the same term's
 columns over and over (every candidate beside the same model, every step of a shape refinement beside
 the same other terms, and on a dense table every fit beside tens of local terms of a few columns each:
@@ -344,8 +344,11 @@ class Blocks:
                     right = sparse.diags(self.w) @ right if sparse.issparse(right) else right * self.w[:, None]
                 product = left.T @ right
                 return product.toarray() if sparse.issparse(product) else np.asarray(product)
-            left, right = self._weighted(self.getters[i]()), self.getters[j]()
-            return np.stack([left[rows].T @ right[rows] for rows in groups[1]])
+            left, right = self.operand(i), self.operand(j)
+            if self.w is not None:
+                right = sparse.diags(self.w) @ right if sparse.issparse(right) else right * self.w[:, None]
+            products = [left[rows].T @ right[rows] for rows in groups[1]]
+            return np.stack([p.toarray() if sparse.issparse(p) else np.asarray(p) for p in products])
         return remembered(self.data, key, make)
 
     def _model_key(self, upto: int, groups: tuple | None) -> tuple:
@@ -380,7 +383,8 @@ class Blocks:
                 si, sj = slice(self.starts[i], self.starts[i + 1]), slice(self.starts[j], self.starts[j + 1])
                 out[..., si, sj] = pair
                 out[..., sj, si] = np.swapaxes(pair, -1, -2)
-        remembered(self.data, whole, lambda: out.copy())
+        if groups is None:  # (one per group would be groups × p × p: the pairs' are remembered)
+            remembered(self.data, whole, lambda: out.copy())
         return out
 
 
@@ -531,8 +535,8 @@ def linear_fit(data: CampaignData, terms: list[Term]) -> Fit:
     blocks = Blocks(data, terms)
     beta, rss = _solve_blocks(blocks, data.y - base, y_key)
 
-    def prediction() -> np.ndarray:
-        return np.asarray(base + blocks.times(beta))
+    def prediction() -> np.ndarray:  # (its own Blocks: a fit kept must not keep the columns it fetched)
+        return np.asarray(fixed_deviation(data, terms) + Blocks(data, terms).times(beta))
 
     slices = [slice(0, 0)] * len(terms)
     free = [k for k, t in enumerate(terms) if not t.fixed]
@@ -751,8 +755,6 @@ def periodogram_periods(data: CampaignData, fit: Fit, top: int = 3) -> list[floa
     low, high = period_limits(data)
     travel = float(np.ptp(data.x)) or 1.0
     freqs = np.arange(1 / high, 1 / low, 1 / (8 * travel))
-    blocks = Blocks(data, fit.terms)
-    to_q = _basis_of(blocks.gram())  # Q = (weighted A)·to_q: an orthonormal basis of the model's span
     r = weighted(data, data.y - fit.prediction)
     # a sine of x takes one value per distinct position: every sum below is over those, with the
     # residual's and the basis's sums there (exactly the sums over the weighted rows: a row's sine
@@ -761,10 +763,7 @@ def periodogram_periods(data: CampaignData, fit: Fit, top: int = 3) -> list[floa
     root = data.row_scale if data.row_scale is not None else np.ones(len(data))
     count = np.bincount(where, root**2)
     r_at = np.bincount(where, root * r)
-    a_at = np.column_stack([np.bincount(where, root**2 * blocks.block(i)[:, j], minlength=len(xs))
-                            for i in range(len(blocks.keys)) for j in range(blocks.widths[i])])
-    q_at = a_at @ to_q
-    qr = to_q.T @ blocks.t_times(data.y - fit.prediction)  # Qᵀr = to_qᵀ·AᵀW·(residual)
+    q_at, qr = span_at_positions(data, fit, where, len(xs))
     power = np.zeros(len(freqs))
     block = max(1, PERIODOGRAM_CELLS // max(len(xs), 1))  # frequencies at a time: memory linear in the rows
     for lo in range(0, len(freqs), block):
@@ -784,6 +783,20 @@ def periodogram_periods(data: CampaignData, fit: Fit, top: int = 3) -> list[floa
              and (i == len(power) - 1 or power[i] >= power[i + 1])]
     peaks.sort(key=lambda i: -power[i])
     return [float(1 / freqs[i]) for i in peaks[:top]]
+
+
+def span_at_positions(data: CampaignData, fit: Fit, where: np.ndarray, positions: int) -> tuple[np.ndarray, np.ndarray]:
+    """For an orthonormal basis Q of the span of the fit's design on weighted rows: the sums at each
+    distinct position (`where`: each row's, of `positions`) of its weighted rows times the rows' weight's
+    square root (positions × r), and Qᵀ times the weighted residual (r): what a search over shapes of
+    position (a sine, a local shape) needs of the model. From the design's blocks and normal matrix
+    (Q = weighted A·T, `_basis_of`): never the n × p design or Q themselves."""
+    blocks = Blocks(data, fit.terms)
+    to_q = _basis_of(blocks.gram())
+    w = data.row_scale**2 if data.row_scale is not None else np.ones(len(data))
+    a_at = np.column_stack([np.bincount(where, w * col, minlength=positions)
+                            for i in range(len(blocks.keys)) for col in blocks.block(i).T])
+    return a_at @ to_q, to_q.T @ blocks.t_times(data.y - fit.prediction)
 
 
 def independent_periods(data: CampaignData) -> float:

@@ -36,7 +36,7 @@ from campaign.discovery.fit import (
     fixed_deviation,
     linear_fit,
     reduced_residual,
-    thin_q,
+    span_at_positions,
     weighted,
 )
 
@@ -270,7 +270,6 @@ def _grid_best(data: CampaignData, fit: Fit) -> tuple[str, float, float] | None:
     targets = _targets(data)
     step = max(float(np.median(np.diff(targets))) / 4, float(np.ptp(targets)) / MAX_CENTRES)
     centres = np.arange(targets[0], targets[-1] + step / 2, step)
-    q = thin_q(weighted(data, design(data, fit.terms)[0]))
     r = weighted(data, data.y - fit.prediction)
     # a local shape takes one value per distinct position: the sums below are over those, with the
     # residual's and the basis's sums there (exactly the sums over the weighted rows: a row's shape
@@ -278,10 +277,10 @@ def _grid_best(data: CampaignData, fit: Fit) -> tuple[str, float, float] | None:
     xs, where = np.unique(data.x, return_inverse=True)
     root = data.row_scale if data.row_scale is not None else np.ones(len(data))
     count = np.bincount(where, root**2)
-    # per position: the residual's sum, then the basis's (one product gives both)
-    sums = np.column_stack([np.bincount(where, root * col, minlength=len(xs))
-                            for col in np.column_stack([r, q]).T])
-    qr = q.T @ r
+    # per position: the residual's sum, then the basis's (one product gives both; the basis's from
+    # the design's blocks, span_at_positions: no n × p design on a dense table)
+    q_at, qr = span_at_positions(data, fit, where, len(xs))
+    sums = np.column_stack([np.bincount(where, root * r, minlength=len(xs)), q_at])
     above = np.vstack([np.cumsum(sums[::-1], axis=0)[::-1], np.zeros((1, sums.shape[1]))])  # sums from k on
     count_above = np.append(np.cumsum(count[::-1])[::-1], 0.0)
     best, power_best = None, -1.0
