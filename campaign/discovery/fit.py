@@ -254,6 +254,13 @@ class Blocks:
             return len(kept)
         return int(self.operand(i).shape[1])
 
+    def slice_of(self, terms: list[Term], index: int) -> slice:
+        """The columns of terms[index] (the terms the blocks were made of) in the design."""
+        block = sum(1 for t in terms[:index + 1] if not t.fixed)
+        if terms[index].fixed:
+            return slice(0, 0)
+        return slice(int(self.starts[block]), int(self.starts[block + 1]))
+
     @property
     def width(self) -> int:
         return int(self.starts[-1])
