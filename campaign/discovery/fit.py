@@ -513,6 +513,27 @@ def _solve_blocks(blocks: Blocks, y: np.ndarray, y_key: tuple) -> tuple[np.ndarr
     return np.asarray(beta), max(rss, 0.0)
 
 
+def normal_beside(data: CampaignData, terms: list[Term], extra: np.ndarray) -> tuple[Blocks, np.ndarray, np.ndarray]:
+    """The design's blocks, and the normal equations of the design with `extra` columns (n × m) beside
+    it, on weighted rows: [A, E]ᵀW[A, E] and [A, E]ᵀW(y - fixed terms' deviation) (from the blocks:
+    no stacked n × p design)."""
+    blocks = Blocks(data, terms)
+    w = data.row_scale**2 if data.row_scale is not None else np.ones(len(data))
+    cross = blocks.t_times(extra)
+    normal = np.block([[blocks.gram(), cross], [cross.T, extra.T @ (w[:, None] * extra)]])
+    y = data.y - fixed_deviation(data, terms)
+    return blocks, normal, np.concatenate([blocks.t_times(y), extra.T @ (w * y)])
+
+
+def solve_normal(normal: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """The least-squares coefficients from normal equations (a pseudo-inverse of the column-normalised
+    normal matrix: a direction the columns do not determine gets no coefficient, as an SVD of the
+    rows gives)."""
+    norms = np.sqrt(np.maximum(np.diag(normal), 0.0))
+    norms[norms == 0] = 1.0
+    return np.asarray(np.linalg.pinv(normal / np.outer(norms, norms)) @ (rhs / norms) / norms)
+
+
 def _outside_norms_blocks(blocks: Blocks) -> tuple[np.ndarray, np.ndarray]:
     """outside_norms of the last block's columns beside the others' (from the normal matrix the blocks
     assemble; the stacked columns when outside_norms would project), and the columns' norms."""

@@ -30,6 +30,7 @@ from campaign.discovery.fit import (
     f_test_p,
     fixed_deviation,
     linear_fit,
+    solve_normal,
     weighted,
 )
 from campaign.discovery.local import LocalError, look_elsewhere, passes
@@ -144,13 +145,12 @@ def describe_region(data: CampaignData, fit: Fit, name: str, without: Fit) -> Lo
     w = weighted(data, weighted(data, np.ones(n)))
     cross = blocks.t_times(growth)  # the normal equations of [A, growth] on weighted rows
     normal = np.block([[gram, cross[:, None]], [cross[None, :], np.array([[float(growth @ (w * growth))]])]])
-    inverse = np.linalg.pinv(normal)
-    beta = inverse @ np.append(blocks.t_times(data.y - base), float(growth @ (w * (data.y - base))))
+    beta = solve_normal(normal, np.append(blocks.t_times(data.y - base), float(growth @ (w * (data.y - base)))))
     prediction = base + blocks.times(beta[:-1]) + growth * beta[-1]
     rss = float(np.sum(weighted(data, data.y - prediction) ** 2))
     grown = Fit(fit.terms, fit.coefs, fit.offset_um, prediction, rss, fit.n_params + 1, fit.offsets_um)
     time_p = f_test_p(fit, grown, n)
-    change_cov = inverse * rss / max(n - p - 1, 1)
+    change_cov = np.linalg.pinv(normal) * rss / max(n - p - 1, 1)
     errors = {"amplitude_um": peak_error}
     if direction in ("+", "-"):  # what the other direction shows there: the same spline fitted for it
         other = "local_region_" + ("minus" if direction == "+" else "plus") + "#0"
