@@ -11,6 +11,7 @@ import math
 import tomllib
 from collections import OrderedDict
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -84,9 +85,10 @@ class CampaignData:
     def __len__(self) -> int:
         return len(self.y)
 
-    @property
+    @cached_property
     def target_index(self) -> np.ndarray:
-        """Index of each point's target among the distinct targets."""
+        """Index of each point's target among the distinct targets (computed once: the arrays are not
+        changed in place, and on a dense table every cross-validation asks for it)."""
         return np.unique(np.round(self.x, 6), return_inverse=True)[1]
 
     @property
