@@ -11,6 +11,7 @@ import math
 import tomllib
 from collections import OrderedDict
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -67,6 +68,9 @@ class CampaignData:
     remembered: OrderedDict = field(default_factory=OrderedDict, init=False, repr=False, compare=False)
     """Arrays computed from this data set once (campaign.discovery.fit.remembered): its arrays
     are not to be changed in place."""
+    remembered_bytes: int = field(default=0, init=False, repr=False, compare=False)
+    """The bytes the arrays in `remembered` hold (kept as they come and go: summing them on every
+    call costs more than the products they save once there are thousands of small ones)."""
 
     @property
     def position_unit(self) -> str:
@@ -81,9 +85,10 @@ class CampaignData:
     def __len__(self) -> int:
         return len(self.y)
 
-    @property
+    @cached_property
     def target_index(self) -> np.ndarray:
-        """Index of each point's target among the distinct targets."""
+        """Index of each point's target among the distinct targets (computed once: the arrays are not
+        changed in place, and on a dense table every cross-validation asks for it)."""
         return np.unique(np.round(self.x, 6), return_inverse=True)[1]
 
     @property

@@ -13,8 +13,11 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from functools import partial
+from typing import TypeVar
 
 import numpy as np
+from scipy import sparse
 
 from campaign.discovery.data import CampaignData, keep_rows
 from campaign.discovery.effects import form_of, period_limits
@@ -51,14 +54,18 @@ REMEMBERED_MB = 128.0
 """Memory of the arrays remembered per data set (`remembered`), MB: a search computes the same term's
 columns over and over (every candidate beside the same model, every step of a shape refinement beside
 the same other terms, and on a dense table every fit beside tens of local terms of a few columns each:
-at 100,000 rows one such term is about 5 MB, so 128 MB holds about twenty-five)."""
+at 100,000 rows one such term is about 5 MB, or a fraction of it when held sparse (`held_columns`):
+the fifty-odd regions a dense table's locator may find fit, with the model beside them)."""
 
 
 def _key(term: Term) -> tuple:
     return (term.name, tuple(sorted(term.shape.items())), tuple(sorted(term.held.items())))
 
 
-def remembered(data: CampaignData, key: tuple, make: Callable[[], np.ndarray]) -> np.ndarray:
+Remembered = TypeVar("Remembered", np.ndarray, sparse.csc_matrix)
+
+
+def remembered(data: CampaignData, key: tuple, make: Callable[[], Remembered]) -> Remembered:
     """make() for `data`, computed once while among the most recently used that fit in REMEMBERED_MB
     (per data set, in data.remembered). The array is shared: callers must not change it in place."""
     store = data.remembered
@@ -66,16 +73,45 @@ def remembered(data: CampaignData, key: tuple, make: Callable[[], np.ndarray]) -
         store.move_to_end(key)
         return store[key]
     value = make()
-    value.flags.writeable = False
+    if isinstance(value, np.ndarray):
+        value.flags.writeable = False
     store[key] = value
-    while len(store) > 1 and sum(v.nbytes for v in store.values()) > REMEMBERED_MB * 2**20:
-        store.popitem(last=False)
+    data.remembered_bytes += _nbytes(value)
+    while len(store) > 1 and data.remembered_bytes > REMEMBERED_MB * 2**20:
+        data.remembered_bytes -= _nbytes(store.popitem(last=False)[1])
     return value
 
 
+def _nbytes(value: np.ndarray | sparse.csc_matrix) -> int:
+    """What a remembered entry holds, bytes (its arrays' data and about ENTRY_BYTES besides)."""
+    if isinstance(value, np.ndarray):
+        return int(value.nbytes) + ENTRY_BYTES
+    return int(value.data.nbytes + value.indices.nbytes + value.indptr.nbytes) + ENTRY_BYTES
+
+
+ENTRY_BYTES = 400
+"""About what one remembered entry holds besides its array's data (its key, the array's header), bytes."""
+
+
 def full_columns(data: CampaignData, term: Term) -> np.ndarray:
-    """The term's form's columns on `data`, every one (its keep mask not applied): remembered."""
-    return remembered(data, _key(term), lambda: form_of(term.name).columns(data, term.shape, term.held))
+    """The term's form's columns on `data`, every one (its keep mask not applied): remembered (as a
+    sparse matrix when mostly zero, `held_columns`)."""
+    held = held_columns(data, term)
+    return held if isinstance(held, np.ndarray) else np.asarray(held.toarray())
+
+
+def held_columns(data: CampaignData, term: Term) -> np.ndarray | sparse.csc_matrix:
+    """The term's full columns as remembered: a sparse matrix when at most SPARSE_SHARE of their numbers
+    is not zero (a local term's, zero outside its region: on a dense table fifty of them fit in a
+    fraction of the memory), else the array."""
+    def make() -> np.ndarray | sparse.csc_matrix:
+        cols = form_of(term.name).columns(data, term.shape, term.held)
+        return sparse.csc_matrix(cols) if np.count_nonzero(cols) <= SPARSE_SHARE * cols.size else cols
+    return remembered(data, _key(term), make)
+
+
+SPARSE_SHARE = 0.25
+"""A term's columns with at most this share of their numbers not zero are held as a sparse matrix."""
 
 
 def weighted(data: CampaignData, rows: np.ndarray) -> np.ndarray:
@@ -91,18 +127,26 @@ def weighted(data: CampaignData, rows: np.ndarray) -> np.ndarray:
 @dataclass
 class Fit:
     """Fitted terms: coefficients per free term (in the form's full column order), offset µm (the
-    first campaign's), prediction µm per point, residual sum of squares µm² (weighted: each
-    residual times its point's data.row_scale), number of fitted parameters, and the offset of
-    every campaign fitted together, µm (a campaign of several datums, a scan profile's sweeps:
-    their mean)."""
+    first campaign's), prediction µm per point (`predicted`: it, or what computes it when first
+    asked: most fits of a search are only compared by their RSS, and on a dense table the prediction
+    is a pass over every column), residual sum of squares µm² (weighted: each residual times its
+    point's data.row_scale), number of fitted parameters, and the offset of every campaign fitted
+    together, µm (a campaign of several datums, a scan profile's sweeps: their mean)."""
 
     terms: list[Term]
     coefs: list[np.ndarray]
     offset_um: float
-    prediction: np.ndarray
+    predicted: np.ndarray | Callable[[], np.ndarray]
     rss: float
     n_params: int
     offsets_um: tuple[float, ...] = ()
+
+    @property
+    def prediction(self) -> np.ndarray:
+        """The fit's deviation at each point, µm."""
+        if callable(self.predicted):
+            self.predicted = self.predicted()
+        return self.predicted
 
     def params(self) -> dict[str, dict[str, float]]:
         """Effect name -> model parameters (physical units, see model.EFFECT_PARAMS)."""
@@ -168,6 +212,189 @@ def _datum_columns(data: CampaignData) -> np.ndarray:
     return np.column_stack([offsets, *slopes])
 
 
+class Blocks:
+    """A model's design (`design`) as its blocks of columns, never stacked: the datums' columns and each
+    free term's full columns (remembered), with the indices of the kept ones. Products with it cost
+    O(n·p) and its normal matrix (`gram`) is assembled from remembered products of two blocks (CᵢᵀWCⱼ,
+    W the rows' weights when `weighted`): a model and a candidate beside it share all but the
+    candidate's, so a fit costs O(n·k·p) for a new term of k columns instead of O(n·p²) and no n × p
+    copy (on a dense table of a hundred local terms, hundreds of MB)."""
+
+    def __init__(self, data: CampaignData, terms: list[Term], weighted: bool = True):
+        self.data = data
+        self.w = data.row_scale**2 if weighted and data.row_scale is not None else None
+        free = [t for t in terms if not t.fixed]
+        self.keys: list[tuple] = [("datums",), *(_key(t) for t in free)]
+        self.fetched: dict[int, np.ndarray] = {}
+        self.held: dict[int, np.ndarray | sparse.csc_matrix] = {}
+        self.holders: list[Callable[[], np.ndarray | sparse.csc_matrix]] = [lambda: datum_columns(data)]
+        self.holders += [lambda t=t: held_columns(data, t) for t in free]  # type: ignore[misc]
+        self.makers: list[Callable[[], np.ndarray]] = [lambda: datum_columns(data)]
+        self.makers += [lambda t=t: full_columns(data, t) for t in free]  # type: ignore[misc]
+        self.getters = [lambda i=i: self._fetch(i) for i in range(len(self.makers))]
+        self.kept: list[np.ndarray | None] = [None, *(None if t.keep is None else np.flatnonzero(t.keep) for t in free)]
+        self.widths = [self._width(i) for i in range(len(self.keys))]
+        self.starts = np.concatenate([[0], np.cumsum(self.widths)]).astype(int)
+
+    def _fetch(self, i: int) -> np.ndarray:
+        """Block i's full columns, asked of the remembered store once per Blocks."""
+        if i not in self.fetched:
+            self.fetched[i] = self.makers[i]()
+        return self.fetched[i]
+
+    def operand(self, i: int) -> np.ndarray | sparse.csc_matrix:
+        """Block i's full columns for products: as remembered (`held_columns`: sparse when mostly zero)."""
+        if i not in self.held:
+            self.held[i] = self.holders[i]()
+        return self.held[i]
+
+    def _width(self, i: int) -> int:
+        kept = self.kept[i]
+        if kept is not None:
+            return len(kept)
+        return int(self.operand(i).shape[1])
+
+    def slice_of(self, terms: list[Term], index: int) -> slice:
+        """The columns of terms[index] (the terms the blocks were made of) in the design."""
+        block = sum(1 for t in terms[:index + 1] if not t.fixed)
+        if terms[index].fixed:
+            return slice(0, 0)
+        return slice(int(self.starts[block]), int(self.starts[block + 1]))
+
+    @property
+    def width(self) -> int:
+        return int(self.starts[-1])
+
+    def block(self, i: int) -> np.ndarray:
+        """The kept columns of block i (n × its width)."""
+        cols, kept = self.getters[i](), self.kept[i]
+        return cols if kept is None else cols[:, kept]
+
+    def _weighted(self, v: np.ndarray) -> np.ndarray:
+        return v if self.w is None else v * (self.w if v.ndim == 1 else self.w[:, None])
+
+    def _full(self, i: int, part: np.ndarray) -> np.ndarray:
+        """Block i's kept coefficients `part` in its full column order (0 at the dropped)."""
+        kept = self.kept[i]
+        if kept is None:
+            return part
+        full = np.zeros((self.operand(i).shape[1], *part.shape[1:]))
+        full[kept] = part
+        return full
+
+    def times(self, beta: np.ndarray) -> np.ndarray:
+        """A·beta (n; beta: p, or p × m for n × m)."""
+        out = np.zeros((len(self.data), *beta.shape[1:]))
+        for i in range(len(self.keys)):
+            if self.widths[i]:
+                out += self.operand(i) @ self._full(i, beta[self.starts[i]:self.starts[i + 1]])
+        return out
+
+    def t_times(self, v: np.ndarray, key: tuple | None = None) -> np.ndarray:
+        """AᵀW·v (p; v: n, or n × m for p × m); remembered per block when `key` names v."""
+        wv = self._weighted(v)
+        parts = []
+        for i in range(len(self.keys)):
+            if self.widths[i]:
+                if key is None:
+                    part = np.asarray(self.operand(i).T @ wv)
+                else:
+                    part = remembered(self.data, ("Aᵀy", self.w is not None, key, self.keys[i]),
+                                      lambda i=i: np.asarray(self.operand(i).T @ wv))  # type: ignore[misc]
+                parts.append(part if self.kept[i] is None else part[self.kept[i]])
+        return np.concatenate(parts) if parts else np.zeros((0, *v.shape[1:]))
+
+    def rows(self, index: np.ndarray, which: np.ndarray | None = None) -> np.ndarray:
+        """A's rows `index` (len(index) × p); only the blocks where `which` (bool per block) when given."""
+        chosen = [i for i in range(len(self.keys)) if self.widths[i] and (which is None or which[i])]
+        out = np.zeros((len(index), sum(self.widths[i] for i in chosen)))
+        at = 0
+        for i in chosen:
+            held, kept = self.operand(i), self.kept[i]
+            part = held[index].toarray() if sparse.issparse(held) else held[index]
+            out[:, at:at + self.widths[i]] = part if kept is None else part[:, kept]
+            at += self.widths[i]
+        return out
+
+    def columns_of(self, which: np.ndarray) -> np.ndarray:
+        """The design's columns (bool per column) of the blocks where `which` (bool per block)."""
+        return np.repeat(which, self.widths)
+
+    def constant_within(self, index: np.ndarray, groups_hash: int) -> np.ndarray:
+        """Bool per block: are its columns the same at every row of each group (`index`)? (A position's
+        function within targets; remembered per block and grouping.)"""
+        order = np.argsort(index, kind="stable")
+        same = index[order][1:] == index[order][:-1]  # neighbours of one group, in the group order
+
+        def check(i: int) -> np.ndarray:
+            cols = self.getters[i]()[order]
+            return np.array([bool(np.all(cols[1:][same] == cols[:-1][same]))])
+        return np.array([bool(remembered(self.data, ("constant", groups_hash, self.keys[i]), partial(check, i))[0])
+                         for i in range(len(self.keys))])
+
+    def stacked(self) -> np.ndarray:
+        """A itself (n × p): for the rare solve the normal equations cannot do."""
+        return np.hstack([self.block(i) for i in range(len(self.keys))])
+
+    def _pair(self, i: int, j: int, groups: tuple | None = None) -> np.ndarray:
+        """CᵢᵀWCⱼ of the two blocks' full columns (remembered); with `groups` ((hash, members: each
+        group's rows)), one per group (groups × ki × kj)."""
+        tag = ("gram", self.w is not None, *(() if groups is None else (groups[0],)))
+        key, swapped = (*tag, self.keys[i], self.keys[j]), (*tag, self.keys[j], self.keys[i])
+        if swapped in self.data.remembered and key not in self.data.remembered:
+            return np.swapaxes(remembered(self.data, swapped, lambda: np.zeros(0)), -1, -2)
+
+        def make() -> np.ndarray:
+            if groups is None:
+                left, right = self.operand(i), self.operand(j)
+                if self.w is not None:
+                    right = sparse.diags(self.w) @ right if sparse.issparse(right) else right * self.w[:, None]
+                product = left.T @ right
+                return product.toarray() if sparse.issparse(product) else np.asarray(product)
+            left, right = self.operand(i), self.operand(j)
+            if self.w is not None:
+                right = sparse.diags(self.w) @ right if sparse.issparse(right) else right * self.w[:, None]
+            products = [left[rows].T @ right[rows] for rows in groups[1]]
+            return np.stack([p.toarray() if sparse.issparse(p) else np.asarray(p) for p in products])
+        return remembered(self.data, key, make)
+
+    def _model_key(self, upto: int, groups: tuple | None) -> tuple:
+        kept = tuple(None if k is None else tuple(k) for k in self.kept[:upto])
+        return ("model gram", self.w is not None, None if groups is None else groups[0], *self.keys[:upto], kept)
+
+    def gram(self, groups: tuple | None = None) -> np.ndarray:
+        """AᵀWA of the kept columns (p × p); with `groups` (hash, members: each group's rows), each
+        group's (groups × p × p). Remembered per model; a model whose first blocks are a remembered
+        model (a candidate beside the current model, a shape refined in its last term) starts from
+        that one's."""
+        count = () if groups is None else (len(groups[1]),)
+        whole = self._model_key(len(self.keys), groups)
+        if whole in self.data.remembered:
+            return np.array(remembered(self.data, whole, lambda: np.zeros(0)))
+        out = np.zeros((*count, self.width, self.width))
+        first = 0
+        prefix = self._model_key(len(self.keys) - 1, groups)
+        if len(self.keys) > 1 and prefix in self.data.remembered:
+            first = len(self.keys) - 1
+            held = int(self.starts[first])
+            out[..., :held, :held] = remembered(self.data, prefix, lambda: np.zeros(0))
+        for j in range(first, len(self.keys)):
+            for i in range(j + 1):
+                if not self.widths[i] or not self.widths[j]:
+                    continue
+                pair = self._pair(i, j, groups)
+                if self.kept[i] is not None:
+                    pair = pair[..., self.kept[i], :]
+                if self.kept[j] is not None:
+                    pair = pair[..., :, self.kept[j]]
+                si, sj = slice(self.starts[i], self.starts[i + 1]), slice(self.starts[j], self.starts[j + 1])
+                out[..., si, sj] = pair
+                out[..., sj, si] = np.swapaxes(pair, -1, -2)
+        if groups is None:  # (one per group would be groups × p × p: the pairs' are remembered)
+            remembered(self.data, whole, lambda: out.copy())
+        return out
+
+
 NORMAL_COND = 1e4
 """Up to this condition number of the column-normalised design, least squares solves the normal
 equations (one pass over the rows, then a p × p Cholesky, refined once above REFINE_COND: relative
@@ -175,19 +402,25 @@ error at most about NORMAL_COND × 1e-16 after the refinement); above it, an SVD
 design (numpy's lstsq), which also holds a rank-deficient one."""
 
 
-def _normal_scaled(a: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    """(AᵀA of the column-normalised a, 1/column norms) when a is tall, has no zero column and its
+def _normal_scaled(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """(AᵀA of the column-normalised a, 1/column norms, its condition number) when a is tall, has no zero column and its
     normalised condition number is at most NORMAL_COND; None otherwise."""
     if not a.shape[0] > a.shape[1] > 0:
         return None
-    gram = a.T @ a
+    return _gram_scaled(a.T @ a)
+
+
+def _gram_scaled(gram: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """_normal_scaled from the normal matrix AᵀA of a tall A (changed in place)."""
+    if not gram.shape[0]:
+        return None
     diag = np.diag(gram).copy()
     if not np.all(diag > 0):
         return None
     scale = 1 / np.sqrt(diag)
     gram *= np.outer(scale, scale)
     eig = np.linalg.eigvalsh(gram)
-    return (gram, scale) if eig[0] > eig[-1] / NORMAL_COND**2 else None
+    return (gram, scale, float(eig[-1] / eig[0])) if eig[0] > eig[-1] / NORMAL_COND**2 else None
 
 
 REFINE_COND = 1e3
@@ -212,10 +445,10 @@ def _solve(a: np.ndarray, y: np.ndarray) -> np.ndarray:
     if normal is not None:
         from scipy import linalg
 
-        gram, scale = normal
+        gram, scale, cond = normal
         factor = linalg.cho_factor(gram)
         beta = scale * linalg.cho_solve(factor, scale * _t_times(a, y))
-        if np.linalg.cond(gram) > REFINE_COND:  # one step of iterative refinement
+        if cond > REFINE_COND:  # one step of iterative refinement
             beta += scale * linalg.cho_solve(factor, scale * _t_times(a, y - _times(a, beta)))
         return np.asarray(beta)
     return np.linalg.lstsq(a, y, rcond=None)[0]
@@ -230,7 +463,7 @@ def thin_q(a: np.ndarray) -> np.ndarray:
         return np.linalg.qr(a)[0]
     from scipy import linalg
 
-    gram, scale = normal
+    gram, scale, _cond = normal
     upper = linalg.cholesky(gram)
     q = a @ (scale[:, None] * linalg.solve_triangular(upper, np.eye(len(upper))))  # a·D·R⁻¹
     again = linalg.cholesky(q.T @ q)
@@ -246,7 +479,7 @@ def outside_norms(base: np.ndarray, cols: np.ndarray) -> np.ndarray:
     if normal is not None:
         from scipy import linalg
 
-        gram, scale = normal
+        gram, scale, _cond = normal
         b = scale[:, None] * (base.T @ cols)
         inside = np.einsum("ij,ij->j", b, linalg.cho_solve(linalg.cho_factor(gram), b))
         out2 = total - inside
@@ -256,26 +489,104 @@ def outside_norms(base: np.ndarray, cols: np.ndarray) -> np.ndarray:
     return np.asarray(np.linalg.norm(cols - q @ (q.T @ cols), axis=0))
 
 
+def _solve_blocks(blocks: Blocks, y: np.ndarray, y_key: tuple) -> tuple[np.ndarray, float | None]:
+    """_solve of the weighted design and y (unweighted, n; `y_key` names it for the remembered AᵀWy)
+    from the normal matrix the blocks assemble (the same test, factor and refinement: only AᵀWA is
+    summed differently), and the weighted RSS from the normal equations, yᵀWy - βᵀ(2AᵀWy - AᵀWAβ):
+    stationary at the solution, so accurate to rounding of yᵀWy, without a pass over the rows. Above
+    NORMAL_COND the stacked design's SVD, as there (RSS None: from the residual)."""
+    from scipy import linalg
+
+    normal = _gram_scaled(blocks.gram()) if len(y) > blocks.width else None
+    if normal is None:
+        return _solve(weighted(blocks.data, blocks.stacked()), weighted(blocks.data, y)), None
+    gram, scale, cond = normal
+    factor = linalg.cho_factor(gram)
+    aty = blocks.t_times(y, y_key)
+    beta = scale * linalg.cho_solve(factor, scale * aty)
+    if cond > REFINE_COND:  # one step of iterative refinement
+        beta += scale * linalg.cho_solve(factor, scale * blocks.t_times(y - blocks.times(beta)))
+    yty = float(remembered(blocks.data, ("yWy", blocks.w is not None, y_key),
+                           lambda: np.array([np.sum(blocks._weighted(y) * y)]))[0])
+    unscaled = beta / scale  # the normal matrix is held column-normalised: AᵀWA = D⁻¹·gram·D⁻¹
+    rss = yty - float(beta @ (2 * aty)) + float(unscaled @ gram @ unscaled)
+    return np.asarray(beta), max(rss, 0.0)
+
+
+def normal_beside(data: CampaignData, terms: list[Term], extra: np.ndarray) -> tuple[Blocks, np.ndarray, np.ndarray]:
+    """The design's blocks, and the normal equations of the design with `extra` columns (n × m) beside
+    it, on weighted rows: [A, E]ᵀW[A, E] and [A, E]ᵀW(y - fixed terms' deviation) (from the blocks:
+    no stacked n × p design)."""
+    blocks = Blocks(data, terms)
+    w = data.row_scale**2 if data.row_scale is not None else np.ones(len(data))
+    cross = blocks.t_times(extra)
+    normal = np.block([[blocks.gram(), cross], [cross.T, extra.T @ (w[:, None] * extra)]])
+    y = data.y - fixed_deviation(data, terms)
+    return blocks, normal, np.concatenate([blocks.t_times(y), extra.T @ (w * y)])
+
+
+def solve_normal(normal: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """The least-squares coefficients from normal equations (a pseudo-inverse of the column-normalised
+    normal matrix: a direction the columns do not determine gets no coefficient, as an SVD of the
+    rows gives)."""
+    norms = np.sqrt(np.maximum(np.diag(normal), 0.0))
+    norms[norms == 0] = 1.0
+    return np.asarray(np.linalg.pinv(normal / np.outer(norms, norms)) @ (rhs / norms) / norms)
+
+
+def _outside_norms_blocks(blocks: Blocks) -> tuple[np.ndarray, np.ndarray]:
+    """outside_norms of the last block's columns beside the others' (from the normal matrix the blocks
+    assemble; the stacked columns when outside_norms would project), and the columns' norms."""
+    from scipy import linalg
+
+    gram = blocks.gram()
+    held = int(blocks.starts[-2])
+    total = np.diag(gram)[held:].copy()
+    normal = _gram_scaled(gram[:held, :held].copy()) if len(blocks.data) > held else None
+    if normal is not None:
+        base_gram, scale, _ = normal
+        b = scale[:, None] * gram[:held, held:]
+        inside = np.einsum("ij,ij->j", b, linalg.cho_solve(linalg.cho_factor(base_gram), b))
+        out2 = total - inside
+        if np.all(out2 > 1e-6 * total):  # no cancellation to speak of: else the projection
+            return np.sqrt(out2), np.sqrt(total)
+    a = blocks.stacked()
+    return outside_norms(a[:, :held], a[:, held:]), np.sqrt(total)
+
+
 def linear_fit(data: CampaignData, terms: list[Term]) -> Fit:
-    """Fit the coefficients for the terms' current shapes."""
+    """Fit the coefficients for the terms' current shapes (from the normal matrix of the design's
+    blocks, `Blocks`: the design is not stacked; the prediction is computed when asked)."""
+    fixed = [t for t in terms if t.fixed]
+    y_key = ("fixed", *(_key(t) for t in fixed))
     base = fixed_deviation(data, terms)
-    a, slices = design(data, terms)
-    beta = _solve(weighted(data, a), weighted(data, data.y - base))
-    prediction = base + _times(a, beta)
+    blocks = Blocks(data, terms)
+    beta, rss = _solve_blocks(blocks, data.y - base, y_key)
+
+    def prediction() -> np.ndarray:  # (its own Blocks: a fit kept must not keep the columns it fetched)
+        return np.asarray(fixed_deviation(data, terms) + Blocks(data, terms).times(beta))
+
+    slices = [slice(0, 0)] * len(terms)
+    free = [k for k, t in enumerate(terms) if not t.fixed]
+    for block, k in enumerate(free, start=1):
+        slices[k] = slice(int(blocks.starts[block]), int(blocks.starts[block + 1]))
     coefs = []
     for term, sl in zip(terms, slices):
-        full = np.zeros(full_columns(data, term).shape[1]) if not term.fixed else np.zeros(0)
+        full = np.zeros(0 if term.fixed else len(term.keep) if term.keep is not None else sl.stop - sl.start)
         if not term.fixed:
             keep = term.keep if term.keep is not None else (True,) * len(full)
             full[list(np.flatnonzero(keep))] = beta[sl]
         coefs.append(full)
-    n_params = a.shape[1] + sum(len(t.searched) for t in terms)
+    n_params = blocks.width + sum(len(t.searched) for t in terms)
     datums = beta[:data.datums]
     first = np.bincount(data.datum_index, data.campaign_index, data.datums) / np.bincount(data.datum_index,
                                                                                         minlength=data.datums)
     offsets = tuple(float(np.mean(datums[first == c])) for c in range(data.campaigns))
-    return Fit(terms, coefs, float(beta[0]), prediction, float(np.sum(weighted(data, data.y - prediction) ** 2)),
-               n_params, offsets)
+    if rss is None:
+        predicted = prediction()
+        return Fit(terms, coefs, float(beta[0]), predicted,
+                   float(np.sum(weighted(data, data.y - predicted) ** 2)), n_params, offsets)
+    return Fit(terms, coefs, float(beta[0]), prediction, rss, n_params, offsets)
 
 
 def shape_bounds(data: CampaignData, name: str, key: str) -> tuple[float, float]:
@@ -327,15 +638,32 @@ def reduced_residual(data: CampaignData, terms: list[Term], moving: list[int],
         return None
     still = [t for i, t in enumerate(terms) if i not in moving]
     y = data.y - fixed_deviation(data, terms)
-    b = design(data, still)[0]
-    b_means = np.column_stack([np.bincount(index, c) for c in b.T]) / count[:, None]
-    outside = b - b_means[index]  # the other terms' parts outside the pairs' indicators
+    blocks = Blocks(data, still)
+    # the other terms' block by block (never stacked): their means per pair, and their parts outside
+    # the pairs' indicators, which are zero (to rounding: below the cut of `kept`) for a block of
+    # position (or pair) alone (a screw lead, a local term, the offsets): only the other blocks' are formed
+    b_means = np.zeros((len(count), blocks.width))
+    moving_within = np.zeros(blocks.width, dtype=bool)
+    outside_parts = []
+    for i in range(len(blocks.keys)):
+        cols = blocks.block(i)
+        means = np.column_stack([np.bincount(index, c, len(count)) for c in cols.T]) / count[:, None] if cols.shape[1] \
+            else np.zeros((len(count), 0))
+        b_means[:, blocks.starts[i]:blocks.starts[i + 1]] = means
+        part = cols - means[index]
+        if np.max(np.abs(part), initial=0.0) > 1e-12 * max(1.0, float(np.max(np.abs(cols), initial=0.0))):
+            moving_within[blocks.starts[i]:blocks.starts[i + 1]] = True
+            outside_parts.append(part)
+    outside = np.hstack(outside_parts) if outside_parts else np.zeros((len(y), 0))
     eig, vectors = np.linalg.eigh(outside.T @ outside)
-    kept = eig > (1e-7 * max(float(np.linalg.norm(b)), 1e-300)) ** 2  # (what is below adds < 1e-14 to the RSS)
+    b_norm = math.sqrt(max(float(np.trace(blocks.gram())), 0.0))
+    kept = eig > (1e-7 * max(b_norm, 1e-300)) ** 2  # (what is below adds < 1e-14 to the RSS)
     u = outside @ (vectors[:, kept] / np.sqrt(eig[kept]))
     root = np.sqrt(count)
     y_small = np.concatenate([np.bincount(index, y) / root, u.T @ y])
-    b_small = np.vstack([b_means * root[:, None], u.T @ b])
+    u_b = np.zeros((u.shape[1], blocks.width))
+    u_b[:, moving_within] = u.T @ outside  # uᵀB: the pairs' means of B are orthogonal to u
+    b_small = np.vstack([b_means * root[:, None], u_b])
     rest = math.sqrt(max(float(y @ y - y_small @ y_small), 0.0))
     pairs = keep_rows(data, np.isin(np.arange(len(data)), first))  # one row per pair, in data order
     to_keys = np.argsort(np.argsort(first))  # the row of `pairs` of each key
@@ -353,6 +681,17 @@ PROJECT_COLUMNS = 20
 runs with them projected out once (projected_residual)."""
 
 
+def _basis_of(gram: np.ndarray, cut: float = 1e-14) -> np.ndarray:
+    """T (p × r) with A·T an orthonormal basis of A's span, from A's normal matrix AᵀA (`gram`):
+    the column-normalised matrix's eigenvectors, those whose eigenvalue is below `cut` of the largest
+    (so its singular value below √cut) left out."""
+    norms = np.sqrt(np.maximum(np.diag(gram), 0.0))
+    norms[norms == 0] = 1.0
+    eig, vectors = np.linalg.eigh(gram / np.outer(norms, norms))
+    keep = eig > cut * max(float(eig.max()), 1e-300) if len(eig) else np.zeros(0, dtype=bool)
+    return np.asarray((vectors[:, keep] / np.sqrt(eig[keep])) / norms[:, None])
+
+
 def projected_residual(data: CampaignData, terms: list[Term],
                        moving: list[int]) -> Callable[[list[Term]], np.ndarray] | None:
     """The residual of a shape search with the columns that do not move (the offsets and every term
@@ -361,20 +700,18 @@ def projected_residual(data: CampaignData, terms: list[Term],
     Lovell), the same vector as linear_fit's in O(n·p·k) instead of O(n·p²) (p the columns held, k the
     moving ones). None below PROJECT_COLUMNS held columns (a refit is as cheap)."""
     still = [t for i, t in enumerate(terms) if i not in moving]
-    b = weighted(data, design(data, still)[0])  # on weighted rows, as the refit it stands for
-    if b.shape[1] < PROJECT_COLUMNS:
+    blocks = Blocks(data, still)  # on weighted rows, as the refit it stands for
+    if blocks.width < PROJECT_COLUMNS:
         return None
-    norms = np.linalg.norm(b, axis=0)
-    norms[norms == 0] = 1.0
-    eig, vectors = np.linalg.eigh((b / norms).T @ (b / norms))
-    keep = eig > 1e-14 * max(float(eig.max()), 1e-300)  # the span of what is held, to rounding
-    q = (b / norms) @ (vectors[:, keep] / np.sqrt(eig[keep]))
-    y = weighted(data, data.y - fixed_deviation(data, terms))
-    y_out = y - q @ (q.T @ y)
+    to_q = _basis_of(blocks.gram())  # the span of what is held, to rounding: Q = (weighted B)·to_q
+
+    def outside(v: np.ndarray) -> np.ndarray:  # (I - QQᵀ) of v's weighted rows, from the blocks
+        return np.asarray(weighted(data, v - blocks.times(to_q @ (to_q.T @ blocks.t_times(v)))))
+
+    y_out = outside(data.y - fixed_deviation(data, terms))
 
     def residual(new: list[Term]) -> np.ndarray:
-        cols = weighted(data, np.hstack([new[i].columns(data) for i in moving]))
-        c_out = cols - q @ (q.T @ cols)
+        c_out = outside(np.hstack([new[i].columns(data) for i in moving]))
         return np.asarray(y_out - c_out @ _solve(c_out, y_out))
 
     return residual
@@ -417,10 +754,7 @@ def refine(data: CampaignData, terms: list[Term]) -> Fit:
 
 def drop_collinear(data: CampaignData, terms: list[Term], term: Term) -> Term:
     """`term` with its columns that the model's columns already span dropped (keep mask)."""
-    base, _ = design(data, terms)
-    cols = full_columns(data, term)
-    outside = outside_norms(base, cols)
-    norms = np.linalg.norm(cols, axis=0)
+    outside, norms = _outside_norms_blocks(Blocks(data, [*terms, replace(term, keep=None)], weighted=False))
     keep = tuple(bool(n > 0 and o > COLLINEAR * n) for o, n in zip(outside, norms))
     return replace(term, keep=keep)
 
@@ -449,7 +783,6 @@ def periodogram_periods(data: CampaignData, fit: Fit, top: int = 3) -> list[floa
     low, high = period_limits(data)
     travel = float(np.ptp(data.x)) or 1.0
     freqs = np.arange(1 / high, 1 / low, 1 / (8 * travel))
-    q = thin_q(weighted(data, design(data, fit.terms)[0]))
     r = weighted(data, data.y - fit.prediction)
     # a sine of x takes one value per distinct position: every sum below is over those, with the
     # residual's and the basis's sums there (exactly the sums over the weighted rows: a row's sine
@@ -458,8 +791,7 @@ def periodogram_periods(data: CampaignData, fit: Fit, top: int = 3) -> list[floa
     root = data.row_scale if data.row_scale is not None else np.ones(len(data))
     count = np.bincount(where, root**2)
     r_at = np.bincount(where, root * r)
-    q_at = np.column_stack([np.bincount(where, root * col, minlength=len(xs)) for col in q.T])
-    qr = q.T @ r
+    q_at, qr = span_at_positions(data, fit, where, len(xs))
     power = np.zeros(len(freqs))
     block = max(1, PERIODOGRAM_CELLS // max(len(xs), 1))  # frequencies at a time: memory linear in the rows
     for lo in range(0, len(freqs), block):
@@ -481,6 +813,20 @@ def periodogram_periods(data: CampaignData, fit: Fit, top: int = 3) -> list[floa
     return [float(1 / freqs[i]) for i in peaks[:top]]
 
 
+def span_at_positions(data: CampaignData, fit: Fit, where: np.ndarray, positions: int) -> tuple[np.ndarray, np.ndarray]:
+    """For an orthonormal basis Q of the span of the fit's design on weighted rows: the sums at each
+    distinct position (`where`: each row's, of `positions`) of its weighted rows times the rows' weight's
+    square root (positions × r), and Qᵀ times the weighted residual (r): what a search over shapes of
+    position (a sine, a local shape) needs of the model. From the design's blocks and normal matrix
+    (Q = weighted A·T, `_basis_of`): never the n × p design or Q themselves."""
+    blocks = Blocks(data, fit.terms)
+    to_q = _basis_of(blocks.gram())
+    w = data.row_scale**2 if data.row_scale is not None else np.ones(len(data))
+    a_at = np.column_stack([np.bincount(where, w * col, minlength=positions)
+                            for i in range(len(blocks.keys)) for col in blocks.block(i).T])
+    return a_at @ to_q, to_q.T @ blocks.t_times(data.y - fit.prediction)
+
+
 def independent_periods(data: CampaignData) -> float:
     """About how many independent periods the periodogram tries (for the look-elsewhere effect)."""
     low, high = period_limits(data)
@@ -493,12 +839,6 @@ below this fraction of the largest are left out: a fold can lose what tells two 
 (leaving out the one run in which a short thermal time constant acts makes its columns those of
 linear_scale and the offset), and the prediction must then be what the fold can say, not a
 difference of two huge coefficients."""
-
-
-def _fold_solve(a: np.ndarray, y: np.ndarray) -> np.ndarray:
-    norms = np.linalg.norm(a, axis=0)
-    norms[norms == 0] = 1.0
-    return np.linalg.lstsq(a / norms, y, rcond=CV_RCOND)[0] / norms
 
 
 CV_FOLDS_REFITTED = 200
@@ -519,73 +859,110 @@ def cv_rms_um(data: CampaignData, terms: list[Term], groups: np.ndarray) -> floa
 
 
 def _cv_rms_um(data: CampaignData, terms: list[Term], groups: np.ndarray) -> float:
-    base = fixed_deviation(data, terms)
-    a = weighted(data, design(data, terms)[0])
-    y = weighted(data, data.y - base)
+    blocks = Blocks(data, terms)
+    y = data.y - fixed_deviation(data, terms)
     names, index = np.unique(groups, return_inverse=True)
+    index = index.ravel()
     if len(names) > CV_FOLDS_REFITTED:
-        return _cv_from_hat(a, y, index)
-    return _cv_refitted(a, y, index)
+        return _cv_from_hat(blocks, y, index, hash(np.asarray(groups).tobytes()))
+    return _cv_refitted(blocks, y, index, hash(np.asarray(groups).tobytes()))
 
 
-def _cv_refitted(a: np.ndarray, y: np.ndarray, index: np.ndarray) -> float:
-    """The grouped leave-out RMS, each fold refitted. A fold's normal equations are the whole
-    design's less its group's (G - A_gᵀA_g: time linear in the rows over all folds); when the fold's
-    column-normalised design has a direction below CV_RCOND (so the truncated solve differs from
-    plain least squares), or lacks a column, the fold is solved from its rows (_fold_solve)."""
-    from scipy import linalg
-
-    gram, aty = a.T @ a, a.T @ y
-    errors = np.zeros(len(y))
-    for g in range(int(index.max()) + 1 if len(index) else 0):
-        out = index == g
-        ag, yg = a[out], y[out]
-        fold_gram = gram - ag.T @ ag
-        diag = np.diag(fold_gram)
-        beta = None
-        if len(diag) and np.all(diag > 0):
-            scale = 1 / np.sqrt(diag)
-            scaled = fold_gram * np.outer(scale, scale)
-            eig = np.linalg.eigvalsh(scaled)
-            if eig[0] > eig[-1] * CV_RCOND**2 * 100:  # a margin of 10 in the singular values
-                beta = scale * linalg.cho_solve(linalg.cho_factor(scaled), scale * (aty - ag.T @ yg))
-        if beta is None:
-            beta = _fold_solve(a[~out], y[~out])
-        errors[out] = yg - ag @ beta
-    return float(np.sqrt(np.mean(errors**2)))
-
-
-def _cv_from_hat(a: np.ndarray, y: np.ndarray, index: np.ndarray) -> float:
-    """The grouped leave-out RMS from the hat matrix of the whole fit (column-normalised, directions
-    below CV_RCOND left out): e_g = (I - H_gg)⁻¹ r_g (a pseudo-inverse with CV_RCOND), the groups of
-    one size at once. The basis of the fit's span comes from the eigenvectors of the p × p normal
-    matrix (singular values above CV_RCOND of the largest only, so accurate to about 1e-10). A group
-    above CV_BLOCK_MAX rows is refitted instead."""
-    norms = np.linalg.norm(a, axis=0)
+def _fold_solve(fold_gram: np.ndarray, fold_aty: np.ndarray) -> np.ndarray:
+    """A fold's least squares from its normal equations (AᵀWA and AᵀWy of its rows): on the
+    column-normalised design, directions whose singular value is below CV_RCOND of the largest left
+    out (the minimum-norm solution, as a truncated SVD of its rows gives, from the normal matrix's
+    eigenvectors: accurate to about 1e-10 at the cut)."""
+    norms = np.sqrt(np.maximum(np.diag(fold_gram), 0.0))
     norms[norms == 0] = 1.0
-    scaled = a / norms
-    eig, vectors = np.linalg.eigh(scaled.T @ scaled)
+    eig, vectors = np.linalg.eigh(fold_gram / np.outer(norms, norms))
     sv = np.sqrt(np.maximum(eig, 0.0))
     keep = sv > CV_RCOND * sv.max() if len(sv) else np.zeros(0, dtype=bool)
-    q = scaled @ (vectors[:, keep] / sv[keep])
-    del scaled  # (n × p: on a dense table hundreds of MB)
-    r = y - q @ (q.T @ y)
+    v = vectors[:, keep]
+    return np.asarray(v @ ((v.T @ (fold_aty / norms)) / eig[keep]) / norms)
+
+
+def _fold_beta(fold_gram: np.ndarray, fold_aty: np.ndarray) -> np.ndarray:
+    """A fold's coefficients: Cholesky of its column-normalised normal matrix when no direction is near
+    CV_RCOND (a margin of 10 in the singular values) and no column is empty; _fold_solve otherwise."""
+    from scipy import linalg
+
+    diag = np.diag(fold_gram)
+    if len(diag) and np.all(diag > 0):
+        scale = 1 / np.sqrt(diag)
+        scaled = fold_gram * np.outer(scale, scale)
+        eig = np.linalg.eigvalsh(scaled)
+        if eig[0] > eig[-1] * CV_RCOND**2 * 100:
+            return np.asarray(scale * linalg.cho_solve(linalg.cho_factor(scaled), scale * fold_aty))
+    return _fold_solve(fold_gram, fold_aty)
+
+
+def _cv_refitted(blocks: Blocks, y: np.ndarray, index: np.ndarray, groups_hash: int) -> float:
+    """The grouped leave-out RMS, each fold refitted from its normal equations: the whole design's
+    less its group's (G - A_gᵀWA_g, each group's remembered per pair of blocks: time linear in the
+    rows, and only a new term's products computed for a model that differs from a known one by it)."""
+    data = blocks.data
+    count = int(index.max()) + 1 if len(index) else 0
+    gram, aty = blocks.gram(), blocks.t_times(y)
+    members = [np.flatnonzero(index == g) for g in range(count)]
+    per_group = blocks.gram((groups_hash, members))
+    w = data.row_scale**2 if data.row_scale is not None else np.ones(len(y))
+    total = 0.0
+    for g in range(count):
+        out = np.flatnonzero(index == g)
+        ag, yg, wg = blocks.rows(out), y[out], w[out]
+        beta = _fold_beta(gram - per_group[g], aty - ag.T @ (wg * yg))
+        total += float(np.sum(wg * (yg - ag @ beta) ** 2))
+    return float(np.sqrt(total / len(y))) if len(y) else 0.0
+
+
+HAT_CELLS = 4_000_000
+"""Numbers gathered at a time by the hat route's blocks (about 32 MB per array)."""
+
+
+def _cv_from_hat(blocks: Blocks, y: np.ndarray, index: np.ndarray, groups_hash: int) -> float:
+    """The grouped leave-out RMS from the hat matrix of the whole fit (column-normalised, directions
+    below CV_RCOND left out): e_g = (I - H_gg)⁻¹ r_g (a pseudo-inverse with CV_RCOND), the groups of
+    one size at once. The basis of the fit's span, Q = A·T, comes from the eigenvectors of the p × p
+    normal matrix (singular values above CV_RCOND of the largest only, so accurate to about 1e-10);
+    Q's rows are formed a few groups at a time from the design's blocks (never n × p at once), a block
+    that is the same at every row of a group (a function of position, the groups being targets) once
+    per group. A group above CV_BLOCK_MAX rows is refitted instead."""
+    data = blocks.data
+    root = data.row_scale if data.row_scale is not None else np.ones(len(y))
+    gram = blocks.gram()
+    norms = np.sqrt(np.maximum(np.diag(gram), 0.0))
+    norms[norms == 0] = 1.0
+    eig, vectors = np.linalg.eigh(gram / np.outer(norms, norms))
+    sv = np.sqrt(np.maximum(eig, 0.0))
+    keep = sv > CV_RCOND * sv.max() if len(sv) else np.zeros(0, dtype=bool)
+    to_q = (vectors[:, keep] / sv[keep]) / norms[:, None]  # p × r: Q = (weighted A)·to_q
+    aty = blocks.t_times(y)
+    r = root * (y - blocks.times(to_q @ (to_q.T @ aty)))
     order = np.argsort(index, kind="stable")
     sizes = np.bincount(index)
     starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    same = blocks.constant_within(index, groups_hash)
+    same_cols = blocks.columns_of(same)
     total = 0.0
     for size in np.unique(sizes[sizes > 0]):
         chosen = np.flatnonzero(sizes == size)
         if size > CV_BLOCK_MAX:
             for g in chosen:
-                out = index == g
-                e = y[out] - a[out] @ _fold_solve(a[~out], y[~out])
-                total += float(e @ e)
+                out = np.flatnonzero(index == g)
+                ag = blocks.rows(out)
+                wg = root[out] ** 2
+                beta = _fold_solve(gram - ag.T @ (wg[:, None] * ag), aty - ag.T @ (wg * y[out]))
+                total += float(np.sum(wg * (y[out] - ag @ beta) ** 2))
             continue
-        cells = len(chosen) * int(size) * max(int(size), q.shape[1])  # the blocks' and their rows' of Q
-        for part in np.array_split(chosen, max(1, cells // 4_000_000 + 1)):
+        cells = len(chosen) * int(size) * max(int(size), blocks.width)  # the blocks' and their rows' of A
+        for part in np.array_split(chosen, max(1, cells // HAT_CELLS + 1)):
             rows = order[starts[part][:, None] + np.arange(size)[None, :]]  # groups × size
-            qg = q[rows]
+            flat = rows.ravel()
+            qg = (blocks.rows(flat, ~same) @ to_q[~same_cols]).reshape(*rows.shape, -1)
+            if same.any():
+                qg += (blocks.rows(rows[:, 0], same) @ to_q[same_cols])[:, None, :]
+            qg *= root[rows][..., None]
             block = np.eye(size) - qg @ np.swapaxes(qg, 1, 2)
             # the block's eigenvalues are 1 - σ²(Q_g) >= 1 - Σ leverages: above CV_RCOND (of at most 1)
             # its pseudo-inverse is its inverse, and a solve does
@@ -631,27 +1008,33 @@ ANGLES = ("phase_rad",)
 """Parameters that are angles: their differences are wrapped to (-π, π]."""
 
 
-def jacobian(data: CampaignData, fit: Fit, step: float = 1e-4) -> tuple[np.ndarray, list]:
-    """The Jacobian of the prediction with respect to the offsets, every fitted coefficient (label
-    (term index, "coef", column in the form's full order)) and the log of every searched shape
-    (label (term index, "log", key)); an offset's label is None."""
-    a, slices = design(data, fit.terms)
-    blocks = [a]
-    labels: list[tuple[int, str, int | str] | None] = [None] * a.shape[1]
-    for i, (term, sl) in enumerate(zip(fit.terms, slices)):
-        if term.fixed:
-            continue
-        count = len(fit.coefs[i])
-        kept = np.flatnonzero(term.keep if term.keep is not None else (True,) * count)
-        for j, col in zip(range(sl.start, sl.stop), kept):
+def jacobian_normal(data: CampaignData, fit: Fit, step: float = 1e-4) -> tuple[np.ndarray, list]:
+    """JᵀWJ of the Jacobian J of the prediction with respect to the offsets, every fitted coefficient
+    (label (term index, "coef", column in the form's full order)) and the log of every searched shape
+    (label (term index, "log", key)), on weighted rows (`weighted`); an offset's label is None. The
+    coefficients' part is the design's normal matrix (`Blocks`: not stacked)."""
+    blocks = Blocks(data, fit.terms)
+    labels: list[tuple[int, str, int | str] | None] = [None] * blocks.width
+    free = [i for i, t in enumerate(fit.terms) if not t.fixed]
+    for block, i in enumerate(free, start=1):
+        term = fit.terms[i]
+        kept = np.flatnonzero(term.keep if term.keep is not None else (True,) * len(fit.coefs[i]))
+        for j, col in zip(range(int(blocks.starts[block]), int(blocks.starts[block + 1])), kept):
             labels[j] = (i, "coef", int(col))
+    moves = []
     for i, (term, coefs) in enumerate(zip(fit.terms, fit.coefs)):
         for key in term.searched:
             base = form_of(term.name).columns(data, term.shape, term.held) @ coefs
             moved = {**term.shape, key: term.shape[key] * math.exp(step)}
-            blocks.append(((form_of(term.name).columns(data, moved, term.held) @ coefs - base) / step)[:, None])
+            moves.append((form_of(term.name).columns(data, moved, term.held) @ coefs - base) / step)
             labels.append((i, "log", key))
-    return np.hstack(blocks), labels
+    gram = blocks.gram()
+    if not moves:
+        return gram, labels
+    shapes = np.column_stack(moves)
+    cross = blocks.t_times(shapes)
+    own = shapes.T @ weighted(data, weighted(data, shapes))
+    return np.block([[gram, cross], [cross.T, own]]), labels
 
 
 def derived(effect: str, params: dict[str, float]) -> dict[str, float]:
@@ -674,12 +1057,11 @@ def standard_errors(data: CampaignData, fit: Fit, step: float = 1e-4) -> dict[st
     coefficients). Parameters the user gave, and fixed shapes (the bow's span), get none.
     Asymptotic (linearised) values: the spread over repeated campaigns, not a guarantee; a phase's
     error is meaningless when the amplitude is not different from zero."""
-    jac, labels = jacobian(data, fit, step)
-    jac = weighted(data, jac)
-    n, p = jac.shape
+    normal, labels = jacobian_normal(data, fit, step)
+    n, p = len(data), len(labels)
     if n <= p:
         return {}
-    cov = np.linalg.pinv(jac.T @ jac) * fit.rss / (n - p)
+    cov = np.linalg.pinv(normal) * fit.rss / (n - p)
     out: dict[str, dict[str, float]] = {}
     for i, term in enumerate(fit.terms):
         index = [j for j, label in enumerate(labels) if label is not None and label[0] == i]
@@ -744,6 +1126,8 @@ class GrowingFit:
         norms = np.linalg.norm(a, axis=0)
         norms[norms == 0] = 1.0
         self.q, self.largest = _span(a / norms)
+        del a
+        self.added: list[np.ndarray] = []  # the kept terms' bases (not stacked onto q: each would copy it)
         self.residual = self.y - self.q @ (self.q.T @ self.y)
         self.rss = float(self.residual @ self.residual)
         self.n_params = fit.n_params
@@ -788,6 +1172,8 @@ class GrowingFit:
         norms[norms == 0] = 1.0
         scaled = cols / norms
         outside = scaled - self.q @ (self.q.T @ scaled)
+        for part in self.added:
+            outside -= part @ (part.T @ outside)
         qt, _ = _span(outside, self.largest)
         along = qt.T @ self.residual
         residual = self.residual - qt @ along
@@ -802,7 +1188,7 @@ class GrowingFit:
     def add(self, kept: tuple) -> None:
         """Keep a term tried (`trial`'s last value) in the model."""
         term, qt, residual, rss, n_params, cv, hats = kept
-        self.q = np.hstack([self.q, qt])
+        self.added.append(qt)
         self.residual, self.rss, self.n_params, self.cv_um = residual, rss, n_params, cv
         self.buckets = [(rows, hat) for (rows, _), hat in zip(self.buckets, hats)]
         self.terms.append(term)

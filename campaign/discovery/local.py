@@ -31,12 +31,13 @@ from campaign.discovery.fit import (
     Term,
     bic,
     cv_rms_um,
-    design,
     f_test_p,
     fixed_deviation,
     linear_fit,
+    normal_beside,
     reduced_residual,
-    thin_q,
+    solve_normal,
+    span_at_positions,
     weighted,
 )
 
@@ -284,7 +285,6 @@ def _grid_best(data: CampaignData, fit: Fit) -> tuple[str, float, float] | None:
     targets = _targets(data)
     step = max(float(np.median(np.diff(targets))) / 4, float(np.ptp(targets)) / MAX_CENTRES)
     centres = np.arange(targets[0], targets[-1] + step / 2, step)
-    q = thin_q(weighted(data, design(data, fit.terms)[0]))
     r = weighted(data, data.y - fit.prediction)
     # a local shape takes one value per distinct position: the sums below are over those, with the
     # residual's and the basis's sums there (exactly the sums over the weighted rows: a row's shape
@@ -292,10 +292,10 @@ def _grid_best(data: CampaignData, fit: Fit) -> tuple[str, float, float] | None:
     xs, where = np.unique(data.x, return_inverse=True)
     root = data.row_scale if data.row_scale is not None else np.ones(len(data))
     count = np.bincount(where, root**2)
-    # per position: the residual's sum, then the basis's (one product gives both)
-    sums = np.column_stack([np.bincount(where, root * col, minlength=len(xs))
-                            for col in np.column_stack([r, q]).T])
-    qr = q.T @ r
+    # per position: the residual's sum, then the basis's (one product gives both; the basis's from
+    # the design's blocks, span_at_positions: no n × p design on a dense table)
+    q_at, qr = span_at_positions(data, fit, where, len(xs))
+    sums = np.column_stack([np.bincount(where, root * r, minlength=len(xs)), q_at])
     above = np.vstack([np.cumsum(sums[::-1], axis=0)[::-1], np.zeros((1, sums.shape[1]))])  # sums from k on
     count_above = np.append(np.cumsum(count[::-1])[::-1], 0.0)
     best, power_best = None, -1.0
@@ -370,7 +370,6 @@ def _index(fit: Fit, name: str) -> int:
 def _errors(data: CampaignData, fit: Fit, name: str, step: float = 1e-3) -> dict[str, float]:
     """1-σ errors of the local term `name`'s amplitudes, centre and width (cov = s²·(JᵀJ)⁻¹ over every
     coefficient of the fit and the two shape parameters, the other shapes held)."""
-    a, slices = design(data, fit.terms)
     i = _index(fit, name)
     term, coefs = fit.terms[i], fit.coefs[i]
     extra = []
@@ -378,13 +377,14 @@ def _errors(data: CampaignData, fit: Fit, name: str, step: float = 1e-3) -> dict
         h = step * term.shape["width_mm"]
         moved = replace(term, shape={**term.shape, key: term.shape[key] + h})
         extra.append((moved.columns(data) - term.columns(data)) @ coefs / h)
-    jac = weighted(data, np.column_stack([a, *extra]))
-    n, p = jac.shape
+    blocks, normal, _ = normal_beside(data, fit.terms, np.column_stack(extra))  # JᵀWJ, no n × p design
+    n, p = len(data), len(normal)
     if n <= p:
         return {}
-    cov = np.linalg.pinv(jac.T @ jac) * fit.rss / (n - p)
+    cov = np.linalg.pinv(normal) * fit.rss / (n - p)
     names = ["amplitude_um"] if "_by_direction" not in term.name else ["plus_um", "minus_um"]
-    out = {name: float(math.sqrt(max(cov[j, j], 0.0))) for name, j in zip(names, range(slices[i].start, slices[i].stop))}
+    mine = blocks.slice_of(fit.terms, i)
+    out = {name: float(math.sqrt(max(cov[j, j], 0.0))) for name, j in zip(names, range(mine.start, mine.stop))}
     out["centre_mm"] = float(math.sqrt(max(cov[p - 2, p - 2], 0.0)))
     out["width_mm"] = float(math.sqrt(max(cov[p - 1, p - 1], 0.0)))
     return out
@@ -398,13 +398,13 @@ def _time_test(data: CampaignData, fit: Fit, name: str) -> tuple[float, float, f
     span = float(np.ptp(tm)) or 1.0
     growth = term.columns(data).sum(axis=1) * (tm - tm.mean()) / span
     base = fixed_deviation(data, fit.terms)
-    full = np.column_stack([design(data, fit.terms)[0], growth])
-    beta = np.linalg.lstsq(weighted(data, full), weighted(data, data.y - base), rcond=None)[0]
-    prediction = base + full @ beta
-    grown = replace(fit, prediction=prediction, rss=float(np.sum(weighted(data, data.y - prediction) ** 2)),
+    blocks, normal, rhs = normal_beside(data, fit.terms, growth[:, None])  # no n × p design (dense tables)
+    beta = solve_normal(normal, rhs)
+    prediction = base + blocks.times(beta[:-1]) + growth * beta[-1]
+    grown = replace(fit, predicted=prediction, rss=float(np.sum(weighted(data, data.y - prediction) ** 2)),
                     n_params=fit.n_params + 1)
-    n, p = full.shape
-    cov = np.linalg.pinv(weighted(data, full).T @ weighted(data, full)) * grown.rss / max(n - p, 1)
+    n, p = len(data), len(normal)
+    cov = np.linalg.pinv(normal) * grown.rss / max(n - p, 1)
     return f_test_p(fit, grown, len(data)), float(beta[-1]), float(math.sqrt(max(cov[-1, -1], 0.0)))
 
 

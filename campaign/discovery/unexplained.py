@@ -20,6 +20,7 @@ import numpy as np
 from campaign.discovery.data import CampaignData
 from campaign.discovery.effects import region_basis
 from campaign.discovery.fit import (
+    Blocks,
     Fit,
     GrowingFit,
     Term,
@@ -29,6 +30,7 @@ from campaign.discovery.fit import (
     f_test_p,
     fixed_deviation,
     linear_fit,
+    solve_normal,
     weighted,
 )
 from campaign.discovery.local import LocalError, look_elsewhere, passes
@@ -116,11 +118,12 @@ def describe_region(data: CampaignData, fit: Fit, name: str, without: Fit) -> Lo
     term, coefs = fit.terms[i], fit.coefs[i]
     params = fit.params()[name]
     shape = term.shape
-    a, slices = design(data, fit.terms)
-    n, p = a.shape
-    aw = weighted(data, a)
-    cov = np.linalg.pinv(aw.T @ aw) * fit.rss / max(n - p, 1)
-    block = cov[slices[i], slices[i]]
+    blocks = Blocks(data, fit.terms)  # the design's blocks and normal matrix: no n × p design (dense tables)
+    n, p = len(data), blocks.width
+    gram = blocks.gram()
+    cov = np.linalg.pinv(gram) * fit.rss / max(n - p, 1)
+    mine = blocks.slice_of(fit.terms, i)
+    block = cov[mine, mine]
     at = np.array([params["peak_at_mm"]])
     b = region_basis(at, shape["start_mm"], shape["end_mm"], int(shape["pieces"]), shape["open_end"] > 0,
                      shape.get("open_start", 0.0) > 0)[0]
@@ -138,24 +141,26 @@ def describe_region(data: CampaignData, fit: Fit, name: str, without: Fit) -> Lo
     span = float(np.ptp(tm)) or 1.0
     fitted = term.columns(data) @ coefs
     growth = fitted * (tm - tm.mean()) / span
-    full = weighted(data, np.column_stack([a, growth]))
     base = fixed_deviation(data, fit.terms)
-    beta = np.linalg.lstsq(full, weighted(data, data.y - base), rcond=None)[0]
-    prediction = base + np.column_stack([a, growth]) @ beta
+    w = weighted(data, weighted(data, np.ones(n)))
+    cross = blocks.t_times(growth)  # the normal equations of [A, growth] on weighted rows
+    normal = np.block([[gram, cross[:, None]], [cross[None, :], np.array([[float(growth @ (w * growth))]])]])
+    beta = solve_normal(normal, np.append(blocks.t_times(data.y - base), float(growth @ (w * (data.y - base)))))
+    prediction = base + blocks.times(beta[:-1]) + growth * beta[-1]
     rss = float(np.sum(weighted(data, data.y - prediction) ** 2))
     grown = Fit(fit.terms, fit.coefs, fit.offset_um, prediction, rss, fit.n_params + 1, fit.offsets_um)
     time_p = f_test_p(fit, grown, n)
-    change_cov = np.linalg.pinv(full.T @ full) * rss / max(n - p - 1, 1)
+    change_cov = np.linalg.pinv(normal) * rss / max(n - p - 1, 1)
     errors = {"amplitude_um": peak_error}
     if direction in ("+", "-"):  # what the other direction shows there: the same spline fitted for it
         other = "local_region_" + ("minus" if direction == "+" else "plus") + "#0"
         beside = linear_fit(data, [*fit.terms, Term(other, {}, False, dict(shape))])
-        ob, oslices = design(data, beside.terms)
-        ob = weighted(data, ob)
-        ocov = np.linalg.pinv(ob.T @ ob) * beside.rss / max(len(data) - ob.shape[1], 1)
+        other_blocks = Blocks(data, beside.terms)
+        ocov = np.linalg.pinv(other_blocks.gram()) * beside.rss / max(len(data) - other_blocks.width, 1)
         j = len(beside.terms) - 1
+        theirs = other_blocks.slice_of(beside.terms, j)
         shown["other_um"] = float(b @ beside.coefs[j])
-        errors["other_um"] = float(math.sqrt(max(float(b @ ocov[oslices[j], oslices[j]] @ b), 0.0)))
+        errors["other_um"] = float(math.sqrt(max(float(b @ ocov[theirs, theirs] @ b), 0.0)))
     k = len(data)
     factor = look_elsewhere(data)
     return LocalError(term, shown, errors, direction, time_p, float(beta[-1]),
