@@ -1072,7 +1072,7 @@ def beside_unresolved_period(data: CampaignData, result: Discovery) -> Discovery
                                 "the spread over the candidates)")
         final = linear_fit(data, [t for t in result.final.terms if t.name not in failing])
         result.final = final
-        result.gap_after_um = final.rms_um(data.y)
+        result.gap_after_um = gap_um(data, data.y - final.prediction)
         result.noise_um = pooled_scatter_um(data, data.y - final.prediction)
         result.disagreement_after = disagreement(data, data.y - final.prediction)
         result.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_")}
