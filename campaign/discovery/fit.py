@@ -14,15 +14,26 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from functools import partial
-from typing import TypeVar
+from types import ModuleType
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
-from scipy import sparse
 
 from campaign.discovery.data import CampaignData, keep_rows
 from campaign.discovery.effects import form_of, period_limits
 from campaign.effects import RegistryView
 from campaign.model import effect_um
+
+if TYPE_CHECKING:
+    from scipy import sparse
+
+
+def _sparse() -> ModuleType:
+    """scipy.sparse, imported when first needed: the command-line parsers import this module and
+    load without scipy (tests/test_config.py)."""
+    from scipy import sparse
+
+    return sparse
 
 COLLINEAR = 1e-3
 """A column whose part outside the model's span is below this fraction of its norm adds nothing."""
@@ -62,7 +73,7 @@ def _key(term: Term) -> tuple:
     return (term.name, tuple(sorted(term.shape.items())), tuple(sorted(term.held.items())))
 
 
-Remembered = TypeVar("Remembered", np.ndarray, sparse.csc_matrix)
+Remembered = TypeVar("Remembered", np.ndarray, "sparse.csc_matrix")
 
 
 def remembered(data: CampaignData, key: tuple, make: Callable[[], Remembered]) -> Remembered:
@@ -106,7 +117,7 @@ def held_columns(data: CampaignData, term: Term) -> np.ndarray | sparse.csc_matr
     fraction of the memory), else the array."""
     def make() -> np.ndarray | sparse.csc_matrix:
         cols = form_of(term.name).columns(data, term.shape, term.held)
-        return sparse.csc_matrix(cols) if np.count_nonzero(cols) <= SPARSE_SHARE * cols.size else cols
+        return _sparse().csc_matrix(cols) if np.count_nonzero(cols) <= SPARSE_SHARE * cols.size else cols
     return remembered(data, _key(term), make)
 
 
@@ -311,7 +322,7 @@ class Blocks:
         at = 0
         for i in chosen:
             held, kept = self.operand(i), self.kept[i]
-            part = held[index].toarray() if sparse.issparse(held) else held[index]
+            part = held[index].toarray() if _sparse().issparse(held) else held[index]
             out[:, at:at + self.widths[i]] = part if kept is None else part[:, kept]
             at += self.widths[i]
         return out
@@ -348,14 +359,14 @@ class Blocks:
             if groups is None:
                 left, right = self.operand(i), self.operand(j)
                 if self.w is not None:
-                    right = sparse.diags(self.w) @ right if sparse.issparse(right) else right * self.w[:, None]
+                    right = _sparse().diags(self.w) @ right if _sparse().issparse(right) else right * self.w[:, None]
                 product = left.T @ right
-                return product.toarray() if sparse.issparse(product) else np.asarray(product)
+                return product.toarray() if _sparse().issparse(product) else np.asarray(product)
             left, right = self.operand(i), self.operand(j)
             if self.w is not None:
-                right = sparse.diags(self.w) @ right if sparse.issparse(right) else right * self.w[:, None]
+                right = _sparse().diags(self.w) @ right if _sparse().issparse(right) else right * self.w[:, None]
             products = [left[rows].T @ right[rows] for rows in groups[1]]
-            return np.stack([p.toarray() if sparse.issparse(p) else np.asarray(p) for p in products])
+            return np.stack([p.toarray() if _sparse().issparse(p) else np.asarray(p) for p in products])
         return remembered(self.data, key, make)
 
     def _model_key(self, upto: int, groups: tuple | None) -> tuple:
