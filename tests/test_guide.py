@@ -170,12 +170,31 @@ def test_on_fault_skip_skips_the_points_without_beam(tmp_path, small_config, cap
 
 @pytest.mark.machine
 def test_the_fault_prompt_takes_one_key_from_the_terminal():
+    """The keys typed once the prompt waits: an unknown one ignored, the next taken. (Typed before
+    the prompt waited, they went to on_key, as keys before a prompt do, and the test waited forever
+    when its reader thread was quicker than `ask`: a hang of the whole suite. Now it types once the
+    prompt waits, and an abort after 10 s makes a lost key a failure, not a hang.)"""
+    import threading
+
     master, slave = os.openpty()
+    before: list[str] = []
+    control = Control()
+    give_up = threading.Timer(10.0, control.request_abort)
     try:
-        with Keys(lambda key: None, fd=slave) as keys:
-            os.write(master, b"xs")  # an unknown key is ignored
-            assert keys.ask({"r": "retry", "s": "skip", "a": "abort"}, Control()) == "skip"
+        with Keys(before.append, fd=slave) as keys:
+
+            def type_when_asked() -> None:
+                deadline = time.monotonic() + 10.0
+                while keys._answers is None and time.monotonic() < deadline:
+                    time.sleep(0.005)
+                os.write(master, b"xs")  # an unknown key is ignored
+
+            threading.Thread(target=type_when_asked, daemon=True).start()
+            give_up.start()
+            assert keys.ask({"r": "retry", "s": "skip", "a": "abort"}, control) == "skip"
+            assert before == []
     finally:
+        give_up.cancel()
         os.close(master)
         os.close(slave)
 
