@@ -29,7 +29,7 @@ def _discovered(shape: str, count: int, offsets: str, seed: int):
     return truth, data, discover(data, ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
 
 
-@pytest.mark.machine  # 40 simulated campaigns and discoveries, about a minute
+@pytest.mark.machine  # 20 simulated campaigns and discoveries (bench/discovery_gaps.py: 144 a seed)
 def test_the_gap_is_within_1_3_noise_wherever_a_local_term_can_hold_it():
     """Every out-of-vocabulary shape at 17 and 21 targets, golden and uniform, drawn per seed: of the
     draws whose error a local term can hold (and whose model beside the true error leaves noise only),
@@ -38,7 +38,7 @@ def test_the_gap_is_within_1_3_noise_wherever_a_local_term_can_hold_it():
     above, holdable_draws = [], 0
     for shape in SHAPES:
         for count, offsets in ((17, "golden"), (17, "none"), (21, "golden"), (21, "none")):
-            for seed in (911, 912):
+            for seed in (911,):
                 truth, data, result = _discovered(shape, count, offsets, seed + 37 * count)
                 column = out_of_vocabulary_um(truth, data.x, data.d, data.t)
                 if not holdable(truth, data, column).startswith(("yes", "step")):
@@ -50,11 +50,11 @@ def test_the_gap_is_within_1_3_noise_wherever_a_local_term_can_hold_it():
                 if ratio > LIMIT:
                     above.append((shape, count, offsets, seed, round(ratio, 2), result.added,
                                   [e.sentence() for e in result.local_errors]))
-    assert holdable_draws >= 10
+    assert holdable_draws >= 5
     assert len(above) <= 0.05 * holdable_draws, (holdable_draws, above)
 
 
-@pytest.mark.machine  # 16 simulated campaigns and discoveries
+@pytest.mark.machine  # 8 simulated campaigns and discoveries
 @pytest.mark.parametrize("shape", ["step", "bump", "two_regions", "partial_wave"])
 def test_what_the_final_model_leaves_holds_no_local_term(shape):
     """What the final model leaves, located again: no region term over it (its flexibility chosen by
@@ -63,7 +63,7 @@ def test_what_the_final_model_leaves_holds_no_local_term(shape):
     tried (one there may be that period seen at a few targets: it is listed as the period's rival)."""
     left = []
     for count, offsets in ((17, "none"), (21, "golden")):
-        for seed in (921, 922):
+        for seed in (921,):
             _, data, result = _discovered(shape, count, offsets, seed + 37 * count)
             final = result.final
             index = 1 + sum(1 for t in final.terms if t.name.startswith("local_region"))

@@ -594,7 +594,7 @@ def test_a_region_after_a_dense_follow_up_takes_the_first_campaigns_spacing(tmp_
 
 
 @pytest.mark.machine
-@pytest.mark.parametrize("seed", sweep(5, 6))
+@pytest.mark.parametrize("seed", [5])  # 6 too by hand (about 17 s each)
 def test_the_loop_ends_when_the_tables_together_leave_nothing(cli, tmp_path, seed):
     """A located bump: the follow-up measures its region densely; fitted together, nothing is
     unresolved and what is left is noise, so the loop ends: no follow-up proposed, none written

@@ -76,7 +76,7 @@ def test_the_follow_up_names_backlash_or_settling(cli, tmp_path, truth, extra):
 
 
 @pytest.mark.machine
-@pytest.mark.parametrize("seed", [2, 4])
+@pytest.mark.parametrize("seed", [2])  # seed 4 too by hand: about 50 s each, the suite keeps under 10 min
 def test_the_follow_up_scans_a_10_mm_lead(cli, tmp_path, seed):
     """Issue 33 item 4: the follow-up of an aliased lead on the simulated PLC (which streams its
     position) is a slow scan over the period cluster, at most a quarter of the first campaign's

@@ -100,8 +100,8 @@ def test_a_scan_profile_beside_tables_keeps_their_waits_and_counts_as_settled(tm
     assert join_campaigns([dataclasses.replace(fixed, w=None), scan], ["a", "b"]).w is None  # its waits unknown
 
 
-@pytest.mark.machine  # 10 simulated campaigns and scans, each discovered in both file orders: about 40 s of CPU
-@pytest.mark.parametrize("seed, lead", [(51, True), (52, True), (53, True), (54, False), (55, False)])
+@pytest.mark.machine  # 4 simulated campaigns and scans, each discovered in both file orders: about 16 s of CPU
+@pytest.mark.parametrize("seed, lead", [(51, True), (54, False)])  # 52, 53, 55 too by hand: ~14 s each
 def test_a_table_and_a_scan_profile_name_nothing_the_machine_lacks(tmp_path, capsys, seed, lead):
     """Fitted together: only what the machine has is named (the bow, the scale, its backlash, its
     screw lead, whose period is within 1 %, nothing unresolved about it); an unresolved group holds
