@@ -18,27 +18,7 @@ from campaign.discovery.search import discover, one_target_p, pooled_scatter_um,
 from campaign.discovery.simulate import simulate_campaign
 from campaign.model import ErrorModel
 from tests.discovery_draws import plan_config
-
-DENSE = """
-[axis]
-soft_limit_min = -5.0
-soft_limit_max = 70.0
-max_velocity = 50.0
-max_acceleration = 200.0
-
-[plan]
-length = 60.0
-count = {count}
-overrun = 2.0
-cycles = 2
-dwell_s = 1.0
-velocity = 20.0
-offsets = "none"
-
-[capture]
-method = "dwell"
-average_s = 0.5
-"""
+from tests.test_discovery_period import FINE_PLAN
 
 
 def _lead_machine(rng: np.random.Generator, period_mm: float) -> dict:
@@ -100,7 +80,7 @@ def test_a_lead_sampled_densely_is_not_said_to_be_zero_at_the_targets(seed):
     holds a fraction of a period 'near zero at most targets': about one draw in five)."""
     rng = np.random.default_rng(600 + seed)
     period = float(rng.uniform(35, 55))
-    config = parse_config(DENSE.format(count=1201).replace("cycles = 2", "cycles = 1"))
+    config = parse_config(FINE_PLAN.format(count=1201, cycles=1))
     data = campaign_data(simulate_campaign(config, ErrorModel(_lead_machine(rng, period)), seed=600 + seed))
     _, fit = _lead_fit(data, period, given=False)
     assert zero_at_targets(data, fit, "periodic_lead") is None

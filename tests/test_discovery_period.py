@@ -19,7 +19,7 @@ from tests.conftest import sweep
 RECORDED = Path(__file__).parent / "recorded"
 """Campaigns recorded with `axiscal run` on the simulated machine that showed a fault (named in each test)."""
 
-FINE = parse_config("""
+FINE_PLAN = """
 [axis]
 soft_limit_min = -5.0
 soft_limit_max = 65.0
@@ -28,9 +28,9 @@ max_acceleration = 200.0
 
 [plan]
 length = 60.0
-count = 61
+count = {count}
 overrun = 2.0
-cycles = 3
+cycles = {cycles}
 dwell_s = 1.0
 velocity = 20.0
 offsets = "none"
@@ -38,7 +38,9 @@ offsets = "none"
 [capture]
 method = "dwell"
 average_s = 0.5
-""")
+"""
+"""A 60 mm axis with targets evenly spaced, dwell capture: `count` targets, `cycles` runs."""
+FINE = parse_config(FINE_PLAN.format(count=61, cycles=3))
 """61 targets 1 mm apart over 60 mm, three runs: ten targets per 10 mm screw lead."""
 
 
