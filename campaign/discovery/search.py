@@ -748,6 +748,17 @@ def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]
     return with_local_terms(data, again, vocabulary, final, kept)
 
 
+def after_final(data: CampaignData, result: Discovery) -> None:
+    """What follows from `result.final` once it changes: the gap and noise after (weighted as the fit
+    is), the disagreement, the named effects' errors (the local terms' own, local_..., left out:
+    they are said with each local error)."""
+    final = result.final
+    result.gap_after_um = gap_um(data, data.y - final.prediction)
+    result.noise_um = pooled_scatter_um(data, data.y - final.prediction)
+    result.disagreement_after = disagreement(data, data.y - final.prediction)
+    result.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_")}
+
+
 def with_local_terms(data: CampaignData, again: Discovery, vocabulary: Discovery, final: Fit,
                      found: list[LocalError]) -> Discovery:
     """`again` (a search beside local terms) finished as a route's result: its final fit with the
@@ -757,10 +768,7 @@ def with_local_terms(data: CampaignData, again: Discovery, vocabulary: Discovery
     again.final, again.local_errors = final, found
     again.start, again.gap_before_um = vocabulary.start, vocabulary.gap_before_um
     again.disagreement_before = vocabulary.disagreement_before
-    again.gap_after_um = gap_um(data, data.y - final.prediction)
-    again.noise_um = pooled_scatter_um(data, data.y - final.prediction)
-    again.disagreement_after = disagreement(data, data.y - final.prediction)
-    again.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_")}
+    after_final(data, again)
     return again
 
 
@@ -826,11 +834,7 @@ def unnamed_beside_regions(data: CampaignData, result: Discovery) -> Discovery:
     if changed and periodic:
         add_local_rivals(result, result.local_errors)
     if changed:
-        final = result.final
-        result.gap_after_um = gap_um(data, data.y - final.prediction)
-        result.noise_um = pooled_scatter_um(data, data.y - final.prediction)
-        result.disagreement_after = disagreement(data, data.y - final.prediction)
-        result.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_")}
+        after_final(data, result)
     return result
 
 
@@ -880,10 +884,7 @@ def hold_what_is_left(data: CampaignData, result: Discovery) -> Discovery:
     result.local_errors = [e for e in result.local_errors if e.term.name in names and e not in added] + added
     if added and any("periodic_lead" in u.effects for u in result.unresolved):
         add_local_rivals(result, added)
-    result.gap_after_um = gap_um(data, data.y - final.prediction)
-    result.noise_um = pooled_scatter_um(data, data.y - final.prediction)
-    result.disagreement_after = disagreement(data, data.y - final.prediction)
-    result.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_")}
+    after_final(data, result)
     if added:
         _note(result.notes, f"what the model left beyond the noise is held by {len(added)} local term"
                             f"{'s' if len(added) > 1 else ''} over the regions located there (not named)",
@@ -1070,12 +1071,8 @@ def beside_unresolved_period(data: CampaignData, result: Discovery) -> Discovery
             _note(result.notes, f"{name} is not named: beside the candidate periods of the unresolved periodic "
                                 f"error its size is under {SIZE_SIGMAS:g}σ ({', '.join(small)}; the error includes "
                                 "the spread over the candidates)")
-        final = linear_fit(data, [t for t in result.final.terms if t.name not in failing])
-        result.final = final
-        result.gap_after_um = gap_um(data, data.y - final.prediction)
-        result.noise_um = pooled_scatter_um(data, data.y - final.prediction)
-        result.disagreement_after = disagreement(data, data.y - final.prediction)
-        result.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_")}
+        result.final = linear_fit(data, [t for t in result.final.terms if t.name not in failing])
+        after_final(data, result)
     for name, (values, errors) in averages.items():
         params = {k: v for k, v in values.items() if k in result.final.params()[name]}
         result.averaged[name] = params
