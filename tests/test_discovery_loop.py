@@ -128,6 +128,8 @@ def test_campaigns_fitted_together_share_effects_and_each_has_its_offset(cli, tm
     assert out["campaigns"] == [str(tmp_path / "a.csv"), str(tmp_path / "b.csv")]
     assert out["offsets_um"][1] - out["offsets_um"][0] == pytest.approx(5.0, abs=0.2)
     assert out["gap_after_um"] <= 1.3 * out["noise_um"]
+    assert [set(t) for t in out["tables"]] == [{"gap_um", "noise_um"}] * 2  # each table's own, its points alone
+    assert all(t["gap_um"] <= 1.3 * t["noise_um"] for t in out["tables"])
     assert len(out["disagreement_after"]["by_run"]) == 10  # runs numbered on: 1-5, then 6-10
     data = join_campaigns([campaign_data(first), campaign_data(second)], ["a", "b"])
     assert data.campaigns == 2 and float(np.nanmax(data.t)) < 1.01 * float(np.nanmax(campaign_data(first).t))

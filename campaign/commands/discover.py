@@ -177,6 +177,7 @@ def as_json(result: Discovery) -> dict:
         "model_standard_errors": {name: errors_json(e) for name, e in result.errors.items()},
         "starting_model": {name: entry.as_dict() for name, entry in result.starting.items()},
         "offset_um": round(result.final.offset_um, 4),
+        "tables": result.tables,
         "disagreement_before": result.disagreement_before,
         "disagreement_after": result.disagreement_after,
         "choices": [c.as_dict() for c in result.choices],
