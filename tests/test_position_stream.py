@@ -61,3 +61,31 @@ def test_a_position_stream_ends_with_the_connection():
                 stream.take()
     finally:
         hw.close()
+
+
+@pytest.mark.machine
+def test_a_deleted_notification_keeps_its_native_callback():
+    """The ADS library's dispatch thread may be inside a notification's callback while the
+    notification is deleted; pyads frees the callback on deletion, so the stream keeps it alive (a
+    lost connection crashed the process about once in 200 streams without it)."""
+    import gc
+    import weakref
+
+    import pyads
+
+    config = load_config(ROOT / "campaign" / "demo.toml")
+    hw, _ = open_hardware(config.driver)
+    try:
+        before = set(pyads.pyads_ex.callback_store)
+        stream = hw.axis.stream_positions()  # type: ignore[attr-defined]
+        added = [c for key, c in pyads.pyads_ex.callback_store.items() if key not in before]
+        assert len(added) == 1
+        callback = weakref.ref(added[0])
+        del added
+        hw.axis._disconnect()  # type: ignore[attr-defined]  # deletes the notification
+        assert not set(pyads.pyads_ex.callback_store) - before  # pyads let go of it
+        del stream
+        gc.collect()
+        assert callback() is not None
+    finally:
+        hw.close()
