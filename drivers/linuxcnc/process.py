@@ -136,7 +136,10 @@ class LinuxCnc:
         (self.dir / "axiscal.hal").write_text(HAL)
         (self.dir / "tool.tbl").write_text("")
         self.log = open(self.dir / "linuxcnc.log", "w")  # noqa: SIM115 (open while LinuxCNC runs)
-        self.proc = subprocess.Popen(["linuxcnc", str(self.dir / "axiscal.ini")], cwd=self.dir, env=self.env,
+        # SIGINT at its default: a process started with it ignored (a pytest-xdist worker, nohup) would
+        # pass that on, and the script cannot trap an ignored signal to clean up (coreutils env).
+        self.proc = subprocess.Popen(["env", "--default-signal=INT", "linuxcnc", str(self.dir / "axiscal.ini")],
+                                     cwd=self.dir, env=self.env,
                                      stdin=subprocess.DEVNULL, stdout=self.log, stderr=subprocess.STDOUT,
                                      start_new_session=True)
         try:
