@@ -239,10 +239,18 @@ NOISE_UNKNOWN = "not known: no target is read twice in a direction, so the noise
 
 def noise_verdict(result: Discovery) -> str:
     """What the gap left after the final model is: noise (within 1.3 times the run-to-run scatter),
-    more than noise, or not known when the campaign repeats nothing."""
+    more than noise, or not known when the campaign repeats nothing. Of tables fitted together, each
+    table's own gap must be within 1.3 times its own scatter too (`Discovery.tables`)."""
     if not result.noise_measured:
         return NOISE_UNKNOWN
-    return "noise" if result.gap_after_um <= 1.3 * result.noise_um else "more than noise"
+    if result.gap_after_um > 1.3 * result.noise_um:
+        return "more than noise"
+    above = [f"table {i} ({gap:.3g} against its own noise {noise:.3g})"
+             for i, (gap, noise) in enumerate(((t["gap_um"], t["noise_um"]) for t in result.tables), start=1)
+             if np.isfinite(noise) and noise > 0 and gap > 1.3 * noise]
+    if above:  # the tables together weigh each by its own scatter: a fine scan can hide a coarse table's gap
+        return f"more than noise in {', '.join(above)}, tables in the order given"
+    return "noise"
 
 
 def nothing_named(result: Discovery) -> str:
@@ -317,9 +325,11 @@ def summary_lines(result: Discovery, incomplete: list[str], time_unit: str = "s"
     the gap against the noise (in the axis's deviation unit; times in `time_unit`)."""
     dev = unit_label(UNITS[kind][1])
     lines = [f"[yellow]incomplete campaign:[/] {note.split(': ', 1)[1].split('. ', 1)[0]}" for note in incomplete]
-    for step in result.steps:
-        sizes = ", ".join(param_text(step.effect, k, v, step.errors, (), time_unit, kind).split(" (")[0]
-                          for k, v in list(step.params.items())[:2])
+    final, final_errors = result.params(), result.errors
+    for step in result.steps:  # the final model's values (later steps refit the earlier effects)
+        params, errors = final.get(step.effect, step.params), final_errors.get(step.effect, step.errors)
+        sizes = ", ".join(param_text(step.effect, k, v, errors, (), time_unit, kind).split(" (")[0]
+                          for k, v in list(params.items())[:2])
         lines.append(f"named: [bold]{step.effect}[/] {sizes}")
     located = located_lines(result)
     if not result.steps:
