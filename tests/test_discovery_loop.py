@@ -148,6 +148,25 @@ def test_campaigns_with_and_without_a_time_column_are_refused(cli, tmp_path):
     assert said.code == 2 and said.err.startswith("error:") and len(said.err.strip().splitlines()) == 1
 
 
+@pytest.mark.machine
+@pytest.mark.parametrize("seed", sweep(1, 2, 3))
+def test_the_period_cluster_is_sized_on_the_wave_the_data_show(seed):
+    """A 3 µm wave over half the travel at 17 targets: the period is unresolved and the final model
+    holds its best candidate. The follow-up sizes its cluster on the amplitude of each candidate's
+    sine beside the rest of the model; fitted beside the held sine too, two sines at one period
+    fought and it came out at 140-2,000 µm (a scenario reviewer saw 160 µm)."""
+    from campaign.discovery.followup import _amplitude
+
+    wave = {"partial_wave": {"amplitude_um": 3.0, "period_mm": 60.0, "phase_rad": 0.3, "start_mm": 300.0,
+                             "end_mm": 600.0}, "backlash": {"b_um": 1.5}}
+    data = campaign_data(simulate_campaign(user_config(count=17, seed=seed), ErrorModel({**BOW, **wave}), seed=seed))
+    result = discover(data, ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
+    assert any(t.name == "periodic_lead" for t in result.final.terms)  # the case: a candidate is held
+    periods = next(u.periods_mm for u in result.unresolved if u.periods_mm)
+    amplitudes = [_amplitude(data, result.final, p) for p in periods[:3]]
+    assert all(0.75 < a < 3.0 for a in amplitudes), amplitudes
+
+
 def written_follow_up(cli, tmp_path, config_text: str, machine: dict, seed: int = 1):
     """A first campaign from `config_text` on the fast simulator, recorded beside its config; then
     discover --follow-up. Returns (the first table's path, its config, discover's JSON)."""

@@ -159,9 +159,12 @@ def _few(data: CampaignData) -> list[float]:
 
 
 def _amplitude(data: CampaignData, final: Fit, period: float) -> float:
-    """The amplitude (µm) of a sine of `period` fitted beside the final model."""
+    """The amplitude (µm) of a sine of `period` fitted beside the rest of the final model: without the
+    wave the final model may hold for the unresolved period (its best candidate), which a second
+    sine at the same or an aliasing period would fight (a reviewer saw 160 µm for a 3 µm wave)."""
     term = Term("periodic_lead", {"period_mm": period}, False, {"period_mm": period})
-    return float(np.hypot(*linear_fit(data, [*final.terms, term]).coefs[-1]))
+    rest = [t for t in final.terms if t.name != term.name]
+    return float(np.hypot(*linear_fit(data, [*rest, term]).coefs[-1]))
 
 
 def frequency_error(span: float, step: float, amplitude_um: float, noise_um: float) -> float:
