@@ -116,3 +116,22 @@ def test_tables_fitted_together_are_noise_only_when_each_table_is():
         "more than noise in table 2 (1.1 against its own noise 0.453), tables in the order given")
     assert noise_verdict(replace(result, tables=[fine, {"gap_um": 0.5, "noise_um": 0.453}])) == "noise"
     assert noise_verdict(replace(result, tables=[fine, {"gap_um": 0.5, "noise_um": float("nan")}])) == "noise"
+
+
+@pytest.mark.machine  # a few seconds
+def test_the_summary_lists_the_largest_local_errors_and_counts_the_rest(cli, monkeypatch, tmp_path):
+    """Five bumps: the first screen says the three largest found outside the model and how many more
+    there are; --verbose says each."""
+    monkeypatch.setenv("COLUMNS", "200")
+    bumps = ((60.0, 2.0), (180.0, -3.0), (300.0, 4.0), (420.0, -3.5), (540.0, 2.5))
+    table = iso_table(tmp_path / "five.csv", lambda x, d, rng: sum(a * np.exp(-(((x - c) / 12.0) ** 2)) for c, a in bumps)
+                      + rng.normal(0, 0.2), targets=61, spacing=10.0)
+    short, verbose = cli("discover", table).out, cli("discover", table, "--verbose").out
+    found = [line for line in short.splitlines() if line.startswith("found outside the model: ")]
+    head = short.split("\nnext:")[0]
+    assert verbose.startswith(head)
+    every = [line for line in verbose[len(head):].splitlines() if "found outside the model:" in line]
+    assert len(every) > 3, verbose
+    assert len(found) == 4 and found[-1].startswith(f"found outside the model: {len(every) - 3} more local errors")
+    sizes = [abs(float(re.search(r"of ([-+][0-9.]+) µm", line).group(1))) for line in found[:3]]
+    assert sizes == sorted(sizes, reverse=True) and min(sizes) >= 2.5 - 0.5, found

@@ -341,8 +341,12 @@ def summary_lines(result: Discovery, incomplete: list[str], time_unit: str = "s"
                      + (" from the model's effects" if result.local is not None else "")
                      + (located.pop(0) if there else ""))
     lines += located
-    for zone in zones(result.local_errors):
+    found = sorted(zones(result.local_errors), key=lambda z: -abs(z.size_um))
+    for zone in found[:SUMMARY_REGIONS]:
         lines.append(f"found outside the model: [bold]{zone_said(zone)}[/]; no effect of the model has this shape")
+    if len(found) > SUMMARY_REGIONS:
+        lines.append(f"found outside the model: {len(found) - SUMMARY_REGIONS} more local errors, smaller "
+                     "(--verbose lists them)")
     if result.stand_in is not None:
         b = abs(result.stand_in.params["b_um"])
         lines.append(f"in the model as a stand-in: a reversal of {b:.1f} {dev} (backlash or settling)")
@@ -358,7 +362,8 @@ def summary_lines(result: Discovery, incomplete: list[str], time_unit: str = "s"
 
 
 SUMMARY_REGIONS = 3
-"""The most regions the summary lists (the largest first; --verbose gives all)."""
+"""The most regions, and local errors found outside the model, the summary lists (the largest
+first; --verbose gives all)."""
 
 
 def regions_said(located: Located | None) -> str:
