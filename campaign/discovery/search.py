@@ -808,12 +808,8 @@ def unnamed_beside_regions(data: CampaignData, result: Discovery) -> Discovery:
         else:
             local, local_cv = result.final, math.inf
         fixed, found = (None, []) if beside else bumps_and_steps_without(data, result, name)
-        # bumps and steps in its place: they must predict left-out targets as well and, their places and
-        # widths searched on every target, also explain the campaign as well once that search is paid
-        # for (route_score, as the routes are chosen): else a searched bump stands in for a bow on a null
-        if fixed is not None and (fixed_cv := cv_rms_um(data, fixed.terms, data.target_index)) <= min(
-                named_cv, local_cv) and route_score(data, replace(result, final=fixed, local_errors=found)) <= (
-                route_score(data, result)):
+        if fixed is not None and (fixed_cv := cv_rms_um(data, fixed.terms, data.target_index)) <= min(named_cv,
+                                                                                                        local_cv):
             result.steps.remove(step)
             result.final, result.local_errors, changed = fixed, found, True
             _note(result.notes, f"{name} is not named: local terms (bumps, steps) in its place predict left-out "
