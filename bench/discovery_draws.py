@@ -12,7 +12,7 @@ the slope departing in time), how many more are steps said to lie between the tw
 machine lacks, how many end within 1.3 × the noise, and on the nulls how many leave a region along the
 axis (not a reversal) in what the final model leaves. Writes bench/results/discovery_draws.json and the table quoted in docs/discovery.md.
 
-    .venv/bin/python bench/discovery_draws.py [--draws N] [--seed S]
+    .venv/bin/python bench/discovery_draws.py [--draws N] [--seed S] [--out FILE]
 """
 
 from __future__ import annotations
@@ -40,6 +40,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--draws", type=int, default=4, help="draws per shape and plan")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", type=Path, default=RESULTS / "discovery_draws.json",
+                        help="where the JSON goes (another file lets seeds run side by side)")
     args = parser.parse_args()
     rows = []
     started = time.perf_counter()
@@ -73,10 +75,10 @@ def main() -> None:
                         tally["false"].append({"seed": seed, "said": judged.said})
                 rows.append(tally)
                 print(shape, count, offsets, {k: v for k, v in tally.items() if k != "false"}, flush=True)
-    RESULTS.mkdir(exist_ok=True)
+    args.out.parent.mkdir(exist_ok=True)
     out = {"draws_per_cell": args.draws, "seed": args.seed, "seconds": round(time.perf_counter() - started, 1),
            "totals": totals(rows), "rows": rows}
-    (RESULTS / "discovery_draws.json").write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
+    args.out.write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
     print("| shape | targets | golden: visible · seen · located · stated (+ bracketed) · false names · gap ≤ 1.3σ "
           "| uniform: the same |")
     print("|---|---|---|---|")

@@ -151,6 +151,9 @@ def describe_region(data: CampaignData, fit: Fit, name: str, without: Fit) -> Lo
     grown = Fit(fit.terms, fit.coefs, fit.offset_um, prediction, rss, fit.n_params + 1, fit.offsets_um)
     time_p = f_test_p(fit, grown, n)
     change_cov = np.linalg.pinv(normal) * rss / max(n - p - 1, 1)
+    # beta[-1] is a share of the fitted shape (growth = fitted × time share): in µm at the peak
+    change_um = float(beta[-1]) * params["peak_um"]
+    change_error_um = float(math.sqrt(max(change_cov[-1, -1], 0.0))) * abs(params["peak_um"])
     errors = {"amplitude_um": peak_error}
     if direction in ("+", "-"):  # what the other direction shows there: the same spline fitted for it
         other = "local_region_" + ("minus" if direction == "+" else "plus") + "#0"
@@ -163,14 +166,14 @@ def describe_region(data: CampaignData, fit: Fit, name: str, without: Fit) -> Lo
         errors["other_um"] = float(math.sqrt(max(float(b @ ocov[theirs, theirs] @ b), 0.0)))
     k = len(data)
     factor = look_elsewhere(data)
-    return LocalError(term, shown, errors, direction, time_p, float(beta[-1]),
+    return LocalError(term, shown, errors, direction, time_p, change_um,
                       explained_pct=100 * (1 - fit.rss / without.rss) if without.rss > 0 else 0.0,
                       delta_bic=bic(fit, k) - bic(without, k) + 2 * math.log(factor),
                       p_value=min(1.0, f_test_p(without, fit, k) * factor),
                       cv_before_um=cv_rms_um(data, without.terms, data.target_index),
                       cv_after_um=cv_rms_um(data, fit.terms, data.target_index),
                       gap_without_um=without.rms_um(data.y),
-                      time_change_error_um=float(math.sqrt(max(change_cov[-1, -1], 0.0))),
+                      time_change_error_um=change_error_um,
                       position_unit=data.position_unit, deviation_unit=data.deviation_unit, kind="region")
 
 
