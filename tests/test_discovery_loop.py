@@ -21,6 +21,7 @@ from campaign.discovery.simulate import simulate_campaign
 from campaign.model import EFFECT_PARAMS, ErrorModel
 from campaign.pointtable import write_points
 from tests.conftest import DATA, sweep
+from tests.test_discovery_period import RECORDED
 
 USER = (DATA / "configs" / "horizontal-sim.toml").read_text()
 """The shipped horizontal config: 11 targets over 600 mm, golden offsets, 5 runs."""
@@ -634,3 +635,17 @@ def test_the_loop_ends_when_the_tables_together_leave_nothing(cli, tmp_path, see
     said = cli("discover", first, *tables, "--follow-up", "-o", tmp_path / "third.toml")
     assert said.code == 0 and not (tmp_path / "third.toml").exists()
     assert "no file written" in said.out and "--follow-up" not in said.out.split("follow-up:")[0]
+
+
+@pytest.mark.machine  # a few seconds
+def test_a_bump_beside_a_reversal_is_not_split_by_direction(cli):
+    """tests/recorded/backlash-settling-bump-350mm.csv: `axiscal run` of the simulated horizontal axis
+    (11 golden targets, stable trigger, sim seed 30) with a 2.5 µm bump 150 mm wide at 350 mm in both
+    directions beside a 1.8 µm backlash and settling of 2 µm, τ 1 s. The bump was found as +4.3 µm in −
+    and +1.0 µm in +: split by direction, it took the reversal where it lies and left the rest to
+    nothing. A split must beat a reversal constant along the travel."""
+    out = json.loads(cli("discover", RECORDED / "backlash-settling-bump-350mm.csv", "--json").out)
+    bumps = [e for e in out["local_errors"] if 200.0 < e["region_mm"][0] + (e["region_mm"][1] - e["region_mm"][0]) / 2
+             < 500.0]
+    assert bumps and all(e["directions"] == "both" for e in bumps), out["local_errors"]
+    assert not any("by_direction" in e["effect"] for e in out["local_errors"])
