@@ -240,7 +240,8 @@ def test_the_scan_planning_rule(tmp_path, controller):
     """The planning rule alone (no discovery): an aliased period's follow-up is a scan over the
     cluster on a controller that streams its position (ADS, the simulated PLC), at the speed of
     followup.scan_speed, within a quarter of the first campaign's machine time; on one that does
-    not it is the stop-and-go cluster, and the why says so; merged with a part that stops, it stops."""
+    not it is the stop-and-go cluster, and the why says so; merged with a part that stops, it stops;
+    beside a wait ladder (a campaign of its own) it is still scanned."""
     from campaign.discovery.fit import linear_fit
     from campaign.discovery.followup import SCAN_SAMPLES_PER_PERIOD, plan_follow_up
     from campaign.plan import EXPECTED_TIMING_U_S
@@ -271,14 +272,14 @@ def test_the_scan_planning_rule(tmp_path, controller):
         stopping = Unresolved(("backlash", "settling"), "a reversal", "vary the wait")
         merged = plan_follow_up([group, stopping], [], data, linear_fit(data, []), config, 1.5, 0.34,
                                 tmp_path / "f.toml", ["first/points.csv"])
-        # the wait ladder is a campaign of its own (its waits and cycles), the cluster another, measured
-        # once; stopped, not scanned: a profile has no waits, and the joint fit would lose the ladder's
+        # the wait ladder is a campaign of its own (its waits and cycles), the cluster another, scanned
+        # once as alone: the joint fit counts a profile's bins as settled and keeps the ladder's waits
         assert merged is not None and len(merged.campaigns) == 2
-        ladder, cluster = sorted(merged.campaigns, key=lambda c: c.config.plan.dwell_jitter, reverse=True)
+        ladder, cluster = sorted(merged.campaigns, key=lambda c: c.config.capture.method == "scan")
         assert [p.effects for p in ladder.parts] == [["backlash", "settling"]] and ladder.config.plan.dwell_jitter > 0
         assert [p.effects for p in cluster.parts] == [["periodic_lead"]] and cluster.config.plan.cycles == 1
-        assert cluster.config.capture.method != "scan" and "wait ladder would be lost" in cluster.parts[0].why
-        assert cluster.config.plan.dwell_jitter == config.plan.dwell_jitter
+        assert cluster.config.capture.method == "scan" and "not a scan" not in cluster.parts[0].why
+        assert cluster.duration_s == pytest.approx(follow.duration_s)
         assert merged.duration_s == pytest.approx(ladder.duration_s + cluster.duration_s)
         assert ladder.path == tmp_path / "f.toml" or cluster.path == tmp_path / "f.toml"
         alone_region = plan_follow_up([group], [], data, linear_fit(data, []), config, None, 0.34,

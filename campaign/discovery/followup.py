@@ -13,8 +13,8 @@ so that each keeps its cycles and waits and their machine times add up. The part
 - a periodic error whose period is not identifiable (or that rivals the bow): a cluster of targets
   at most a quarter of the shortest candidate period apart, over a few of the longest candidate
   periods, in the middle of the travel measured; or, when the controller streams its position
-  (campaign.specs.STREAMING_CONTROLLERS) and every part is the cluster or a region where a local error rivals the
-  period, a slow scan over their span (`_scan`: one sweep each way, its speed from the timing
+  (campaign.specs.STREAMING_CONTROLLERS) and every part measured once beside it is the cluster or a region where a
+  local error rivals the period (the wait ladder and repeated runs are campaigns of their own), a slow scan over their span (`_scan`: one sweep each way, its speed from the timing
   budget and the period to resolve), whose dense profile the joint fit reads;
 - thermal drift against linear scale (or the environment): twice the first campaign's runs at its
   targets over the whole travel (a slope is seen over the travel), so about twice its time;
@@ -444,16 +444,14 @@ def _merged(asks: list[_Ask], data: CampaignData) -> tuple[list[float], int, dic
 
 
 BESIDE_STOPS = "the other parts stop at targets, and one campaign has one capture method"
-BESIDE_WAITS = ("a scan's profile has no wait before capture, and tables fitted together use the waits only when "
-                "every table has them (the wait ladder would be lost)")
 
 
-def _stopped(ask: _Ask, why: str = BESIDE_STOPS) -> _Ask:
+def _stopped(ask: _Ask) -> _Ask:
     """A scan's stop-and-go cluster, saying why it is not scanned; any other part as it is."""
     if ask.stops is None:
         return ask
     cluster = ask.stops
-    cluster.part.why += f"; a stop-and-go cluster, not a scan: {why}"
+    cluster.part.why += f"; a stop-and-go cluster, not a scan: {BESIDE_STOPS}"
     return cluster
 
 
@@ -509,9 +507,7 @@ def plan_follow_up(unresolved: list[Unresolved], remaining: list[Any], data: Cam
     asks, unplanned = _asks(unresolved, remaining, data, final, config, reversal_um, noise_um, regions or [])
     if not asks:
         return None
-    if any(_kind(a) == "waits" for a in asks):
-        asks = [_stopped(a, BESIDE_WAITS) for a in asks]
-    elif any(a.stops is None for a in asks if _kind(a) == "targets"):  # one campaign has one capture method:
+    if any(a.stops is None for a in asks if _kind(a) == "targets"):  # one campaign has one capture method:
         asks = [_stopped(a) if _kind(a) == "targets" else a for a in asks]  # a scan does not stop where the others do
     stable_wait = measured_stable_wait_s(data, config)
     first_plan = build_plan(config)
