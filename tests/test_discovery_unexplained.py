@@ -66,3 +66,27 @@ def test_a_region_growing_in_time_says_its_change_over_the_campaign_in_micrometr
     change = regions[0].time_change_um
     assert 2.2 < change < 3.8, (change, regions[0].time_text())
     assert regions[0].time_change_error_um < 1.0, regions[0].time_text()
+
+
+@pytest.mark.machine  # a few seconds: the fast tier stays under a minute
+def test_a_local_error_near_the_end_of_the_travel_is_said_within_the_positions_measured(tmp_path):
+    """A bump centred 30 mm inside the first target, wider than that: its region was said from one
+    width below its centre, beyond the travel (a reviewer saw 'a local error at -45–254.6 mm' on an
+    axis measured from 0 mm)."""
+    from campaign.discovery.data import campaign_data
+    from campaign.discovery.search import discover
+    from campaign.model import ErrorModel
+    from campaign.pointtable import read_points
+    from tests.test_discovery_stand_in import iso_table
+
+    seen = 0
+    for seed in (3, 4):
+        table = iso_table(tmp_path / f"edge{seed}.csv", lambda x, d, rng: 3.0 * np.exp(-(((x - 30.0) / 50.0) ** 2))
+                          + rng.normal(0, 0.3), targets=21, spacing=30.0, seed=seed)
+        data = campaign_data(read_points(table))
+        result = discover(data, ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
+        for local in result.local_errors:
+            low, high = local.region_mm
+            assert float(data.x.min()) <= low < high <= float(data.x.max()), local.sentence()
+            seen += local.kind == "bump" and local.params["centre_mm"] - local.params["width_mm"] < float(data.x.min())
+    assert seen  # the case: a bump that reaches beyond the first target

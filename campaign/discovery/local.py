@@ -111,19 +111,23 @@ class LocalError:
     between_mm: tuple[float, float] | None = None
     """A step whose rise holds no target: the two targets it lies between. The data show a step
     there, not where between them nor how sharp (the fitted centre and width are then not said)."""
+    measured_mm: tuple[float, float] | None = None
+    """The first and last position measured: what the data show of it lies between them."""
 
     @property
     def region_mm(self) -> tuple[float, float]:
         """Where it acts: a bump from one width below its centre to one above; a step over its
         rise (at least a millimetre either side), or, when no target lies on its rise, between the
-        two targets either side of it (where between them the data do not say)."""
+        two targets either side of it (where between them the data do not say); within the positions
+        measured (a bump near the end of the travel reached beyond it)."""
         if self.kind == "region":
             return self.params["start_mm"], self.params["end_mm"]
         if self.kind == "step" and self.between_mm is not None:
             return self.between_mm
         c, w = self.params["centre_mm"], self.params["width_mm"]
         half = w if self.kind == "bump" else max(w / 2, 1.0)
-        return c - half, c + half
+        low, high = self.measured_mm or (-math.inf, math.inf)
+        return max(c - half, low), min(c + half, high)
 
     @property
     def size_key(self) -> str:
@@ -504,7 +508,8 @@ def describe(data: CampaignData, fit: Fit, name: str, **tests: float) -> LocalEr
     time_p, change, change_error = _time_test(data, fit, name)
     return LocalError(term, params, errors, directions, time_p, change, **tests, time_change_error_um=change_error,
                       position_unit=data.position_unit, deviation_unit=data.deviation_unit, kind=term_kind(term),
-                      between_mm=unresolved_rise(data, params) if term_kind(term) == "step" else None)
+                      between_mm=unresolved_rise(data, params) if term_kind(term) == "step" else None,
+                      measured_mm=(float(np.min(data.x)), float(np.max(data.x))))
 
 
 def unresolved_rise(data: CampaignData, params: dict[str, float]) -> tuple[float, float] | None:
