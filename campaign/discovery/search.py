@@ -808,8 +808,9 @@ def unnamed_beside_regions(data: CampaignData, result: Discovery) -> Discovery:
         else:
             local, local_cv = result.final, math.inf
         fixed, found = (None, []) if beside else bumps_and_steps_without(data, result, name)
-        if fixed is not None and (fixed_cv := cv_rms_um(data, fixed.terms, data.target_index)) <= min(named_cv,
-                                                                                                        local_cv):
+        if (fixed is not None and (fixed_cv := cv_rms_um(data, fixed.terms, data.target_index)) <= min(named_cv,
+                                                                                                         local_cv)
+                and not needed_beside(data, fixed, next(t for t in result.final.terms if t.name == name), fixed_cv)):
             result.steps.remove(step)
             result.final, result.local_errors, changed = fixed, found, True
             _note(result.notes, f"{name} is not named: local terms (bumps, steps) in its place predict left-out "
@@ -980,6 +981,16 @@ def needed_beside_regions(data: CampaignData, final: Fit, name: str, index: int)
     if cv_rms_um(data, named.terms, data.target_index) < cv_rms_um(data, regions.terms, data.target_index):
         return None, []
     return regions, terms
+
+
+def needed_beside(data: CampaignData, fit: Fit, term: Term, cv_um: float) -> bool:
+    """Is the named effect's `term` still needed beside the bumps and steps of `fit` (found in its
+    place; `cv_um` their CV): does it pass a local term's tests there (BIC and F-test with the
+    search's look-elsewhere factor, CV)? Bumps searched anew beside the rest improve the CV whether
+    the effect is there or not: the effect goes only when they hold what it held (a 1 µm backlash went
+    beside a wave's bumps, which held the wave and not the reversal)."""
+    with_it = linear_fit(data, [*fit.terms, term])
+    return passes(data, fit, with_it, (cv_um, cv_rms_um(data, with_it.terms, data.target_index)))
 
 
 def bumps_and_steps_without(data: CampaignData, result: Discovery, name: str) -> tuple[Fit | None, list[LocalError]]:
