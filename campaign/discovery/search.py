@@ -31,6 +31,7 @@ from campaign.discovery.data import CampaignData, keep_rows
 from campaign.discovery.effects import (
     ENVIRONMENT_RANGES,
     FORMS,
+    HELD_PREFIX,
     LASER_DATUM_MM,
     PERIOD_RANGE_MM,
     SHAPE_KEYS,
@@ -71,7 +72,7 @@ from campaign.discovery.local import (
     refit_local,
 )
 from campaign.discovery.locate import Located, beside_period, locate
-from campaign.discovery.records import Choice, LocalRival, StandIn, StartingEffect, Unresolved
+from campaign.discovery.records import Choice, Held, LocalRival, StandIn, StartingEffect, Unresolved
 from campaign.discovery.unexplained import (
     candidate_regions,
     describe_region,
@@ -211,6 +212,10 @@ class Discovery:
     noise_measured: bool = True
     """False when no target is read twice in a direction: noise_um is then the residual itself, not
     a measured run-to-run scatter, and nothing can be said to be noise."""
+    held: list[Held] = field(default_factory=list)
+    """What an unresolved group shows (a reversal backlash and settling explain alike at waits that
+    vary too little to tell them), held in the final fit by its better rival's form so that the gap
+    shrinks (hold_unresolved): the group stays unresolved, nothing is named or saved for it."""
 
     @property
     def local(self) -> LocalError | None:
@@ -219,8 +224,8 @@ class Discovery:
 
     def params(self) -> dict[str, dict[str, float]]:
         """The final model's parameters per effect (averaged over an unresolved period's candidates
-        where that applies)."""
-        return {**self.final.params(), **self.averaged}
+        where that applies; a term holding an unresolved group, HELD_PREFIX, is not the model's: `held`)."""
+        return {**{k: v for k, v in self.final.params().items() if not k.startswith(HELD_PREFIX)}, **self.averaged}
 
     @property
     def added(self) -> list[str]:
@@ -661,9 +666,11 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
         for name in dropped:
             _note(routes[best].notes, f"{name} explained part of the residual before the local errors were located; "
                                       "beside them it is not significant: not named (it soaked up a local error)")
-    result = unnamed_beside_regions(data, routes[best])
+    result = hold_unresolved(data, routes[best], periods=False)
+    result = unnamed_beside_regions(data, result)
     result = hold_what_is_left(data, result)
     result = beside_unresolved_period(data, result)
+    result = hold_unresolved(data, result, periods=True)
     result.located_before = start_located if result.start is vocabulary.start else locate(
         data, data.y - result.start.prediction)
     result.located_after = locate(data, data.y - result.final.prediction)
@@ -674,6 +681,63 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
             located.regions[:] = beside_period(located.regions, float(np.ptp(data.x)) or 1.0)
     result.noise_measured = noise_measured(data)
     return result
+
+
+def hold_unresolved(data: CampaignData, result: Discovery, periods: bool) -> Discovery:
+    """What an unresolved group of rivals shows is still held in the model, so that the gap shrinks by
+    it: the form of the rival that explains most (lowest ΔBIC), refitted beside the final model under
+    the name HELD_PREFIX + its name, kept when it passes the tests an effect passes before it is named
+    (BIC lower by BIC_MARGIN, F-test p < ALPHA, lower leave-one-target-out CV). The group stays in
+    `unresolved` with how to tell; nothing is named (`added`), saved (final_model) or listed in
+    params(): it is said in `held`. A group already held by the constant-wait stand-in is left as it is.
+    `periods`: only a period that is not identifiable (held by its best candidate, which agrees with the
+    others at the targets, though not between them: done last, once the other effects are averaged over
+    its candidates and the local terms are tested beside it), else only the other groups."""
+    n = len(data)
+    for entry in result.unresolved:
+        if (entry.periods_mm is not None) != periods or (result.stand_in is not None
+                                                         and set(entry.effects) <= set(result.stand_in.rivals)):
+            continue
+        group = [c for c in result.remaining if c.name in entry.effects and c.fit is not None]
+        if not group:
+            continue
+        best = min(group, key=lambda c: c.delta_bic)
+        own = next(t for t in best.fitted.terms if t.name == best.name)
+        term = drop_collinear(data, result.final.terms, replace(own, name=HELD_PREFIX + best.name, keep=None))
+        if not any(term.keep or ()):
+            continue
+        trial = linear_fit(data, [*result.final.terms, term])
+        p_value = f_test_p(result.final, trial, n)
+        cv = cv_rms_um(data, result.final.terms, data.target_index), cv_rms_um(data, trial.terms, data.target_index)
+        if not (bic(trial, n) - bic(result.final, n) < -BIC_MARGIN and p_value < ALPHA and cv[1] < cv[0]):
+            continue
+        without = result.gap_after_um
+        result.final = trial
+        after_final(data, result)
+        result.held.append(Held(best.name, tuple(entry.effects), held_said(data, trial, term.name, entry.effects),
+                                trial.params()[term.name], without))
+        _note(result.notes, f"what {said_list(list(entry.effects))} explain alike is held in the model by "
+                            f"{best.name}'s form (gap {without:.3f} -> {result.gap_after_um:.3f} "
+                            f"{data.deviation_unit}), not named: which of them it is stays unresolved")
+    return result
+
+
+def held_said(data: CampaignData, fit: Fit, name: str, rivals: tuple[str, ...]) -> str:
+    """What the term `name` of `fit`, holding an unresolved group, shows in words: a reversal between
+    the directions (its mean going up less its mean going down) when the group is backlash against
+    settling, else the rival's form that holds it."""
+    said = said_list(list(rivals))
+    if set(rivals) <= STAND_IN_RIVALS:
+        i = next(k for k, t in enumerate(fit.terms) if t.name == name)
+        held = full_columns(data, fit.terms[i]) @ fit.coefs[i]
+        up, down = float(np.mean(held[data.d > 0])), float(np.mean(held[data.d < 0]))
+        dev = data.deviation_unit
+        return (f"a reversal of {abs(up - down):.2g} {dev} between the directions (x̄↑ − x̄↓ = {up - down:+.2g} "
+                f"{dev}): {said.replace(' and ', ' or ')}; cannot tell which")
+    if entry_periods := [t.shape["period_mm"] for t in fit.terms if t.name == name and "period_mm" in t.shape]:
+        return (f"a wave seen at the targets (held by its best candidate period, {entry_periods[0]:.4g} "
+                f"{data.position_unit}): which period it is stays unresolved")
+    return f"what {said} explain alike, held by {name.removeprefix(HELD_PREFIX)}'s form; cannot tell which"
 
 
 def _same_places(a: list[LocalError], b: list[LocalError]) -> bool:
