@@ -167,6 +167,18 @@ HELD_PREFIX = "held_"
 is this and the name of the group's effect whose form it has: in the fit, never named, never saved."""
 
 
+PERIOD_KEY: RegistryView[str] = RegistryView(lambda e: e.period)
+"""Effect -> its shape parameter that is a period along the travel (each effect's `period`:
+periodic_lead's period_mm): searched over the periodogram's peaks, within period_limits, its aliases
+listed."""
+
+
+def period_key(name: str) -> str | None:
+    """The period parameter of the term `name` (an effect's, or one held for an unresolved group), if
+    it is periodic."""
+    return PERIOD_KEY.get(name.removeprefix(HELD_PREFIX))
+
+
 def form_of(name: str) -> EffectForm:
     """The least-squares form of a term in the model: a vocabulary effect (held for an unresolved
     group too: HELD_PREFIX) or a local error."""

@@ -23,6 +23,7 @@ screw growth about its fixed bearing).
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -33,12 +34,14 @@ from campaign.discovery.effects import (
     FORMS,
     HELD_PREFIX,
     LASER_DATUM_MM,
+    PERIOD_KEY,
     PERIOD_RANGE_MM,
     SHAPE_KEYS,
     SIZE_SIGMAS,
     environment_logs,
     even_spacing,
     fixed_shape,
+    period_key,
     period_limits,
 )
 from campaign.discovery.fit import (
@@ -106,6 +109,21 @@ settling (two parameters, one per wait) from a constant reversal: one short capt
 fixed-dwell campaign does not."""
 
 
+def periodic_in(names: Iterable[str]) -> bool:
+    """Is one of these effects a periodic one (PERIOD_KEY)?"""
+    return any(name in PERIOD_KEY for name in names)
+
+
+def period_unresolved(unresolved: list[Unresolved]) -> bool:
+    """Is a periodic effect in an unresolved group (its period not identifiable, or a rival's)?"""
+    return any(periodic_in(u.effects) for u in unresolved)
+
+
+def period_candidate(ranking: list[Candidate]) -> Candidate | None:
+    """The fitted candidate of a periodic effect among `ranking`, if any."""
+    return next((c for c in ranking if c.name in PERIOD_KEY and c.fit is not None), None)
+
+
 @dataclass
 class Candidate:
     """An effect tried at one step: its fit, the residual share it explains (%), and the tests."""
@@ -126,7 +144,7 @@ class Candidate:
     cv_after_um: float = 0.0
     verdict: str = ""
     periods: list[tuple[float, float]] = field(default_factory=list)
-    """periodic_lead: the local optima of the period search, (period mm, ΔBIC to the best), best
+    """A periodic effect (PERIOD_KEY): the local optima of the period search, (period mm, ΔBIC to the best), best
     first, for the optima within PERIOD_LIST of the best."""
 
     @property
@@ -273,7 +291,7 @@ def start_terms(model: ErrorModel, given: dict[str, set[str]], data: CampaignDat
 
 def default_shape(name: str, key: str, data: CampaignData) -> float:
     """A starting shape parameter for an effect in the starting model: the middle of its grid."""
-    if key == "period_mm":
+    if PERIOD_KEY.get(name) == key:
         return 10.0
     grid = FORMS[name].grid(data, {})
     return grid[len(grid) // 2][key]
@@ -353,17 +371,19 @@ def candidate_names(data: CampaignData, terms: list[Term], notes: list[str]) -> 
             _note(notes, "settling is confounded with backlash: the dwell does not vary, so settling "
                          "is not looked for (vary the dwell to separate them)")
     low, high = period_limits(data)
-    if "periodic_lead" in names and low >= high:
-        names.remove("periodic_lead")
+    for name in [n for n in names if n in PERIOD_KEY]:
+        if low < high:
+            if even_spacing(data) is not None and low > PERIOD_RANGE_MM[0]:
+                _note(notes, f"{name} is looked for at periods from {low:.4g} to {high:.4g} {data.position_unit}: "
+                             "the targets are evenly spaced, so shorter periods alias onto longer ones")
+            continue
+        names.remove(name)
         spacing = even_spacing(data)
-        _note(notes, f"periodic_lead is not looked for: the targets are evenly spaced {spacing:.4g} "
+        _note(notes, f"{name} is not looked for: the targets are evenly spaced {spacing:.4g} "
                      f"{data.position_unit} apart, so a period shorter than twice that ({2 * (spacing or 0):.4g} "
                      f"{data.position_unit}) aliases into a smooth bow or vanishes, and the screw leads looked for "
                      f"end at {high:.4g} {data.position_unit} (plan with offsets = \"golden\" or \"random\", or "
                      "targets closer together)")
-    elif "periodic_lead" in names and even_spacing(data) is not None and low > PERIOD_RANGE_MM[0]:
-        _note(notes, f"periodic_lead is looked for at periods from {low:.4g} to {high:.4g} {data.position_unit}: "
-                     "the targets are evenly spaced, so shorter periods alias onto longer ones")
     if "environment" in names and not environment_logs(data):
         names.remove("environment")
         _note(notes, "environment is not looked for: the table has no air or material log that varies "
@@ -400,8 +420,10 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
     n = len(data)
     held = fixed_shape(name, data, {})
     starts: list[dict[str, float]] = [{}]
-    if name == "periodic_lead":
-        starts = [{"period_mm": p} for p in periodogram_periods(data, current, top=PERIOD_STARTS)]
+    period_key = PERIOD_KEY.get(name)
+    searched = period_key is not None and period_key not in held
+    if period_key is not None:
+        starts = [{period_key: p} for p in periodogram_periods(data, current, top=PERIOD_STARTS)]
         if not starts:  # a flat periodogram (few targets): no period to start from
             return Candidate(name, None, verdict="not significant (no period stands out)")
     elif FORMS[name].shape_grid is not None:
@@ -424,14 +446,14 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
         _note(notes, f"{name} is confounded with {' + '.join(others) or 'the model'} on this data: not named")
         return Candidate(name, None, verdict="confounded")
     periods: list[tuple[float, float]] = []
-    if name == "periodic_lead" and "period_mm" not in held and len(fits) > 1:
-        best, periods = period_optima(data, fits)
+    if searched and len(fits) > 1:
+        best, periods = period_optima(data, fits, name)
     elif FORMS[name].shape:
         best = refine(data, best.terms)
     cand = Candidate(name, best, explained_pct=100 * (1 - best.rss / current.rss) if current.rss > 0 else 0.0,
                      periods=periods)
     cand.delta_bic = bic(best, n) - bic(current, n)
-    look_elsewhere = independent_periods(data) if name == "periodic_lead" and "period_mm" not in held else 1.0
+    look_elsewhere = independent_periods(data) if searched else 1.0
     cand.p_value = min(1.0, f_test_p(current, best, n) * look_elsewhere)
     cand.delta_bic += 2 * math.log(look_elsewhere)  # a searched period costs its search, as in the p-value
     groups = data.run if FORMS[name].group == "run" else data.target_index
@@ -445,10 +467,10 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
     failed += gates
     if not failed and len(periods) > 1 and periods[1][1] < RIVAL_MARGIN:
         cand.verdict = "period not identifiable"
-    elif not failed and name == "periodic_lead" and (partial := wave_over_part(data, best)):
+    elif not failed and period_key is not None and (partial := wave_over_part(data, best)):
         cand.verdict = f"not named ({partial})"  # an identified period whose wave is not on every turn
         failed.append(partial)
-    elif not failed and name == "periodic_lead" and (single := one_target(data, current, best, name,
+    elif not failed and period_key is not None and (single := one_target(data, current, best, name,
                                                                             look_elsewhere)
                                                      or zero_at_targets(data, best, name)):
         cand.verdict = f"not named ({single})"  # a screw lead shows on every turn, not at one target
@@ -512,7 +534,7 @@ def zero_at_targets(data: CampaignData, fit: Fit, name: str) -> str | None:
         return None
     wave = full_columns(data, fit.terms[i]) @ coefs  # coefs in the form's full column order
     positions, where = np.unique(np.round(data.x, 6), return_inverse=True)
-    period = fit.terms[i].shape.get("period_mm")
+    period = fit.terms[i].shape.get(period_key(name) or "")
     if period and len(positions) > 1 and float(np.median(np.diff(positions))) < period / 4:
         return None  # sampled along its period, not at random phases: the wave is seen whole
     at_targets = np.bincount(where, wave) / np.bincount(where)
@@ -548,30 +570,30 @@ def gate_failures(data: CampaignData, fit: Fit, name: str) -> list[str]:
     return out
 
 
-def period_optima(data: CampaignData, fits: list[Fit]) -> tuple[Fit, list[tuple[float, float]]]:
+def period_optima(data: CampaignData, fits: list[Fit], name: str) -> tuple[Fit, list[tuple[float, float]]]:
     """Refine every periodogram start to its local optimum; the best, and the distinct optima
     (period mm, ΔBIC to the best; same parameter count, so ΔBIC = n·ln(RSS/RSS_best)) within
-    PERIOD_LIST of it, best first. Aliases of a screw lead sampled at few targets show up here as
-    optima that fit about as well."""
+    PERIOD_LIST of it, best first, of the periodic effect `name`. Aliases of a screw lead sampled at
+    few targets show up here as optima that fit about as well."""
     n = len(data)
     optima: list[Fit] = []
     for fit in fits:
         local = refine(data, fit.terms)
-        period = _period(local)
-        if all(abs(period - _period(o)) > 0.005 * period for o in optima):
+        period = _period(local, name)
+        if all(abs(period - _period(o, name)) > 0.005 * period for o in optima):
             optima.append(local)
         else:
-            same = next(o for o in optima if abs(period - _period(o)) <= 0.005 * period)
+            same = next(o for o in optima if abs(period - _period(o, name)) <= 0.005 * period)
             if local.rss < same.rss:
                 optima[optima.index(same)] = local
     optima.sort(key=lambda f: f.rss)
     best = optima[0]
-    listed = [(_period(f), n * math.log(max(f.rss, 1e-300) / max(best.rss, 1e-300))) for f in optima]
+    listed = [(_period(f, name), n * math.log(max(f.rss, 1e-300) / max(best.rss, 1e-300))) for f in optima]
     return best, [(p, d) for p, d in listed if d < PERIOD_LIST]
 
 
-def _period(fit: Fit) -> float:
-    return next(t.shape["period_mm"] for t in fit.terms if t.name == "periodic_lead")
+def _period(fit: Fit, name: str) -> float:
+    return next(t.shape[PERIOD_KEY[name]] for t in fit.terms if t.name == name)
 
 
 def period_spread_mm(periods: list[tuple[float, float]]) -> float:
@@ -640,7 +662,7 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     it explains the campaign better than local terms over the regions located: an effect that merely
     soaked up a local error (a bow, a short period, a reversal) is not named."""
     vocabulary = search_vocabulary(data, model, given)
-    periodic = any("periodic_lead" in u.effects for u in vocabulary.unresolved)
+    periodic = period_unresolved(vocabulary.unresolved)
     beside = find_locals(data, vocabulary.final)
     for name in [n for n in reversed(vocabulary.added) if may_soak(n)] if not beside else ():
         # a short period or a reversal may have soaked up most of it: look beside the rest
@@ -675,7 +697,7 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
         data, data.y - result.start.prediction)
     result.located_after = locate(data, data.y - result.final.prediction)
     result.tables = by_table(data, data.y - result.final.prediction)
-    if any("periodic_lead" in u.effects for u in result.unresolved):
+    if period_unresolved(result.unresolved):
         # single targets' departures over the travel are the unresolved period seen at few targets: said there
         for located in (result.located_before, result.located_after):
             located.regions[:] = beside_period(located.regions, float(np.ptp(data.x)) or 1.0)
@@ -734,7 +756,8 @@ def held_said(data: CampaignData, fit: Fit, name: str, rivals: tuple[str, ...]) 
         dev = data.deviation_unit
         return (f"a reversal of {abs(up - down):.2g} {dev} between the directions (x̄↑ − x̄↓ = {up - down:+.2g} "
                 f"{dev}): {said.replace(' and ', ' or ')}; cannot tell which")
-    if entry_periods := [t.shape["period_mm"] for t in fit.terms if t.name == name and "period_mm" in t.shape]:
+    key = period_key(name)
+    if entry_periods := [t.shape[key] for t in fit.terms if t.name == name and key in t.shape]:
         return (f"a wave seen at the targets (held by its best candidate period, {entry_periods[0]:.4g} "
                 f"{data.position_unit}): which period it is stays unresolved")
     return f"what {said} explain alike, held by {name.removeprefix(HELD_PREFIX)}'s form; cannot tell which"
@@ -750,7 +773,7 @@ def route_score(data: CampaignData, result: Discovery) -> float:
     n = len(data)
     score = bic(result.final, n)
     score += len(result.local_errors) * (2 * math.log(n) + 2 * math.log(look_elsewhere(data)))
-    if any(t.name == "periodic_lead" and t.searched for t in result.final.terms):
+    if any(t.name in PERIOD_KEY and t.searched for t in result.final.terms):
         score += 2 * math.log(independent_periods(data))
     return score
 
@@ -758,7 +781,7 @@ def route_score(data: CampaignData, result: Discovery) -> float:
 def add_local_rivals(result: Discovery, found: list[LocalError]) -> None:
     """The unresolved period's group gets the local errors that would fit as well as rivals
     (`local_rivals`: sentence and region, mm): what the campaign shows there is either."""
-    at = next((i for i, u in enumerate(result.unresolved) if "periodic_lead" in u.effects), None)
+    at = next((i for i, u in enumerate(result.unresolved) if periodic_in(u.effects)), None)
     if at is None:
         return
     entry = result.unresolved[at]
@@ -790,7 +813,7 @@ def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]
     rest is left out. None when none is left, or when an unresolved period stays beside them (the
     local error may be that period seen at few targets: said in a note)."""
     again = search_vocabulary(data, model, given, [local.term for local in found])
-    if periodic and any("periodic_lead" in u.effects for u in again.unresolved):
+    if periodic and period_unresolved(again.unresolved):
         _note(vocabulary.notes, f"{found[0].sentence()} would fit too, but the unresolved periodic error is still "
                                 "there beside it: it may be that error seen at few targets, so it is not added")
         add_local_rivals(vocabulary, found)
@@ -845,13 +868,13 @@ def unnamed_beside_regions(data: CampaignData, result: Discovery) -> Discovery:
     stay in the model as unexplained local errors (a note says so), in place of the effect and of any
     bump or step term beside it. Beside an unresolved period the regions may be that period seen at few
     targets: they are then also listed as its rivals (add_local_rivals)."""
-    periodic = any("periodic_lead" in u.effects for u in result.unresolved)
+    periodic = period_unresolved(result.unresolved)
     # beside an unresolved period both sides are compared with its best candidate in (a stand-in, not
     # named): otherwise the regions would be credited with the period's residual
-    period = next((c for c in result.remaining if c.name == "periodic_lead" and c.fit is not None), None)
+    period = period_candidate(result.remaining)
     if periodic and period is None:
         return result
-    beside = [t for t in period.fitted.terms if t.name == "periodic_lead"] if periodic and period else []
+    beside = [t for t in period.fitted.terms if t.name == period.name] if periodic and period else []
     changed = False
     for step in list(result.steps):
         name = step.effect
@@ -920,9 +943,9 @@ def hold_what_is_left(data: CampaignData, result: Discovery) -> Discovery:
     result = both_directions(data, result)
     # beside an unresolved period each term must also pass beside the period's best candidate (a
     # stand-in, not named): what it holds is then more than that period seen at few targets
-    period = next((c for c in result.remaining if c.name == "periodic_lead" and c.fit is not None), None)
-    beside = ([t for t in period.fitted.terms if t.name == "periodic_lead"]
-              if period is not None and any("periodic_lead" in u.effects for u in result.unresolved) else [])
+    period = period_candidate(result.remaining)
+    beside = ([t for t in period.fitted.terms if t.name == period.name]
+              if period is not None and period_unresolved(result.unresolved) else [])
     added: list[LocalError] = []
     final = result.final
     taken = {int(t.name.split("#")[1]) if "#" in t.name else 1 for t in final.terms if t.name.startswith("local_error")}
@@ -946,7 +969,7 @@ def hold_what_is_left(data: CampaignData, result: Discovery) -> Discovery:
     result.final = final
     names = {t.name for t in final.terms}
     result.local_errors = [e for e in result.local_errors if e.term.name in names and e not in added] + added
-    if added and any("periodic_lead" in u.effects for u in result.unresolved):
+    if added and period_unresolved(result.unresolved):
         add_local_rivals(result, added)
     after_final(data, result)
     if added:
@@ -1093,7 +1116,7 @@ def with_regions(data: CampaignData, model: ErrorModel, given: dict[str, set[str
     if not terms:
         return None
     again = search_vocabulary(data, model, given, terms)
-    if any("periodic_lead" in u.effects for u in again.unresolved):
+    if period_unresolved(again.unresolved):
         return None  # a region may be the unresolved period seen at few targets (as for with_locals)
     final, kept = again.final, []
     for term in terms:
@@ -1119,8 +1142,8 @@ def beside_unresolved_period(data: CampaignData, result: Discovery) -> Discovery
     without a period (nothing is added for it). A named effect whose averaged size is then under
     SIZE_SIGMAS of its error (the candidates disagree on it) is not named after all: the size gate
     holds for the values and errors reported."""
-    entry = next((u for u in result.unresolved if u.effects == ("periodic_lead",) and u.periods_mm), None)
-    cand = next((c for c in result.remaining if c.name == "periodic_lead" and c.fit is not None), None)
+    entry = next((u for u in result.unresolved if u.periods_mm), None)
+    cand = period_candidate(result.remaining)
     if entry is None or cand is None:
         return result
     while True:
@@ -1159,8 +1182,8 @@ def _averaged_over_periods(data: CampaignData, result: Discovery, entry: Unresol
     free = [t for t in result.final.terms if not t.fixed and t.name in EFFECT_PARAMS]
     fits = [(result.final, -cand.delta_bic)]
     for period, delta in zip(entry.periods_mm or (), entry.period_delta_bic):
-        fits.append((linear_fit(data, [*result.final.terms, Term("periodic_lead", {"period_mm": period}, False,
-                                                                     {"period_mm": period})]), delta))
+        shape = {PERIOD_KEY[cand.name]: period}
+        fits.append((linear_fit(data, [*result.final.terms, Term(cand.name, shape, False, dict(shape))]), delta))
     weights = np.exp(-(np.array([d for _, d in fits]) - min(d for _, d in fits)) / 2)
     weights /= weights.sum()
     beside = standard_errors(data, fits[int(np.argmax(weights))][0])
@@ -1299,8 +1322,9 @@ def drop_failing(data: CampaignData, fit: Fit, steps: list[Step], notes: list[st
 
 def add_period_spread(errors: dict[str, float], name: str, spreads: dict[str, float]) -> None:
     """A named period's error includes the spread over its competing optima (period_spread_mm)."""
-    if name in spreads and "period_mm" in errors:
-        errors["period_mm"] = math.hypot(errors["period_mm"], spreads[name])
+    key = PERIOD_KEY.get(name)
+    if name in spreads and key in errors:
+        errors[key] = math.hypot(errors[key], spreads[name])
 
 
 SIGNIFICANT = 0.05
@@ -1503,7 +1527,7 @@ def period_entry(cand: Candidate, data: CampaignData) -> Unresolved:
     if len(cand.periods) > 6:
         shown += f" and {len(cand.periods) - 6} more"
     targets = len(np.unique(np.round(data.x, 6)))
-    return Unresolved(("periodic_lead",),
+    return Unresolved((cand.name,),
                       f"a periodic error explains {cand.explained_pct:.1f} % of the residual, but its period is not "
                       f"identifiable: {len(cand.periods)} periods fit about as well ({shown}); with {targets} targets "
                       "a screw lead aliases to other periods",

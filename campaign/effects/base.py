@@ -112,7 +112,9 @@ class Effect:
     is far beyond the campaign is a linear drift). derived: quantities computed from its
     parameters and reported beside them. follow_up: its part of a follow-up campaign. may_soak:
     a local error may hide behind it when it is named (a period fitted to a bump, a reversal to a
-    bump in one direction), so discovery looks for local errors again without it. One object per
+    bump in one direction), so discovery looks for local errors again without it. period: its shape
+    parameter that is a period along the travel (periodic_lead's period_mm), searched over the
+    periodogram's peaks, whose aliases at few targets are candidates that stay unresolved. One object per
     effect: two are the same only when they are one (compared by identity)."""
 
     name: str
@@ -131,10 +133,13 @@ class Effect:
     derived: Callable[[dict[str, float]], dict[str, float]] | None = None
     follow_up: FollowUpPart | None = None
     may_soak: bool = False
+    period: str | None = None
 
     def __post_init__(self) -> None:
         if self.form is not None and self.form.name != self.name:
             raise ValueError(f"effect {self.name}: its form is named {self.form.name}")
+        if self.period is not None and (self.form is None or self.period not in self.form.shape):
+            raise ValueError(f"effect {self.name}: its period {self.period} is not a shape parameter of its form")
         if self.deviation is None and self.form is None:
             raise ValueError(f"effect {self.name}: neither simulated nor discovered")
 
