@@ -109,6 +109,11 @@ settling (two parameters, one per wait) from a constant reversal: one short capt
 fixed-dwell campaign does not."""
 
 
+NEEDS: RegistryView[str] = RegistryView(lambda e: e.needs)
+"""Effect -> what a campaign must have for it to be looked for (each effect's `needs`: a varying
+wait, a varying air or material log, two runs or more)."""
+
+
 def periodic_in(names: Iterable[str]) -> bool:
     """Is one of these effects a periodic one (PERIOD_KEY)?"""
     return any(name in PERIOD_KEY for name in names)
@@ -268,8 +273,8 @@ def start_terms(model: ErrorModel, given: dict[str, set[str]], data: CampaignDat
             continue
         keys = given.get(name, set())
         fixed = set(EFFECT_PARAMS[name]) <= keys
-        if name == "settling" and data.w is None:
-            _note(notes, "the model's settling is left out: without a capture_wait_s column the wait since "
+        if NEEDS.get(name) == "wait" and data.w is None:
+            _note(notes, f"the model's {name} is left out: without a capture_wait_s column the wait since "
                          "arrival is unknown (the captures are taken as settled)")
             continue
         if name not in FORMS:  # an effect the simulator has and discovery does not (local_defect)
@@ -361,14 +366,14 @@ def candidate_names(data: CampaignData, terms: list[Term], notes: list[str]) -> 
     """Effects not in the model that this data can show; notes say why others are not tried."""
     present = {t.name for t in terms}
     names = [n for n in FORMS if n not in present]
-    if "settling" in names:
+    for name in [n for n in names if NEEDS.get(n) == "wait"]:
         if data.w is None:
-            names.remove("settling")
-            _note(notes, "settling is not looked for: the table has no capture_wait_s column, and at a "
-                         "constant wait settling looks exactly like backlash")
+            names.remove(name)
+            _note(notes, f"{name} is not looked for: the table has no capture_wait_s column, and at a "
+                         f"constant wait {name} looks exactly like backlash")
         elif not waits_vary(data):
-            names.remove("settling")
-            _note(notes, "settling is confounded with backlash: the dwell does not vary, so settling "
+            names.remove(name)
+            _note(notes, f"{name} is confounded with backlash: the dwell does not vary, so {name} "
                          "is not looked for (vary the dwell to separate them)")
     low, high = period_limits(data)
     for name in [n for n in names if n in PERIOD_KEY]:
@@ -384,14 +389,15 @@ def candidate_names(data: CampaignData, terms: list[Term], notes: list[str]) -> 
                      f"{data.position_unit}) aliases into a smooth bow or vanishes, and the screw leads looked for "
                      f"end at {high:.4g} {data.position_unit} (plan with offsets = \"golden\" or \"random\", or "
                      "targets closer together)")
-    if "environment" in names and not environment_logs(data):
-        names.remove("environment")
-        _note(notes, "environment is not looked for: the table has no air or material log that varies "
-                     "(air_temp_c, air_pressure_hpa, humidity_pct, material_temp_c)")
-    for drift in ("thermal_drift", "linear_drift"):
-        if drift in names and len(np.unique(data.run)) < 2:
-            names.remove(drift)
-            _note(notes, f"{drift} is not looked for: one run cannot show a run-to-run change")
+    for name in [n for n in names if NEEDS.get(n) == "log"]:
+        if not environment_logs(data):
+            names.remove(name)
+            _note(notes, f"{name} is not looked for: the table has no air or material log that varies "
+                         "(air_temp_c, air_pressure_hpa, humidity_pct, material_temp_c)")
+    for name in [n for n in names if NEEDS.get(n) == "runs"]:
+        if len(np.unique(data.run)) < 2:
+            names.remove(name)
+            _note(notes, f"{name} is not looked for: one run cannot show a run-to-run change")
     return names
 
 

@@ -87,6 +87,8 @@ class EffectForm:
         return {**{k: float(v) for k, v in zip(self.coefficients, coefs)}, **shape}
 
 
+Needs = Literal["wait", "log", "runs"]
+"""What a campaign must have for discovery to look for an effect (Effect.needs)."""
 FollowUpPart = Literal["dwells", "cluster", "runs", "travel"]
 """The part of a follow-up campaign that tells an effect from its rivals
 (campaign.discovery.followup): "dwells" waits before capture varied over a decade at a few
@@ -114,7 +116,10 @@ class Effect:
     a local error may hide behind it when it is named (a period fitted to a bump, a reversal to a
     bump in one direction), so discovery looks for local errors again without it. period: its shape
     parameter that is a period along the travel (periodic_lead's period_mm), searched over the
-    periodogram's peaks, whose aliases at few targets are candidates that stay unresolved. One object per
+    periodogram's peaks, whose aliases at few targets are candidates that stay unresolved. needs:
+    what a campaign must have for discovery to look for it ("wait": a capture_wait_s column whose
+    waits vary, at a constant wait it is a reversal; "log": an air or material log that varies;
+    "runs": two runs or more, to show a run-to-run change). One object per
     effect: two are the same only when they are one (compared by identity)."""
 
     name: str
@@ -134,6 +139,7 @@ class Effect:
     follow_up: FollowUpPart | None = None
     may_soak: bool = False
     period: str | None = None
+    needs: Needs | None = None
 
     def __post_init__(self) -> None:
         if self.form is not None and self.form.name != self.name:
