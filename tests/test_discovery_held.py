@@ -109,4 +109,5 @@ def test_an_unresolved_reversal_is_held_in_the_fit_and_never_named():
         assert out["held"][0]["rivals"] in (["backlash", "settling"], ["settling", "backlash"])
         assert any(set(u["effects"]) == {"backlash", "settling"} and u["how_to_tell"] for u in out["unresolved"])
         assert not {"backlash", "settling"} & set(out["model"])
+        assert not [k for k in (*out["model"], *out["model_standard_errors"]) if k.startswith("held_")]
     assert unresolved >= 2

@@ -847,12 +847,13 @@ def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]
 def after_final(data: CampaignData, result: Discovery) -> None:
     """What follows from `result.final` once it changes: the gap and noise after (weighted as the fit
     is), the disagreement, the named effects' errors (the local terms' own, local_..., left out:
-    they are said with each local error)."""
+    they are said with each local error; so are a held unresolved group's, HELD_PREFIX)."""
     final = result.final
     result.gap_after_um = gap_um(data, data.y - final.prediction)
     result.noise_um = pooled_scatter_um(data, data.y - final.prediction)
     result.disagreement_after = disagreement(data, data.y - final.prediction)
-    result.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_")}
+    result.errors = {k: v for k, v in standard_errors(data, final).items()
+                     if not k.startswith(("local_", HELD_PREFIX))}
 
 
 def with_local_terms(data: CampaignData, again: Discovery, vocabulary: Discovery, final: Fit,
