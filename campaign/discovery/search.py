@@ -698,10 +698,7 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     result = unnamed_beside_regions(data, result)
     result = hold_what_is_left(data, result)
     result = beside_unresolved_period(data, result)
-    held = len(result.held)
     result = hold_unresolved(data, result, periods=True)
-    if len(result.held) > held:  # what is left beside the period now held is located again
-        result = hold_what_is_left(data, result)
     result.located_before = start_located if result.start is vocabulary.start else locate(
         data, data.y - result.start.prediction)
     result.located_after = locate(data, data.y - result.final.prediction)
@@ -948,16 +945,14 @@ def hold_what_is_left(data: CampaignData, result: Discovery) -> Discovery:
     leave-one-target-out CV); nothing is named for them. Beside an unresolved period they are also
     listed as its rivals (the period seen at few targets would fit there too: add_local_rivals).
     Repeated (LEFT_ROUNDS) while a round adds a term: a region hidden beside a larger one shows once
-    that one is held. Once the unresolved period is held in the fit by its best candidate
-    (hold_unresolved), the terms are tested beside it there."""
+    that one is held."""
     before = result.final
     result = both_directions(data, result)
     # beside an unresolved period each term must also pass beside the period's best candidate (a
     # stand-in, not named): what it holds is then more than that period seen at few targets
     period = period_candidate(result.remaining)
-    held = any(t.name.startswith(HELD_PREFIX) and period_key(t.name) for t in result.final.terms)
     beside = ([t for t in period.fitted.terms if t.name == period.name]
-              if period is not None and period_unresolved(result.unresolved) and not held else [])
+              if period is not None and period_unresolved(result.unresolved) else [])
     added: list[LocalError] = []
     final = result.final
     taken = {int(t.name.split("#")[1]) if "#" in t.name else 1 for t in final.terms if t.name.startswith("local_error")}
