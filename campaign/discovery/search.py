@@ -694,9 +694,9 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
         for name in dropped:
             _note(routes[best].notes, f"{name} explained part of the residual before the local errors were located; "
                                       "beside them it is not significant: not named (it soaked up a local error)")
-    result = hold_unresolved(data, routes[best], periods=False)
-    result = unnamed_beside_regions(data, result)
+    result = unnamed_beside_regions(data, routes[best])
     result = hold_what_is_left(data, result)
+    result = hold_unresolved(data, result, periods=False)
     result = beside_unresolved_period(data, result)
     result = hold_unresolved(data, result, periods=True)
     result.located_before = start_located if result.start is vocabulary.start else locate(
@@ -720,7 +720,9 @@ def hold_unresolved(data: CampaignData, result: Discovery, periods: bool) -> Dis
     params(): it is said in `held`. A group already held by the constant-wait stand-in is left as it is.
     `periods`: only a period that is not identifiable (held by its best candidate, which agrees with the
     others at the targets, though not between them: done last, once the other effects are averaged over
-    its candidates and the local terms are tested beside it), else only the other groups."""
+    its candidates and the local terms are tested beside it), else only the other groups (after the
+    local terms too: held before them, a reversal took the place of a local error seen in one
+    direction, which was then not located)."""
     n = len(data)
     for entry in result.unresolved:
         if (entry.periods_mm is not None) != periods or (result.stand_in is not None
