@@ -227,7 +227,8 @@ class Discovery:
     """Where the campaign departs from the starting model beyond the noise, model-free
     (campaign.discovery.locate), before anything is named."""
     located_after: Located | None = None
-    """The same for the final model: what it leaves unexplained, with its regions."""
+    """The same for the final model: what it leaves unexplained, with its regions (what a held
+    unresolved group holds included: model_prediction)."""
     tables: list[dict[str, float]] = field(default_factory=list)
     """Tables fitted together: per table (campaign index order) its own gap and noise (gap_um,
     noise_um: its points alone, unweighted); gap_after_um and noise_um weigh each table as the fit
@@ -701,7 +702,7 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     result = hold_unresolved(data, result, periods=True)
     result.located_before = start_located if result.start is vocabulary.start else locate(
         data, data.y - result.start.prediction)
-    result.located_after = locate(data, data.y - result.final.prediction)
+    result.located_after = locate(data, data.y - model_prediction(data, result.final))
     result.tables = by_table(data, data.y - result.final.prediction)
     if period_unresolved(result.unresolved):
         # single targets' departures over the travel are the unresolved period seen at few targets: said there
@@ -709,6 +710,17 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
             located.regions[:] = beside_period(located.regions, float(np.ptp(data.x)) or 1.0)
     result.noise_measured = noise_measured(data)
     return result
+
+
+def model_prediction(data: CampaignData, fit: Fit) -> np.ndarray:
+    """The prediction of `fit` without the terms that hold an unresolved group (HELD_PREFIX): what the
+    model explains. What they hold is not explained, so the locator still reports it as left by the
+    final model (located_after), though the gap after is the one with them."""
+    prediction = fit.prediction
+    for term, coefs in zip(fit.terms, fit.coefs):
+        if term.name.startswith(HELD_PREFIX):
+            prediction = prediction - full_columns(data, term) @ coefs
+    return prediction
 
 
 def hold_unresolved(data: CampaignData, result: Discovery, periods: bool) -> Discovery:
