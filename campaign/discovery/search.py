@@ -713,14 +713,13 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
 
 
 def model_prediction(data: CampaignData, fit: Fit) -> np.ndarray:
-    """The prediction of `fit` without the terms that hold an unresolved group (HELD_PREFIX): what the
-    model explains. What they hold is not explained, so the locator still reports it as left by the
-    final model (located_after), though the gap after is the one with them."""
-    prediction = fit.prediction
-    for term, coefs in zip(fit.terms, fit.coefs):
-        if term.name.startswith(HELD_PREFIX):
-            prediction = prediction - full_columns(data, term) @ coefs
-    return prediction
+    """The prediction of `fit` refitted without the terms that hold an unresolved group (HELD_PREFIX):
+    what the model explains. What they hold is not explained, so the locator still reports it as left
+    by the final model (located_after), though the gap after is the one with them. (Refitted, not
+    subtracted: a held period near the target spacing is almost a constant, its coefficient large
+    and cancelled by the offset.)"""
+    model = [t for t in fit.terms if not t.name.startswith(HELD_PREFIX)]
+    return fit.prediction if len(model) == len(fit.terms) else linear_fit(data, model).prediction
 
 
 def hold_unresolved(data: CampaignData, result: Discovery, periods: bool) -> Discovery:
