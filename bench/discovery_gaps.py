@@ -11,7 +11,10 @@ and a class:
 - "holdable": whether the error shows at two targets or more above the noise, or is a step between
   targets (a local term can then hold it);
 - why no local term holds it: none added, added elsewhere, added but too narrow/one direction, or
-  beside an unresolved period.
+  beside an unresolved period; "held" lists what unresolved groups the final fit holds unnamed.
+The last line: draws, how many end within the limit, how many above it no local term can hold and
+how many above it whose model beside the true error leaves more than noise (both excluded from the
+done-when), and the share within among the others.
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python bench/discovery_gaps.py [--shapes step bump] [--counts 11 21]
         [--offsets golden none] [--draws 4] [--seed 0] [--all]
@@ -51,7 +54,8 @@ def cases(args) -> list[tuple[str, int, str, int]]:
 
 def why(row: dict) -> str:
     """The class of a draw above the limit, in words."""
-    reversal = ["backlash", "settling"] in row["unresolved"] and "backlash" not in row["added"]
+    reversal = (["backlash", "settling"] in row["unresolved"] and "backlash" not in row["added"]
+                and not any(h.endswith("for backlash/settling") for h in row["held"]))
     periodic = ["periodic_lead"] in row["unresolved"]
     if row["oracle"] is not None and row["oracle"] > 1.3:
         return ("not the local error's: a reversal left unresolved (backlash against settling), held by nothing"
@@ -88,6 +92,7 @@ def run(args) -> list[dict]:
                 truth={k: {q: round(v, 3) for q, v in p.items()} for k, p in truth.model.items()},
                 added=result.added, local=[e.sentence() for e in result.local_errors],
                 unresolved=[list(u.effects) for u in result.unresolved],
+                held=[f"{h.effect} for {'/'.join(h.rivals)}" for h in result.held],
                 located_after=[f"{r.start:.0f}-{r.end:.0f} {r.shape} {r.direction} {r.peak_um:+.2f}"
                                for r in (result.located_after.along if result.located_after else [])],
                 oracle=round(oracle_ratio(data, result, column), 3) if shape != "null" else None,
@@ -115,7 +120,12 @@ def main() -> None:
     rows = run(args)
     oov = [r for r in rows if r["shape"] != "null"]
     nulls = [r for r in rows if r["shape"] == "null"]
+    unholdable = [r for r in oov if r["ratio"] > args.limit and r["why"].startswith("no local term can hold it")]
+    not_local = [r for r in oov if r["ratio"] > args.limit and r["why"].startswith("not the local error's")]
     print(json.dumps({"draws": len(oov), "gap_within": sum(r["ratio"] <= args.limit for r in oov),
+                      "unholdable_above": len(unholdable), "not_the_local_errors_above": len(not_local),
+                      "holdable_within_share": round(sum(r["ratio"] <= args.limit for r in oov)
+                                                     / max(len(oov) - len(unholdable) - len(not_local), 1), 4),
                       "false_names": sum(bool(r["false_names"]) for r in oov),
                       "nulls": len(nulls), "null_false": sum(bool(r["false_names"]) for r in nulls),
                       "seconds": round(sum(r["seconds"] for r in rows), 1)}))

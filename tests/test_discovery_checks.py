@@ -127,3 +127,45 @@ def test_a_joint_fits_gap_and_noise_weigh_each_table_as_the_fit_does(seed):
     fit = linear_fit(alone, [Term("linear_scale")])
     r = alone.y - fit.prediction
     assert gap_um(alone, r) == pytest.approx(float(np.sqrt(np.mean(r**2))))
+
+
+@pytest.mark.parametrize("seed", [5, 6])
+def test_a_registered_periodic_effect_is_searched_by_its_own_period_key(seed):
+    """Issue 34 item 7: which effect is periodic, and which of its parameters is the period, is the
+    effect's word (`Effect.period`), not a name written into discovery. A new effect registered with
+    its period under another key (a gear's pitch) is searched over the periodogram as periodic_lead is:
+    its candidate lists its optima and finds the lead's period; its unresolved entry carries its name."""
+    from campaign.discovery.search import PERIOD_KEY, period_entry, try_candidate
+    from campaign.effects import register, unregister
+    from campaign.effects.base import SIZE_UM, Effect, EffectForm, period_limits
+
+    def columns(data, shape, held):
+        angle = 2 * np.pi * data.x / shape["pitch_mm"]
+        return np.column_stack([np.sin(angle), np.cos(angle)])
+
+    def to_params(c, shape, held):
+        return {"size_um": float(math.hypot(c[0], c[1])), "pitch_mm": shape["pitch_mm"]}
+
+    gear = Effect("gear_wave", 99, {"size_um": "amplitude, µm", "pitch_mm": "gear pitch, mm"}, None,
+                  EffectForm("gear_wave", ("sin_um", "cos_um"), ("pitch_mm",), "target", columns, to_params,
+                             sizes=("size_um",), ranges=lambda data: {"size_um": (0.0, SIZE_UM),
+                                                                     "pitch_mm": period_limits(data)}),
+                  period="pitch_mm")
+    with pytest.raises(ValueError, match="not a shape parameter"):
+        Effect("bad_wave", 99, {}, None, EffectForm("bad_wave", ("b_um",), (), "target", columns), period="pitch_mm")
+    rng = np.random.default_rng(seed)
+    period = float(rng.uniform(8.0, 12.0))
+    table = simulate_campaign(parse_config(FINE_PLAN.format(count=61, cycles=3)),
+                              ErrorModel(_lead_machine(rng, period)), seed=seed)
+    data = campaign_data(table)
+    register(gear)
+    try:
+        assert PERIOD_KEY["gear_wave"] == "pitch_mm" and PERIOD_KEY["periodic_lead"] == "period_mm"
+        current = linear_fit(data, [Term("linear_scale")])
+        cand = try_candidate(data, current, "gear_wave", [])
+        assert cand.fit is not None and cand.periods, cand.verdict
+        found = cand.fitted.params()["gear_wave"]["pitch_mm"]
+        assert found == pytest.approx(period, rel=0.01) and cand.periods[0][0] == pytest.approx(found)
+        assert period_entry(cand, data).effects == ("gear_wave",)
+    finally:
+        unregister("gear_wave")

@@ -77,3 +77,37 @@ def test_what_the_final_model_leaves_holds_no_local_term(shape):
             if regions or (more is not None and within_targets(data, more.term)):
                 left.append((count, offsets, seed, [t.shape for t in regions], more and more.sentence()))
     assert not left, left
+
+
+@pytest.mark.machine  # 12 simulated campaigns and discoveries
+def test_an_unresolved_reversal_is_held_in_the_fit_and_never_named():
+    """Issue 34: what the data show still goes into the model. A small backlash (0.6-1.5 µm) recorded
+    with waits that vary by about ±40 %: where discovery cannot tell it from settling, the reversal is
+    held in the final fit by the better rival's form, so the gap ends within 1.3 × the noise (it stayed
+    above when nothing held it); the pair stays unresolved with how to tell, nothing is named, saved
+    or listed in the model for it, and --json says it under `held`."""
+    from campaign.commands.discover import as_json
+
+    unresolved = 0
+    for seed in range(60, 72):
+        rng = np.random.default_rng(seed)
+        machine = {"linear_scale": {"ppm": float(rng.uniform(-15, 15))},
+                   "backlash": {"b_um": float(rng.uniform(0.6, 1.5))}, "noise": {"sigma_um": float(rng.uniform(0.3, 0.8))}}
+        data = campaign_data(simulate_campaign(plan_config(17, "golden"), ErrorModel(machine), seed=seed,
+                                               dwell_jitter=0.8))
+        result = discover(data, ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
+        if not any(set(u.effects) == {"backlash", "settling"} for u in result.unresolved):
+            assert "backlash" in result.added, (seed, result.added)
+            continue
+        unresolved += 1
+        assert [set(h.rivals) for h in result.held] == [{"backlash", "settling"}], seed
+        assert not {"backlash", "settling"} & set(result.added)
+        assert not {"backlash", "settling"} & set(result.params()) & set(result.final_model().effects)
+        assert result.held[0].gap_without_um > result.gap_after_um
+        assert result.gap_after_um <= LIMIT * result.noise_um, (seed, result.gap_after_um, result.noise_um)
+        out = as_json(result)
+        assert out["held"][0]["rivals"] in (["backlash", "settling"], ["settling", "backlash"])
+        assert any(set(u["effects"]) == {"backlash", "settling"} and u["how_to_tell"] for u in out["unresolved"])
+        assert not {"backlash", "settling"} & set(out["model"])
+        assert not [k for k in (*out["model"], *out["model_standard_errors"]) if k.startswith("held_")]
+    assert unresolved >= 2

@@ -173,6 +173,7 @@ def as_json(result: Discovery) -> dict:
         "remaining": ranking_json(result.remaining),
         "remaining_beside": result.remaining_beside,
         "stand_in": None if result.stand_in is None else result.stand_in.as_dict(),
+        "held": [h.as_dict() for h in result.held],
         "model": {name: rounded(p) for name, p in result.params().items()},
         "model_standard_errors": {name: errors_json(e) for name, e in result.errors.items()},
         "starting_model": {name: entry.as_dict() for name, entry in result.starting.items()},
@@ -352,8 +353,9 @@ def summary_lines(result: Discovery, incomplete: list[str], time_unit: str = "s"
         lines.append(f"in the model as a stand-in: a reversal of {b:.1f} {dev} (backlash or settling)")
     for entry in result.unresolved:
         rivals = "".join(f" or a local error at {r.region_mm[0]:g}–{r.region_mm[1]:g}" for r in entry.local_rivals)
+        held = "; held in the fit, not named" if any(h.rivals == entry.effects for h in result.held) else ""
         lines.append(f"[yellow]unresolved:[/] {' or '.join(entry.effects)}{rivals}; to tell: "
-                     f"{first_clause(entry.how_to_tell)}")
+                     f"{first_clause(entry.how_to_tell)}{held}")
     verdict = noise_verdict(result)
     noise = f"noise {result.noise_um:.2f} {dev}" if result.noise_measured else "noise not measured"
     lines.append(f"gap {result.gap_before_um:.2f} -> {result.gap_after_um:.2f} {dev} RMS, {noise}: "
@@ -444,6 +446,10 @@ def print_text(result: Discovery, time_unit: str, incomplete: list[str], verbose
     if result.stand_in is not None:
         console.print(f"[yellow]in the model as a stand-in:[/] {result.stand_in.observable}; the model holds it "
                       f"as {result.stand_in.effect} (gap {result.stand_in.gap_without_um:.3f} {dev} without it)")
+    for held in result.held:
+        console.print(f"[yellow]held in the fit, not named:[/] {held.observable}; the fit holds it with "
+                      f"{held.effect}'s form (gap {held.gap_without_um:.3f} {dev} without it); it stays unresolved "
+                      "and is not saved with the model")
     for local in result.local_errors:
         console.print(f"[yellow]found outside the model:[/] {local_said(local)}; no effect of the model has this "
                       f"shape; {local.time_text()}. It explains {local.explained_pct:.1f} % of the residual (ΔBIC "

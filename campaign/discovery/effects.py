@@ -162,9 +162,31 @@ model. A second or third one on the same axis is named with "#2", "#3". Never a 
 the saved model."""
 
 
+HELD_PREFIX = "held_"
+"""The name of a term that holds what an unresolved group shows (campaign.discovery.search.hold_unresolved)
+is this and the name of the group's effect whose form it has: in the fit, never named, never saved."""
+
+
+PERIOD_KEY: RegistryView[str] = RegistryView(lambda e: e.period)
+"""Effect -> its shape parameter that is a period along the travel (each effect's `period`:
+periodic_lead's period_mm): searched over the periodogram's peaks, within period_limits, its aliases
+listed."""
+
+
+def period_key(name: str) -> str | None:
+    """The period parameter of the term `name` (an effect's, or one held for an unresolved group), if
+    it is periodic."""
+    return PERIOD_KEY.get(name.removeprefix(HELD_PREFIX))
+
+
 def form_of(name: str) -> EffectForm:
-    """The least-squares form of a term in the model: a vocabulary effect or a local error."""
-    return FORMS[name] if name in FORMS else LOCAL_FORMS[name.split("#")[0]]
+    """The least-squares form of a term in the model: a vocabulary effect (held for an unresolved
+    group too: HELD_PREFIX) or a local error."""
+    if name in FORMS:
+        return FORMS[name]
+    if name.startswith(HELD_PREFIX) and name[len(HELD_PREFIX):] in FORMS:
+        return FORMS[name[len(HELD_PREFIX):]]
+    return LOCAL_FORMS[name.split("#")[0]]
 
 
 SHAPE_KEYS = ("period_mm", "tau_s", "pivot_mm", "start_mm", "end_mm")

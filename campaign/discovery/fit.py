@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, TypeVar
 import numpy as np
 
 from campaign.discovery.data import CampaignData, keep_rows
-from campaign.discovery.effects import form_of, period_limits
+from campaign.discovery.effects import form_of, period_key, period_limits
 from campaign.effects import RegistryView
 from campaign.model import effect_um
 
@@ -603,7 +603,7 @@ def linear_fit(data: CampaignData, terms: list[Term]) -> Fit:
 def shape_bounds(data: CampaignData, name: str, key: str) -> tuple[float, float]:
     """The bounds of a searched shape parameter: the period's range, or a third of the lowest and
     three times the highest value of its grid (a time constant's; a grid runs upwards)."""
-    if key == "period_mm":
+    if key == period_key(name):
         return period_limits(data)
     grid = form_of(name).grid(data, {})
     return grid[0][key] / 3, grid[-1][key] * 3

@@ -1,6 +1,7 @@
 """What discovery reports, as typed records: an unresolved group (and a local error that rivals
 it), the stand-in a reversal of unknown cause is held by, the starting model's effects as fitted,
-and the choice between the air log and screw growth. Each has `as_dict`, its JSON object
+the reversal or structure an unresolved group shows, held without a name, and the choice between the
+air log and screw growth. Each has `as_dict`, its JSON object
 (`axiscal discover --json`, docs/discovery.md), keys in the order they have always had.
 
 Units: deviations µm (the axis's deviation unit), positions mm (its position unit).
@@ -58,6 +59,25 @@ class StandIn:
     settling at a constant wait): `effect`, the one in the final model in their place (not named);
     what the data show, in words (`observable`); the `rivals`; its fitted `params`; and the gap had
     nothing been added for it (`gap_without_um`)."""
+
+    effect: str
+    rivals: tuple[str, ...]
+    observable: str
+    params: Mapping[str, float]
+    gap_without_um: float
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"effect": self.effect, "rivals": list(self.rivals), "observable": self.observable,
+                "params": {k: round(float(v), 4) for k, v in self.params.items()},
+                "gap_without_um": round(self.gap_without_um, 4)}
+
+
+@dataclass(frozen=True)
+class Held:
+    """What an unresolved group shows, held in the final model so that the gap shrinks, while the
+    group stays unresolved: never named, never saved with the model. `effect`: the rival whose form
+    holds it (the one that explains most); `rivals`: the group; what the data show, in words
+    (`observable`); the fitted `params`; the gap had nothing been held for it (`gap_without_um`)."""
 
     effect: str
     rivals: tuple[str, ...]

@@ -23,6 +23,7 @@ screw growth about its fixed bearing).
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -31,13 +32,16 @@ from campaign.discovery.data import CampaignData, keep_rows
 from campaign.discovery.effects import (
     ENVIRONMENT_RANGES,
     FORMS,
+    HELD_PREFIX,
     LASER_DATUM_MM,
+    PERIOD_KEY,
     PERIOD_RANGE_MM,
     SHAPE_KEYS,
     SIZE_SIGMAS,
     environment_logs,
     even_spacing,
     fixed_shape,
+    period_key,
     period_limits,
 )
 from campaign.discovery.fit import (
@@ -71,7 +75,7 @@ from campaign.discovery.local import (
     refit_local,
 )
 from campaign.discovery.locate import Located, beside_period, locate
-from campaign.discovery.records import Choice, LocalRival, StandIn, StartingEffect, Unresolved
+from campaign.discovery.records import Choice, Held, LocalRival, StandIn, StartingEffect, Unresolved
 from campaign.discovery.unexplained import (
     candidate_regions,
     describe_region,
@@ -105,6 +109,26 @@ settling (two parameters, one per wait) from a constant reversal: one short capt
 fixed-dwell campaign does not."""
 
 
+NEEDS: RegistryView[str] = RegistryView(lambda e: e.needs)
+"""Effect -> what a campaign must have for it to be looked for (each effect's `needs`: a varying
+wait, a varying air or material log, two runs or more)."""
+
+
+def periodic_in(names: Iterable[str]) -> bool:
+    """Is one of these effects a periodic one (PERIOD_KEY)?"""
+    return any(name in PERIOD_KEY for name in names)
+
+
+def period_unresolved(unresolved: list[Unresolved]) -> bool:
+    """Is a periodic effect in an unresolved group (its period not identifiable, or a rival's)?"""
+    return any(periodic_in(u.effects) for u in unresolved)
+
+
+def period_candidate(ranking: list[Candidate]) -> Candidate | None:
+    """The fitted candidate of a periodic effect among `ranking`, if any."""
+    return next((c for c in ranking if c.name in PERIOD_KEY and c.fit is not None), None)
+
+
 @dataclass
 class Candidate:
     """An effect tried at one step: its fit, the residual share it explains (%), and the tests."""
@@ -125,7 +149,7 @@ class Candidate:
     cv_after_um: float = 0.0
     verdict: str = ""
     periods: list[tuple[float, float]] = field(default_factory=list)
-    """periodic_lead: the local optima of the period search, (period mm, ΔBIC to the best), best
+    """A periodic effect (PERIOD_KEY): the local optima of the period search, (period mm, ΔBIC to the best), best
     first, for the optima within PERIOD_LIST of the best."""
 
     @property
@@ -203,7 +227,8 @@ class Discovery:
     """Where the campaign departs from the starting model beyond the noise, model-free
     (campaign.discovery.locate), before anything is named."""
     located_after: Located | None = None
-    """The same for the final model: what it leaves unexplained, with its regions."""
+    """The same for the final model: what it leaves unexplained, with its regions (what a held
+    unresolved group holds included: model_prediction)."""
     tables: list[dict[str, float]] = field(default_factory=list)
     """Tables fitted together: per table (campaign index order) its own gap and noise (gap_um,
     noise_um: its points alone, unweighted); gap_after_um and noise_um weigh each table as the fit
@@ -211,6 +236,10 @@ class Discovery:
     noise_measured: bool = True
     """False when no target is read twice in a direction: noise_um is then the residual itself, not
     a measured run-to-run scatter, and nothing can be said to be noise."""
+    held: list[Held] = field(default_factory=list)
+    """What an unresolved group shows (a reversal backlash and settling explain alike at waits that
+    vary too little to tell them), held in the final fit by its better rival's form so that the gap
+    shrinks (hold_unresolved): the group stays unresolved, nothing is named or saved for it."""
 
     @property
     def local(self) -> LocalError | None:
@@ -219,8 +248,8 @@ class Discovery:
 
     def params(self) -> dict[str, dict[str, float]]:
         """The final model's parameters per effect (averaged over an unresolved period's candidates
-        where that applies)."""
-        return {**self.final.params(), **self.averaged}
+        where that applies; a term holding an unresolved group, HELD_PREFIX, is not the model's: `held`)."""
+        return {**{k: v for k, v in self.final.params().items() if not k.startswith(HELD_PREFIX)}, **self.averaged}
 
     @property
     def added(self) -> list[str]:
@@ -245,8 +274,8 @@ def start_terms(model: ErrorModel, given: dict[str, set[str]], data: CampaignDat
             continue
         keys = given.get(name, set())
         fixed = set(EFFECT_PARAMS[name]) <= keys
-        if name == "settling" and data.w is None:
-            _note(notes, "the model's settling is left out: without a capture_wait_s column the wait since "
+        if NEEDS.get(name) == "wait" and data.w is None:
+            _note(notes, f"the model's {name} is left out: without a capture_wait_s column the wait since "
                          "arrival is unknown (the captures are taken as settled)")
             continue
         if name not in FORMS:  # an effect the simulator has and discovery does not (local_defect)
@@ -268,7 +297,7 @@ def start_terms(model: ErrorModel, given: dict[str, set[str]], data: CampaignDat
 
 def default_shape(name: str, key: str, data: CampaignData) -> float:
     """A starting shape parameter for an effect in the starting model: the middle of its grid."""
-    if key == "period_mm":
+    if PERIOD_KEY.get(name) == key:
         return 10.0
     grid = FORMS[name].grid(data, {})
     return grid[len(grid) // 2][key]
@@ -338,35 +367,38 @@ def candidate_names(data: CampaignData, terms: list[Term], notes: list[str]) -> 
     """Effects not in the model that this data can show; notes say why others are not tried."""
     present = {t.name for t in terms}
     names = [n for n in FORMS if n not in present]
-    if "settling" in names:
+    for name in [n for n in names if NEEDS.get(n) == "wait"]:
         if data.w is None:
-            names.remove("settling")
-            _note(notes, "settling is not looked for: the table has no capture_wait_s column, and at a "
-                         "constant wait settling looks exactly like backlash")
+            names.remove(name)
+            _note(notes, f"{name} is not looked for: the table has no capture_wait_s column, and at a "
+                         f"constant wait {name} looks exactly like backlash")
         elif not waits_vary(data):
-            names.remove("settling")
-            _note(notes, "settling is confounded with backlash: the dwell does not vary, so settling "
+            names.remove(name)
+            _note(notes, f"{name} is confounded with backlash: the dwell does not vary, so {name} "
                          "is not looked for (vary the dwell to separate them)")
     low, high = period_limits(data)
-    if "periodic_lead" in names and low >= high:
-        names.remove("periodic_lead")
+    for name in [n for n in names if n in PERIOD_KEY]:
+        if low < high:
+            if even_spacing(data) is not None and low > PERIOD_RANGE_MM[0]:
+                _note(notes, f"{name} is looked for at periods from {low:.4g} to {high:.4g} {data.position_unit}: "
+                             "the targets are evenly spaced, so shorter periods alias onto longer ones")
+            continue
+        names.remove(name)
         spacing = even_spacing(data)
-        _note(notes, f"periodic_lead is not looked for: the targets are evenly spaced {spacing:.4g} "
+        _note(notes, f"{name} is not looked for: the targets are evenly spaced {spacing:.4g} "
                      f"{data.position_unit} apart, so a period shorter than twice that ({2 * (spacing or 0):.4g} "
                      f"{data.position_unit}) aliases into a smooth bow or vanishes, and the screw leads looked for "
                      f"end at {high:.4g} {data.position_unit} (plan with offsets = \"golden\" or \"random\", or "
                      "targets closer together)")
-    elif "periodic_lead" in names and even_spacing(data) is not None and low > PERIOD_RANGE_MM[0]:
-        _note(notes, f"periodic_lead is looked for at periods from {low:.4g} to {high:.4g} {data.position_unit}: "
-                     "the targets are evenly spaced, so shorter periods alias onto longer ones")
-    if "environment" in names and not environment_logs(data):
-        names.remove("environment")
-        _note(notes, "environment is not looked for: the table has no air or material log that varies "
-                     "(air_temp_c, air_pressure_hpa, humidity_pct, material_temp_c)")
-    for drift in ("thermal_drift", "linear_drift"):
-        if drift in names and len(np.unique(data.run)) < 2:
-            names.remove(drift)
-            _note(notes, f"{drift} is not looked for: one run cannot show a run-to-run change")
+    for name in [n for n in names if NEEDS.get(n) == "log"]:
+        if not environment_logs(data):
+            names.remove(name)
+            _note(notes, f"{name} is not looked for: the table has no air or material log that varies "
+                         "(air_temp_c, air_pressure_hpa, humidity_pct, material_temp_c)")
+    for name in [n for n in names if NEEDS.get(n) == "runs"]:
+        if len(np.unique(data.run)) < 2:
+            names.remove(name)
+            _note(notes, f"{name} is not looked for: one run cannot show a run-to-run change")
     return names
 
 
@@ -395,8 +427,10 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
     n = len(data)
     held = fixed_shape(name, data, {})
     starts: list[dict[str, float]] = [{}]
-    if name == "periodic_lead":
-        starts = [{"period_mm": p} for p in periodogram_periods(data, current, top=PERIOD_STARTS)]
+    period_key = PERIOD_KEY.get(name)
+    searched = period_key is not None and period_key not in held
+    if period_key is not None:
+        starts = [{period_key: p} for p in periodogram_periods(data, current, top=PERIOD_STARTS)]
         if not starts:  # a flat periodogram (few targets): no period to start from
             return Candidate(name, None, verdict="not significant (no period stands out)")
     elif FORMS[name].shape_grid is not None:
@@ -419,14 +453,14 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
         _note(notes, f"{name} is confounded with {' + '.join(others) or 'the model'} on this data: not named")
         return Candidate(name, None, verdict="confounded")
     periods: list[tuple[float, float]] = []
-    if name == "periodic_lead" and "period_mm" not in held and len(fits) > 1:
-        best, periods = period_optima(data, fits)
+    if searched and len(fits) > 1:
+        best, periods = period_optima(data, fits, name)
     elif FORMS[name].shape:
         best = refine(data, best.terms)
     cand = Candidate(name, best, explained_pct=100 * (1 - best.rss / current.rss) if current.rss > 0 else 0.0,
                      periods=periods)
     cand.delta_bic = bic(best, n) - bic(current, n)
-    look_elsewhere = independent_periods(data) if name == "periodic_lead" and "period_mm" not in held else 1.0
+    look_elsewhere = independent_periods(data) if searched else 1.0
     cand.p_value = min(1.0, f_test_p(current, best, n) * look_elsewhere)
     cand.delta_bic += 2 * math.log(look_elsewhere)  # a searched period costs its search, as in the p-value
     groups = data.run if FORMS[name].group == "run" else data.target_index
@@ -440,10 +474,10 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
     failed += gates
     if not failed and len(periods) > 1 and periods[1][1] < RIVAL_MARGIN:
         cand.verdict = "period not identifiable"
-    elif not failed and name == "periodic_lead" and (partial := wave_over_part(data, best)):
+    elif not failed and period_key is not None and (partial := wave_over_part(data, best)):
         cand.verdict = f"not named ({partial})"  # an identified period whose wave is not on every turn
         failed.append(partial)
-    elif not failed and name == "periodic_lead" and (single := one_target(data, current, best, name,
+    elif not failed and period_key is not None and (single := one_target(data, current, best, name,
                                                                             look_elsewhere)
                                                      or zero_at_targets(data, best, name)):
         cand.verdict = f"not named ({single})"  # a screw lead shows on every turn, not at one target
@@ -507,7 +541,7 @@ def zero_at_targets(data: CampaignData, fit: Fit, name: str) -> str | None:
         return None
     wave = full_columns(data, fit.terms[i]) @ coefs  # coefs in the form's full column order
     positions, where = np.unique(np.round(data.x, 6), return_inverse=True)
-    period = fit.terms[i].shape.get("period_mm")
+    period = fit.terms[i].shape.get(period_key(name) or "")
     if period and len(positions) > 1 and float(np.median(np.diff(positions))) < period / 4:
         return None  # sampled along its period, not at random phases: the wave is seen whole
     at_targets = np.bincount(where, wave) / np.bincount(where)
@@ -543,30 +577,30 @@ def gate_failures(data: CampaignData, fit: Fit, name: str) -> list[str]:
     return out
 
 
-def period_optima(data: CampaignData, fits: list[Fit]) -> tuple[Fit, list[tuple[float, float]]]:
+def period_optima(data: CampaignData, fits: list[Fit], name: str) -> tuple[Fit, list[tuple[float, float]]]:
     """Refine every periodogram start to its local optimum; the best, and the distinct optima
     (period mm, ΔBIC to the best; same parameter count, so ΔBIC = n·ln(RSS/RSS_best)) within
-    PERIOD_LIST of it, best first. Aliases of a screw lead sampled at few targets show up here as
-    optima that fit about as well."""
+    PERIOD_LIST of it, best first, of the periodic effect `name`. Aliases of a screw lead sampled at
+    few targets show up here as optima that fit about as well."""
     n = len(data)
     optima: list[Fit] = []
     for fit in fits:
         local = refine(data, fit.terms)
-        period = _period(local)
-        if all(abs(period - _period(o)) > 0.005 * period for o in optima):
+        period = _period(local, name)
+        if all(abs(period - _period(o, name)) > 0.005 * period for o in optima):
             optima.append(local)
         else:
-            same = next(o for o in optima if abs(period - _period(o)) <= 0.005 * period)
+            same = next(o for o in optima if abs(period - _period(o, name)) <= 0.005 * period)
             if local.rss < same.rss:
                 optima[optima.index(same)] = local
     optima.sort(key=lambda f: f.rss)
     best = optima[0]
-    listed = [(_period(f), n * math.log(max(f.rss, 1e-300) / max(best.rss, 1e-300))) for f in optima]
+    listed = [(_period(f, name), n * math.log(max(f.rss, 1e-300) / max(best.rss, 1e-300))) for f in optima]
     return best, [(p, d) for p, d in listed if d < PERIOD_LIST]
 
 
-def _period(fit: Fit) -> float:
-    return next(t.shape["period_mm"] for t in fit.terms if t.name == "periodic_lead")
+def _period(fit: Fit, name: str) -> float:
+    return next(t.shape[PERIOD_KEY[name]] for t in fit.terms if t.name == name)
 
 
 def period_spread_mm(periods: list[tuple[float, float]]) -> float:
@@ -635,7 +669,7 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     it explains the campaign better than local terms over the regions located: an effect that merely
     soaked up a local error (a bow, a short period, a reversal) is not named."""
     vocabulary = search_vocabulary(data, model, given)
-    periodic = any("periodic_lead" in u.effects for u in vocabulary.unresolved)
+    periodic = period_unresolved(vocabulary.unresolved)
     beside = find_locals(data, vocabulary.final)
     for name in [n for n in reversed(vocabulary.added) if may_soak(n)] if not beside else ():
         # a short period or a reversal may have soaked up most of it: look beside the rest
@@ -663,17 +697,89 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
                                       "beside them it is not significant: not named (it soaked up a local error)")
     result = unnamed_beside_regions(data, routes[best])
     result = hold_what_is_left(data, result)
+    result = hold_unresolved(data, result, periods=False)
     result = beside_unresolved_period(data, result)
+    result = hold_unresolved(data, result, periods=True)
     result.located_before = start_located if result.start is vocabulary.start else locate(
         data, data.y - result.start.prediction)
-    result.located_after = locate(data, data.y - result.final.prediction)
+    result.located_after = locate(data, data.y - model_prediction(data, result.final))
     result.tables = by_table(data, data.y - result.final.prediction)
-    if any("periodic_lead" in u.effects for u in result.unresolved):
+    if period_unresolved(result.unresolved):
         # single targets' departures over the travel are the unresolved period seen at few targets: said there
         for located in (result.located_before, result.located_after):
             located.regions[:] = beside_period(located.regions, float(np.ptp(data.x)) or 1.0)
     result.noise_measured = noise_measured(data)
     return result
+
+
+def model_prediction(data: CampaignData, fit: Fit) -> np.ndarray:
+    """The prediction of `fit` refitted without the terms that hold an unresolved group (HELD_PREFIX):
+    what the model explains. What they hold is not explained, so the locator still reports it as left
+    by the final model (located_after), though the gap after is the one with them. (Refitted, not
+    subtracted: a held period near the target spacing is almost a constant, its coefficient large
+    and cancelled by the offset.)"""
+    model = [t for t in fit.terms if not t.name.startswith(HELD_PREFIX)]
+    return fit.prediction if len(model) == len(fit.terms) else linear_fit(data, model).prediction
+
+
+def hold_unresolved(data: CampaignData, result: Discovery, periods: bool) -> Discovery:
+    """What an unresolved group of rivals shows is still held in the model, so that the gap shrinks by
+    it: the form of the rival that explains most (lowest ΔBIC), refitted beside the final model under
+    the name HELD_PREFIX + its name, kept when it passes the tests an effect passes before it is named
+    (BIC lower by BIC_MARGIN, F-test p < ALPHA, lower leave-one-target-out CV). The group stays in
+    `unresolved` with how to tell; nothing is named (`added`), saved (final_model) or listed in
+    params(): it is said in `held`. A group already held by the constant-wait stand-in is left as it is.
+    `periods`: only a period that is not identifiable (held by its best candidate, which agrees with the
+    others at the targets, though not between them: done last, once the other effects are averaged over
+    its candidates and the local terms are tested beside it), else only the other groups (after the
+    local terms too: held before them, a reversal took the place of a local error seen in one
+    direction, which was then not located)."""
+    n = len(data)
+    for entry in result.unresolved:
+        if (entry.periods_mm is not None) != periods or (result.stand_in is not None
+                                                         and set(entry.effects) <= set(result.stand_in.rivals)):
+            continue
+        group = [c for c in result.remaining if c.name in entry.effects and c.fit is not None]
+        if not group:
+            continue
+        best = min(group, key=lambda c: c.delta_bic)
+        own = next(t for t in best.fitted.terms if t.name == best.name)
+        term = drop_collinear(data, result.final.terms, replace(own, name=HELD_PREFIX + best.name, keep=None))
+        if not any(term.keep or ()):
+            continue
+        trial = linear_fit(data, [*result.final.terms, term])
+        p_value = f_test_p(result.final, trial, n)
+        cv = cv_rms_um(data, result.final.terms, data.target_index), cv_rms_um(data, trial.terms, data.target_index)
+        if not (bic(trial, n) - bic(result.final, n) < -BIC_MARGIN and p_value < ALPHA and cv[1] < cv[0]):
+            continue
+        without = result.gap_after_um
+        result.final = trial
+        after_final(data, result)
+        result.held.append(Held(best.name, tuple(entry.effects), held_said(data, trial, term.name, entry.effects),
+                                trial.params()[term.name], without))
+        _note(result.notes, f"what {said_list(list(entry.effects))} explain alike is held in the model by "
+                            f"{best.name}'s form (gap {without:.3f} -> {result.gap_after_um:.3f} "
+                            f"{data.deviation_unit}), not named: which of them it is stays unresolved")
+    return result
+
+
+def held_said(data: CampaignData, fit: Fit, name: str, rivals: tuple[str, ...]) -> str:
+    """What the term `name` of `fit`, holding an unresolved group, shows in words: a reversal between
+    the directions (its mean going up less its mean going down) when the group is backlash against
+    settling, else the rival's form that holds it."""
+    said = said_list(list(rivals))
+    if set(rivals) <= STAND_IN_RIVALS:
+        i = next(k for k, t in enumerate(fit.terms) if t.name == name)
+        held = full_columns(data, fit.terms[i]) @ fit.coefs[i]
+        up, down = float(np.mean(held[data.d > 0])), float(np.mean(held[data.d < 0]))
+        dev = data.deviation_unit
+        return (f"a reversal of {abs(up - down):.2g} {dev} between the directions (x̄↑ − x̄↓ = {up - down:+.2g} "
+                f"{dev}): {said.replace(' and ', ' or ')}; cannot tell which")
+    key = period_key(name)
+    if entry_periods := [t.shape[key] for t in fit.terms if t.name == name and key in t.shape]:
+        return (f"a wave seen at the targets (held by its best candidate period, {entry_periods[0]:.4g} "
+                f"{data.position_unit}): which period it is stays unresolved")
+    return f"what {said} explain alike, held by {name.removeprefix(HELD_PREFIX)}'s form; cannot tell which"
 
 
 def _same_places(a: list[LocalError], b: list[LocalError]) -> bool:
@@ -686,7 +792,7 @@ def route_score(data: CampaignData, result: Discovery) -> float:
     n = len(data)
     score = bic(result.final, n)
     score += len(result.local_errors) * (2 * math.log(n) + 2 * math.log(look_elsewhere(data)))
-    if any(t.name == "periodic_lead" and t.searched for t in result.final.terms):
+    if any(t.name in PERIOD_KEY and t.searched for t in result.final.terms):
         score += 2 * math.log(independent_periods(data))
     return score
 
@@ -694,7 +800,7 @@ def route_score(data: CampaignData, result: Discovery) -> float:
 def add_local_rivals(result: Discovery, found: list[LocalError]) -> None:
     """The unresolved period's group gets the local errors that would fit as well as rivals
     (`local_rivals`: sentence and region, mm): what the campaign shows there is either."""
-    at = next((i for i, u in enumerate(result.unresolved) if "periodic_lead" in u.effects), None)
+    at = next((i for i, u in enumerate(result.unresolved) if periodic_in(u.effects)), None)
     if at is None:
         return
     entry = result.unresolved[at]
@@ -726,7 +832,7 @@ def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]
     rest is left out. None when none is left, or when an unresolved period stays beside them (the
     local error may be that period seen at few targets: said in a note)."""
     again = search_vocabulary(data, model, given, [local.term for local in found])
-    if periodic and any("periodic_lead" in u.effects for u in again.unresolved):
+    if periodic and period_unresolved(again.unresolved):
         _note(vocabulary.notes, f"{found[0].sentence()} would fit too, but the unresolved periodic error is still "
                                 "there beside it: it may be that error seen at few targets, so it is not added")
         add_local_rivals(vocabulary, found)
@@ -751,12 +857,13 @@ def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]
 def after_final(data: CampaignData, result: Discovery) -> None:
     """What follows from `result.final` once it changes: the gap and noise after (weighted as the fit
     is), the disagreement, the named effects' errors (the local terms' own, local_..., left out:
-    they are said with each local error)."""
+    they are said with each local error; so are a held unresolved group's, HELD_PREFIX)."""
     final = result.final
     result.gap_after_um = gap_um(data, data.y - final.prediction)
     result.noise_um = pooled_scatter_um(data, data.y - final.prediction)
     result.disagreement_after = disagreement(data, data.y - final.prediction)
-    result.errors = {k: v for k, v in standard_errors(data, final).items() if not k.startswith("local_")}
+    result.errors = {k: v for k, v in standard_errors(data, final).items()
+                     if not k.startswith(("local_", HELD_PREFIX))}
 
 
 def with_local_terms(data: CampaignData, again: Discovery, vocabulary: Discovery, final: Fit,
@@ -781,13 +888,13 @@ def unnamed_beside_regions(data: CampaignData, result: Discovery) -> Discovery:
     stay in the model as unexplained local errors (a note says so), in place of the effect and of any
     bump or step term beside it. Beside an unresolved period the regions may be that period seen at few
     targets: they are then also listed as its rivals (add_local_rivals)."""
-    periodic = any("periodic_lead" in u.effects for u in result.unresolved)
+    periodic = period_unresolved(result.unresolved)
     # beside an unresolved period both sides are compared with its best candidate in (a stand-in, not
     # named): otherwise the regions would be credited with the period's residual
-    period = next((c for c in result.remaining if c.name == "periodic_lead" and c.fit is not None), None)
+    period = period_candidate(result.remaining)
     if periodic and period is None:
         return result
-    beside = [t for t in period.fitted.terms if t.name == "periodic_lead"] if periodic and period else []
+    beside = [t for t in period.fitted.terms if t.name == period.name] if periodic and period else []
     changed = False
     for step in list(result.steps):
         name = step.effect
@@ -857,9 +964,9 @@ def hold_what_is_left(data: CampaignData, result: Discovery) -> Discovery:
     result = both_directions(data, result)
     # beside an unresolved period each term must also pass beside the period's best candidate (a
     # stand-in, not named): what it holds is then more than that period seen at few targets
-    period = next((c for c in result.remaining if c.name == "periodic_lead" and c.fit is not None), None)
-    beside = ([t for t in period.fitted.terms if t.name == "periodic_lead"]
-              if period is not None and any("periodic_lead" in u.effects for u in result.unresolved) else [])
+    period = period_candidate(result.remaining)
+    beside = ([t for t in period.fitted.terms if t.name == period.name]
+              if period is not None and period_unresolved(result.unresolved) else [])
     added: list[LocalError] = []
     final = result.final
     taken = {int(t.name.split("#")[1]) if "#" in t.name else 1 for t in final.terms if t.name.startswith("local_error")}
@@ -883,7 +990,7 @@ def hold_what_is_left(data: CampaignData, result: Discovery) -> Discovery:
     result.final = final
     names = {t.name for t in final.terms}
     result.local_errors = [e for e in result.local_errors if e.term.name in names and e not in added] + added
-    if added and any("periodic_lead" in u.effects for u in result.unresolved):
+    if added and period_unresolved(result.unresolved):
         add_local_rivals(result, added)
     after_final(data, result)
     if added:
@@ -1040,7 +1147,7 @@ def with_regions(data: CampaignData, model: ErrorModel, given: dict[str, set[str
     if not terms:
         return None
     again = search_vocabulary(data, model, given, terms)
-    if any("periodic_lead" in u.effects for u in again.unresolved):
+    if period_unresolved(again.unresolved):
         return None  # a region may be the unresolved period seen at few targets (as for with_locals)
     final, kept = again.final, []
     for term in terms:
@@ -1066,8 +1173,8 @@ def beside_unresolved_period(data: CampaignData, result: Discovery) -> Discovery
     without a period (nothing is added for it). A named effect whose averaged size is then under
     SIZE_SIGMAS of its error (the candidates disagree on it) is not named after all: the size gate
     holds for the values and errors reported."""
-    entry = next((u for u in result.unresolved if u.effects == ("periodic_lead",) and u.periods_mm), None)
-    cand = next((c for c in result.remaining if c.name == "periodic_lead" and c.fit is not None), None)
+    entry = next((u for u in result.unresolved if u.periods_mm), None)
+    cand = period_candidate(result.remaining)
     if entry is None or cand is None:
         return result
     while True:
@@ -1106,8 +1213,8 @@ def _averaged_over_periods(data: CampaignData, result: Discovery, entry: Unresol
     free = [t for t in result.final.terms if not t.fixed and t.name in EFFECT_PARAMS]
     fits = [(result.final, -cand.delta_bic)]
     for period, delta in zip(entry.periods_mm or (), entry.period_delta_bic):
-        fits.append((linear_fit(data, [*result.final.terms, Term("periodic_lead", {"period_mm": period}, False,
-                                                                     {"period_mm": period})]), delta))
+        shape = {PERIOD_KEY[cand.name]: period}
+        fits.append((linear_fit(data, [*result.final.terms, Term(cand.name, shape, False, dict(shape))]), delta))
     weights = np.exp(-(np.array([d for _, d in fits]) - min(d for _, d in fits)) / 2)
     weights /= weights.sum()
     beside = standard_errors(data, fits[int(np.argmax(weights))][0])
@@ -1246,8 +1353,9 @@ def drop_failing(data: CampaignData, fit: Fit, steps: list[Step], notes: list[st
 
 def add_period_spread(errors: dict[str, float], name: str, spreads: dict[str, float]) -> None:
     """A named period's error includes the spread over its competing optima (period_spread_mm)."""
-    if name in spreads and "period_mm" in errors:
-        errors["period_mm"] = math.hypot(errors["period_mm"], spreads[name])
+    key = PERIOD_KEY.get(name)
+    if name in spreads and key in errors:
+        errors[key] = math.hypot(errors[key], spreads[name])
 
 
 SIGNIFICANT = 0.05
@@ -1450,7 +1558,7 @@ def period_entry(cand: Candidate, data: CampaignData) -> Unresolved:
     if len(cand.periods) > 6:
         shown += f" and {len(cand.periods) - 6} more"
     targets = len(np.unique(np.round(data.x, 6)))
-    return Unresolved(("periodic_lead",),
+    return Unresolved((cand.name,),
                       f"a periodic error explains {cand.explained_pct:.1f} % of the residual, but its period is not "
                       f"identifiable: {len(cand.periods)} periods fit about as well ({shown}); with {targets} targets "
                       "a screw lead aliases to other periods",

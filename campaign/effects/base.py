@@ -87,6 +87,8 @@ class EffectForm:
         return {**{k: float(v) for k, v in zip(self.coefficients, coefs)}, **shape}
 
 
+Needs = Literal["wait", "log", "runs"]
+"""What a campaign must have for discovery to look for an effect (Effect.needs)."""
 FollowUpPart = Literal["dwells", "cluster", "runs", "travel"]
 """The part of a follow-up campaign that tells an effect from its rivals
 (campaign.discovery.followup): "dwells" waits before capture varied over a decade at a few
@@ -112,7 +114,12 @@ class Effect:
     is far beyond the campaign is a linear drift). derived: quantities computed from its
     parameters and reported beside them. follow_up: its part of a follow-up campaign. may_soak:
     a local error may hide behind it when it is named (a period fitted to a bump, a reversal to a
-    bump in one direction), so discovery looks for local errors again without it. One object per
+    bump in one direction), so discovery looks for local errors again without it. period: its shape
+    parameter that is a period along the travel (periodic_lead's period_mm), searched over the
+    periodogram's peaks, whose aliases at few targets are candidates that stay unresolved. needs:
+    what a campaign must have for discovery to look for it ("wait": a capture_wait_s column whose
+    waits vary, at a constant wait it is a reversal; "log": an air or material log that varies;
+    "runs": two runs or more, to show a run-to-run change). One object per
     effect: two are the same only when they are one (compared by identity)."""
 
     name: str
@@ -131,10 +138,14 @@ class Effect:
     derived: Callable[[dict[str, float]], dict[str, float]] | None = None
     follow_up: FollowUpPart | None = None
     may_soak: bool = False
+    period: str | None = None
+    needs: Needs | None = None
 
     def __post_init__(self) -> None:
         if self.form is not None and self.form.name != self.name:
             raise ValueError(f"effect {self.name}: its form is named {self.form.name}")
+        if self.period is not None and (self.form is None or self.period not in self.form.shape):
+            raise ValueError(f"effect {self.name}: its period {self.period} is not a shape parameter of its form")
         if self.deviation is None and self.form is None:
             raise ValueError(f"effect {self.name}: neither simulated nor discovered")
 

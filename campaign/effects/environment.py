@@ -64,4 +64,4 @@ EFFECT = Effect(
     None,
     EffectForm("environment", ("air_factor", "alpha_ppm_per_k"), (), "run", columns, to_params, grid,
                sizes=("air_factor", "alpha_ppm_per_k"), ranges=ranges),
-    follow_up="runs")
+    follow_up="runs", needs="log")

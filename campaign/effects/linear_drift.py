@@ -34,4 +34,4 @@ EFFECT = Effect(
     lambda p, x, d, t, w: p["rate_ppm_per_h"] * 1e-3 * (x - p["pivot_mm"]) * t / 3600,
     EffectForm("linear_drift", ("rate_ppm_per_h", "rate_pivot"), (), "run", columns, to_params,
                sizes=("rate_ppm_per_h",), ranges=ranges),
-    defaults={"pivot_mm": 0.0}, follow_up="runs")
+    defaults={"pivot_mm": 0.0}, follow_up="runs", needs="runs")

@@ -33,4 +33,4 @@ EFFECT = Effect(
     rivals={"nonlinear_lead": (
         "more targets (at least 4 per screw lead over part of the travel, offsets = \"golden\"), or the known "
         "screw lead in the model (periodic_lead.period_mm) so that only its amplitude is fitted")},
-    follow_up="cluster", may_soak=True)
+    follow_up="cluster", may_soak=True, period="period_mm")

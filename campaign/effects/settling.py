@@ -43,4 +43,4 @@ EFFECT = Effect(
     EffectForm("settling", ("e0_um",), ("tau_s",), "target", columns, None, grid, sizes=("e0_um",), ranges=ranges),
     positive=("tau_s",),
     rivals={"backlash": DWELLS_HOW_TO_TELL, "position_dependent_backlash": DWELLS_HOW_TO_TELL},
-    follow_up="dwells", may_soak=True)
+    follow_up="dwells", may_soak=True, needs="wait")

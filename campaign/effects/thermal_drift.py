@@ -64,4 +64,4 @@ EFFECT = Effect(
                 "exponential growth levels off, a linear one does not")},
     tends_to="linear_drift",
     derived=lambda p: {"initial_rate_ppm_per_h": p["growth_ppm"] / p["tau_s"] * 3600},
-    follow_up="runs")
+    follow_up="runs", needs="runs")
