@@ -73,6 +73,7 @@ from campaign.discovery.local import (
 from campaign.discovery.locate import Located, beside_period, locate
 from campaign.discovery.records import Choice, LocalRival, StandIn, StartingEffect, Unresolved
 from campaign.discovery.unexplained import (
+    REGION_SHARE,
     candidate_regions,
     describe_region,
     region_term,
@@ -1024,7 +1025,10 @@ def with_regions(data: CampaignData, model: ErrorModel, given: dict[str, set[str
     follows the data over each region the locator found beside the starting model (each kept only
     when it passes the tests), the vocabulary searched beside them, then each term tested again beside
     what is named. None when none is left, or when a period stays unresolved beside them (the
-    regions may be that period seen at few targets: with_locals makes them its rivals)."""
+    regions may be that period seen at few targets: with_locals makes them its rivals), or when the
+    regions together cover most of the travel (`over_the_travel`)."""
+    if over_the_travel(data, located):
+        return None
     terms = region_terms(data, vocabulary.start, located)
     if not terms:
         return None
@@ -1043,6 +1047,21 @@ def with_regions(data: CampaignData, model: ErrorModel, given: dict[str, set[str
     found = [describe_region(data, final, term.name, linear_fit(data, [t for t in final.terms if t.name != term.name]))
              for term in kept]
     return with_local_terms(data, again, vocabulary, final, found)
+
+
+def over_the_travel(data: CampaignData, located: Located) -> bool:
+    """Whether the located regions a local term may hold together cover more than REGION_SHARE of the
+    travel (the length of their union): the residual then departs from the starting model over most
+    of the axis, a structure over the travel (a screw lead seen lobe by lobe on a dense table), which
+    is the vocabulary's to explain, as one region that wide is (candidate_regions), not a set of local
+    errors. (Each lobe tried as a local term, and the vocabulary searched again beside them all,
+    cost most of a dense table's discovery.)"""
+    spans = sorted((r.start, r.end) for r in candidate_regions(data, located))
+    covered, reach = 0.0, -math.inf
+    for start, end in spans:
+        covered += max(0.0, end - max(start, reach))
+        reach = max(reach, end)
+    return covered > REGION_SHARE * (float(np.ptp(data.x)) or 1.0)
 
 
 def beside_unresolved_period(data: CampaignData, result: Discovery) -> Discovery:
