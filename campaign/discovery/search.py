@@ -798,11 +798,8 @@ def unnamed_beside_regions(data: CampaignData, result: Discovery) -> Discovery:
         without = linear_fit(data, [t for t in result.final.terms if t.name != name
                                     and not t.name.startswith("local_error")] + beside)
         index = 1 + sum(1 for t in result.final.terms if t.name.startswith("local_region"))
-        located = locate(data, data.y - without.prediction)
-        # regions over most of the travel are the effect's structure over it, not local errors (over_the_travel)
-        terms = [] if over_the_travel(data, located) else [
-            replace(t, name=t.name.split("#")[0] + (f"#{index + k}" if index + k > 1 else ""))
-            for k, t in enumerate(region_terms(data, without, located))]
+        terms = [replace(t, name=t.name.split("#")[0] + (f"#{index + k}" if index + k > 1 else ""))
+                 for k, t in enumerate(region_terms(data, without, locate(data, data.y - without.prediction)))]
         named_cv = cv_rms_um(data, [*result.final.terms, *beside], data.target_index)
         if not all(within_targets(data, t) for t in terms):
             terms = []  # a region that reaches the end of the travel may be the effect's own slope or bow
