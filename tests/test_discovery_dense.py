@@ -35,6 +35,10 @@ def test_lobes_over_most_of_the_travel_are_over_the_travel():
 def test_a_few_local_regions_are_not():
     data = axis()
     assert not over_the_travel(data, Located(lobes(np.array([100.0, 400.0]), 120.0)))
+    # a zone with the starting model bent around it on either side: 93 % of the travel in three regions
+    zone = [Region("position", "deviation", s, e, 1.0, (s + e) / 2, "both", "bump")
+            for s, e in ((0.0, 181.25), (196.25, 322.5), (338.75, 600.0))]
+    assert not over_the_travel(data, Located(zone))
 
 
 def test_overlapping_regions_count_once():

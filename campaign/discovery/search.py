@@ -1050,18 +1050,28 @@ def with_regions(data: CampaignData, model: ErrorModel, given: dict[str, set[str
 
 
 def over_the_travel(data: CampaignData, located: Located) -> bool:
-    """Whether the located regions a local term may hold together cover more than REGION_SHARE of the
-    travel (the length of their union): the residual then departs from the starting model over most
-    of the axis, a structure over the travel (a screw lead seen lobe by lobe on a dense table), which
-    is the vocabulary's to explain, as one region that wide is (candidate_regions), not a set of local
-    errors. (Each lobe tried as a local term, and the vocabulary searched again beside them all,
-    cost most of a dense table's discovery.)"""
-    spans = sorted((r.start, r.end) for r in candidate_regions(data, located))
+    """Whether the located regions a local term may hold are a row of lobes over the travel: more than
+    LOBES regions, together covering more than REGION_SHARE of the travel (the length of their union).
+    The residual then departs from the starting model over most of the axis in many places, a structure
+    over the travel (a screw lead seen lobe by lobe on a dense table), which is the vocabulary's to
+    explain, as one region that wide is (candidate_regions), not a set of local errors. (A few regions,
+    however wide together, may each be one: a zone, and the starting model bent around it on either
+    side.) Each lobe tried as a local term, and the vocabulary searched again beside them all, cost
+    most of a dense table's discovery."""
+    regions = candidate_regions(data, located)
+    if len(regions) <= LOBES:
+        return False
     covered, reach = 0.0, -math.inf
-    for start, end in spans:
+    for start, end in sorted((r.start, r.end) for r in regions):
         covered += max(0.0, end - max(start, reach))
         reach = max(reach, end)
     return covered > REGION_SHARE * (float(np.ptp(data.x)) or 1.0)
+
+
+LOBES = 10
+"""More located regions than this over most of the travel are a row of lobes (over_the_travel): an
+axis's local errors are a few (a step, a worn zone or two, each seen at most in both directions and with
+the starting model bent beside it); a 10 mm lead over 600 mm shows up to 120 lobes."""
 
 
 def beside_unresolved_period(data: CampaignData, result: Discovery) -> Discovery:
