@@ -56,8 +56,8 @@ STEP_MIN_SPACINGS = 0.2
 """The sharpest step looked for, in target spacings (its place is then known to about a spacing)."""
 MAX_CENTRES = 600
 """The most centres on the grid (a quarter of the target spacing apart, or the travel over this)."""
-GRID_CELLS = 4_000_000
-"""Rows × centres evaluated at a time by the grid (about 32 MB per array)."""
+GRID_CELLS = 1_000_000
+"""Rows × centres evaluated at a time by the grid (8 MB per array, as fit.PERIODOGRAM_CELLS)."""
 GRID_MIN_BLOCK = 32
 """The fewest centres the grid evaluates at a time."""
 BUMP_MAX_SHARE = 4.0

@@ -77,6 +77,7 @@ from campaign.discovery.local import (
 from campaign.discovery.locate import Located, beside_period, locate
 from campaign.discovery.records import Choice, Held, LocalRival, StandIn, StartingEffect, Unresolved
 from campaign.discovery.unexplained import (
+    REGION_SHARE,
     candidate_regions,
     describe_region,
     region_term,
@@ -1142,7 +1143,10 @@ def with_regions(data: CampaignData, model: ErrorModel, given: dict[str, set[str
     follows the data over each region the locator found beside the starting model (each kept only
     when it passes the tests), the vocabulary searched beside them, then each term tested again beside
     what is named. None when none is left, or when a period stays unresolved beside them (the
-    regions may be that period seen at few targets: with_locals makes them its rivals)."""
+    regions may be that period seen at few targets: with_locals makes them its rivals), or when the
+    regions together cover most of the travel (`over_the_travel`)."""
+    if over_the_travel(data, located):
+        return None
     terms = region_terms(data, vocabulary.start, located)
     if not terms:
         return None
@@ -1161,6 +1165,31 @@ def with_regions(data: CampaignData, model: ErrorModel, given: dict[str, set[str
     found = [describe_region(data, final, term.name, linear_fit(data, [t for t in final.terms if t.name != term.name]))
              for term in kept]
     return with_local_terms(data, again, vocabulary, final, found)
+
+
+def over_the_travel(data: CampaignData, located: Located) -> bool:
+    """Whether the located regions a local term may hold are a row of lobes over the travel: more than
+    LOBES regions, together covering more than REGION_SHARE of the travel (the length of their union).
+    The residual then departs from the starting model over most of the axis in many places, a structure
+    over the travel (a screw lead seen lobe by lobe on a dense table), which is the vocabulary's to
+    explain, as one region that wide is (candidate_regions), not a set of local errors. (A few regions,
+    however wide together, may each be one: a zone, and the starting model bent around it on either
+    side.) Each lobe tried as a local term, and the vocabulary searched again beside them all, cost
+    most of a dense table's discovery."""
+    regions = candidate_regions(data, located)
+    if len(regions) <= LOBES:
+        return False
+    covered, reach = 0.0, -math.inf
+    for start, end in sorted((r.start, r.end) for r in regions):
+        covered += max(0.0, end - max(start, reach))
+        reach = max(reach, end)
+    return covered > REGION_SHARE * (float(np.ptp(data.x)) or 1.0)
+
+
+LOBES = 10
+"""More located regions than this over most of the travel are a row of lobes (over_the_travel): an
+axis's local errors are a few (a step, a worn zone or two, each seen at most in both directions and with
+the starting model bent beside it); a 10 mm lead over 600 mm shows up to 120 lobes."""
 
 
 def beside_unresolved_period(data: CampaignData, result: Discovery) -> Discovery:
