@@ -664,3 +664,20 @@ def test_bumps_found_in_an_effects_place_must_hold_what_it_held(cli):
     assert "backlash" in out["added"], out["notes"]
     b, error = out["model"]["backlash"]["b_um"], out["model_standard_errors"]["backlash"]["b_um"]
     assert abs(b - 1.0) < 3 * error + 0.05, (b, error)
+
+
+@pytest.mark.machine  # a few seconds
+def test_the_follow_up_measures_where_a_local_error_may_be():
+    """tests/recorded/bow-step-minus-300mm.csv: `axiscal run` of the simulated horizontal axis (11
+    golden targets, 0.7 µm noise, sim seed 1) with a bow and a 3 µm step at 300 mm in the − direction
+    only. The step is fitted at 337 ± 18 mm, rising over 56 mm; the follow-up measured 309-365 mm
+    and never saw its rise. It measures the fitted region widened by twice its centre's error."""
+    from campaign.commands.discover import regions_to_measure
+    from campaign.discovery.data import campaign_data
+    from campaign.pointtable import read_points
+
+    data = campaign_data(read_points(RECORDED / "bow-step-minus-300mm.csv"))
+    result = discover(data, ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
+    step = next(e for e in result.local_errors if e.kind == "step")
+    assert not step.region_mm[0] <= 300.0 <= step.region_mm[1]  # the case: the fit alone misses it
+    assert any(a <= 300.0 - 5.0 and 300.0 + 5.0 <= b for a, b in regions_to_measure(result)), regions_to_measure(result)
