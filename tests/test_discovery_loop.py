@@ -670,14 +670,25 @@ def test_bumps_found_in_an_effects_place_must_hold_what_it_held(cli):
 def test_the_follow_up_measures_where_a_local_error_may_be():
     """tests/recorded/bow-step-minus-300mm.csv: `axiscal run` of the simulated horizontal axis (11
     golden targets, 0.7 µm noise, sim seed 1) with a bow and a 3 µm step at 300 mm in the − direction
-    only. The step is fitted at 337 ± 18 mm, rising over 56 mm; the follow-up measured 309-365 mm
-    and never saw its rise. It measures the fitted region widened by twice its centre's error."""
-    from campaign.commands.discover import regions_to_measure
+    only. The step was fitted at 337 ± 18 mm, rising over 56 mm with one target on its rise, and the
+    follow-up measured 309-365 mm, never its rise. A step with one target or none on its rise is said
+    between the targets either side of its middle; a fitted region is measured widened by twice its
+    centre's error."""
+    from dataclasses import replace
+
+    from campaign.commands.discover import regions_to_measure, with_its_place_uncertain
     from campaign.discovery.data import campaign_data
+    from campaign.discovery.local import Zone
     from campaign.pointtable import read_points
 
     data = campaign_data(read_points(RECORDED / "bow-step-minus-300mm.csv"))
     result = discover(data, ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
     step = next(e for e in result.local_errors if e.kind == "step")
-    assert not step.region_mm[0] <= 300.0 <= step.region_mm[1]  # the case: the fit alone misses it
-    assert any(a <= 300.0 - 5.0 and 300.0 + 5.0 <= b for a, b in regions_to_measure(result)), regions_to_measure(result)
+    assert step.between_mm is not None and step.between_mm[0] < 300.0 < step.between_mm[1]
+    assert any(a < 300.0 < b for a, b in regions_to_measure(result)), regions_to_measure(result)
+    fitted = replace(step, between_mm=None, params={**step.params, "centre_mm": 337.0, "width_mm": 56.0},
+                     errors={**step.errors, "centre_mm": 18.0})
+    low, high = fitted.region_mm
+    assert not low <= 300.0 <= high  # the fit alone misses it
+    wide = with_its_place_uncertain(Zone(fitted.region_mm, 3.0, "", (fitted,)))
+    assert wide == pytest.approx((low - 36.0, high + 36.0))
