@@ -62,7 +62,7 @@ def record(cli, tmp_path, monkeypatch, seed: int, method: str):
 
 @pytest.mark.machine
 @pytest.mark.parametrize("method", ["stable", "dwell"])
-@pytest.mark.parametrize("seed", [21, 22])
+@pytest.mark.parametrize("seed", [21])
 def test_each_point_is_where_the_carriage_was(cli, tmp_path, monkeypatch, seed, method):
     """The capture: what was recorded is where the carriage was, to the reading noise (the
     recorded reversal within a quarter of its own standard error of the true one)."""
@@ -76,11 +76,12 @@ def test_each_point_is_where_the_carriage_was(cli, tmp_path, monkeypatch, seed, 
 
 @pytest.mark.machine
 def test_the_fitted_backlash_is_the_true_one_over_seeds(cli, tmp_path, monkeypatch):
-    """The reversal: six campaigns with the stability trigger, each fit within 3.5 of its standard
+    """The reversal: four campaigns with the stability trigger, each fit within 3.5 of its standard
     errors of the true 2 µm, their mean within 3 standard errors of the mean (a 0.12 µm shortfall,
-    what a reviewer once reported, is about 4.5 of them)."""
+    what a reviewer once reported, is about 3.7 of them; six campaigns made it 4.5, at a quarter
+    more of the suite's time)."""
     fits = []
-    for seed in range(31, 37):
+    for seed in range(31, 35):
         table, _ = record(cli, tmp_path / str(seed), monkeypatch, seed, "stable")
         fits.append(backlash_fit(table.deviation, table.direction))
     b_um, se_um = np.array(fits).T
