@@ -692,3 +692,16 @@ def test_the_follow_up_measures_where_a_local_error_may_be():
     assert not low <= 300.0 <= high  # the fit alone misses it
     wide = with_its_place_uncertain(Zone(fitted.region_mm, 3.0, "", (fitted,)))
     assert wide == pytest.approx((low - 36.0, high + 36.0))
+
+
+@pytest.mark.machine  # a few seconds
+def test_a_rival_the_data_leave_room_for_is_said(cli):
+    """tests/recorded/backlash-and-settling*.csv: `axiscal run` of the simulated horizontal axis (11
+    golden targets, stable trigger, sim seed 30) with a 1.8 µm backlash and settling of 2 µm, τ 1 s, and its
+    follow-up's 20-point wait ladder. Fitted together they name settling alone, τ about 4 s: beside
+    it a backlash fits with an error several times its size. The notes say the data do not exclude
+    backlash there and how to tell."""
+    tables = [RECORDED / f"backlash-and-settling{part}.csv" for part in ("", "-ladder")]
+    out = json.loads(cli("discover", *tables, "--json").out)
+    said = [n for n in out["notes"] if n.startswith("backlash beside settling is not excluded")]
+    assert out["added"] == ["settling"] and said, out["notes"]

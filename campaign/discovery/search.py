@@ -701,6 +701,7 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     result = hold_unresolved(data, result, periods=False)
     result = beside_unresolved_period(data, result)
     result = hold_unresolved(data, result, periods=True)
+    rivals_not_excluded(data, result)
     result.located_before = start_located if result.start is vocabulary.start else locate(
         data, data.y - result.start.prediction)
     result.located_after = locate(data, data.y - model_prediction(data, result.final))
@@ -711,6 +712,46 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
             located.regions[:] = beside_period(located.regions, float(np.ptp(data.x)) or 1.0)
     result.noise_measured = noise_measured(data)
     return result
+
+
+RIVAL_NOT_EXCLUDED_SHARE = 0.5
+"""A rival beside a named effect is said not excluded when twice its standard error reaches this
+share of the named effect's size: the data leave room for both at sizes that matter."""
+
+
+def rivals_not_excluded(data: CampaignData, result: Discovery) -> None:
+    """For each named effect, each of its rivals (its `rivals`, those with no shape to search and a size
+    in the same unit) that is neither named nor unresolved is fitted beside the final model: when its
+    size is under 2σ but 2σ
+    reaches RIVAL_NOT_EXCLUDED_SHARE of the named effect's size, a note says the data do not exclude
+    it and how to tell. Backlash and settling together fit as settling alone with a long time
+    constant (a reviewer's 1.8 µm backlash and 2 µm settling, τ 1 s, came out as settling, τ 4.2 s,
+    and nothing said backlash might be there too)."""
+    unresolved = {name for u in result.unresolved for name in u.effects}
+    pairs = how_to_tell_pairs()
+    for named in result.added:
+        size_key = next(iter(FORMS[named].sizes), None)
+        if size_key is None or named not in result.params():
+            continue
+        size = abs(result.params()[named].get(size_key, math.nan))
+        for rival in sorted(n for pair in pairs if named in pair for n in pair if n != named):
+            if (rival in result.added or rival in unresolved or rival not in FORMS or FORMS[rival].shape
+                    or FORMS[rival].fixed_shape is not None):
+                continue
+            rival_size = next(iter(FORMS[rival].sizes), None)
+            if rival_size is None or rival_size.rsplit("_", 1)[-1] != size_key.rsplit("_", 1)[-1]:
+                continue  # sizes in other units (a slope beside a reversal) do not compare
+            beside = linear_fit(data, [*result.final.terms, Term(rival)])
+            errors = standard_errors(data, beside).get(rival, {})
+            value = beside.params().get(rival, {}).get(rival_size, math.nan)
+            error = errors.get(rival_size, math.nan)
+            if not (math.isfinite(value) and math.isfinite(error) and math.isfinite(size)):
+                continue
+            if abs(value) < SIZE_SIGMAS * error and abs(value) + SIZE_SIGMAS * error >= RIVAL_NOT_EXCLUDED_SHARE * size:
+                _note(result.notes, f"{rival} beside {named} is not excluded by this data: {rival_size} = "
+                                    f"{value:.3g} ± {error:.2g} beside it (under 2σ, but up to {abs(value) + SIZE_SIGMAS * error:.2g} "
+                                    f"against {named}'s {size_key} {size:.3g}); {named}'s values may hold part of it. "
+                                    f"To tell: {pairs[frozenset({named, rival})]}")
 
 
 def model_prediction(data: CampaignData, fit: Fit) -> np.ndarray:
