@@ -54,11 +54,10 @@ class Unresolved:
 
 
 @dataclass(frozen=True)
-class StandIn:
-    """Rivals that predict the same deviation wherever the campaign's axis is used (backlash and
-    settling at a constant wait): `effect`, the one in the final model in their place (not named);
-    what the data show, in words (`observable`); the `rivals`; its fitted `params`; and the gap had
-    nothing been added for it (`gap_without_um`)."""
+class InTheFit:
+    """A term in the final model that is not a named effect: the effect whose form it has
+    (`effect`), the group it stands for (`rivals`), what the data show, in words (`observable`), its
+    fitted `params`, and the gap had nothing been added for it (`gap_without_um`)."""
 
     effect: str
     rivals: tuple[str, ...]
@@ -73,22 +72,16 @@ class StandIn:
 
 
 @dataclass(frozen=True)
-class Held:
+class StandIn(InTheFit):
+    """Rivals that predict the same deviation wherever the campaign's axis is used (backlash and
+    settling at a constant wait): `effect` is the one in the final model in their place (not named)."""
+
+
+@dataclass(frozen=True)
+class Held(InTheFit):
     """What an unresolved group shows, held in the final model so that the gap shrinks, while the
     group stays unresolved: never named, never saved with the model. `effect`: the rival whose form
-    holds it (the one that explains most); `rivals`: the group; what the data show, in words
-    (`observable`); the fitted `params`; the gap had nothing been held for it (`gap_without_um`)."""
-
-    effect: str
-    rivals: tuple[str, ...]
-    observable: str
-    params: Mapping[str, float]
-    gap_without_um: float
-
-    def as_dict(self) -> dict[str, Any]:
-        return {"effect": self.effect, "rivals": list(self.rivals), "observable": self.observable,
-                "params": {k: round(float(v), 4) for k, v in self.params.items()},
-                "gap_without_um": round(self.gap_without_um, 4)}
+    holds it (the one that explains most)."""
 
 
 @dataclass(frozen=True)
