@@ -120,8 +120,8 @@ def test_a_joint_fits_gap_and_noise_weigh_each_table_as_the_fit_does(seed):
     assert len(result.tables) == 2
     for c, part in enumerate(parts):
         keep = data.campaign_index == c
-        assert result.tables[c]["gap_um"] == pytest.approx(float(np.sqrt(np.mean(residual[keep] ** 2))), abs=1e-4)
-    assert result.tables[0]["noise_um"] < result.tables[1]["noise_um"]
+        assert result.tables[c].gap_um == pytest.approx(float(np.sqrt(np.mean(residual[keep] ** 2))), abs=1e-4)
+    assert result.tables[0].noise_um < result.tables[1].noise_um
     # one table: the weighted figures are the plain ones
     alone = parts[0]
     fit = linear_fit(alone, [Term("linear_scale")])

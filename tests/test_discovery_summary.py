@@ -100,6 +100,7 @@ def test_tables_fitted_together_are_noise_only_when_each_table_is():
 
     from campaign.commands.discover import noise_verdict
     from campaign.discovery.data import campaign_data
+    from campaign.discovery.records import TableGap
     from campaign.discovery.search import discover
     from campaign.discovery.simulate import simulate_campaign
     from campaign.model import ErrorModel
@@ -111,11 +112,11 @@ def test_tables_fitted_together_are_noise_only_when_each_table_is():
     assert noise_verdict(result) == "noise"
     result.gap_after_um = 0.03
     result.noise_um = 0.45
-    fine, coarse = {"gap_um": 0.02, "noise_um": 0.02}, {"gap_um": 1.105, "noise_um": 0.453}
+    fine, coarse = TableGap(0.02, 0.02), TableGap(1.105, 0.453)
     assert noise_verdict(replace(result, tables=[fine, coarse])) == (
         "more than noise in table 2 (1.1 against its own noise 0.453), tables in the order given")
-    assert noise_verdict(replace(result, tables=[fine, {"gap_um": 0.5, "noise_um": 0.453}])) == "noise"
-    assert noise_verdict(replace(result, tables=[fine, {"gap_um": 0.5, "noise_um": float("nan")}])) == "noise"
+    assert noise_verdict(replace(result, tables=[fine, TableGap(0.5, 0.453)])) == "noise"
+    assert noise_verdict(replace(result, tables=[fine, TableGap(0.5, float("nan"))])) == "noise"
 
 
 @pytest.mark.machine  # a few seconds

@@ -179,7 +179,7 @@ def as_json(result: Discovery) -> dict:
         "model_standard_errors": {name: errors_json(e) for name, e in result.errors.items()},
         "starting_model": {name: entry.as_dict() for name, entry in result.starting.items()},
         "offset_um": round(result.final.offset_um, 4),
-        "tables": result.tables,
+        "tables": [t.as_dict() for t in result.tables],
         "disagreement_before": result.disagreement_before,
         "disagreement_after": result.disagreement_after,
         "choices": [c.as_dict() for c in result.choices],
@@ -248,7 +248,7 @@ def noise_verdict(result: Discovery) -> str:
     if result.gap_after_um > 1.3 * result.noise_um:
         return "more than noise"
     above = [f"table {i} ({gap:.3g} against its own noise {noise:.3g})"
-             for i, (gap, noise) in enumerate(((t["gap_um"], t["noise_um"]) for t in result.tables), start=1)
+             for i, (gap, noise) in enumerate(((t.gap_um, t.noise_um) for t in result.tables), start=1)
              if np.isfinite(noise) and noise > 0 and gap > 1.3 * noise]
     if above:  # the tables together weigh each by its own scatter: a fine scan can hide a coarse table's gap
         return f"more than noise in {', '.join(above)}, tables in the order given"

@@ -54,6 +54,18 @@ class Unresolved:
 
 
 @dataclass(frozen=True)
+class TableGap:
+    """One table of a joint fit, its points alone (unweighted): the RMS of the final model's residual
+    (`gap_um`) and the run-to-run scatter (`noise_um`), both in the deviation unit."""
+
+    gap_um: float
+    noise_um: float
+
+    def as_dict(self) -> dict[str, float]:
+        return {"gap_um": round(self.gap_um, 4), "noise_um": round(self.noise_um, 4)}
+
+
+@dataclass(frozen=True)
 class InTheFit:
     """A term in the final model that is not a named effect: the effect whose form it has
     (`effect`), the group it stands for (`rivals`), what the data show, in words (`observable`), its

@@ -75,7 +75,7 @@ from campaign.discovery.local import (
     refit_local,
 )
 from campaign.discovery.locate import Located, beside_period, locate
-from campaign.discovery.records import Choice, Held, LocalRival, StandIn, StartingEffect, Unresolved
+from campaign.discovery.records import Choice, Held, LocalRival, StandIn, StartingEffect, TableGap, Unresolved
 from campaign.discovery.unexplained import (
     REGION_SHARE,
     candidate_regions,
@@ -230,7 +230,7 @@ class Discovery:
     located_after: Located | None = None
     """The same for the final model: what it leaves unexplained, with its regions (what a held
     unresolved group holds included: model_prediction)."""
-    tables: list[dict[str, float]] = field(default_factory=list)
+    tables: list[TableGap] = field(default_factory=list)
     """Tables fitted together: per table (campaign index order) its own gap and noise (gap_um,
     noise_um: its points alone, unweighted); gap_after_um and noise_um weigh each table as the fit
     does (campaign.discovery.local.gap_um). Empty for one table."""
@@ -350,7 +350,7 @@ def pooled_scatter_um(data: CampaignData, residual: np.ndarray) -> float:
     return float(np.sqrt(ss / dof)) if dof > 0 else gap_um(data, residual)
 
 
-def by_table(data: CampaignData, residual: np.ndarray) -> list[dict[str, float]]:
+def by_table(data: CampaignData, residual: np.ndarray) -> list[TableGap]:
     """Per table fitted together (campaign index order): its gap (RMS of the residual on its points)
     and its run-to-run noise, µm, each as if it were alone (unweighted); empty for one table."""
     if data.campaigns < 2:
@@ -358,9 +358,8 @@ def by_table(data: CampaignData, residual: np.ndarray) -> list[dict[str, float]]
     out = []
     for c in range(data.campaigns):
         keep = data.campaign_index == c
-        part = keep_rows(data, keep)
-        out.append({"gap_um": round(float(np.sqrt(np.mean(residual[keep] ** 2))), 4),
-                    "noise_um": round(pooled_scatter_um(part, residual[keep]), 4)})
+        out.append(TableGap(float(np.sqrt(np.mean(residual[keep] ** 2))),
+                            pooled_scatter_um(keep_rows(data, keep), residual[keep])))
     return out
 
 
