@@ -46,7 +46,11 @@ def effect_um(name: str, p: dict[str, float], x: ArrayLike, d: ArrayLike, t: Arr
     x, d, t, w = (np.asarray(a, dtype=float) for a in (x, d, t, w))
     deviation = EFFECTS[name].deviation
     assert deviation is not None  # EFFECTS holds the simulated effects only
-    return np.asarray(deviation(p, x, d, t, w), dtype=float) * np.ones(np.broadcast(x, d, t, w).shape)
+    values = np.asarray(deviation(p, x, d, t, w), dtype=float)
+    shape = np.broadcast(x, d, t, w).shape
+    # an effect that ignores some arguments is spread to their shape (the simulator's one point a tick
+    # is already the shape: no copy)
+    return values if values.shape == shape else values * np.ones(shape)
 
 
 @dataclass

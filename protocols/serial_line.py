@@ -33,6 +33,8 @@ import math
 import re
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
+from functools import reduce
+from operator import xor
 from typing import Any
 
 from protocols.errors import FormatError
@@ -184,10 +186,8 @@ def _field_problems(names: tuple[str, ...]) -> Iterator[str]:
 
 def checksum_hex(body: str) -> str:
     """The XOR of the character codes of body, as two upper-case hex digits."""
-    value = 0
-    for char in body:
-        value ^= ord(char) & 0xFF
-    return f"{value:02X}"
+    low_bytes = body.encode("utf-32-le", "surrogatepass")[::4]  # each character's code & 0xFF
+    return f"{reduce(xor, low_bytes, 0):02X}"
 
 
 def parse_line(text: str, fmt: LineFormat) -> Reading:

@@ -1,13 +1,12 @@
 """Strict typing where it pays: the modules pyproject.toml lists get every flag of `mypy --strict`
-(per module, as mypy allows), and `make test`'s mypy run holds them to it."""
+(per module, as mypy allows), and `make test`'s mypy run holds them to it. (A second run of
+`mypy --strict` on them checked the same flags again and cost 19 s of the suite: dropped.)"""
 
 import re
 import subprocess
 import sys
 import tomllib
 from pathlib import Path
-
-import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 STRICT_MODULES = {"campaign.specs", "campaign.plan", "campaign.measure", "campaign.measure.*", "campaign.record",
@@ -35,17 +34,3 @@ def test_the_listed_modules_get_every_strict_flag():
     assert len(wanted) >= 10 and "disallow_any_generics" in wanted
     for flag in sorted(wanted - {"warn_unused_configs"}):  # a global report about the config file itself
         assert override.get(flag) is True or config.get(flag) is True, f"{flag} is not on for the strict modules"
-
-
-@pytest.mark.machine
-def test_mypy_strict_reports_nothing_on_the_listed_modules():
-    """`mypy --strict` itself (not only the overrides) on the strict modules: zero errors there."""
-    mypy = Path(sys.executable).with_name("mypy")
-    paths = ["campaign/specs.py", "campaign/plan.py", "campaign/measure", "campaign/record",
-             "campaign/history/store.py", "drivers/fake.py"]
-    proc = subprocess.run([str(mypy), "--strict", *paths], cwd=ROOT, capture_output=True, text=True, timeout=600,
-                          check=False)
-    listed = re.compile(r"^(campaign/(specs|plan)\.py|campaign/(measure|record)/|campaign/history/store\.py|"
-                        r"drivers/fake\.py)")
-    errors = [ln for ln in proc.stdout.splitlines() if listed.match(ln) and ": error:" in ln]
-    assert errors == [], "\n".join(errors[:20])
