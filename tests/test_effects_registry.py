@@ -21,6 +21,7 @@ from campaign.discovery.data import read_campaign
 from campaign.discovery.effects import FORMS
 from campaign.discovery.fit import linear_fit
 from campaign.discovery.followup import part_of, plan_follow_up
+from campaign.discovery.local import reversal_name
 from campaign.discovery.records import Unresolved
 from campaign.discovery.search import how_to_tell_pairs, may_soak
 from campaign.effects import effect, effects, register, unregister
@@ -216,6 +217,21 @@ def test_whether_a_local_error_may_hide_behind_an_effect_is_its_modules_word():
         unregister("middle_wear")
     with pytest.raises(KeyError):
         may_soak("middle_wear")
+
+
+def test_the_reversal_a_split_local_term_must_beat_is_the_registrys_word():
+    """A local term split by direction must beat a reversal constant along the travel; which effect's
+    column that is comes from the module that says `reversal`, and its column is that reversal."""
+    flagged = [e for e in effects() if e.reversal]
+    assert len(flagged) == 1 and flagged[0].form is not None
+    assert reversal_name() == flagged[0].name
+
+    class Points:
+        x, d = np.array([0.0, 100.0, 300.0, 300.0]), np.array([1.0, -1.0, 1.0, -1.0])
+        t, w, time_source, env, air_index_change = np.zeros((4, 1)), None, "time_s", {}, None
+
+    column = flagged[0].form.columns(Points(), {}, {})
+    assert np.allclose(column[:, 0], -Points.d / 2)
 
 
 @pytest.mark.machine  # a simulated campaign and a discovery each: about 0.7 s

@@ -22,4 +22,4 @@ EFFECT = Effect(
     rivals={"position_dependent_backlash": (
         "both directions at targets over the whole travel: a reversal that grows along the travel is "
         "position_dependent_backlash, a constant one backlash")},
-    follow_up="travel", may_soak=True)
+    follow_up="travel", may_soak=True, reversal=True)

@@ -119,7 +119,9 @@ class Effect:
     periodogram's peaks, whose aliases at few targets are candidates that stay unresolved. needs:
     what a campaign must have for discovery to look for it ("wait": a capture_wait_s column whose
     waits vary, at a constant wait it is a reversal; "log": an air or material log that varies;
-    "runs": two runs or more, to show a run-to-run change). One object per
+    "runs": two runs or more, to show a run-to-run change). reversal: its column is a reversal
+    constant along the travel (backlash's −d/2): what a local term split by direction must beat
+    (campaign.discovery.local), since backlash, settling at one wait or their stand-in all look so. One object per
     effect: two are the same only when they are one (compared by identity)."""
 
     name: str
@@ -140,6 +142,7 @@ class Effect:
     may_soak: bool = False
     period: str | None = None
     needs: Needs | None = None
+    reversal: bool = False
 
     def __post_init__(self) -> None:
         if self.form is not None and self.form.name != self.name:
