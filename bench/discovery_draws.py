@@ -7,8 +7,9 @@ test axis at 11, 17 and 21 targets, golden and uniform, 5 runs, recorded with th
 null machines (the vocabulary part alone). For each shape × plan: how many draws the targets can see
 at all, how many of those are located (a region within its width, a step within 10 mm; a linear
 drift named), how many stated (located, or a region in what the final model leaves; a linear growth:
-the slope departing in time), how many more are steps said to lie between the two targets either side
-(bracketed: where the plan lets them be placed, coarser than 10 mm), how many name an effect the
+the slope departing in time; or bracketed), and of those how many only bracketed: said to lie between
+two neighbouring targets, as finely as the plan lets them be placed when that is coarser than 10 mm
+(a step between the targets that hold it, one target's departure between its neighbours), how many name an effect the
 machine lacks, how many end within 1.3 × the noise, and on the nulls how many leave a region along the
 axis (not a reversal) in what the final model leaves. Writes bench/results/discovery_draws.json and the table quoted in docs/discovery.md.
 
@@ -66,7 +67,7 @@ def main() -> None:
                     tally["visible"] += truth.visible
                     tally["located"] += truth.visible and judged.located
                     tally["stated"] += truth.visible and judged.stated
-                    tally["bracketed"] += truth.visible and judged.bracketed and not judged.stated
+                    tally["bracketed"] += truth.visible and judged.bracketed  # counted in stated too
                     tally["seen"] += truth.visible and judged.seen
                     tally["bad_names"] += bool(named_out_of_gates(data, result))
                     tally["false_names"] += bool(judged.false_names) or found_local
@@ -79,7 +80,7 @@ def main() -> None:
     out = {"draws_per_cell": args.draws, "seed": args.seed, "seconds": round(time.perf_counter() - started, 1),
            "totals": totals(rows), "rows": rows}
     args.out.write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
-    print("| shape | targets | golden: visible · seen · located · stated (+ bracketed) · false names · gap ≤ 1.3σ "
+    print("| shape | targets | golden: visible · seen · located · stated (of which bracketed) · false names · gap ≤ 1.3σ "
           "| uniform: the same |")
     print("|---|---|---|---|")
     for shape in (*SHAPES, "null"):
@@ -87,7 +88,7 @@ def main() -> None:
             cells = []
             for offsets in ("golden", "none"):
                 r = next(r for r in rows if (r["shape"], r["targets"], r["offsets"]) == (shape, count, offsets))
-                stated = f"{r['stated']}" + (f" + {r['bracketed']}" if r["bracketed"] else "")
+                stated = f"{r['stated']}" + (f" ({r['bracketed']})" if r["bracketed"] else "")
                 cells.append(f"{r['visible']}/{r['draws']} · {r['seen']} · {r['located']} · {stated} · "
                              f"{r['false_names']} · {r['gap_within_1_3']}")
             print(f"| {shape} | {count} | {cells[0]} | {cells[1]} |")

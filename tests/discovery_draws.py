@@ -152,8 +152,9 @@ class Judged:
     width, a step within 10 mm, by a local term of the final model), false names (vocabulary
     effects named that the machine lacks), the gap after against the noise estimate; stated: located
     by a local term, or said as unexplained structure (a region the locator finds in what the final
-    model leaves) within the same tolerance (a linear growth: the slope along the travel departing in
-    time, in what the final model leaves); seen: a region the locator finds before anything is named
+    model leaves) or as a local error an unresolved effect cannot be told from (its `local_rivals`)
+    within the same tolerance (a linear growth: the slope along the travel departing in time, in what
+    the final model leaves), or bracketed (below); seen: a region the locator finds before anything is named
     within it."""
 
     located: bool
@@ -163,8 +164,10 @@ class Judged:
     stated: bool = False
     seen: bool = False
     bracketed: bool = False
-    """A step said to lie between two targets (LocalError.between_mm) that hold it, with no target
-    between them: where the plan lets it be placed, when that is coarser than 10 mm (not `located`)."""
+    """Stated only as lying between two targets with no target between them, as finely as the plan
+    lets it be placed when that is coarser than the tolerance (not `located`): a step said between the
+    targets that hold it (LocalError.between_mm), or what one target alone shows, said between its
+    neighbours (a one-target region in what the final model leaves). Counted in `stated`."""
 
 
 def _near(truth: Truth, centres: list[float]) -> bool:
@@ -195,14 +198,16 @@ def judge(result: Discovery, truth: Truth) -> Judged:
         timed = result.located_after.regions if result.located_after is not None else []
         stated = located or any(r.over == "time" and r.what == "slope" for r in timed)
     else:
-        stated = located or _near(truth, [r.centre for r in after])
+        rivals = [(lo + hi) / 2 for u in result.unresolved for lo, hi in (r.region_mm for r in u.local_rivals)]
+        stated = located or _near(truth, [r.centre for r in after]) or _near(truth, rivals)
     seen = _near(truth, [r.centre for r in before]) or (truth.shape == "linear_growth" and result.located_before
                                                           is not None and any(r.over == "time"
                                                                               for r in result.located_before.regions))
-    bracketed = truth.shape == "step" and any(
+    bracketed = not stated and (truth.shape == "step" and any(
         e.between_mm is not None and e.between_mm[0] <= centre <= e.between_mm[1]
-        for e in result.local_errors for centre, _ in truth.regions)
-    return Judged(located, false, gap_ratio, said, stated, seen, bracketed)
+        for e in result.local_errors for centre, _ in truth.regions) or any(
+        r.one_target and r.start <= centre <= r.end for r in after for centre, _ in truth.regions))
+    return Judged(located, false, gap_ratio, said, stated or bracketed, seen, bracketed)
 
 
 def named_out_of_gates(data: CampaignData, result: Discovery) -> list[str]:

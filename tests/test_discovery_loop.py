@@ -676,8 +676,8 @@ def test_the_follow_up_measures_where_a_local_error_may_be():
     centre's error."""
     from dataclasses import replace
 
-    from campaign.commands.discover import regions_to_measure, with_its_place_uncertain
     from campaign.discovery.data import campaign_data
+    from campaign.discovery.followup import regions_to_measure, with_its_place_uncertain
     from campaign.discovery.local import Zone
     from campaign.pointtable import read_points
 

@@ -5,7 +5,6 @@ campaign that would separate what is left unresolved (campaign/discovery/, docs/
 from __future__ import annotations
 
 import argparse
-import math
 import re
 from collections.abc import Collection, Iterator
 from pathlib import Path
@@ -25,7 +24,7 @@ from campaign.discovery.data import (
     read_start_model,
 )
 from campaign.discovery.fit import derived
-from campaign.discovery.followup import FollowUp, plan_follow_up
+from campaign.discovery.followup import FollowUp, plan_follow_up, regions_to_measure
 from campaign.discovery.local import LocalError, Zone, zones
 from campaign.discovery.locate import Located, short
 from campaign.discovery.search import Candidate, Discovery, discover
@@ -657,27 +656,6 @@ def loop_ends(result: Discovery, files: list[str]) -> bool:
     """Tables fitted together (a follow-up measured) leave nothing unresolved and what is left is
     noise: the loop ends there, whatever local error the model holds (it is determined)."""
     return len(files) > 1 and not result.unresolved and noise_verdict(result) == "noise"
-
-
-def regions_to_measure(result: Discovery) -> list[tuple[float, float]]:
-    """Where a follow-up should measure densely: the located local errors' regions, those where a
-    local error rivals an unresolved effect, and what the final model leaves unexplained along the
-    axis (but a reversal over the travel). A region the
-    tables already measure densely is left out by the planner (the loop ends there)."""
-    rivals = [r.region_mm for u in result.unresolved for r in u.local_rivals]
-    left = [(r.start, r.end) for r in (result.located_after.along if result.located_after else [])
-            if r.direction != "opposite"]
-    return [with_its_place_uncertain(zone) for zone in zones(result.local_errors)] + rivals + left
-
-
-def with_its_place_uncertain(zone: Zone) -> tuple[float, float]:
-    """A zone's region widened by twice the standard error of its members' centres: where it may be,
-    not only where it was fitted (a step fitted at 337 ± 18 mm lay at 300 mm, and the follow-up over
-    309-365 mm never measured its rise). A step placed between two targets is already bracketed."""
-    low, high = zone.region_mm
-    errors = [m.errors.get("centre_mm", 0.0) for m in zone.members if m.between_mm is None]
-    sigma = max((e for e in errors if math.isfinite(e)), default=0.0)
-    return low - 2 * sigma, high + 2 * sigma
 
 
 def follow_up_lines(follow: FollowUp | None, path: str) -> list[str]:

@@ -929,6 +929,29 @@ def _cv_refitted(blocks: Blocks, y: np.ndarray, index: np.ndarray, groups_hash: 
     return float(np.sqrt(total / len(y))) if len(y) else 0.0
 
 
+def cv_searched_errors(data: CampaignData, terms: list[Term], groups: np.ndarray,
+                       refined: Callable[[CampaignData, list[Term]], list[Term]]) -> np.ndarray:
+    """Each group's sum of squared left-out residuals (weighted, µm²), as cv_rms_um but with every
+    searched shape (a local term's centre and width, a period) refined again without the group, from
+    its value on all the data: a shape chosen on all the targets predicts the one left out too well,
+    so a searched bump would beat an effect of fixed shape (a bow) that fits as well. `refined(fold,
+    terms)`: the terms with their shapes refined on the fold's rows. One refinement per group: for
+    the comparisons where that matters, not for every candidate."""
+    _, index = np.unique(groups, return_inverse=True)
+    index = index.ravel()
+    w = data.row_scale**2 if data.row_scale is not None else np.ones(len(data))
+    sums = np.zeros(int(index.max()) + 1 if len(index) else 0)
+    for g in range(len(sums)):
+        out = np.flatnonzero(index == g)
+        shaped = refined(keep_rows(data, index != g), terms)
+        blocks = Blocks(data, shaped)
+        y = data.y - fixed_deviation(data, shaped)
+        ag, yg, wg = blocks.rows(out), y[out], w[out]
+        beta = _fold_beta(blocks.gram() - ag.T @ (wg[:, None] * ag), blocks.t_times(y) - ag.T @ (wg * yg))
+        sums[g] = float(np.sum(wg * (yg - ag @ beta) ** 2))
+    return sums
+
+
 HAT_CELLS = 1_000_000
 """Numbers gathered at a time by the hat route's blocks (8 MB per array, as PERIODOGRAM_CELLS)."""
 

@@ -39,8 +39,9 @@ import numpy as np
 from campaign.config import Config, config_toml, config_with, parse_config
 from campaign.discovery.data import CampaignData
 from campaign.discovery.fit import Fit, Term, linear_fit
+from campaign.discovery.local import Zone, zones
 from campaign.discovery.records import Unresolved
-from campaign.discovery.search import RIVAL_MARGIN
+from campaign.discovery.search import RIVAL_MARGIN, Discovery
 from campaign.effects import REGISTRY
 from campaign.effects.base import stop_waits
 from campaign.model import is_model_name
@@ -363,6 +364,8 @@ def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData
         elif parts == {"travel"}:
             asks.append(_Ask(Part(sorted(names), "a reversal that may grow along the travel: both directions at "
                                                  f"{FEW_TARGETS} targets over the whole travel"), _spread(data), 1))
+        elif group.local_rivals:  # an effect or local errors there: denser targets over them tell
+            regions = [*regions, *((r.region_mm[0], r.region_mm[1]) for r in group.local_rivals)]
         else:
             unplanned.append(f"{' or '.join(group.effects)}: {group.how_to_tell}")
     rivals = [tuple(r.region_mm) for group in unresolved for r in group.local_rivals]
@@ -390,6 +393,27 @@ def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData
         scanned = _scan(config, dense, max(b - a, step), "region")[0] if rival else None
         asks.append(scanned or dense)
     return asks, unplanned
+
+
+def regions_to_measure(result: Discovery) -> list[tuple[float, float]]:
+    """Where a follow-up should measure densely: the located local errors' regions, those where a
+    local error rivals an unresolved effect, and what the final model leaves unexplained along the
+    axis (but a reversal over the travel). A region the
+    tables already measure densely is left out by the planner (the loop ends there)."""
+    rivals = [r.region_mm for u in result.unresolved for r in u.local_rivals]
+    left = [(r.start, r.end) for r in (result.located_after.along if result.located_after else [])
+            if r.direction != "opposite"]
+    return [with_its_place_uncertain(zone) for zone in zones(result.local_errors)] + rivals + left
+
+
+def with_its_place_uncertain(zone: Zone) -> tuple[float, float]:
+    """A zone's region widened by twice the standard error of its members' centres: where it may be,
+    not only where it was fitted (a step fitted at 337 ± 18 mm lay at 300 mm, and the follow-up over
+    309-365 mm never measured its rise). A step placed between two targets is already bracketed."""
+    low, high = zone.region_mm
+    errors = [m.errors.get("centre_mm", 0.0) for m in zone.members if m.between_mm is None]
+    sigma = max((e for e in errors if math.isfinite(e)), default=0.0)
+    return low - 2 * sigma, high + 2 * sigma
 
 
 def measured_stable_wait_s(data: CampaignData, config: Config) -> float:

@@ -36,10 +36,12 @@ from campaign.discovery.fit import (
     linear_fit,
     normal_beside,
     reduced_residual,
+    refine,
     solve_normal,
     span_at_positions,
     weighted,
 )
+from campaign.effects import effects
 
 ALPHA = 0.001
 """Largest p-value of the F-test (after the look-elsewhere factor), as for the vocabulary."""
@@ -367,6 +369,21 @@ def _refine(data: CampaignData, terms: list[Term], start: tuple[float, float], k
     return best if best.rss <= first.rss else first
 
 
+def shapes_refined(data: CampaignData, terms: list[Term]) -> list[Term]:
+    """`terms` with each local term's centre and width refined beside the others (from their current
+    values, one after the other) and then every searched shape of the rest (fit.refine)."""
+    terms = list(terms)
+    for i, term in enumerate(terms):
+        if not is_local(term):
+            continue
+        others = terms[:i] + terms[i + 1:]
+        index = int(term.name.split("#")[1]) if "#" in term.name else 1
+        fit = _refine(data, others, (term.shape["centre_mm"], term.shape["width_mm"]), term_kind(term),
+                      "_by_direction" in term.name, index)
+        terms[i] = fit.terms[-1]
+    return refine(data, terms).terms
+
+
 def _index(fit: Fit, name: str) -> int:
     return next(k for k, t in enumerate(fit.terms) if t.name == name)
 
@@ -446,9 +463,10 @@ def find_local(data: CampaignData, fit: Fit, index: int = 1) -> LocalError | Non
                     gap_without_um=gap_um(data, data.y - fit.prediction))
 
 
-REVERSAL = "backlash"
-"""The effect whose column is a reversal constant along the travel (−d/2): what backlash, settling at
-one wait, or the stand-in for them hold."""
+def reversal_name() -> str:
+    """The registered effect whose column is a reversal constant along the travel (Effect.reversal):
+    what backlash, settling at one wait, or the stand-in for them hold."""
+    return next(e.name for e in effects() if e.reversal and e.form is not None)
 
 
 def _differs_locally(data: CampaignData, fit: Fit, term: Term, kind: str, index: int) -> bool:
@@ -457,9 +475,10 @@ def _differs_locally(data: CampaignData, fit: Fit, term: Term, kind: str, index:
     otherwise take a machine's backlash or settling where it happens to lie, and the vocabulary would
     not see it (a reviewer saw +4.3 µm in − and +1.0 µm in + for a 2.5 µm bump beside a 1.8 µm backlash
     and settling)."""
-    if any(t.name == REVERSAL for t in fit.terms):
+    reversal = reversal_name()
+    if any(t.name == reversal for t in fit.terms):
         return True
-    beside = [*fit.terms, Term(REVERSAL)]
+    beside = [*fit.terms, Term(reversal)]
     c, w = term.shape["centre_mm"], term.shape["width_mm"]
     both = linear_fit(data, [*beside, local_term(c, w, False, kind, index)])
     split = linear_fit(data, [*beside, local_term(c, w, True, kind, index)])
