@@ -203,7 +203,7 @@ def judge(result: Discovery, truth: Truth) -> Judged:
     seen = _near(truth, [r.centre for r in before]) or (truth.shape == "linear_growth" and result.located_before
                                                           is not None and any(r.over == "time"
                                                                               for r in result.located_before.regions))
-    bracketed = not stated and (truth.shape == "step" and any(
+    bracketed = not stated and truth.shape != "linear_growth" and (truth.shape == "step" and any(
         e.between_mm is not None and e.between_mm[0] <= centre <= e.between_mm[1]
         for e in result.local_errors for centre, _ in truth.regions) or any(
         r.one_target and r.start <= centre <= r.end for r in after for centre, _ in truth.regions))

@@ -614,6 +614,17 @@ def test_a_region_after_a_dense_follow_up_takes_the_first_campaigns_spacing(tmp_
     data = join_campaigns([first, campaign_data(simulate_campaign(again, ErrorModel(BOW), seed=4))], ["a", "b"])
     assert plan_follow_up([], [], data, linear_fit(data, []), config, None, 0.34, tmp_path / "f.toml",
                           ["a/points.csv", "b/points.csv"], [(150.0, 350.0)]) is None
+    # an effect that local errors there fit as well, and the tables measure densely there already: the
+    # group is said unplanned (before, it was neither planned nor said, and the loop never ended)
+    from campaign.discovery.followup import _asks
+    from campaign.discovery.records import LocalRival
+
+    bow = Unresolved(("nonlinear_lead",), "a bump fits as well", "denser targets over 150–350 mm",
+                     local_rivals=(LocalRival("a bump", (150.0, 350.0)),))
+    asks, unplanned = _asks([bow], [], data, linear_fit(data, []), config, None, 0.34, [])
+    assert not asks and len(unplanned) == 1 and "nonlinear_lead" in unplanned[0], unplanned
+    asks, unplanned = _asks([bow], [], first, linear_fit(first, []), config, None, 0.34, [])  # the first alone
+    assert len(asks) == 1 and not unplanned
 
 
 @pytest.mark.machine

@@ -634,7 +634,7 @@ def run(args: argparse.Namespace) -> int:
                    None if args.follow_up else [str(f) for f in args.files])
         console = make_console()
         if args.follow_up and failed is None:
-            for line in follow_up_lines(follow, args.output):
+            for line in follow_up_lines(follow, args.output, [u.effects for u in result.unresolved]):
                 console.print(line)
         for path, what in ((plot_path, "plot"), (args.save, "model")):
             if path:
@@ -658,8 +658,13 @@ def loop_ends(result: Discovery, files: list[str]) -> bool:
     return len(files) > 1 and not result.unresolved and noise_verdict(result) == "noise"
 
 
-def follow_up_lines(follow: FollowUp | None, path: str) -> list[str]:
-    """What the follow-up campaign is for, part by part, and its machine time against the first's."""
+def follow_up_lines(follow: FollowUp | None, path: str, unresolved: list[tuple[str, ...]] | None = None) -> list[str]:
+    """What the follow-up campaign is for, part by part, and its machine time against the first's
+    (`unresolved`: the effects of each unresolved group, for when none could be planned)."""
+    if follow is None and unresolved:
+        said = "; ".join(" or ".join(group) for group in unresolved)
+        return [(f"follow-up: no campaign planned for what stays unresolved ({said}): the tables already measure "
+                 "where it would, or no part fits it (how to tell, above); no file written")]
     if follow is None:
         return [("follow-up: nothing is unresolved that another campaign could separate, and no region is left to "
                  "measure densely; no file written")]

@@ -328,6 +328,7 @@ def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData
     of the parts fits."""
     asks: list[_Ask] = []
     unplanned: list[str] = []
+    only_rivals: list[Unresolved] = []  # groups told apart only by denser targets over their rivals
     first_cycles = config.plan.cycles
     for group in unresolved:
         names = set(group.effects)
@@ -366,6 +367,7 @@ def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData
                                                  f"{FEW_TARGETS} targets over the whole travel"), _spread(data), 1))
         elif group.local_rivals:  # an effect or local errors there: denser targets over them tell
             regions = [*regions, *((r.region_mm[0], r.region_mm[1]) for r in group.local_rivals)]
+            only_rivals.append(group)
         else:
             unplanned.append(f"{' or '.join(group.effects)}: {group.how_to_tell}")
     rivals = [tuple(r.region_mm) for group in unresolved for r in group.local_rivals]
@@ -373,12 +375,14 @@ def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData
     spacing = float(np.median(np.diff(first_t))) if len(first_t) > 1 else 1.0
     lo, hi = float(_targets(data)[0]), float(_targets(data)[-1])
     every = _targets(data)
+    dense_already: list[tuple[float, float]] = []
     for start, end in _joined(regions):
         step = max(min(spacing / 4, (end - start) / 8), 1e-3)
         a, b = max(start - step, lo), min(end + step, hi)
         count = min(int((b - a) / step) + 1, MAX_CLUSTER_TARGETS)
         inside = every[(every >= start) & (every <= end)]
         if len(inside) >= 2 and float(np.max(np.diff(inside))) <= DENSE_ENOUGH * (b - a) / max(count - 1, 1):
+            dense_already.append((start, end))
             continue  # already measured as densely as a follow-up would: the tables hold its shape
         targets = [round(a + (b - a) * i / max(count - 1, 1), 4) for i in range(count)]
         dense = _Ask(Part(["local error"], (
@@ -392,6 +396,10 @@ def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData
         rival = any(r0 < end and start < r1 for r0, r1 in rivals)
         scanned = _scan(config, dense, max(b - a, step), "region")[0] if rival else None
         asks.append(scanned or dense)
+    for group in only_rivals:  # measured as densely as a follow-up would, and still not told apart
+        if all(any(a <= r.region_mm[0] and r.region_mm[1] <= b for a, b in dense_already) for r in group.local_rivals):
+            unplanned.append(f"{' or '.join(group.effects)}: the tables already measure densely over its rivals, and "
+                             "they still cannot tell it from a local error there")
     return asks, unplanned
 
 

@@ -463,10 +463,11 @@ def find_local(data: CampaignData, fit: Fit, index: int = 1) -> LocalError | Non
                     gap_without_um=gap_um(data, data.y - fit.prediction))
 
 
-def reversal_name() -> str:
+def reversal_name() -> str | None:
     """The registered effect whose column is a reversal constant along the travel (Effect.reversal):
-    what backlash, settling at one wait, or the stand-in for them hold."""
-    return next(e.name for e in effects() if e.reversal and e.form is not None)
+    what backlash, settling at one wait, or the stand-in for them hold; None when no effect with a form
+    says so."""
+    return next((e.name for e in effects() if e.reversal and e.form is not None), None)
 
 
 def _differs_locally(data: CampaignData, fit: Fit, term: Term, kind: str, index: int) -> bool:
@@ -476,7 +477,7 @@ def _differs_locally(data: CampaignData, fit: Fit, term: Term, kind: str, index:
     not see it (a reviewer saw +4.3 µm in − and +1.0 µm in + for a 2.5 µm bump beside a 1.8 µm backlash
     and settling)."""
     reversal = reversal_name()
-    if any(t.name == reversal for t in fit.terms):
+    if reversal is None or any(t.name == reversal for t in fit.terms):
         return True
     beside = [*fit.terms, Term(reversal)]
     c, w = term.shape["centre_mm"], term.shape["width_mm"]
