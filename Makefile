@@ -21,10 +21,13 @@ demo: $(STAMP)
 # minutes with little CPU, and tests that wait on a subprocess or a socket leave a core idle; three
 # workers kept the cores 89 % busy, four 92 % (671 s against 657 s of pytest). One BLAS thread per process
 # (tests/conftest.py sets the same for a plain `pytest`): more only oversubscribes the two cores.
+# mypy runs beside pytest (it has a core to itself while the workers start) and fails the target
+# after pytest's report when it found errors.
 test: $(STAMP)
 	bash tests/setup_system.sh
-	$(VENV)/bin/mypy campaign drivers protocols
-	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 $(PY) -m pytest -q -n 4 --dist loadgroup
+	$(VENV)/bin/mypy campaign drivers protocols > .mypy-report 2>&1 & mypy=$$!; \
+	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 $(PY) -m pytest -q -n 4 --dist loadgroup; tests=$$?; \
+	wait $$mypy; typed=$$?; cat .mypy-report; rm -f .mypy-report; test $$tests -eq 0 -a $$typed -eq 0
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .

@@ -20,7 +20,9 @@ MACHINES = {
     "10 mm lead": ("[effects.periodic_lead]\namplitude_um = 1.0\nperiod_mm = 10.0\nphase_rad = 0.3\n",
                    {"nonlinear_lead", "periodic_lead"}),
 }
-SEEDS = (1, 2, 3)
+SEEDS = (1, 2)
+"""Two seeds a machine (a third by hand: 40 s of the ten minutes the suite may take); the bench
+(bench/discovery_draws.py) draws 144 machines a seed for what is named that the machine lacks."""
 
 
 def user_campaign(cli, tmp_path, extra: str, seed: int):
