@@ -27,6 +27,7 @@ from campaign.discovery.fit import derived
 from campaign.discovery.followup import FollowUp, plan_follow_up, regions_to_measure
 from campaign.discovery.local import LocalError, Zone, zones
 from campaign.discovery.locate import Located, short
+from campaign.discovery.records import Unresolved
 from campaign.discovery.search import Candidate, Discovery, discover
 from campaign.effects import effect as registered
 from campaign.errors import InputError
@@ -174,6 +175,7 @@ def as_json(result: Discovery) -> dict:
         "remaining_beside": result.remaining_beside,
         "stand_in": None if result.stand_in is None else result.stand_in.as_dict(),
         "held": [h.as_dict() for h in result.held],
+        "not_excluded": [n.as_dict() for n in result.not_excluded],
         "model": {name: rounded(p) for name, p in result.params().items()},
         "model_standard_errors": {name: errors_json(e) for name, e in result.errors.items()},
         "starting_model": {name: entry.as_dict() for name, entry in result.starting.items()},
@@ -356,6 +358,10 @@ def summary_lines(result: Discovery, incomplete: list[str], time_unit: str = "s"
         held = "; held in the fit, not named" if any(h.rivals == entry.effects for h in result.held) else ""
         lines.append(f"[yellow]unresolved:[/] {' or '.join(entry.effects)}{rivals}; to tell: "
                      f"{first_clause(entry.how_to_tell)}{held}")
+    for rival in result.not_excluded:
+        lines.append(f"[yellow]not excluded:[/] {rival.rival} beside {rival.named} ({rival.size_key} "
+                     f"{rival.value:.2g} ± {rival.error:.2g} {dev} beside it); to tell: {first_clause(rival.how_to_tell)}"
+                     + ("" if rival.waits_s is None else f", with waits up to about {rival.waits_s:.2g} s"))
     verdict = noise_verdict(result)
     noise = f"noise {result.noise_um:.2f} {dev}" if result.noise_measured else "noise not measured"
     lines.append(f"gap {result.gap_before_um:.2f} -> {result.gap_after_um:.2f} {dev} RMS, {noise}: "
@@ -395,7 +401,7 @@ def next_command(result: Discovery, files: list[str]) -> str | None:
     noise is left: the follow-up that would tell (within the first campaign's machine time), or a
     look at where the residual is."""
     said = " ".join(files)
-    if result.unresolved or (result.local_errors and not loop_ends(result, files)):
+    if result.unresolved or result.not_excluded or (result.local_errors and not loop_ends(result, files)):
         return f"next: axiscal discover {said} --follow-up -o FOLLOW.toml"
     if noise_verdict(result) != "noise":
         return f"next: axiscal discover {said} --plot residual.png"
@@ -577,9 +583,11 @@ def follow_up_config(args: argparse.Namespace) -> Config:
 
 def reversal_um(result: Discovery) -> float | None:
     """The size of the reversal the unresolved backlash stands for, µm (the stand-in's, or the
-    backlash candidate's), if any."""
+    backlash candidate's), or of a named effect beside a rival it does not exclude, if any."""
     if result.stand_in is not None:
         return float(result.stand_in.params["b_um"])
+    if result.not_excluded:
+        return result.not_excluded[0].named_size
     for cand in result.remaining:
         if cand.name == "backlash" and cand.fit is not None:
             return float(cand.fit.params()["backlash"]["b_um"])
@@ -609,7 +617,7 @@ def run(args: argparse.Namespace) -> int:
     follow, failed = None, None
     if config is not None:
         try:  # the findings are printed even when the follow-up cannot be planned or written
-            follow = plan_follow_up(result.unresolved, result.remaining, data, result.final, config,
+            follow = plan_follow_up(to_tell(result), result.remaining, data, result.final, config,
                                     reversal_um(result), result.noise_um, Path(args.output), args.files,
                                     [] if loop_ends(result, args.files) else regions_to_measure(result),
                                     None if args.budget_min is None else 60 * args.budget_min)
@@ -655,7 +663,14 @@ def write_follow_up(path: Path, text: str) -> None:
 def loop_ends(result: Discovery, files: list[str]) -> bool:
     """Tables fitted together (a follow-up measured) leave nothing unresolved and what is left is
     noise: the loop ends there, whatever local error the model holds (it is determined)."""
-    return len(files) > 1 and not result.unresolved and noise_verdict(result) == "noise"
+    return len(files) > 1 and not result.unresolved and not result.not_excluded and noise_verdict(result) == "noise"
+
+
+def to_tell(result: Discovery) -> list[Unresolved]:
+    """What a follow-up should tell apart: the unresolved groups, and each named effect beside a rival
+    the data do not exclude (with the longest wait that would show it, when it has a time constant)."""
+    return [*result.unresolved, *(Unresolved((n.named, n.rival), "not excluded", n.how_to_tell, waits_s=n.waits_s)
+                                  for n in result.not_excluded)]
 
 
 def follow_up_lines(follow: FollowUp | None, path: str, unresolved: list[tuple[str, ...]] | None = None) -> list[str]:

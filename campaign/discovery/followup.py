@@ -335,12 +335,15 @@ def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData
         parts = {part_of(name) for name in names}
         if "dwells" in parts:
             waits = stop_waits(data) if len(stop_waits(data)) else np.array([config.plan.dwell_s])
-            high = max(WAITS_S[1], 1.25 * float(np.max(waits)))
+            high = max(WAITS_S[1], 1.25 * float(np.max(waits)), group.waits_s or 0.0)
             low = max(high / 10, WAITS_S[0] * high / WAITS_S[1])
             points = _dwell_points(reversal_um or 0.0, noise_um)
             asks.append(_Ask(Part(sorted(names), (
-                f"a reversal{'' if reversal_um is None else f' of {abs(reversal_um):.2g} µm'} that backlash and "
-                f"settling explain alike: waits before capture from {low:.2g} to {high:.2g} s (a decade, the dwell "
+                (f"a reversal{'' if reversal_um is None else f' of {abs(reversal_um):.2g} µm'} that backlash and "
+                 "settling explain alike" if group.waits_s is None else
+                 f"{' beside '.join(group.effects[::-1])}, not excluded: waits long enough for a settling of the time "
+                 "constant fitted to fade")
+                + f": waits before capture from {low:.2g} to {high:.2g} s (a decade, the dwell "
                 f"method with a {DWELL_WINDOW_S:g} s window) at {FEW_TARGETS} targets close together: settling fades "
                 f"with the wait, backlash does not; at least {points} points (a rule of thumb: a quarter of the "
                 f"reversal {SEPARATION:g} times the noise of {noise_um:.2g} µm over √points)")),

@@ -41,6 +41,9 @@ class Unresolved:
     periods_mm: tuple[float, ...] | None = None
     period_delta_bic: tuple[float, ...] = ()
     local_rivals: tuple[LocalRival, ...] = ()
+    waits_s: float | None = None
+    """The longest wait before capture a campaign that tells them needs, s (a named effect's time
+    constant beside a rival it does not exclude: NotExcluded.waits_s); None: the planner's own."""
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"effects": list(self.effects), "why": self.why, "how_to_tell": self.how_to_tell}
@@ -51,6 +54,30 @@ class Unresolved:
         if self.local_rivals:
             out["local_rivals"] = [r.as_dict() for r in self.local_rivals]
         return out
+
+
+@dataclass(frozen=True)
+class NotExcluded:
+    """A rival of a named effect that the data leave room for: fitted beside the final model its size
+    (`size_key`, `value` ± `error`) is under 2σ, but 2σ reaches a good share of the named effect's
+    size, so the named effect's values may hold part of it; `how_to_tell`: the campaign that would
+    show both; `named_size`: the named effect's own size (its first size parameter, the same unit);
+    `waits_s`: for a named effect with a time constant, the longest wait that campaign needs (s; None
+    otherwise)."""
+
+    rival: str
+    named: str
+    size_key: str
+    value: float
+    error: float
+    how_to_tell: str
+    named_size: float
+    waits_s: float | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"rival": self.rival, "beside": self.named, self.size_key: round(self.value, 4),
+                "standard_error": round(self.error, 4), "how_to_tell": self.how_to_tell,
+                "waits_up_to_s": None if self.waits_s is None else round(self.waits_s, 2)}
 
 
 @dataclass(frozen=True)

@@ -78,7 +78,16 @@ from campaign.discovery.local import (
     shapes_refined,
 )
 from campaign.discovery.locate import Located, beside_period, locate
-from campaign.discovery.records import Choice, Held, LocalRival, StandIn, StartingEffect, TableGap, Unresolved
+from campaign.discovery.records import (
+    Choice,
+    Held,
+    LocalRival,
+    NotExcluded,
+    StandIn,
+    StartingEffect,
+    TableGap,
+    Unresolved,
+)
 from campaign.discovery.unexplained import (
     REGION_SHARE,
     candidate_regions,
@@ -241,6 +250,8 @@ class Discovery:
     """False when no target is read twice in a direction: noise_um is then the residual itself, not
     a measured run-to-run scatter, and nothing can be said to be noise."""
     held: list[Held] = field(default_factory=list)
+    not_excluded: list[NotExcluded] = field(default_factory=list)
+    """Rivals of named effects the data leave room for (rivals_not_excluded)."""
     """What an unresolved group shows (a reversal backlash and settling explain alike at waits that
     vary too little to tell them), held in the final fit by its better rival's form so that the gap
     shrinks (hold_unresolved): the group stays unresolved, nothing is named or saved for it."""
@@ -723,10 +734,12 @@ share of the named effect's size: the data leave room for both at sizes that mat
 
 def rivals_not_excluded(data: CampaignData, result: Discovery) -> None:
     """For each named effect, each of its rivals (its `rivals`, those with no shape to search and a size
-    in the same unit) that is neither named nor unresolved is fitted beside the final model: when its
-    size is under 2σ but 2σ
-    reaches RIVAL_NOT_EXCLUDED_SHARE of the named effect's size, a note says the data do not exclude
-    it and how to tell. Backlash and settling together fit as settling alone with a long time
+    in the same unit) that is neither named nor unresolved is fitted beside the final model, the named
+    effects' shapes refitted with it (a settling's time constant grows to hold a backlash beside it):
+    when its size plus 2σ reaches RIVAL_NOT_EXCLUDED_SHARE of the named effect's size, the data do not
+    exclude it (the search did not name it): said (`not_excluded`, a note) with how to tell and, for
+    a named effect with a time constant, the waits that would show it fade (from the time constant
+    refitted beside the rival). Backlash and settling together fit as settling alone with a long time
     constant (a reviewer's 1.8 µm backlash and 2 µm settling, τ 1 s, came out as settling, τ 4.2 s,
     and nothing said backlash might be there too)."""
     unresolved = {name for u in result.unresolved for name in u.effects}
@@ -743,17 +756,28 @@ def rivals_not_excluded(data: CampaignData, result: Discovery) -> None:
             rival_size = next(iter(FORMS[rival].sizes), None)
             if rival_size is None or rival_size.rsplit("_", 1)[-1] != size_key.rsplit("_", 1)[-1]:
                 continue  # sizes in other units (a slope beside a reversal) do not compare
-            beside = linear_fit(data, [*result.final.terms, Term(rival)])
-            errors = standard_errors(data, beside).get(rival, {})
+            beside = refine(data, [*result.final.terms, Term(rival)])
+            errors = standard_errors(data, beside)
             value = beside.params().get(rival, {}).get(rival_size, math.nan)
-            error = errors.get(rival_size, math.nan)
+            error = errors.get(rival, {}).get(rival_size, math.nan)
             if not (math.isfinite(value) and math.isfinite(error) and math.isfinite(size)):
                 continue
-            if abs(value) < SIZE_SIGMAS * error and abs(value) + SIZE_SIGMAS * error >= RIVAL_NOT_EXCLUDED_SHARE * size:
+            if abs(value) + SIZE_SIGMAS * error >= RIVAL_NOT_EXCLUDED_SHARE * size:
+                tau = beside.params()[named].get(TIME_CONSTANT)
+                tau_error = errors.get(named, {}).get(TIME_CONSTANT, math.nan)
+                waits = 3 * (tau + SIZE_SIGMAS * tau_error) if tau is not None and math.isfinite(tau_error) else None
+                how = pairs[frozenset({named, rival})] + ("" if waits is None or tau is None else (
+                    f" (beside it {named}'s time constant is {tau:.2g} ± {tau_error:.2g} s: waits up to about "
+                    f"{waits:.2g} s, three times its upper bound, show what fades and what stays)"))
+                result.not_excluded.append(NotExcluded(rival, named, rival_size, value, error, how, size, waits))
                 _note(result.notes, f"{rival} beside {named} is not excluded by this data: {rival_size} = "
-                                    f"{value:.3g} ± {error:.2g} beside it (under 2σ, but up to {abs(value) + SIZE_SIGMAS * error:.2g} "
-                                    f"against {named}'s {size_key} {size:.3g}); {named}'s values may hold part of it. "
-                                    f"To tell: {pairs[frozenset({named, rival})]}")
+                                    f"{value:.3g} ± {error:.2g} beside it, {named}'s shape refitted (up to "
+                                    f"{abs(value) + SIZE_SIGMAS * error:.2g} against {named}'s {size_key} {size:.3g}); "
+                                    f"{named}'s values may hold part of it. To tell: {how}")
+
+
+TIME_CONSTANT = "tau_s"
+"""The shape parameter that is a time constant in every effect that has one (effects.SHAPE_KEYS)."""
 
 
 def model_prediction(data: CampaignData, fit: Fit) -> np.ndarray:
