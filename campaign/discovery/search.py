@@ -756,7 +756,10 @@ def rivals_not_excluded(data: CampaignData, result: Discovery) -> None:
             rival_size = next(iter(FORMS[rival].sizes), None)
             if rival_size is None or rival_size.rsplit("_", 1)[-1] != size_key.rsplit("_", 1)[-1]:
                 continue  # sizes in other units (a slope beside a reversal) do not compare
-            beside = refine(data, [*result.final.terms, Term(rival)])
+            # the named effect's own shape refitted beside the rival, the others' held (a period's
+            # refinement on a dense profile costs seconds and is not what the rival changes)
+            beside = refine(data, [t if t.name == named else replace(t, held={**t.held, **t.shape})
+                                   for t in result.final.terms] + [Term(rival)])
             errors = standard_errors(data, beside)
             value = beside.params().get(rival, {}).get(rival_size, math.nan)
             error = errors.get(rival, {}).get(rival_size, math.nan)
