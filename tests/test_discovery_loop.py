@@ -166,6 +166,15 @@ def test_the_period_cluster_is_sized_on_the_wave_the_data_show(seed):
     periods = next(u.periods_mm for u in result.unresolved if u.periods_mm)
     amplitudes = [_amplitude(data, result.final, p) for p in periods[:3]]
     assert all(0.75 < a < 3.0 for a in amplitudes), amplitudes
+    # the same sine held for an unresolved group (HELD_PREFIX) is left out as well
+    from dataclasses import replace
+
+    from campaign.discovery.effects import HELD_PREFIX
+    from campaign.discovery.fit import linear_fit
+
+    held = linear_fit(data, [replace(t, name=HELD_PREFIX + t.name) if t.name == "periodic_lead" else t
+                             for t in result.final.terms])
+    assert [_amplitude(data, held, p) for p in periods[:3]] == pytest.approx(amplitudes, rel=1e-6)
 
 
 def written_follow_up(cli, tmp_path, config_text: str, machine: dict, seed: int = 1):

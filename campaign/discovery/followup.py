@@ -38,6 +38,7 @@ import numpy as np
 
 from campaign.config import Config, config_toml, config_with, parse_config
 from campaign.discovery.data import CampaignData
+from campaign.discovery.effects import HELD_PREFIX
 from campaign.discovery.fit import Fit, Term, linear_fit
 from campaign.discovery.local import Zone, zones
 from campaign.discovery.records import Unresolved
@@ -162,9 +163,10 @@ def _few(data: CampaignData) -> list[float]:
 def _amplitude(data: CampaignData, final: Fit, period: float) -> float:
     """The amplitude (µm) of a sine of `period` fitted beside the rest of the final model: without the
     wave the final model may hold for the unresolved period (its best candidate), which a second
-    sine at the same or an aliasing period would fight (a reviewer saw 160 µm for a 3 µm wave)."""
+    sine at the same or an aliasing period would fight (a reviewer saw 160 µm for a 3 µm wave), whether
+    the model holds it as the period's stand-in or as a held unresolved group (HELD_PREFIX)."""
     term = Term("periodic_lead", {"period_mm": period}, False, {"period_mm": period})
-    rest = [t for t in final.terms if t.name != term.name]
+    rest = [t for t in final.terms if t.name.removeprefix(HELD_PREFIX) != term.name]
     return float(np.hypot(*linear_fit(data, [*rest, term]).coefs[-1]))
 
 
