@@ -25,9 +25,10 @@ demo: $(STAMP)
 # after pytest's report when it found errors.
 test: $(STAMP)
 	bash tests/setup_system.sh
-	$(VENV)/bin/mypy campaign drivers protocols > .mypy-report 2>&1 & mypy=$$!; \
+	report=$$(mktemp); $(VENV)/bin/mypy campaign drivers protocols > "$$report" 2>&1 & mypy=$$!; \
+	trap 'kill $$mypy 2>/dev/null; rm -f "$$report"' EXIT INT TERM; \
 	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 $(PY) -m pytest -q -n 4 --dist loadgroup; tests=$$?; \
-	wait $$mypy; typed=$$?; cat .mypy-report; rm -f .mypy-report; test $$tests -eq 0 -a $$typed -eq 0
+	wait $$mypy; typed=$$?; cat "$$report"; test $$tests -eq 0 -a $$typed -eq 0
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
