@@ -182,11 +182,8 @@ def period_key(name: str) -> str | None:
 def form_of(name: str) -> EffectForm:
     """The least-squares form of a term in the model: a vocabulary effect (held for an unresolved
     group too: HELD_PREFIX) or a local error."""
-    if name in FORMS:
-        return FORMS[name]
-    if name.startswith(HELD_PREFIX) and name[len(HELD_PREFIX):] in FORMS:
-        return FORMS[name[len(HELD_PREFIX):]]
-    return LOCAL_FORMS[name.split("#")[0]]
+    base = name.removeprefix(HELD_PREFIX)
+    return FORMS[base] if base in FORMS else LOCAL_FORMS[name.split("#")[0]]
 
 
 SHAPE_KEYS = ("period_mm", "tau_s", "pivot_mm", "start_mm", "end_mm")

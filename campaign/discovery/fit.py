@@ -920,13 +920,17 @@ def _cv_refitted(blocks: Blocks, y: np.ndarray, index: np.ndarray, groups_hash: 
     members = [np.flatnonzero(index == g) for g in range(count)]
     per_group = blocks.gram((groups_hash, members))
     w = data.row_scale**2 if data.row_scale is not None else np.ones(len(y))
-    total = 0.0
-    for g in range(count):
-        out = np.flatnonzero(index == g)
-        ag, yg, wg = blocks.rows(out), y[out], w[out]
-        beta = _fold_beta(gram - per_group[g], aty - ag.T @ (wg * yg))
-        total += float(np.sum(wg * (yg - ag @ beta) ** 2))
+    total = sum(_fold_ss(blocks, y, w, np.flatnonzero(index == g), gram, aty, per_group[g]) for g in range(count))
     return float(np.sqrt(total / len(y))) if len(y) else 0.0
+
+
+def _fold_ss(blocks: Blocks, y: np.ndarray, w: np.ndarray, out: np.ndarray, gram: np.ndarray,
+                 aty: np.ndarray, out_gram: np.ndarray | None = None) -> float:
+    """The weighted sum of squares of the rows `out` predicted by the fit without them, from the whole
+    design's normal equations (`gram`, `aty`) less theirs (`out_gram`: their AᵀWA when known)."""
+    ag, yg, wg = blocks.rows(out), y[out], w[out]
+    beta = _fold_beta(gram - (ag.T @ (wg[:, None] * ag) if out_gram is None else out_gram), aty - ag.T @ (wg * yg))
+    return float(np.sum(wg * (yg - ag @ beta) ** 2))
 
 
 def cv_searched_errors(data: CampaignData, terms: list[Term], groups: np.ndarray,
@@ -946,9 +950,7 @@ def cv_searched_errors(data: CampaignData, terms: list[Term], groups: np.ndarray
         shaped = refined(keep_rows(data, index != g), terms)
         blocks = Blocks(data, shaped)
         y = data.y - fixed_deviation(data, shaped)
-        ag, yg, wg = blocks.rows(out), y[out], w[out]
-        beta = _fold_beta(blocks.gram() - ag.T @ (wg[:, None] * ag), blocks.t_times(y) - ag.T @ (wg * yg))
-        sums[g] = float(np.sum(wg * (yg - ag @ beta) ** 2))
+        sums[g] = _fold_ss(blocks, y, w, out, blocks.gram(), blocks.t_times(y))
     return sums
 
 

@@ -374,14 +374,20 @@ def shapes_refined(data: CampaignData, terms: list[Term]) -> list[Term]:
     values, one after the other) and then every searched shape of the rest (fit.refine)."""
     terms = list(terms)
     for i, term in enumerate(terms):
-        if not is_local(term):
-            continue
-        others = terms[:i] + terms[i + 1:]
-        index = int(term.name.split("#")[1]) if "#" in term.name else 1
-        fit = _refine(data, others, (term.shape["centre_mm"], term.shape["width_mm"]), term_kind(term),
-                      "_by_direction" in term.name, index)
-        terms[i] = fit.terms[-1]
+        if is_local(term):
+            terms[i] = _refine_term(data, terms[:i] + terms[i + 1:], term).terms[-1]
     return refine(data, terms).terms
+
+
+def term_index(term: Term) -> int:
+    """Which local term on the axis it is: the "#index" in its name, 1 for the first."""
+    return int(term.name.split("#")[1]) if "#" in term.name else 1
+
+
+def _refine_term(data: CampaignData, others: list[Term], term: Term) -> Fit:
+    """The local `term`'s centre and width refined beside `others`, from its current values (_refine)."""
+    return _refine(data, others, (term.shape["centre_mm"], term.shape["width_mm"]), term_kind(term),
+                   "_by_direction" in term.name, term_index(term))
 
 
 def _index(fit: Fit, name: str) -> int:
@@ -553,12 +559,9 @@ def refit_local(data: CampaignData, fit: Fit, found: LocalError) -> tuple[Fit, L
     refined beside the final model (the other local terms included), and its description from that
     fit (the tests it passed are kept)."""
     others = [t for t in fit.terms if t.name != found.term.name]
-    term = found.term
-    index = int(term.name.split("#")[1]) if "#" in term.name else 1
-    refined = _refine(data, others, (term.shape["centre_mm"], term.shape["width_mm"]), term_kind(term),
-                      "_by_direction" in term.name, index)
+    refined = _refine_term(data, others, found.term)
     best = refined if refined.rss <= fit.rss else fit
-    again = describe(data, best, term.name, explained_pct=found.explained_pct, delta_bic=found.delta_bic,
+    again = describe(data, best, found.term.name, explained_pct=found.explained_pct, delta_bic=found.delta_bic,
                      p_value=found.p_value, cv_before_um=found.cv_before_um, cv_after_um=found.cv_after_um,
                      gap_without_um=gap_um(data, data.y - linear_fit(data, others).prediction))
     return best, again

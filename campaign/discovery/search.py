@@ -76,6 +76,7 @@ from campaign.discovery.local import (
     point_weights,
     refit_local,
     shapes_refined,
+    term_index,
 )
 from campaign.discovery.locate import Located, beside_period, locate
 from campaign.discovery.records import (
@@ -250,11 +251,11 @@ class Discovery:
     """False when no target is read twice in a direction: noise_um is then the residual itself, not
     a measured run-to-run scatter, and nothing can be said to be noise."""
     held: list[Held] = field(default_factory=list)
-    not_excluded: list[NotExcluded] = field(default_factory=list)
-    """Rivals of named effects the data leave room for (rivals_not_excluded)."""
     """What an unresolved group shows (a reversal backlash and settling explain alike at waits that
     vary too little to tell them), held in the final fit by its better rival's form so that the gap
     shrinks (hold_unresolved): the group stays unresolved, nothing is named or saved for it."""
+    not_excluded: list[NotExcluded] = field(default_factory=list)
+    """Rivals of named effects the data leave room for (rivals_not_excluded)."""
 
     @property
     def local(self) -> LocalError | None:
@@ -1045,7 +1046,7 @@ def hold_what_is_left(data: CampaignData, result: Discovery) -> Discovery:
               if period is not None and period_unresolved(result.unresolved) else [])
     added: list[LocalError] = []
     final = result.final
-    taken = {int(t.name.split("#")[1]) if "#" in t.name else 1 for t in final.terms if t.name.startswith("local_error")}
+    taken = {term_index(t) for t in final.terms if t.name.startswith("local_error")}
     free = [k for k in range(1, MAX_LOCALS + 1) if k not in taken][:MAX_LOCALS - len(taken)]
     for index in free if not beside else []:
         more = find_local(data, final, index)  # a bump or a step the earlier routes did not keep
@@ -1267,7 +1268,7 @@ def bumps_and_steps_without(data: CampaignData, result: Discovery, name: str) ->
             continue
         fit, refined = refit_local(data, fit, local)
         kept.append(refined)
-    taken = {int(e.term.name.split("#")[1]) if "#" in e.term.name else 1 for e in kept}
+    taken = {term_index(e.term) for e in kept}
     for index in range(1, MAX_LOCALS + 1):
         if len(kept) >= MAX_LOCALS:
             break
@@ -1577,10 +1578,6 @@ def how_to_tell_pairs() -> dict[frozenset[str], str]:
     return {frozenset({e.name, other}): text for e in effects() for other, text in e.rivals.items()}
 
 
-HOW_TO_TELL = how_to_tell_pairs()
-"""What campaign separates two effects that explain the same residual, for the effects registered
-when this module was imported (`how_to_tell` asks `how_to_tell_pairs()`, which an effect registered
-later is in)."""
 HOW_TO_TELL_DEFAULT = ("a campaign that varies what separates them: more runs over a longer time for time "
                        "effects, more targets for effects along the travel, varied dwells for settling")
 PERIOD_HOW_TO_TELL = ("more targets (at least 4 per screw lead over part of the travel), a denser offset pattern "
