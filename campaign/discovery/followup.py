@@ -342,7 +342,7 @@ def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData
             points = _dwell_points(reversal_um or 0.0, noise_um)
             asks.append(_Ask(Part(sorted(names), (
                 (f"a reversal{'' if reversal_um is None else f' of {abs(reversal_um):.2g} µm'} that backlash and "
-                 "settling explain alike" if group.waits_s is None else
+                 "settling explain alike" if not group.not_excluded else
                  f"{' beside '.join(group.effects[::-1])}, not excluded: waits long enough for a settling of the time "
                  "constant fitted to fade")
                 + f": waits before capture from {low:.2g} to {high:.2g} s (a decade, the dwell "

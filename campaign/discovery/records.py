@@ -44,6 +44,9 @@ class Unresolved:
     waits_s: float | None = None
     """The longest wait before capture a campaign that tells them needs, s (a named effect's time
     constant beside a rival it does not exclude: NotExcluded.waits_s); None: the planner's own."""
+    not_excluded: bool = False
+    """The group is a named effect beside a rival the data do not exclude (NotExcluded, planned as a
+    follow-up), not effects none of which is named."""
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"effects": list(self.effects), "why": self.why, "how_to_tell": self.how_to_tell}
