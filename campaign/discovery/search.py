@@ -808,8 +808,9 @@ def hold_unresolved(data: CampaignData, result: Discovery, periods: bool) -> Dis
     direction, which was then not located)."""
     n = len(data)
     for entry in result.unresolved:
-        if (entry.periods_mm is not None) != periods or (result.stand_in is not None
-                                                         and set(entry.effects) <= set(result.stand_in.rivals)):
+        if ((entry.periods_mm is not None) != periods
+                or (result.stand_in is not None and set(entry.effects) <= set(result.stand_in.rivals))
+                or any(set(h.rivals) == set(entry.effects) for h in result.held)):  # held already
             continue
         group = [c for c in result.remaining if c.name in entry.effects and c.fit is not None]
         if not group:
