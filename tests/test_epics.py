@@ -395,11 +395,18 @@ def test_a_bluesky_run_of_the_campaign_plan_becomes_a_campaign_directory(tmp_pat
     ioc = SimMotorIoc(plc, "SIM:B1", low=config.axis.soft_limit_min, high=config.axis.soft_limit_max,
                       velocity=8.0, measure=physics.measure)
     try:
-        ioc.run_free(speed=20.0)
+        # the record posts every 0.1 s of simulated time (5 ms of real time). At 0.02 s (1 ms) the test
+        # hung once in the suite until its 300 s timeout, the server logging "High load. Batched ...
+        # commands". The suspected cause, not proven: ophyd reads a limit switch inside its DMOV
+        # callback with a 2 s default timeout; a timeout there leaves the move's status unfinished.
+        # Hence fewer posts, and client timeouts for a loaded CI machine.
+        ioc.run_free(speed=20.0, step_s=0.1)
         run_client(rf'''
 import json
 from bluesky import RunEngine
 from ophyd import EpicsMotor, EpicsSignalRO
+from ophyd.signal import EpicsSignalBase
+EpicsSignalBase.set_defaults(timeout=30.0, connection_timeout=20.0)
 from campaign.commands.bluesky_plan import DocumentLog, axiscal_plan
 from campaign.config import load_config
 motor = EpicsMotor("SIM:B1", name="motor")
