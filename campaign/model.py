@@ -66,6 +66,16 @@ class ErrorModel:
             total = total + effect_um(name, params, x, d, t, w)
         return total
 
+    def deviation_at(self, x: float, d: float, t: float, w: float) -> float:
+        """deviation_um at one point, µm: the simulator's call at every tick, on Python floats (the
+        same operations in the same order, without deviation_um's arrays and broadcasting)."""
+        total = 0.0
+        for name, params in self.effects.items():
+            deviation = EFFECTS[name].deviation
+            assert deviation is not None  # EFFECTS holds the simulated effects only
+            total = total + float(deviation(params, x, d, t, w))  # type: ignore[arg-type]
+        return total
+
     @property
     def sigma_um(self) -> float:
         return self.effects.get("noise", {}).get("sigma_um", 0.0)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import pkgutil
 import re
 from pathlib import Path
@@ -28,7 +29,7 @@ from campaign.effects import effect, effects, register, unregister
 from campaign.effects.base import SIZE_UM, Effect, EffectForm, Ranges, Samples, Shape, span_ends
 from campaign.errors import InputError
 from campaign.measure import start_campaign
-from campaign.model import EFFECT_PARAMS, EFFECTS, read_model
+from campaign.model import EFFECT_PARAMS, EFFECTS, ErrorModel, read_model
 from tests.fakes import FakeMachine
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -282,3 +283,34 @@ def test_a_registered_effect_the_axis_lacks_is_not_named(middle_wear, tmp_path, 
     assert found["added"] == [], (found["added"], found["notes"])
     tried = [c for c in found["remaining"] if c["effect"] == "middle_wear"]
     assert tried and tried[0]["verdict"] != "accepted", found["remaining"]
+
+
+def test_the_simulators_one_point_deviation_is_the_arrays_bit_for_bit():
+    """The simulated machine evaluates its model once a tick on floats (ErrorModel.deviation_at); that
+    must be deviation_um's value exactly, for every registered effect, at drawn points and parameters
+    (a wait of inf: no settling left)."""
+    rng = np.random.default_rng(7)
+    model = {}
+    for name, e in EFFECTS.items():
+        for _ in range(100):  # drawn until its module's checks take it (an end after its start)
+            params = {}
+            for key in e.params:
+                if key in e.choices:
+                    params[key] = float(rng.choice(e.choices[key]))
+                elif key in e.limits:
+                    params[key] = float(rng.uniform(*e.limits[key]))
+                elif key.endswith("_mm"):
+                    params[key] = float(rng.uniform(5.0, 600.0))
+                elif key.endswith("_s"):
+                    params[key] = float(rng.uniform(0.5, 2000.0))
+                else:
+                    params[key] = float(rng.uniform(0.1, 3.0) if key in e.positive else rng.uniform(-3.0, 3.0))
+            if e.errors(params) is None:
+                break
+        assert e.errors(params) is None, (name, e.errors(params))
+        model[name] = params
+    m = ErrorModel(model)
+    for _ in range(2000):
+        x, d, t = float(rng.uniform(-10.0, 610.0)), float(rng.choice([-1.0, 1.0])), float(rng.uniform(0.0, 9000.0))
+        w = float(rng.choice([0.0, float(rng.uniform(0.0, 20.0)), math.inf]))
+        assert m.deviation_at(x, d, t, w) == float(m.deviation_um(x, d, t, w)), (x, d, t, w)

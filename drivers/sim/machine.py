@@ -65,7 +65,7 @@ class SimAxisPhysics:
             self._arrival = arrival
             self._scatter_um = float(self.scatter_rng.normal(0.0, self.model.sigma_um)) if self.model.sigma_um else 0.0
         wait = 0.0 if arrival is None else max(0.0, t - arrival)
-        e_um = float(self.model.deviation_um(x, self.plc.last_direction, t, wait))
+        e_um = self.model.deviation_at(float(x), float(self.plc.last_direction), float(t), float(wait))
         if arrival is not None:
             e_um += self._scatter_um
         if with_reading_noise and self.model.reading_sigma_um:
