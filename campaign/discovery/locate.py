@@ -374,25 +374,36 @@ def shape_of(at: np.ndarray, value: np.ndarray, start: float, end: float, travel
     x, v = at[pick], value[pick]
     span = float(np.ptp(x)) or 1.0
     s = (x - x.mean()) / span
-    base = np.column_stack([np.ones_like(s), s])
+    q = np.linalg.qr(np.column_stack([np.ones_like(s), s]))[0]  # the straight line's span, orthonormal
+    rest = v - q @ (q.T @ v)
+    line = float(rest @ rest)
     total = float(np.sum((v - v.mean()) ** 2)) or 1e-300
-
-    def left(*extra: np.ndarray) -> float:
-        a = np.column_stack([base, *extra])
-        return float(np.sum((v - a @ np.linalg.lstsq(a, v, rcond=None)[0]) ** 2))
-
-    line = left()
     if span >= 0.8 * travel and line <= 0.1 * float(np.sum(v**2)):
         return "level"
+
+    def left(*columns: np.ndarray) -> np.ndarray:
+        """What is left of v beside the line and each template's columns (n × m each: m templates of
+        len(columns) columns): the line's residual less its part in the template's columns outside the
+        line's span (a column no more than rounding outside it is taken as adding nothing)."""
+        outside = [c - q @ (q.T @ c) for c in columns]
+        gram = np.stack([np.stack([(a * b).sum(0) for b in outside], -1) for a in outside], -2)  # m × k × k
+        along = np.stack([rest @ a for a in outside], -1)  # m × k
+        scale = np.stack([(c * c).sum(0) for c in columns], -1)
+        keep = np.stack([gram[:, i, i] for i in range(len(columns))], -1) > 1e-18 * np.maximum(scale, 1e-300)
+        gram = np.where(keep[:, :, None] & keep[:, None, :], gram, 0.0) + np.eye(len(columns)) * ~keep[:, :, None]
+        along = np.where(keep, along, 0.0)
+        return line - np.einsum("mk,mk->m", along, np.linalg.solve(gram, along[..., None])[..., 0])
+
     centres = x[1:-1:max(1, len(x) // 40)]
+    widths = np.geomspace(span / 40, span / 2, 8)
     scores = {
-        "step": min(left((x > c).astype(float)) for c in centres),
-        "slope change": min(left(np.maximum(x - c, 0.0)) for c in centres),
-        "bump": min(left(np.exp(-0.5 * ((x - c) / w) ** 2)) for c in centres
-                    for w in np.geomspace(span / 40, span / 2, 8)),
+        "step": float(left((x[:, None] > centres).astype(float)).min()),
+        "slope change": float(left(np.maximum(x[:, None] - centres, 0.0)).min()),
+        "bump": float(left(np.exp(-0.5 * ((x[:, None, None] - centres[:, None]) / widths) ** 2)
+                           .reshape(len(x), -1)).min()),
     }
-    wave = min(left(np.sin(2 * np.pi * x / p), np.cos(2 * np.pi * x / p))
-               for p in np.geomspace(span / 8, span / 1.5, 24))
+    periods = np.geomspace(span / 8, span / 1.5, 24)
+    wave = float(left(np.sin(2 * np.pi * x[:, None] / periods), np.cos(2 * np.pi * x[:, None] / periods)).min())
     best = min(scores, key=lambda key: scores[key])
     # a wave has one parameter more: it must leave clearly less than the best single shape
     return "wave" if wave < 0.5 * scores[best] and wave < 0.2 * total else best
