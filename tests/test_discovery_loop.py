@@ -715,6 +715,22 @@ def test_the_follow_up_measures_where_a_local_error_may_be():
 
 
 @pytest.mark.machine  # a few seconds
+def test_a_step_in_one_direction_stays_a_step_beside_its_dense_follow_up(cli):
+    """tests/recorded/bow-step-minus-300mm-dense.csv: the follow-up `discover --follow-up` wrote for
+    bow-step-minus-300mm.csv (22 points over the step's region), recorded with `axiscal run` on the same
+    machine. Fitted together, position_dependent_backlash was named (b0 -0.39 ± 0.34 µm, k 6.9 µm/m):
+    the local search tried only terms in both directions, and a reversal that grows along the travel
+    held the step the − direction alone has. Now: nothing the machine lacks is named, and the step is
+    placed within 10 mm of 300 mm, in the − direction alone."""
+    out = json.loads(cli("discover", RECORDED / "bow-step-minus-300mm.csv",
+                         RECORDED / "bow-step-minus-300mm-dense.csv", "--json").out)
+    assert set(out["added"]) <= {"nonlinear_lead", "linear_scale"}, out["added"]
+    steps = [e for e in out["local_errors"] if e["kind"] == "step"
+             and abs((e["region_mm"][0] + e["region_mm"][1]) / 2 - 300.0) <= 10.0]
+    assert steps and all(e["directions"] == "-" for e in steps), out["local_errors"]
+
+
+@pytest.mark.machine  # a few seconds
 def test_a_rival_the_data_leave_room_for_is_said(cli):
     """tests/recorded/backlash-and-settling*.csv: `axiscal run` of the simulated horizontal axis (11
     golden targets, stable trigger, sim seed 30) with a 1.8 µm backlash and settling of 2 µm, τ 1 s, and its

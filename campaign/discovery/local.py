@@ -260,13 +260,14 @@ def _seen(targets: np.ndarray, kind: str, centre_mm: np.ndarray, width_mm: float
 
 
 def look_elsewhere(data: CampaignData) -> float:
-    """About how many independent local terms the search tries: one per target, octave of width and
-    shape."""
+    """About how many independent local terms the search tries: one per target, octave of width, shape
+    and side (SIDES: the three are two independent columns, yet the grid takes the best of three
+    projections of the residual, about three times as likely by chance as one)."""
     total = 0.0
     for kind in KINDS:
         widths = width_range(data, kind)
         total += 1.0 if widths is None else 1 + math.log2(widths[1] / widths[0])
-    return len(_targets(data)) * total
+    return len(_targets(data)) * total * len(SIDES)
 
 
 def term_kind(term: Term) -> str:
@@ -285,23 +286,47 @@ def is_local(term: Term) -> bool:
     return term.name.startswith("local_error")
 
 
-def _grid_best(data: CampaignData, fit: Fit) -> tuple[str, float, float] | None:
-    """The (shape, centre, width) on the grid whose term explains most of the residual beside the
-    model; None when the targets can see none."""
+SIDES = (0, 1, -1)
+"""The grid's local terms: in both directions (0), or in the + or the − direction alone (a joint or a
+worn zone that only one approach meets, as a step seen only when the nut bears on one flank)."""
+
+
+def _grid_best(data: CampaignData, fit: Fit) -> tuple[str, float, float, int] | None:
+    """The (shape, centre, width, side) on the grid whose term explains most of the residual beside the
+    model (side: SIDES); None when the targets can see none."""
     targets = _targets(data)
     step = max(float(np.median(np.diff(targets))) / 4, float(np.ptp(targets)) / MAX_CENTRES)
     centres = np.arange(targets[0], targets[-1] + step / 2, step)
     r = weighted(data, data.y - fit.prediction)
     # a local shape takes one value per distinct position: the sums below are over those, with the
     # residual's and the basis's sums there (exactly the sums over the weighted rows: a row's shape
-    # is its weight's square root, `root`, times the shape at its position)
+    # is its weight's square root, `root`, times the shape at its position); a term of one direction
+    # is the same shape on that direction's rows alone, so its sums are over those rows (the others go
+    # to one more position, dropped)
     xs, where = np.unique(data.x, return_inverse=True)
     root = data.row_scale if data.row_scale is not None else np.ones(len(data))
-    count = np.bincount(where, root**2)
-    # per position: the residual's sum, then the basis's (one product gives both; the basis's from
-    # the design's blocks, span_at_positions: no n × p design on a dense table)
-    q_at, qr = span_at_positions(data, fit, where, len(xs))
-    sums = np.column_stack([np.bincount(where, root * r, minlength=len(xs)), q_at])
+    best, power_best = None, -1.0
+    for side in SIDES:
+        rows = np.ones(len(data), dtype=bool) if side == 0 else data.d == side
+        if not rows.any() or (side != 0 and rows.all()):
+            continue
+        at = np.where(rows, where, len(xs))
+        count = np.bincount(at, root**2, minlength=len(xs) + 1)[:-1]
+        # per position: the residual's sum, then the basis's (one product gives both; the basis's from
+        # the design's blocks, span_at_positions: no n × p design on a dense table)
+        q_at, qr = span_at_positions(data, fit, at, len(xs) + 1)
+        sums = np.column_stack([np.bincount(at, root * r, minlength=len(xs) + 1), q_at])[:-1]
+        found = _grid_side(data, targets, centres, step, xs, count, sums, qr)
+        if found is not None and found[3] > power_best:
+            best, power_best = (found[0], found[1], found[2], side), found[3]
+    return best if power_best > 0 else None
+
+
+def _grid_side(data: CampaignData, targets: np.ndarray, centres: np.ndarray, step: float, xs: np.ndarray,
+               count: np.ndarray, sums: np.ndarray, qr: np.ndarray) -> tuple[str, float, float, float] | None:
+    """The grid of one side (_grid_best): the best (shape, centre, width, power) from the sums at each
+    distinct position of the rows the term covers (`count`: their weights; `sums`: the weighted
+    residual's, then the basis's) and Qᵀ times the weighted residual (`qr`)."""
     above = np.vstack([np.cumsum(sums[::-1], axis=0)[::-1], np.zeros((1, sums.shape[1]))])  # sums from k on
     count_above = np.append(np.cumsum(count[::-1])[::-1], 0.0)
     best, power_best = None, -1.0
@@ -336,7 +361,7 @@ def _grid_best(data: CampaignData, fit: Fit) -> tuple[str, float, float] | None:
             power[~_seen(targets, kind, centres, width)] = 0.0
             i = int(np.argmax(power))
             if power[i] > power_best:
-                best, power_best = (kind, float(centres[i]), float(width)), float(power[i])
+                best, power_best = (kind, float(centres[i]), float(width), float(power[i])), float(power[i])
     return best if power_best > 0 else None
 
 
@@ -444,17 +469,18 @@ def find_local(data: CampaignData, fit: Fit, index: int = 1) -> LocalError | Non
     start = _grid_best(data, fit)
     if start is None:
         return None
-    kind, centre, width = start
+    kind, centre, width, side = start
     factor = look_elsewhere(data)
-    on_grid = linear_fit(data, [*fit.terms, local_term(centre, width, False, kind, index)])
+    on_grid = linear_fit(data, [*fit.terms, local_term(centre, width, side != 0, kind, index)])
     if bic(on_grid, n) - bic(fit, n) + 2 * math.log(factor) > HOPELESS:
         return None  # refining the shape would not bring it near the tests
     best = _refine(data, fit.terms, (centre, width), kind, False, index)
     term = best.terms[-1]
-    split = linear_fit(data, [*fit.terms, local_term(term.shape["centre_mm"], term.shape["width_mm"], True, kind,
-                                                     index)])
-    if f_test_p(best, split, n) < ALPHA and _differs_locally(data, fit, term, kind, index):
-        best = _refine(data, fit.terms, (term.shape["centre_mm"], term.shape["width_mm"]), kind, True, index)
+    split = _refine(data, fit.terms, (centre, width), kind, True, index) if side != 0 else linear_fit(
+        data, [*fit.terms, local_term(term.shape["centre_mm"], term.shape["width_mm"], True, kind, index)])
+    if f_test_p(best, split, n) < ALPHA and _differs_locally(data, fit, split.terms[-1], kind, index):
+        best = split if side != 0 else _refine(data, fit.terms, (term.shape["centre_mm"], term.shape["width_mm"]),
+                                               kind, True, index)
     shape = best.terms[-1].shape
     if not _seen(_targets(data), kind, np.array(shape["centre_mm"]), shape["width_mm"]):
         return None
