@@ -728,6 +728,12 @@ def projected_residual(data: CampaignData, terms: list[Term],
     return residual
 
 
+REFINE_TOL = 1e-6
+"""refine's tolerances on the cost's and the log shapes' relative changes (scipy's ftol and xtol,
+default 1e-8): on 70 drawn discoveries the same names, places and gaps as at 1e-8, a parameter
+differing at most in its fourth decimal, in about 10 % less time."""
+
+
 def refine(data: CampaignData, terms: list[Term]) -> Fit:
     """Refine every searched shape parameter from its current value (least_squares on logs)."""
     slots = [(i, key) for i, term in enumerate(terms) for key in term.searched]
@@ -757,7 +763,8 @@ def refine(data: CampaignData, terms: list[Term]) -> Fit:
 
     from scipy import optimize
 
-    result = optimize.least_squares(residual, start, bounds=(lower, upper), x_scale=0.1, diff_step=1e-4)
+    result = optimize.least_squares(residual, start, bounds=(lower, upper), x_scale=0.1, diff_step=1e-4,
+                                    ftol=REFINE_TOL, xtol=REFINE_TOL)
     best = linear_fit(data, with_shapes(result.x))
     first = linear_fit(data, terms)
     return best if best.rss <= first.rss else first
