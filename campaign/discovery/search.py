@@ -63,8 +63,8 @@ from campaign.discovery.fit import (
     standard_errors,
     weighted,
 )
-from campaign.discovery.local import MAX_REGIONS as MAX_LOCALS
 from campaign.discovery.local import (
+    HOPELESS,
     LocalError,
     describe,
     find_local,
@@ -78,6 +78,7 @@ from campaign.discovery.local import (
     shapes_refined,
     term_index,
 )
+from campaign.discovery.local import MAX_REGIONS as MAX_LOCALS
 from campaign.discovery.locate import Located, beside_period, locate
 from campaign.discovery.records import (
     Choice,
@@ -468,14 +469,17 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
         _note(notes, f"{name} is confounded with {' + '.join(others) or 'the model'} on this data: not named")
         return Candidate(name, None, verdict="confounded")
     periods: list[tuple[float, float]] = []
-    if searched and len(fits) > 1:
+    look_elsewhere = independent_periods(data) if searched else 1.0
+    hopeless = bic(best, n) - bic(current, n) + 2 * math.log(look_elsewhere) > HOPELESS
+    if hopeless:
+        pass  # refining its shape would not bring it near the tests (as a local term's: local.HOPELESS)
+    elif searched and len(fits) > 1:
         best, periods = period_optima(data, fits, name)
     elif FORMS[name].shape:
         best = refine(data, best.terms)
     cand = Candidate(name, best, explained_pct=100 * (1 - best.rss / current.rss) if current.rss > 0 else 0.0,
                      periods=periods)
     cand.delta_bic = bic(best, n) - bic(current, n)
-    look_elsewhere = independent_periods(data) if searched else 1.0
     cand.p_value = min(1.0, f_test_p(current, best, n) * look_elsewhere)
     cand.delta_bic += 2 * math.log(look_elsewhere)  # a searched period costs its search, as in the p-value
     groups = data.run if FORMS[name].group == "run" else data.target_index
