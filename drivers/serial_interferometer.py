@@ -69,11 +69,8 @@ class SerialInterferometer:
             raise InstrumentError(f"interferometer port {self.port_name} failed: {e}") from e
 
     def _poll_stream(self) -> list[Reading]:
-        while True:  # a chunk short of _CHUNK_BYTES took all there was: no second wait on the port
-            chunk = self._port.read(_CHUNK_BYTES)
+        while chunk := self._port.read(_CHUNK_BYTES):
             self._buffer += chunk
-            if len(chunk) < _CHUNK_BYTES:
-                break
         *lines, self._buffer = self._buffer.split(self._terminator)
         if len(self._buffer) > MAX_LINE_BYTES:
             self._buffer = b""
