@@ -7,10 +7,12 @@ The search: a grid of shapes (bump, step), centres (a quarter of the target spac
 widths (a bump from twice the target spacing, so that at least three targets see it at half its
 height or more, to a quarter of the travel; a step from a fifth of the spacing to an eighth of the travel,
 with at least two targets on each side), each fitted beside the model with the model projected out; the best is refined
-(scipy.optimize.least_squares on centre and width). It is added only when it passes the tests every
+(scipy.optimize.least_squares on centre and width); each shape is tried in both directions and in the
++ or the − direction alone (SIDES). It is added only when it passes the tests every
 effect passes (campaign.discovery.search: BIC, F-test, leave-one-target-out cross-validation), with
-the look-elsewhere factor of its search (LOOK_ELSEWHERE). Then: one amplitude for both directions,
-or one per direction when that is significantly better (nested F-test); and whether it changes with
+the look-elsewhere factor of its search (look_elsewhere, which the region terms and the routes' scores
+share). Then: one amplitude for both directions, or one per direction when that is significantly better
+(F-test; from a one-direction start, of the two shapes each refined from it); and whether it changes with
 time (an F-test of a term that grows linearly in time, reported, not added). Up to MAX_REGIONS are
 found, each beside the ones before (two worn zones, a bump of either sign on each side of a joint).
 
@@ -70,7 +72,8 @@ the scale and the bow hold)."""
 MIN_WIDTH_SPACINGS = 2.0
 """The narrowest bump looked for, in target spacings (width at half height): three targets see it."""
 HOPELESS = 10.0
-"""A bump whose ΔBIC on the grid (with the look-elsewhere factor) is above this is not refined."""
+"""A local term whose ΔBIC on the grid (with the look-elsewhere factor) is above this is not refined; nor
+is a vocabulary candidate whose best start is (campaign.discovery.search.try_candidate)."""
 WINDOW_WIDTHS = 5.0
 """The grid evaluates a bump within this many widths of its centre (beyond, exp(-4·ln 2·25) ≈ 1e-30)."""
 STEP_FLAT_Z = 40.0

@@ -362,6 +362,11 @@ def _lobes(curve: Curve, smallest_um: float = 0.0) -> list[tuple[int, int]]:
     return spans
 
 
+ROUNDING_OUTSIDE = 1e-18
+"""shape_of: the squared norm outside the straight line's span below which a template's column (values of
+order one) is rounding, not a shape."""
+
+
 def shape_of(at: np.ndarray, value: np.ndarray, start: float, end: float, travel: float) -> str:
     """The shape in words of the smoothed residual over a region and half its width either side: the
     template (each beside a straight line) that leaves the least of it: a step (a jump), a bump, a slope
@@ -384,15 +389,16 @@ def shape_of(at: np.ndarray, value: np.ndarray, start: float, end: float, travel
     def left(*columns: np.ndarray) -> np.ndarray:
         """What is left of v beside the line and each template's columns (n × m each: m templates of
         len(columns) columns): the line's residual less its part in the template's columns outside the
-        line's span (a column no more than rounding outside it is taken as adding nothing)."""
+        line's span (the templates' values are of order one: a column whose part outside is below
+        ROUNDING_OUTSIDE in squared norm, a sine sampled at its nodes, adds nothing; two columns that
+        are one there count once, by the pseudo-inverse)."""
         outside = [c - q @ (q.T @ c) for c in columns]
         gram = np.stack([np.stack([(a * b).sum(0) for b in outside], -1) for a in outside], -2)  # m × k × k
         along = np.stack([rest @ a for a in outside], -1)  # m × k
-        scale = np.stack([(c * c).sum(0) for c in columns], -1)
-        keep = np.stack([gram[:, i, i] for i in range(len(columns))], -1) > 1e-18 * np.maximum(scale, 1e-300)
-        gram = np.where(keep[:, :, None] & keep[:, None, :], gram, 0.0) + np.eye(len(columns)) * ~keep[:, :, None]
+        keep = np.stack([gram[:, i, i] for i in range(len(columns))], -1) > ROUNDING_OUTSIDE
+        gram = np.where(keep[:, :, None] & keep[:, None, :], gram, 0.0)
         along = np.where(keep, along, 0.0)
-        return line - np.einsum("mk,mk->m", along, np.linalg.solve(gram, along[..., None])[..., 0])
+        return line - np.einsum("mk,mk->m", along, (np.linalg.pinv(gram) @ along[..., None])[..., 0])
 
     centres = x[1:-1:max(1, len(x) // 40)]
     widths = np.geomspace(span / 40, span / 2, 8)

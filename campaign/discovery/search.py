@@ -488,8 +488,9 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
     failed = [why for ok, why in ((cand.delta_bic < -BIC_MARGIN, "BIC"), (cand.p_value < ALPHA, "F-test"),
                                   (cand.cv_after_um < cand.cv_before_um, "cross-validation")) if not ok]
     gates = [] if failed else gate_failures(data, best, name)
-    cand.verdict = ("not significant (" + ", ".join(failed) + ")" if failed else
-                    "not named (" + "; ".join(gates) + ")" if gates else "accepted")
+    cand.verdict = ("not significant (" + ", ".join(failed) + (
+                        "; from its best start, its shape not refined: far from the tests" if hopeless else "") + ")"
+                    if failed else "not named (" + "; ".join(gates) + ")" if gates else "accepted")
     failed += gates
     if not failed and len(periods) > 1 and periods[1][1] < RIVAL_MARGIN:
         cand.verdict = "period not identifiable"
