@@ -10,8 +10,7 @@ with at least two targets on each side), each fitted beside the model with the m
 (scipy.optimize.least_squares on centre and width); each shape is tried in both directions and in the
 + or the − direction alone (SIDES). It is added only when it passes the tests every
 effect passes (campaign.discovery.search: BIC, F-test, leave-one-target-out cross-validation), with
-the look-elsewhere factor of its search (look_elsewhere, which the region terms and the routes' scores
-share). Then: one amplitude for both directions, or one per direction when that is significantly better
+the look-elsewhere factor of its search (look_elsewhere with the sides). Then: one amplitude for both directions, or one per direction when that is significantly better
 (F-test; from a one-direction start, of the two shapes each refined from it); and whether it changes with
 time (an F-test of a term that grows linearly in time, reported, not added). Up to MAX_REGIONS are
 found, each beside the ones before (two worn zones, a bump of either sign on each side of a joint).
@@ -262,15 +261,16 @@ def _seen(targets: np.ndarray, kind: str, centre_mm: np.ndarray, width_mm: float
     return seen_at(targets, centre_mm, width_mm) >= MIN_SEEN
 
 
-def look_elsewhere(data: CampaignData) -> float:
-    """About how many independent local terms the search tries: one per target, octave of width, shape
-    and side (SIDES: the three are two independent columns, yet the grid takes the best of three
-    projections of the residual, about three times as likely by chance as one)."""
+def look_elsewhere(data: CampaignData, sides: int = 1) -> float:
+    """About how many independent local terms a search tries: one per target, octave of width and shape,
+    times `sides`: the grid's (find_local) are len(SIDES), two independent columns of which it takes
+    the best of three projections of the residual, about three times as likely by chance as one. The
+    region terms (their side is the locator's) and the routes' scores count one."""
     total = 0.0
     for kind in KINDS:
         widths = width_range(data, kind)
         total += 1.0 if widths is None else 1 + math.log2(widths[1] / widths[0])
-    return len(_targets(data)) * total * len(SIDES)
+    return len(_targets(data)) * total * sides
 
 
 def term_kind(term: Term) -> str:
@@ -473,7 +473,7 @@ def find_local(data: CampaignData, fit: Fit, index: int = 1) -> LocalError | Non
     if start is None:
         return None
     kind, centre, width, side = start
-    factor = look_elsewhere(data)
+    factor = look_elsewhere(data, len(SIDES))
     on_grid = linear_fit(data, [*fit.terms, local_term(centre, width, side != 0, kind, index)])
     if bic(on_grid, n) - bic(fit, n) + 2 * math.log(factor) > HOPELESS:
         return None  # refining the shape would not bring it near the tests
