@@ -479,14 +479,9 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
         best = refine(data, best.terms)
     cand = Candidate(name, best, explained_pct=100 * (1 - best.rss / current.rss) if current.rss > 0 else 0.0,
                      periods=periods)
-    cand.delta_bic = bic(best, n) - bic(current, n)
-    cand.p_value = min(1.0, f_test_p(current, best, n) * look_elsewhere)
-    cand.delta_bic += 2 * math.log(look_elsewhere)  # a searched period costs its search, as in the p-value
-    groups = data.run if FORMS[name].group == "run" else data.target_index
-    cand.cv_before_um = cv_rms_um(data, current.terms, groups)
-    cand.cv_after_um = cv_rms_um(data, best.terms, groups)
-    failed = [why for ok, why in ((cand.delta_bic < -BIC_MARGIN, "BIC"), (cand.p_value < ALPHA, "F-test"),
-                                  (cand.cv_after_um < cand.cv_before_um, "cross-validation")) if not ok]
+    tests = naming_tests(data, current, best, name, look_elsewhere)
+    cand.delta_bic, cand.p_value, cand.cv_before_um, cand.cv_after_um = tests.delta_bic, tests.p_value, *tests.cv_um
+    failed = tests.failed
     gates = [] if failed else gate_failures(data, best, name)
     cand.verdict = ("not significant (" + ", ".join(failed) + (
                         "; from its best start, its shape not refined: far from the tests" if hopeless else "") + ")"
@@ -505,6 +500,33 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
     if env_note and not failed:  # which log it follows matters only when it explains something
         _note(notes, *env_note)
     return cand
+
+
+@dataclass(frozen=True)
+class NamingTests:
+    """The three tests an effect's term passes before it is named, or held for an unresolved group
+    (naming_tests): ΔBIC and the F-test's p with its search's look-elsewhere factor, the RMS
+    cross-validated by the form's group (before, after: µm), and the names of those it fails."""
+
+    delta_bic: float
+    p_value: float
+    cv_um: tuple[float, float]
+    failed: list[str]
+
+
+def naming_tests(data: CampaignData, without: Fit, fit: Fit, name: str, look_elsewhere: float) -> NamingTests:
+    """`fit` (`without` and the effect `name`'s term) against `without`: ΔBIC lower by BIC_MARGIN and the
+    F-test's p under ALPHA, each with the look-elsewhere factor of the term's search (a searched period:
+    fit.independent_periods; 1 otherwise), and a lower RMS cross-validated by the form's group (a target
+    left out, or a run for an effect of time)."""
+    n = len(data)
+    delta_bic = bic(fit, n) - bic(without, n) + 2 * math.log(look_elsewhere)  # a search costs, as in the p-value
+    p_value = min(1.0, f_test_p(without, fit, n) * look_elsewhere)
+    groups = data.run if FORMS[name].group == "run" else data.target_index
+    cv = cv_rms_um(data, without.terms, groups), cv_rms_um(data, fit.terms, groups)
+    failed = [why for ok, why in ((delta_bic < -BIC_MARGIN, "BIC"), (p_value < ALPHA, "F-test"),
+                                  (cv[1] < cv[0], "cross-validation")) if not ok]
+    return NamingTests(delta_bic, p_value, cv, failed)
 
 
 def one_target(data: CampaignData, without: Fit, fit: Fit, name: str, factor: float) -> str | None:
@@ -803,7 +825,8 @@ def hold_unresolved(data: CampaignData, result: Discovery, periods: bool) -> Dis
     """What an unresolved group of rivals shows is still held in the model, so that the gap shrinks by
     it: the form of the rival that explains most (lowest ΔBIC), refitted beside the final model under
     the name HELD_PREFIX + its name, kept when it passes the tests an effect passes before it is named
-    (BIC lower by BIC_MARGIN, F-test p < ALPHA, lower leave-one-target-out CV). The group stays in
+    (naming_tests: with a searched period's look-elsewhere factor, cross-validated by its form's group).
+    The group stays in
     `unresolved` with how to tell; nothing is named (`added`), saved (final_model) or listed in
     params(): it is said in `held`. A group already held by the constant-wait stand-in is left as it is.
     `periods`: only a period that is not identifiable (held by its best candidate, which agrees with the
@@ -811,7 +834,6 @@ def hold_unresolved(data: CampaignData, result: Discovery, periods: bool) -> Dis
     its candidates and the local terms are tested beside it), else only the other groups (after the
     local terms too: held before them, a reversal took the place of a local error seen in one
     direction, which was then not located)."""
-    n = len(data)
     for entry in result.unresolved:
         if ((entry.periods_mm is not None) != periods
                 or (result.stand_in is not None and set(entry.effects) <= set(result.stand_in.rivals))
@@ -826,9 +848,8 @@ def hold_unresolved(data: CampaignData, result: Discovery, periods: bool) -> Dis
         if not any(term.keep or ()):
             continue
         trial = linear_fit(data, [*result.final.terms, term])
-        p_value = f_test_p(result.final, trial, n)
-        cv = cv_rms_um(data, result.final.terms, data.target_index), cv_rms_um(data, trial.terms, data.target_index)
-        if not (bic(trial, n) - bic(result.final, n) < -BIC_MARGIN and p_value < ALPHA and cv[1] < cv[0]):
+        searched = best.name in PERIOD_KEY and PERIOD_KEY[best.name] not in fixed_shape(best.name, data, {})
+        if naming_tests(data, result.final, trial, best.name, independent_periods(data) if searched else 1.0).failed:
             continue
         without = result.gap_after_um
         result.final = trial
@@ -841,12 +862,13 @@ def hold_unresolved(data: CampaignData, result: Discovery, periods: bool) -> Dis
     return result
 
 
-def held_said(data: CampaignData, fit: Fit, name: str, rivals: tuple[str, ...]) -> str:
+def held_said(data: CampaignData, fit: Fit, name: str, rivals: tuple[str, ...], places: str = "") -> str:
     """What the term `name` of `fit`, holding an unresolved group, shows in words: a reversal between
     the directions (its mean going up less its mean going down) when the group is backlash against
-    settling, else the rival's form that holds it."""
-    said = said_list(list(rivals))
-    if set(rivals) <= STAND_IN_RIVALS:
+    settling, else the rival's form that holds it (with local errors at `places` among the rivals when
+    given)."""
+    said = said_list(list(rivals)) + (f" or local errors at {places}" if places else "")
+    if set(rivals) <= STAND_IN_RIVALS and not places:
         i = next(k for k, t in enumerate(fit.terms) if t.name == name)
         held = full_columns(data, fit.terms[i]) @ fit.coefs[i]
         up, down = float(np.mean(held[data.d > 0])), float(np.mean(held[data.d < 0]))
@@ -854,7 +876,7 @@ def held_said(data: CampaignData, fit: Fit, name: str, rivals: tuple[str, ...]) 
         return (f"a reversal of {abs(up - down):.2g} {dev} between the directions (x̄↑ − x̄↓ = {up - down:+.2g} "
                 f"{dev}): {said.replace(' and ', ' or ')}; cannot tell which")
     key = period_key(name)
-    if entry_periods := [t.shape[key] for t in fit.terms if t.name == name and key in t.shape]:
+    if not places and (entry_periods := [t.shape[key] for t in fit.terms if t.name == name and key in t.shape]):
         return (f"a wave seen at the targets (held by its best candidate period, {entry_periods[0]:.4g} "
                 f"{data.position_unit}): which period it is stays unresolved")
     return f"what {said} explain alike, held by {name.removeprefix(HELD_PREFIX)}'s form; cannot tell which"
@@ -1182,8 +1204,7 @@ def hold_beside_local_rivals(data: CampaignData, result: Discovery, step: Step, 
                  f"campaign cannot tell {name} from local errors there",
         f"denser targets over {places} tell {name} from a local error there", local_rivals=rivals))
     held = HELD_PREFIX + name
-    result.held.append(Held(name, (name,), f"what {name} or local errors at {places} explain alike, held by "
-                                           f"{name}'s form; cannot tell which",
+    result.held.append(Held(name, (name,), held_said(data, result.final, held, (name,), places),
                             result.final.params()[held], gap_um(data, data.y - without.prediction)))
     _note(result.notes, f"{name} is not named: local terms in its place ({'; '.join(e.sentence() for e in new)}) "
                         "would fit about as well; it holds what it explains in the model, and which of them it is "
