@@ -169,3 +169,20 @@ def test_a_registered_periodic_effect_is_searched_by_its_own_period_key(seed):
         assert period_entry(cand, data).effects == ("gear_wave",)
     finally:
         unregister("gear_wave")
+
+
+def test_a_table_left_without_points_is_no_longer_one():
+    """keep_rows numbers the tables anew: a fit of the rows of the second table alone has one
+    table, and its offset is a number (the first table's was the mean of nothing, NaN, with numpy's
+    warning)."""
+    import warnings
+
+    from campaign.discovery.data import keep_rows
+
+    data, _ = _joint(0)
+    second = keep_rows(data, data.campaign_index == 1)
+    assert second.campaigns == 1 and set(second.campaign_index) == {0}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fit = linear_fit(second, [Term("linear_scale")])
+    assert len(fit.offsets_um) == 1 and np.isfinite(fit.offsets_um).all()

@@ -126,12 +126,13 @@ class CampaignData:
 
 
 def keep_rows(data: CampaignData, keep: np.ndarray) -> CampaignData:
-    """The campaign with only the points where `keep` (bool per point) is True."""
+    """The campaign with only the points where `keep` (bool per point) is True (tables and datums
+    numbered anew in their order: a table left without points is no longer one)."""
     return CampaignData(x=data.x[keep], d=data.d[keep], run=data.run[keep], y=data.y[keep], t=data.t[keep],
                         w=None if data.w is None else data.w[keep], time_source=data.time_source,
                         env={k: v[keep] for k, v in data.env.items()},
                         air_index_change=None if data.air_index_change is None else data.air_index_change[keep],
-                        campaign=None if data.campaign is None else data.campaign[keep], kind=data.kind,
+                        campaign=None if data.campaign is None else _renumbered(data.campaign[keep]), kind=data.kind,
                         u=None if data.u is None else data.u[keep],
                         datum=None if data.datum is None else _renumbered(data.datum[keep]),
                         sloped=None if data.sloped is None else data.sloped[keep])
