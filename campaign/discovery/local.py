@@ -308,10 +308,10 @@ def _grid_best(data: CampaignData, fit: Fit) -> tuple[str, float, float, int] | 
     # to one more position, dropped)
     xs, where = np.unique(data.x, return_inverse=True)
     root = data.row_scale if data.row_scale is not None else np.ones(len(data))
-    best, power_best = None, -1.0
-    for side in SIDES:
-        rows = np.ones(len(data), dtype=bool) if side == 0 else data.d == side
-        if not rows.any() or (side != 0 and rows.all()):
+    sides = []
+    for which in SIDES:
+        rows = np.ones(len(data), dtype=bool) if which == 0 else data.d == which
+        if not rows.any() or (which != 0 and rows.all()):
             continue
         at = np.where(rows, where, len(xs))
         count = np.bincount(at, root**2, minlength=len(xs) + 1)[:-1]
@@ -319,20 +319,37 @@ def _grid_best(data: CampaignData, fit: Fit) -> tuple[str, float, float, int] | 
         # the design's blocks, span_at_positions: no n × p design on a dense table)
         q_at, qr = span_at_positions(data, fit, at, len(xs) + 1)
         sums = np.column_stack([np.bincount(at, root * r, minlength=len(xs) + 1), q_at])[:-1]
-        found = _grid_side(data, targets, centres, step, xs, count, sums, qr)
-        if found is not None and found[3] > power_best:
-            best, power_best = (found[0], found[1], found[2], side), found[3]
-    return best if power_best > 0 else None
-
-
-def _grid_side(data: CampaignData, targets: np.ndarray, centres: np.ndarray, step: float, xs: np.ndarray,
-               count: np.ndarray, sums: np.ndarray, qr: np.ndarray) -> tuple[str, float, float, float] | None:
-    """The grid of one side (_grid_best): the best (shape, centre, width, power) from the sums at each
-    distinct position of the rows the term covers (`count`: their weights; `sums`: the weighted
-    residual's, then the basis's) and Qᵀ times the weighted residual (`qr`)."""
-    above = np.vstack([np.cumsum(sums[::-1], axis=0)[::-1], np.zeros((1, sums.shape[1]))])  # sums from k on
-    count_above = np.append(np.cumsum(count[::-1])[::-1], 0.0)
+        sides.append(_Side(which, count, sums, qr))
+    found = _grid_scan(data, targets, centres, step, xs, sides)
     best, power_best = None, -1.0
+    for side in sides:  # in SIDES order, each side's best in the grid's order
+        if side.best is not None and side.best[3] > power_best:
+            best, power_best = (side.best[0], side.best[1], side.best[2], side.side), side.best[3]
+    return best if found and power_best > 0 else None
+
+
+@dataclass
+class _Side:
+    """The sums one side of the grid needs (_grid_best): at each distinct position the weights of the
+    rows the term covers (`count`) and the sums of the weighted residual, then of the basis (`sums`),
+    those from each position on (for a step), Qᵀ times the weighted residual (`qr`), and the best
+    (shape, centre, width, power) found so far."""
+
+    side: int
+    count: np.ndarray
+    sums: np.ndarray
+    qr: np.ndarray
+    best: tuple[str, float, float, float] | None = None
+
+    def __post_init__(self) -> None:
+        self.above = np.vstack([np.cumsum(self.sums[::-1], axis=0)[::-1], np.zeros((1, self.sums.shape[1]))])
+        self.count_above = np.append(np.cumsum(self.count[::-1])[::-1], 0.0)
+
+
+def _grid_scan(data: CampaignData, targets: np.ndarray, centres: np.ndarray, step: float, xs: np.ndarray,
+               sides: list[_Side]) -> bool:
+    """The grid over shapes, widths and centres, each shape's values at the positions computed once for
+    every side; each side's best kept in it. False when no side was scanned."""
     for kind in KINDS:
         widths = width_range(data, kind)
         if widths is None:
@@ -345,27 +362,30 @@ def _grid_side(data: CampaignData, targets: np.ndarray, centres: np.ndarray, ste
             block = max(GRID_MIN_BLOCK, math.ceil(2 * reach / step))  # centres at a time
             if block * len(xs) > GRID_CELLS:  # memory linear in the positions
                 block = max(GRID_MIN_BLOCK, GRID_CELLS // max(len(xs), 1))
-            power = np.zeros(len(centres))
+            powers = [np.zeros(len(centres)) for _ in sides]
             for lo in range(0, len(centres), block):
                 c = centres[lo:lo + block]
                 i0, i1 = np.searchsorted(xs, [c[0] - reach, c[-1] + reach], side="left")
                 g = local_shape(xs[i0:i1, None], c[None, :], width, kind)
-                # r'·(column), then Q'·(column): the part in the model's span (as (columnᵀ·sums)ᵀ:
-                # BLAS is many times faster so than with the few rows first)
-                both = (g.T @ sums[i0:i1]).T
-                norm = np.einsum("k,kc,kc->c", count[i0:i1], g, g)
-                if kind == "step":
-                    both += above[i1][:, None]
-                    norm += count_above[i1]
-                qg = both[1:]
-                norm = norm - (qg * qg).sum(0)
-                rg = both[0] - qr @ qg
-                power[lo:lo + block] = np.where(norm > 1e-12 * len(data), rg**2 / np.maximum(norm, 1e-300), 0.0)
-            power[~_seen(targets, kind, centres, width)] = 0.0
-            i = int(np.argmax(power))
-            if power[i] > power_best:
-                best, power_best = (kind, float(centres[i]), float(width), float(power[i])), float(power[i])
-    return best if power_best > 0 else None
+                for side, power in zip(sides, powers):
+                    # r'·(column), then Q'·(column): the part in the model's span (as (columnᵀ·sums)ᵀ:
+                    # BLAS is many times faster so than with the few rows first)
+                    both = (g.T @ side.sums[i0:i1]).T
+                    norm = np.einsum("k,kc,kc->c", side.count[i0:i1], g, g)
+                    if kind == "step":
+                        both += side.above[i1][:, None]
+                        norm += side.count_above[i1]
+                    qg = both[1:]
+                    norm = norm - (qg * qg).sum(0)
+                    rg = both[0] - side.qr @ qg
+                    power[lo:lo + block] = np.where(norm > 1e-12 * len(data), rg**2 / np.maximum(norm, 1e-300), 0.0)
+            unseen = ~_seen(targets, kind, centres, width)
+            for side, power in zip(sides, powers):
+                power[unseen] = 0.0
+                i = int(np.argmax(power))
+                if power[i] > (side.best[3] if side.best is not None else -1.0):
+                    side.best = (kind, float(centres[i]), float(width), float(power[i]))
+    return bool(sides)
 
 
 def _refine(data: CampaignData, terms: list[Term], start: tuple[float, float], kind: str, by_direction: bool,
