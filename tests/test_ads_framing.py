@@ -262,3 +262,37 @@ def test_beyond_the_client_limit_a_connection_is_closed_at_once_and_ended_ones_a
             sock.close()
     finally:
         server.stop()
+
+
+def test_a_restart_waits_for_its_address_and_says_when_it_stays_taken(monkeypatch):
+    """`ads_lost` stops the server and starts it again on its own address: while something still
+    listens there, start() tries again (ADDRESS_IN_USE_S) and takes it once it is free; an address
+    that stays taken raises the OSError."""
+    import errno
+
+    from drivers.sim import ads_server
+
+    server = serve_on_free_loopback(SimPLC(1, 50.0, 200.0, position=0.0))
+    server.stop()
+    squatter = socket.socket()
+    squatter.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    squatter.bind((server.ip, server.port))
+    squatter.listen(1)
+    threading.Timer(0.3, squatter.close).start()
+    started = time.monotonic()
+    server.start()
+    try:
+        assert server.running and 0.25 < time.monotonic() - started < ads_server.ADDRESS_IN_USE_S
+        axis = AdsAxis(server.net_id, server.ip, 1)
+        assert not axis.status().error
+        axis.close()
+    finally:
+        server.stop()
+    monkeypatch.setattr(ads_server, "ADDRESS_IN_USE_S", 0.2)
+    with socket.socket() as taken:
+        taken.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        taken.bind((server.ip, server.port))
+        taken.listen(1)
+        with pytest.raises(OSError) as raised:
+            server.start()
+    assert raised.value.errno == errno.EADDRINUSE and not server.running
