@@ -555,11 +555,12 @@ def find_locals(data: CampaignData, fit: Fit) -> list[LocalError]:
 
 
 def passes(data: CampaignData, without: Fit, with_local: Fit,
-           cv_um: tuple[float, float] | None = None) -> bool:
+           cv_um: tuple[float, float] | None = None, sides: int = 1) -> bool:
     """Does the local term in `with_local` pass the tests against the same model without it (BIC
-    and F-test with the search's look-elsewhere factor, leave-one-target-out CV)? `cv_um`: the two
-    models' CV RMS (without, with) when already known (campaign.discovery.fit.GrowingFit)."""
-    n, factor = len(data), look_elsewhere(data)
+    and F-test with the look-elsewhere factor of its search, leave-one-target-out CV)? `sides`: the
+    grid's len(SIDES) for a term it found, 1 for a region term (its side is the locator's). `cv_um`: the
+    two models' CV RMS (without, with) when already known (campaign.discovery.fit.GrowingFit)."""
+    n, factor = len(data), look_elsewhere(data, sides)
     delta_bic = bic(with_local, n) - bic(without, n) + 2 * math.log(factor)
     p_value = min(1.0, f_test_p(without, with_local, n) * factor)
     if not (delta_bic < -BIC_MARGIN and p_value < ALPHA):

@@ -65,6 +65,7 @@ from campaign.discovery.fit import (
 )
 from campaign.discovery.local import (
     HOPELESS,
+    SIDES,
     LocalError,
     describe,
     find_local,
@@ -888,10 +889,12 @@ def _same_places(a: list[LocalError], b: list[LocalError]) -> bool:
 
 def route_score(data: CampaignData, result: Discovery) -> float:
     """How well a route explains the campaign: the BIC of its final model, each local term's centre
-    and width counted with its search's look-elsewhere factor, a searched period with its own."""
+    and width counted with its search's look-elsewhere factor (the grid's with its sides, a region
+    term's without), a searched period with its own."""
     n = len(data)
     score = bic(result.final, n)
-    score += len(result.local_errors) * (2 * math.log(n) + 2 * math.log(look_elsewhere(data)))
+    score += sum(2 * math.log(n) + 2 * math.log(look_elsewhere(data, 1 if e.kind == "region" else len(SIDES)))
+                 for e in result.local_errors)
     if any(t.name in PERIOD_KEY and t.searched for t in result.final.terms):
         score += 2 * math.log(independent_periods(data))
     return score
@@ -946,7 +949,7 @@ def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]
         without = linear_fit(data, [t for t in final.terms if t.name != local.term.name])
         small = abs(local.size_um) < SIZE_SIGMAS * local.errors.get(local.size_key, 0.0)
         # a term larger than anything the campaign shows only cancels another one: not physical
-        if not passes(data, without, final) or small or abs(local.size_um) > LOCAL_LARGEST * largest:
+        if not passes(data, without, final, sides=len(SIDES)) or small or abs(local.size_um) > LOCAL_LARGEST * largest:
             kept.remove(local)
             final = without
     if not kept:
@@ -1275,8 +1278,9 @@ def needed_beside_regions(data: CampaignData, final: Fit, name: str, index: int)
 
 def needed_beside(data: CampaignData, fit: Fit, term: Term, cv_um: float) -> bool:
     """Is the named effect's `term` still needed beside the bumps and steps of `fit` (found in its
-    place; `cv_um` their CV): does it pass a local term's tests there (BIC and F-test with the
-    search's look-elsewhere factor, CV)? Bumps searched anew beside the rest improve the CV whether
+    place; `cv_um` their CV): does it pass a local term's tests there (BIC and F-test with the local
+    search's look-elsewhere factor without its sides, as before the grid looked in one direction
+    alone, CV)? Bumps searched anew beside the rest improve the CV whether
     the effect is there or not: the effect goes only when they hold what it held (a 1 µm backlash went
     beside a wave's bumps, which held the wave and not the reversal)."""
     with_it = linear_fit(data, [*fit.terms, term])
@@ -1308,7 +1312,7 @@ def bumps_and_steps_without(data: CampaignData, result: Discovery, name: str) ->
         fit = linear_fit(data, [*fit.terms, more.term])
     for local in list(kept):
         without = linear_fit(data, [t for t in fit.terms if t.name != local.term.name])
-        if not passes(data, without, fit):
+        if not passes(data, without, fit, sides=len(SIDES)):
             kept.remove(local)
             fit = without
     if not kept:
