@@ -21,7 +21,7 @@ Units: positions mm (deg), deviations µm (arcsec), times s (or point order).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -320,15 +320,15 @@ def _grid_best(data: CampaignData, fit: Fit) -> tuple[str, float, float, int] | 
         q_at, qr = span_at_positions(data, fit, at, len(xs) + 1)
         sums = np.column_stack([np.bincount(at, root * r, minlength=len(xs) + 1), q_at])[:-1]
         sides.append(_Side(which, count, sums, qr))
-    found = _grid_scan(data, targets, centres, step, xs, sides)
+    _grid_scan(data, targets, centres, step, xs, sides)
     best, power_best = None, -1.0
     for side in sides:  # in SIDES order, each side's best in the grid's order
         if side.best is not None and side.best[3] > power_best:
             best, power_best = (side.best[0], side.best[1], side.best[2], side.side), side.best[3]
-    return best if found and power_best > 0 else None
+    return best if power_best > 0 else None
 
 
-@dataclass
+@dataclass(eq=False)
 class _Side:
     """The sums one side of the grid needs (_grid_best): at each distinct position the weights of the
     rows the term covers (`count`) and the sums of the weighted residual, then of the basis (`sums`),
@@ -340,6 +340,8 @@ class _Side:
     sums: np.ndarray
     qr: np.ndarray
     best: tuple[str, float, float, float] | None = None
+    above: np.ndarray = field(init=False)
+    count_above: np.ndarray = field(init=False)
 
     def __post_init__(self) -> None:
         self.above = np.vstack([np.cumsum(self.sums[::-1], axis=0)[::-1], np.zeros((1, self.sums.shape[1]))])
@@ -347,9 +349,9 @@ class _Side:
 
 
 def _grid_scan(data: CampaignData, targets: np.ndarray, centres: np.ndarray, step: float, xs: np.ndarray,
-               sides: list[_Side]) -> bool:
+               sides: list[_Side]) -> None:
     """The grid over shapes, widths and centres, each shape's values at the positions computed once for
-    every side; each side's best kept in it. False when no side was scanned."""
+    every side; each side's best kept in it."""
     for kind in KINDS:
         widths = width_range(data, kind)
         if widths is None:
@@ -385,7 +387,6 @@ def _grid_scan(data: CampaignData, targets: np.ndarray, centres: np.ndarray, ste
                 i = int(np.argmax(power))
                 if power[i] > (side.best[3] if side.best is not None else -1.0):
                     side.best = (kind, float(centres[i]), float(width), float(power[i]))
-    return bool(sides)
 
 
 def _refine(data: CampaignData, terms: list[Term], start: tuple[float, float], kind: str, by_direction: bool,
