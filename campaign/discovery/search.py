@@ -446,6 +446,7 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
     starts: list[dict[str, float]] = [{}]
     period_key = PERIOD_KEY.get(name)
     searched = period_key is not None and period_key not in held
+    look_elsewhere = search_factor(data, name)
     if period_key is not None:
         starts = [{period_key: p} for p in periodogram_periods(data, current, top=PERIOD_STARTS)]
         if not starts:  # a flat periodogram (few targets): no period to start from
@@ -470,7 +471,6 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
         _note(notes, f"{name} is confounded with {' + '.join(others) or 'the model'} on this data: not named")
         return Candidate(name, None, verdict="confounded")
     periods: list[tuple[float, float]] = []
-    look_elsewhere = independent_periods(data) if searched else 1.0
     hopeless = bic(best, n) - bic(current, n) + 2 * math.log(look_elsewhere) > HOPELESS
     if hopeless:
         pass  # refining its shape would not bring it near the tests (as a local term's: local.HOPELESS)
@@ -501,6 +501,13 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
     if env_note and not failed:  # which log it follows matters only when it explains something
         _note(notes, *env_note)
     return cand
+
+
+def search_factor(data: CampaignData, name: str) -> float:
+    """The look-elsewhere factor of the effect `name`'s search on this campaign: the independent periods
+    tried when its period is searched (not held by the model or the campaign), else 1."""
+    key = PERIOD_KEY.get(name)
+    return independent_periods(data) if key is not None and key not in fixed_shape(name, data, {}) else 1.0
 
 
 @dataclass(frozen=True)
@@ -849,8 +856,7 @@ def hold_unresolved(data: CampaignData, result: Discovery, periods: bool) -> Dis
         if not any(term.keep or ()):
             continue
         trial = linear_fit(data, [*result.final.terms, term])
-        searched = best.name in PERIOD_KEY and PERIOD_KEY[best.name] not in fixed_shape(best.name, data, {})
-        if naming_tests(data, result.final, trial, best.name, independent_periods(data) if searched else 1.0).failed:
+        if naming_tests(data, result.final, trial, best.name, search_factor(data, best.name)).failed:
             continue
         without = result.gap_after_um
         result.final = trial
