@@ -669,9 +669,7 @@ def loop_ends(result: Discovery, files: list[str]) -> bool:
 def to_tell(result: Discovery) -> list[Unresolved]:
     """What a follow-up should tell apart: the unresolved groups, and each named effect beside a rival
     the data do not exclude (with the longest wait that would show it, when it has a time constant)."""
-    return [*result.unresolved, *(Unresolved((n.named, n.rival), "not excluded", n.how_to_tell, waits_s=n.waits_s,
-                                             not_excluded=True)
-                                  for n in result.not_excluded)]
+    return [*result.unresolved, *(n.to_tell() for n in result.not_excluded)]
 
 
 def follow_up_lines(follow: FollowUp | None, path: str, unresolved: list[tuple[str, ...]] | None = None) -> list[str]:

@@ -77,6 +77,12 @@ class NotExcluded:
     named_size: float
     waits_s: float | None = None
 
+    def to_tell(self) -> Unresolved:
+        """The group a follow-up should tell apart: the named effect and its rival, with the longest wait
+        that would show a time constant fade (Unresolved.not_excluded)."""
+        return Unresolved((self.named, self.rival), "not excluded", self.how_to_tell, waits_s=self.waits_s,
+                          not_excluded=True)
+
     def as_dict(self) -> dict[str, Any]:
         return {"rival": self.rival, "beside": self.named, self.size_key: round(self.value, 4),
                 "standard_error": round(self.error, 4), "how_to_tell": self.how_to_tell,
