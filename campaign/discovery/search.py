@@ -726,6 +726,8 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
         beside = find_locals(data, linear_fit(data, [t for t in vocabulary.final.terms if t.name != name]))
         if beside:
             break
+    if not beside and (held := held_fit(data, vocabulary)) is not None:
+        beside = find_locals(data, held)  # beside a reversal its unresolved rivals hold alike
     first = find_locals(data, vocabulary.start) if vocabulary.added else []
     routes = [vocabulary]
     for found in (beside, first):
@@ -869,6 +871,16 @@ def hold_unresolved(data: CampaignData, result: Discovery, periods: bool) -> Dis
     return result
 
 
+def held_fit(data: CampaignData, vocabulary: Discovery) -> Fit | None:
+    """The vocabulary's final fit with what its unresolved groups (not a period) show held as
+    hold_unresolved holds it (a reversal backlash and settling explain alike), `vocabulary` left as it
+    is; None when nothing is held. Local errors are looked for beside it when none is found beside the
+    vocabulary alone: a reversal left in the residual hides a step or a bump both directions share."""
+    trial = replace(vocabulary, held=list(vocabulary.held), notes=[])
+    trial = hold_unresolved(data, trial, periods=False)
+    return trial.final if len(trial.held) > len(vocabulary.held) else None
+
+
 def held_said(data: CampaignData, fit: Fit, name: str, rivals: tuple[str, ...], places: str = "") -> str:
     """What the term `name` of `fit`, holding an unresolved group, shows in words: a reversal between
     the directions (its mean going up less its mean going down) when the group is backlash against
@@ -894,11 +906,12 @@ def _same_places(a: list[LocalError], b: list[LocalError]) -> bool:
 
 
 def route_score(data: CampaignData, result: Discovery) -> float:
-    """How well a route explains the campaign: the BIC of its final model, each local term's centre
+    """How well a route explains the campaign: the BIC of its final model (with what its unresolved
+    groups show held, as the route chosen will hold it: held_fit), each local term's centre
     and width counted with its search's look-elsewhere factor (the grid's with its sides, a region
     term's without), a searched period with its own."""
     n = len(data)
-    score = bic(result.final, n)
+    score = bic(held_fit(data, result) or result.final, n)  # routes compared with their unresolved groups held
     score += sum(2 * math.log(n) + 2 * math.log(look_elsewhere(data, 1 if e.kind == "region" else len(SIDES)))
                  for e in result.local_errors)
     if any(t.name in PERIOD_KEY and t.searched for t in result.final.terms):
@@ -946,7 +959,8 @@ def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]
                                 "there beside it: it may be that error seen at few targets, so it is not added")
         add_local_rivals(vocabulary, found)
         return None
-    final, kept = again.final, []
+    held = held_fit(data, again)  # the local terms are tested beside what an unresolved group holds
+    final, kept = held or again.final, []
     for local in found:
         final, refined = refit_local(data, final, local)
         kept.append(refined)
@@ -960,6 +974,8 @@ def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]
             final = without
     if not kept:
         return None
+    if held is not None:  # held in the route chosen (hold_unresolved), not in the score that chooses it
+        final = linear_fit(data, [t for t in final.terms if not t.name.startswith(HELD_PREFIX)])
     return with_local_terms(data, again, vocabulary, final, kept)
 
 
