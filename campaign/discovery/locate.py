@@ -519,11 +519,19 @@ WIDE = 0.5
 a target inside it that departs from its direction's curve is still said as one target's departure."""
 
 
+SAID_SHARE = 0.5
+"""One target's departure inside a region already found is said by it when the region shows the
+direction(s) it departs in (a departure in both directions: a region of both, of its sign) and its peak is
+at least this share of the departure (the smoother followed part of a narrow error); a smaller region there
+(a reversal of a few tenths), one in the other direction alone, or one where the directions part (opposite)
+beside a departure both share, does not say it."""
+
+
 def odd_targets(data: CampaignData, residual: np.ndarray, noise_um: float, curves: list[Curve],
                 regions: list[Region]) -> list[Region]:
     """Targets whose mean residual departs from the smoothed curve of its direction beyond their own
-    noise (noise / √points, the normal quantile of BAND_ALPHA over every target and direction), outside
-    the regions already found (but for those over most of the travel, WIDE): an error narrower than the
+    noise (noise / √points, the normal quantile of BAND_ALPHA over every target and direction), unless a
+    region already found says it (SAID_SHARE; not one over most of the travel, WIDE): an error narrower than the
     spacing of the targets, which one target shows and its neighbours do not (the smoother,
     cross-validated by leaving targets out, cannot follow it). Each is a bump from the target before to the one after (where between them it begins
     and ends the data do not say), in the direction(s) that show it."""
@@ -558,13 +566,16 @@ def odd_targets(data: CampaignData, residual: np.ndarray, noise_um: float, curve
         if not odd:
             continue
         x = float(targets[k])
-        if any(r.start <= x <= r.end for r in regions if r.end - r.start <= WIDE * travel):
-            continue  # a region over most of the travel (a reversal, a bow) does not say what one target shows
         signs = {math.copysign(1.0, v[1]) for v in sides.values()}
         both = len(odd) == 2 or (len(sides) == 2 and len(signs) == 1
                                  and all(abs(v[0]) > limit / 2 for v in sides.values()))
         direction = "both" if both else next(iter(odd))
         peak = float(np.mean([v[1] for v in (sides if both else odd).values()]))
+        if any(r.start <= x <= r.end and abs(r.peak_um) >= SAID_SHARE * abs(peak) and (
+                r.direction == direction and r.peak_um * peak > 0
+                or direction != "both" and r.direction in ("both", "opposite"))
+               for r in regions if r.end - r.start <= WIDE * travel):
+            continue  # said by that region (one over most of the travel, a reversal or a bow, does not say it)
         start = float(targets[k - 1 if k > 0 else 0])
         end = float(targets[k + 1 if k + 1 < len(targets) else k])
         out.append(Region("position", "deviation", start, end, peak, x, direction, "bump", data.position_unit,
