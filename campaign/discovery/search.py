@@ -1562,7 +1562,11 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
                        f"a reversal of {abs(b_um):.1f} {dev} between the directions (x̄↑ − x̄↓ = "
                        f"{-b_um:+.1f} {dev}): backlash, or settling not died out; cannot tell which",
                        current.params()["backlash"], without)
-    current = drop_failing(data, current, steps, notes)
+    beside: list[Term] = []
+    if kept is None and remaining_beside in STAND_IN_RIVALS:  # held in the route chosen (hold_unresolved)
+        stand_in_fit = next(c.fitted for c in remaining if c.name == remaining_beside)
+        beside = [t for t in stand_in_fit.terms if t.name == remaining_beside]
+    current = drop_failing(data, current, steps, notes, beside)
     all_errors = standard_errors(data, current)
     for name in all_errors:
         add_period_spread(all_errors[name], name, spreads)
@@ -1575,11 +1579,17 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
                      stand_in=kept, starting=starting_report(data, start, current, all_errors, given))
 
 
-def drop_failing(data: CampaignData, fit: Fit, steps: list[Step], notes: list[str]) -> Fit:
-    """The final model without any named effect that, beside what was named after it, no longer
-    passes the naming gates (gate_failures): its step is removed from `steps` and a note says why."""
+def drop_failing(data: CampaignData, fit: Fit, steps: list[Step], notes: list[str],
+                 beside: list[Term] | None = None) -> Fit:
+    """The final model without any named effect that, beside what was named after it (and the
+    `beside` terms: an unresolved reversal's stand-in, whose residual would otherwise swell its errors),
+    no longer passes the naming gates (gate_failures): its step is removed from `steps` and a note says
+    why."""
+    def gated() -> Fit:
+        return linear_fit(data, [*fit.terms, *beside]) if beside else fit
+
     while failing := next(((s, why) for s in steps if s.effect != "local_error"
-                           and (why := gate_failures(data, fit, s.effect))), None):
+                           and (why := gate_failures(data, gated(), s.effect))), None):
         step, why = failing
         steps.remove(step)
         fit = refine(data, [t for t in fit.terms if t.name != step.effect])
