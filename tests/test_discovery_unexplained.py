@@ -30,6 +30,32 @@ def test_the_region_term_is_zero_before_its_region_and_holds_its_level_after():
     assert np.linalg.matrix_rank(cols[inside]) == 5
 
 
+@pytest.mark.parametrize("seed", range(12))
+def test_a_region_step_is_said_between_the_targets_it_changes_most_between(seed):
+    """A region term whose level goes on after it, fitted to a sharp step between two drawn neighbouring
+    targets (the spline, a few pieces, spreads it over the region): the step is said between those two
+    targets, not at the steepest point of the spline between them (a drawn 2.8 µm step at 519 mm between
+    targets at 480 and 540 mm was said "at 598.8 mm", the region's end, where no target lies)."""
+    from campaign.discovery.unexplained import steepest_between
+
+    rng = np.random.default_rng(seed)
+    count = int(rng.choice([11, 17, 21]))
+    targets = np.linspace(0.0, 600.0, count)
+    k = int(rng.integers(3, count - 4))  # the step lies between targets k and k + 1
+    start = float(targets[k - int(rng.integers(1, 4))] - 5.0)
+    end = float(targets[k + int(rng.integers(1, 4))] + 5.0)
+    inside = int(np.sum((targets >= start) & (targets <= end)))
+    pieces = float(np.clip(inside // 2, 1, 6))  # as unexplained.region_term chooses them
+    shape = {"start_mm": start, "end_mm": end, "pieces": pieces, "open_end": 1.0, "open_start": 0.0}
+    at = float(rng.uniform(targets[k], targets[k + 1]))
+    height = float(rng.uniform(2.0, 4.0) * rng.choice([-1.0, 1.0]))
+    x = np.repeat(targets, 10)
+    y = height * (x > at) + rng.normal(0.0, 0.3, len(x))
+    cols = region_basis(x, start, end, int(shape["pieces"]), True)
+    coefs = np.linalg.lstsq(cols[x >= start - 1e-9], y[x >= start - 1e-9], rcond=None)[0]
+    assert steepest_between(targets, shape, coefs) == (targets[k], targets[k + 1])
+
+
 @pytest.mark.machine  # 8 discoveries, about 40 s
 def test_a_flat_topped_zone_is_an_unexplained_local_error_and_nothing_is_named():
     """Zones 60-160 mm long, 2-4 µm of either sign, with 15 mm ramps, on 21 targets (uniform and

@@ -114,7 +114,9 @@ class LocalError:
     its peak, centre_mm the peak or, when its level goes on after the region, where it rises most)."""
     between_mm: tuple[float, float] | None = None
     """A step whose rise holds no target: the two targets it lies between. The data show a step
-    there, not where between them nor how sharp (the fitted centre and width are then not said)."""
+    there, not where between them nor how sharp (the fitted centre and width are then not said). A
+    region whose level goes on after it: the neighbouring targets over which it changes most
+    (unexplained.steepest_between)."""
     measured_mm: tuple[float, float] | None = None
     """The first and last position measured: what the data show of it lies between them."""
 
@@ -169,8 +171,10 @@ class LocalError:
         250 mm, rising over 8 mm, both directions' (the axis's units)."""
         p, unit = self.params, self.position_unit
         if self.kind == "region":
-            after = (f", and {p['level_after_um']:+.2g} {self.deviation_unit} after it (a step at {p['centre_mm']:.4g} "
-                     f"{unit})" if abs(p["level_after_um"]) >= 0.5 * abs(self.size_um) else "")
+            where = (f"between the targets at {self.between_mm[0]:.4g} and {self.between_mm[1]:.4g} {unit}"
+                     if self.between_mm is not None else f"at {p['centre_mm']:.4g} {unit}")
+            after = (f", and {p['level_after_um']:+.2g} {self.deviation_unit} after it (a step {where})"
+                     if abs(p["level_after_um"]) >= 0.5 * abs(self.size_um) else "")
             return (f"an unexplained local error of {self.size_um:+.2g} {self.deviation_unit} from {p['start_mm']:.4g} "
                     f"to {p['end_mm']:.4g} {unit}{after}, {self._sides()}")
         if self.kind == "step" and self.between_mm is not None:

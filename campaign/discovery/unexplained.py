@@ -128,11 +128,11 @@ def describe_region(data: CampaignData, fit: Fit, name: str, without: Fit) -> Lo
     b = region_basis(at, shape["start_mm"], shape["end_mm"], int(shape["pieces"]), shape["open_end"] > 0,
                      shape.get("open_start", 0.0) > 0)[0]
     peak_error = float(math.sqrt(max(float(b @ block @ b), 0.0)))
-    grid = np.linspace(shape["start_mm"], shape["end_mm"], 201)
-    values = region_basis(grid, shape["start_mm"], shape["end_mm"], int(shape["pieces"]), shape["open_end"] > 0,
-                     shape.get("open_start", 0.0) > 0) @ coefs
     stepped = abs(params["level_after_um"]) >= 0.5 * abs(params["peak_um"])
-    where = (float(grid[int(np.argmax(np.abs(np.diff(values))))]) if stepped else params["peak_at_mm"])
+    where, between = params["peak_at_mm"], None
+    if stepped:  # between the neighbouring targets over which the fitted term changes most (not finer)
+        between = steepest_between(_targets(data), shape, coefs)
+        where = (between[0] + between[1]) / 2 if between is not None else where
     direction = {"local_region_plus": "+", "local_region_minus": "-"}.get(name.split("#")[0], "both")
     shown = {"amplitude_um": params["peak_um"], "centre_mm": where, "width_mm": shape["end_mm"] - shape["start_mm"],
              "start_mm": shape["start_mm"], "end_mm": shape["end_mm"], "level_after_um": params["level_after_um"]}
@@ -174,7 +174,23 @@ def describe_region(data: CampaignData, fit: Fit, name: str, without: Fit) -> Lo
                       cv_after_um=cv_rms_um(data, fit.terms, data.target_index),
                       gap_without_um=without.rms_um(data.y),
                       time_change_error_um=change_error_um,
-                      position_unit=data.position_unit, deviation_unit=data.deviation_unit, kind="region")
+                      position_unit=data.position_unit, deviation_unit=data.deviation_unit, kind="region",
+                      between_mm=between)
+
+
+def steepest_between(targets: np.ndarray, shape: dict[str, float], coefs: np.ndarray) -> tuple[float, float] | None:
+    """The two neighbouring targets, from the last before the region to the first after it, between which
+    the region term (its spline `coefs`) changes most: where its step lies, as finely as the targets
+    say (the spline between them is not measured); None when fewer than two targets lie there."""
+    lo = np.searchsorted(targets, shape["start_mm"], side="right") - 1
+    hi = np.searchsorted(targets, shape["end_mm"], side="left") + 1
+    at = targets[max(lo, 0):min(hi, len(targets))]
+    if len(at) < 2:
+        return None
+    values = region_basis(at, shape["start_mm"], shape["end_mm"], int(shape["pieces"]), shape["open_end"] > 0,
+                          shape.get("open_start", 0.0) > 0) @ coefs
+    k = int(np.argmax(np.abs(np.diff(values))))
+    return float(at[k]), float(at[k + 1])
 
 
 
