@@ -19,6 +19,7 @@ import numpy as np
 
 from campaign.config import Config, parse_config
 from campaign.discovery.data import CampaignData
+from campaign.discovery.fit import Fit
 from campaign.discovery.local import zones
 from campaign.discovery.search import Discovery
 from campaign.plan import build_plan
@@ -217,3 +218,42 @@ def named_out_of_gates(data: CampaignData, result: Discovery) -> list[str]:
 
     return [f"{name}: {'; '.join(why)}" for name in result.added if name in {t.name for t in result.final.terms}
             and (why := gate_failures(data, result.final, name))]
+
+
+def oracle_p(data: CampaignData, truth: Truth) -> float:
+    """What the campaign can show of the out-of-vocabulary error at all: the F-test p of its exact
+    deviation (the simulator's, at its true place and shape: one column, only its size fitted) beside the
+    vocabulary the machine has (a scale, and its bow and backlash, fitted). Discovery must also find the
+    place and shape, so a p above its ALPHA (0.001) here is an error no method could name or locate from
+    this campaign; 1.0 when the truth has no such error."""
+    from dataclasses import replace
+
+    from campaign.discovery.fit import f_test_p, fixed_deviation, normal_beside, solve_normal, weighted
+    from campaign.discovery.search import try_candidate
+    from campaign.model import EFFECTS, effect_um
+
+    hidden = [(name, p) for name, p in truth.model.items()
+              if EFFECTS[name].simulator_only or name == "linear_drift"]
+    if not hidden:
+        return 1.0
+    waits = data.w if data.w is not None else np.full(data.t.shape, 2.0)
+    column = np.zeros(len(data))
+    for name, p in hidden:  # averaged over each point's samples, as the capture averages them
+        values = effect_um(name, {**EFFECTS[name].defaults, **p}, data.x[:, None], data.d[:, None], data.t, waits)
+        column += np.nanmean(values, axis=1)
+    fit = linear_fit_start(data)
+    for name in sorted(truth.vocabulary - {"linear_drift"}):
+        fit = try_candidate(data, fit, name, []).fitted
+    blocks, normal, rhs = normal_beside(data, fit.terms, column[:, None])
+    beta = solve_normal(normal, rhs)
+    prediction = fixed_deviation(data, fit.terms) + blocks.times(beta[:-1]) + column * beta[-1]
+    grown = replace(fit, predicted=prediction, rss=float(np.sum(weighted(data, data.y - prediction) ** 2)),
+                    n_params=fit.n_params + 1)
+    return f_test_p(fit, grown, len(data))
+
+
+def linear_fit_start(data: CampaignData) -> Fit:
+    """The starting model every draw is discovered from: a scale (and the offset)."""
+    from campaign.discovery.fit import Term, linear_fit
+
+    return linear_fit(data, [Term("linear_scale")])

@@ -4,6 +4,8 @@ make them (tests/discovery_draws.py), and on null machines. The full table is be
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -73,3 +75,22 @@ def test_out_of_vocabulary_errors_are_located_or_stated_with_their_region():
                 if not (judged.stated or judged.bracketed):
                     missed.append((shape, count, offsets, seed, judged.said))
     assert visible >= 20 and len(missed) <= 0.1 * visible, missed
+
+
+def test_the_oracle_tells_an_error_the_campaign_shows_from_one_it_cannot():
+    """oracle_p (the bench's "beyond"): a step of 3.6 µm at 403 mm on 11 targets beside a bow and a
+    backlash is shown far beyond p 0.001 when its exact deviation is fitted; the same step a
+    thousandth as high is not; a null machine has nothing to show (1.0)."""
+    from tests.discovery_draws import oracle_p
+
+    config = plan_config(11, "golden")
+    truth = draw(np.random.default_rng(353), "step", config)
+    assert truth.model["local_step"]["height_um"] == pytest.approx(-3.577, abs=1e-3)
+    data = campaign_data(simulate_campaign(config, ErrorModel(truth.model), seed=353, dwell_jitter=0.8))
+    assert oracle_p(data, truth) < 1e-6
+    small = {**truth.model, "local_step": {**truth.model["local_step"], "height_um": -3.577e-3}}
+    faint = replace(truth, model=small)
+    data = campaign_data(simulate_campaign(config, ErrorModel(small), seed=353, dwell_jitter=0.8))
+    assert oracle_p(data, faint) > 0.001
+    null = draw(np.random.default_rng(5), "null", config)
+    assert oracle_p(data, null) == 1.0
