@@ -186,3 +186,23 @@ def test_a_table_left_without_points_is_no_longer_one():
         warnings.simplefilter("error")
         fit = linear_fit(second, [Term("linear_scale")])
     assert len(fit.offsets_um) == 1 and np.isfinite(fit.offsets_um).all()
+
+
+@pytest.mark.machine  # one drawn campaign and its discovery, a few seconds
+def test_no_local_error_is_larger_than_anything_the_campaign_shows():
+    """A drawn bump (2.8 µm at 270 mm, 38 mm wide) beside a bow and a backlash on 17 golden targets: what
+    the model left was held by a step of +1.6 µm and one of -39 µm between the same two targets, the
+    second found beside the first where nothing checked its size (only the routes did). No local error
+    of the result is larger than twice the campaign's largest deviation from the starting model."""
+    from campaign.discovery.search import LOCAL_LARGEST
+    from tests.discovery_draws import draw
+
+    config = plan_config(17, "golden")
+    truth = draw(np.random.default_rng(16419), "bump", config)
+    assert truth.model["local_defect"]["amplitude_um"] == pytest.approx(2.786, abs=1e-3)
+    data = campaign_data(simulate_campaign(config, ErrorModel(truth.model), seed=16419, dwell_jitter=0.8))
+    result = discover(data, ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
+    largest = float(np.max(np.abs(data.y - result.start.prediction)))
+    assert result.local_errors, result.notes
+    assert all(abs(e.size_um) <= LOCAL_LARGEST * largest for e in result.local_errors), \
+        [e.sentence() for e in result.local_errors]
