@@ -234,13 +234,13 @@ def oracle_p(data: CampaignData, truth: Truth) -> float:
 
     hidden = [(name, p) for name, p in truth.model.items()
               if EFFECTS[name].simulator_only or name == "linear_drift"]
-    if not hidden:
-        return 1.0
     waits = data.w if data.w is not None else np.full(data.t.shape, 2.0)
     column = np.zeros(len(data))
     for name, p in hidden:  # averaged over each point's samples, as the capture averages them
         values = effect_um(name, {**EFFECTS[name].defaults, **p}, data.x[:, None], data.d[:, None], data.t, waits)
         column += np.nanmean(values, axis=1)
+    if not np.any(column):  # nothing but noise (its deviation is zero: the simulator scatters it)
+        return 1.0
     fit = linear_fit_start(data)
     for name in sorted(truth.vocabulary - {"linear_drift"}):
         fit = try_candidate(data, fit, name, []).fitted

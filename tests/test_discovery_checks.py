@@ -192,9 +192,10 @@ def test_a_table_left_without_points_is_no_longer_one():
 def test_no_local_error_is_larger_than_anything_the_campaign_shows():
     """A drawn bump (2.8 µm at 270 mm, 38 mm wide) beside a bow and a backlash on 17 golden targets: what
     the model left was held by a step of +1.6 µm and one of -39 µm between the same two targets, the
-    second found beside the first where nothing checked its size (only the routes did). No local error
-    of the result is larger than twice the campaign's largest deviation from the starting model."""
-    from campaign.discovery.search import LOCAL_LARGEST
+    second found beside the first where nothing checked its size (only the routes did). No local term
+    of the final model, nor any local error said, is larger than twice the campaign's largest deviation
+    from the starting model."""
+    from campaign.discovery.search import LOCAL_LARGEST, beyond_the_campaign
     from tests.discovery_draws import draw
 
     config = plan_config(17, "golden")
@@ -206,3 +207,4 @@ def test_no_local_error_is_larger_than_anything_the_campaign_shows():
     assert result.local_errors, result.notes
     assert all(abs(e.size_um) <= LOCAL_LARGEST * largest for e in result.local_errors), \
         [e.sentence() for e in result.local_errors]
+    assert not beyond_the_campaign(data, result.start, result.final), result.final.params()

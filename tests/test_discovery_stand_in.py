@@ -160,3 +160,37 @@ def test_a_drift_beside_an_unresolved_reversal_is_gated_beside_what_holds_it(see
     fitted, error = result.params()["linear_drift"]["rate_ppm_per_h"], result.errors["linear_drift"]["rate_ppm_per_h"]
     assert abs(fitted - rate) < 3 * error, (fitted, error, rate)
     assert not gate_failures(data, result.final, "linear_drift")
+
+
+@pytest.mark.machine  # 8 drawn campaigns and their discoveries, about 30 s
+def test_a_step_beside_an_unresolved_reversal_is_located():
+    """A 2-3 µm step rising over 10-40 mm at a drawn place beside a 3-4 µm backlash on 17 golden targets,
+    the waits varying a little: where backlash and settling stay rivals (at least 3 of 8 draws), the
+    local grid, searched beside the vocabulary alone, saw the reversal left in the residual and found
+    nothing, and the unresolved period's stand-in then soaked the step (a drawn step at 197 mm was
+    neither located nor stated). Looked for beside what the unresolved reversal holds (held_fit), it is
+    located within 10 mm or said between the two targets either side of it."""
+    from campaign.discovery.data import campaign_data
+    from campaign.discovery.search import discover
+    from campaign.discovery.simulate import simulate_campaign
+    from campaign.model import ErrorModel
+    from tests.discovery_draws import plan_config
+
+    checked = []
+    for seed in range(7, 15):
+        rng = np.random.default_rng(seed)
+        at = float(rng.uniform(150.0, 450.0))
+        machine = {"linear_scale": {"ppm": float(rng.uniform(-10, 10))},
+                   "backlash": {"b_um": float(rng.uniform(3, 4))},
+                   "local_step": {"height_um": float(rng.uniform(2, 3)) * float(rng.choice([-1.0, 1.0])), "at_mm": at,
+                                  "rise_mm": float(rng.uniform(10, 40))},
+                   "noise": {"sigma_um": 0.7}}
+        table = simulate_campaign(plan_config(17, "golden"), ErrorModel(machine), seed=seed, dwell_jitter=0.1)
+        result = discover(campaign_data(table), ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
+        if not any(set(u.effects) == {"backlash", "settling"} for u in result.unresolved):
+            continue
+        checked.append(seed)
+        assert any(abs(e.params["centre_mm"] - at) <= 10.0 or (e.between_mm is not None
+                                                               and e.between_mm[0] <= at <= e.between_mm[1])
+                   for e in result.local_errors), (seed, at, [e.sentence() for e in result.local_errors])
+    assert len(checked) >= 3, checked

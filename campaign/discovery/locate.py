@@ -521,8 +521,8 @@ a target inside it that departs from its direction's curve is still said as one 
 
 SAID_SHARE = 0.5
 """One target's departure inside a region already found is said by it when the region shows the
-direction(s) it departs in (a departure in both directions: a region of both, of its sign) and its peak is
-at least this share of the departure (the smoother followed part of a narrow error); a smaller region there
+direction(s) it departs in, with its sign there (a departure in both directions: a region of both) and its
+peak is at least this share of the departure (the smoother followed part of a narrow error); a smaller region there
 (a reversal of a few tenths), one in the other direction alone, or one where the directions part (opposite)
 beside a departure both share, does not say it."""
 
@@ -573,7 +573,10 @@ def odd_targets(data: CampaignData, residual: np.ndarray, noise_um: float, curve
         peak = float(np.mean([v[1] for v in (sides if both else odd).values()]))
         if any(r.start <= x <= r.end and abs(r.peak_um) >= SAID_SHARE * abs(peak) and (
                 r.direction == direction and r.peak_um * peak > 0
-                or direction != "both" and r.direction in ("both", "opposite"))
+                or direction != "both" and r.direction == "both" and r.peak_um * peak > 0
+                # an opposite region's value is the + direction's (half of + less −)
+                or direction != "both" and r.direction == "opposite"
+                and r.peak_um * peak * (1.0 if direction == "+" else -1.0) > 0)
                for r in regions if r.end - r.start <= WIDE * travel):
             continue  # said by that region (one over most of the travel, a reversal or a bow, does not say it)
         start = float(targets[k - 1 if k > 0 else 0])

@@ -95,6 +95,7 @@ from campaign.discovery.unexplained import (
     REGION_SHARE,
     candidate_regions,
     describe_region,
+    is_region,
     region_term,
     region_terms,
     wave_over_part,
@@ -842,8 +843,9 @@ def hold_unresolved(data: CampaignData, result: Discovery, periods: bool) -> Dis
     `periods`: only a period that is not identifiable (held by its best candidate, which agrees with the
     others at the targets, though not between them: done last, once the other effects are averaged over
     its candidates and the local terms are tested beside it), else only the other groups (after the
-    local terms too: held before them, a reversal took the place of a local error seen in one
-    direction, which was then not located)."""
+    local terms too: held before they were first looked for, a reversal took the place of a local error
+    seen in one direction, which was then not located; they are looked for beside it only when none is
+    found without it, held_fit)."""
     for entry in result.unresolved:
         if ((entry.periods_mm is not None) != periods
                 or (result.stand_in is not None and set(entry.effects) <= set(result.stand_in.rivals))
@@ -947,11 +949,23 @@ LOCAL_LARGEST = 2.0
 campaign from the starting model (larger, it only cancels another term)."""
 
 
-def beyond_the_campaign(data: CampaignData, start: Fit, local: LocalError) -> bool:
-    """Is the local error larger than LOCAL_LARGEST times anything the campaign shows (its largest
-    deviation from the starting model `start`)? Then it only cancels another term (a drawn bump was
-    held by a step of +1.6 µm and one of -39 µm between the same two targets): not physical."""
-    return abs(local.size_um) > LOCAL_LARGEST * float(np.max(np.abs(data.y - start.prediction)))
+def beyond_the_campaign(data: CampaignData, start: Fit, fit: Fit) -> bool:
+    """Is a local term of `fit` (bump, step or region: its amplitude or peak in that fit) larger than
+    LOCAL_LARGEST times anything the campaign shows (its largest deviation from the starting model
+    `start`)? Then it only cancels another term (a drawn bump was held by a step of +1.6 µm and one of
+    -39 µm between the same two targets): not physical."""
+    limit = LOCAL_LARGEST * float(np.max(np.abs(data.y - start.prediction)))
+    params = fit.params()
+    return any(abs(params[t.name].get(key, 0.0)) > limit for t in fit.terms if is_local(t) or is_region(t)
+               for key in ("amplitude_um", "plus_um", "minus_um", "peak_um"))
+
+
+def described_in(data: CampaignData, fit: Fit, local: LocalError) -> LocalError:
+    """A bump or step found earlier (its tests as found), described from `fit`: its size and place as
+    `fit` has them beside the terms added after it."""
+    return describe(data, fit, local.term.name, explained_pct=local.explained_pct, delta_bic=local.delta_bic,
+                    p_value=local.p_value, cv_before_um=local.cv_before_um, cv_after_um=local.cv_after_um,
+                    gap_without_um=local.gap_without_um)
 
 
 def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]], vocabulary: Discovery,
@@ -974,13 +988,13 @@ def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]
     for local in list(kept):
         without = linear_fit(data, [t for t in final.terms if t.name != local.term.name])
         small = abs(local.size_um) < SIZE_SIGMAS * local.errors.get(local.size_key, 0.0)
-        if (not passes(data, without, final, sides=len(SIDES)) or small
-                or beyond_the_campaign(data, vocabulary.start, local)):
+        if not passes(data, without, final, sides=len(SIDES)) or small or beyond_the_campaign(data, vocabulary.start,
+                                                                                          final):
             kept.remove(local)
             final = without
     if not kept:
         return None
-    if held is not None:  # held in the route chosen (hold_unresolved), not in the score that chooses it
+    if held is not None:  # held again once the route is chosen (hold_unresolved); route_score holds it too
         final = linear_fit(data, [t for t in final.terms if not t.name.startswith(HELD_PREFIX)])
     return with_local_terms(data, again, vocabulary, final, kept)
 
@@ -1109,10 +1123,12 @@ def hold_what_is_left(data: CampaignData, result: Discovery) -> Discovery:
     free = [k for k in range(1, MAX_LOCALS + 1) if k not in taken][:MAX_LOCALS - len(taken)]
     for index in free if not beside else []:
         more = find_local(data, final, index)  # a bump or a step the earlier routes did not keep
-        if more is None or not within_targets(data, more.term) or beyond_the_campaign(data, result.start, more):
+        if more is None or not within_targets(data, more.term):
             break
-        final = linear_fit(data, [*final.terms, more.term])
-        added.append(more)
+        trial = linear_fit(data, [*final.terms, more.term])
+        if beyond_the_campaign(data, result.start, trial):
+            break
+        final, added = trial, [described_in(data, trial, e) for e in [*added, more]]
     for _ in range(LEFT_ROUNDS):
         index = 1 + sum(1 for t in final.terms if t.name.startswith("local_region"))
         terms = held_regions(data, final, locate(data, data.y - final.prediction), index, beside)
@@ -1334,10 +1350,13 @@ def bumps_and_steps_without(data: CampaignData, result: Discovery, name: str) ->
         if index in taken:
             continue
         more = find_local(data, fit, index)
-        if more is None or not within_targets(data, more.term) or beyond_the_campaign(data, result.start, more):
+        if more is None or not within_targets(data, more.term):
+            break
+        trial = linear_fit(data, [*fit.terms, more.term])
+        if beyond_the_campaign(data, result.start, trial):
             break
         kept.append(more)
-        fit = linear_fit(data, [*fit.terms, more.term])
+        fit = trial
     for local in list(kept):
         without = linear_fit(data, [t for t in fit.terms if t.name != local.term.name])
         if not passes(data, without, fit, sides=len(SIDES)):
@@ -1345,9 +1364,7 @@ def bumps_and_steps_without(data: CampaignData, result: Discovery, name: str) ->
             fit = without
     if not kept:
         return None, []
-    return fit, [describe(data, fit, e.term.name, explained_pct=e.explained_pct, delta_bic=e.delta_bic,
-                          p_value=e.p_value, cv_before_um=e.cv_before_um, cv_after_um=e.cv_after_um,
-                          gap_without_um=e.gap_without_um) for e in kept] + [
+    return fit, [described_in(data, fit, e) for e in kept] + [
         e for e in result.local_errors if e.kind == "region" and e.term.name in {t.name for t in fit.terms}]
 
 
@@ -1370,7 +1387,7 @@ def with_regions(data: CampaignData, model: ErrorModel, given: dict[str, set[str
     final, kept = again.final, []
     for term in terms:
         without = linear_fit(data, [t for t in final.terms if t.name != term.name])
-        if passes(data, without, final):
+        if passes(data, without, final) and not beyond_the_campaign(data, vocabulary.start, final):
             kept.append(term)
         else:
             final = without
@@ -1591,11 +1608,12 @@ def drop_failing(data: CampaignData, fit: Fit, steps: list[Step], notes: list[st
     `beside` terms: an unresolved reversal's stand-in, whose residual would otherwise swell its errors),
     no longer passes the naming gates (gate_failures): its step is removed from `steps` and a note says
     why."""
-    def gated() -> Fit:
-        return linear_fit(data, [*fit.terms, *beside]) if beside else fit
+    def failing_step() -> tuple[Step, list[str]] | None:
+        gated = linear_fit(data, [*fit.terms, *beside]) if beside else fit
+        return next(((s, why) for s in steps if s.effect != "local_error"
+                     and (why := gate_failures(data, gated, s.effect))), None)
 
-    while failing := next(((s, why) for s in steps if s.effect != "local_error"
-                           and (why := gate_failures(data, gated(), s.effect))), None):
+    while failing := failing_step():
         step, why = failing
         steps.remove(step)
         fit = refine(data, [t for t in fit.terms if t.name != step.effect])
