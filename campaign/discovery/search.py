@@ -970,8 +970,9 @@ def described_in(data: CampaignData, fit: Fit, local: LocalError) -> LocalError:
 
 def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]], vocabulary: Discovery,
                 found: list[LocalError], periodic: bool) -> Discovery | None:
-    """The vocabulary searched again with the local errors `found` in the model, then each local
-    term refitted beside what is named; a local term that no longer passes its tests beside the
+    """The vocabulary searched again with the local errors `found` in the model, what its unresolved
+    groups show held (hold_unresolved), then each local term refitted beside what is named and held; a
+    local term that no longer passes its tests beside the
     rest is left out. None when none is left, or when an unresolved period stays beside them (the
     local error may be that period seen at few targets: said in a note)."""
     again = search_vocabulary(data, model, given, [local.term for local in found])
@@ -980,8 +981,10 @@ def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]
                                 "there beside it: it may be that error seen at few targets, so it is not added")
         add_local_rivals(vocabulary, found)
         return None
-    held = held_fit(data, again)  # the local terms are tested beside what an unresolved group holds
-    final, kept = held or again.final, []
+    # the local terms are tested beside what an unresolved group holds, which the route then keeps (and
+    # route_score, and hold_unresolved after the route is chosen, find held already)
+    again = hold_unresolved(data, again, periods=False)
+    final, kept = again.final, []
     for local in found:
         final, refined = refit_local(data, final, local)
         kept.append(refined)
@@ -994,8 +997,6 @@ def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]
             final = without
     if not kept:
         return None
-    if held is not None:  # held again once the route is chosen (hold_unresolved); route_score holds it too
-        final = linear_fit(data, [t for t in final.terms if not t.name.startswith(HELD_PREFIX)])
     return with_local_terms(data, again, vocabulary, final, kept)
 
 
