@@ -19,7 +19,6 @@ import numpy as np
 
 from campaign.config import Config, parse_config
 from campaign.discovery.data import CampaignData
-from campaign.discovery.fit import Fit
 from campaign.discovery.local import zones
 from campaign.discovery.search import Discovery
 from campaign.plan import build_plan
@@ -228,7 +227,15 @@ def oracle_p(data: CampaignData, truth: Truth) -> float:
     this campaign; 1.0 when the truth has no such error."""
     from dataclasses import replace
 
-    from campaign.discovery.fit import f_test_p, fixed_deviation, normal_beside, solve_normal, weighted
+    from campaign.discovery.fit import (
+        Term,
+        f_test_p,
+        fixed_deviation,
+        linear_fit,
+        normal_beside,
+        solve_normal,
+        weighted,
+    )
     from campaign.discovery.search import try_candidate
     from campaign.model import EFFECTS, effect_um
 
@@ -241,7 +248,7 @@ def oracle_p(data: CampaignData, truth: Truth) -> float:
         column += np.nanmean(values, axis=1)
     if not np.any(column):  # nothing but noise (its deviation is zero: the simulator scatters it)
         return 1.0
-    fit = linear_fit_start(data)
+    fit = linear_fit(data, [Term("linear_scale")])  # the starting model every draw is discovered from
     for name in sorted(truth.vocabulary - {"linear_drift"}):
         fit = try_candidate(data, fit, name, []).fitted
     blocks, normal, rhs = normal_beside(data, fit.terms, column[:, None])
@@ -250,10 +257,3 @@ def oracle_p(data: CampaignData, truth: Truth) -> float:
     grown = replace(fit, predicted=prediction, rss=float(np.sum(weighted(data, data.y - prediction) ** 2)),
                     n_params=fit.n_params + 1)
     return f_test_p(fit, grown, len(data))
-
-
-def linear_fit_start(data: CampaignData) -> Fit:
-    """The starting model every draw is discovered from: a scale (and the offset)."""
-    from campaign.discovery.fit import Term, linear_fit
-
-    return linear_fit(data, [Term("linear_scale")])

@@ -878,7 +878,7 @@ def held_fit(data: CampaignData, vocabulary: Discovery) -> Fit | None:
     hold_unresolved holds it (a reversal backlash and settling explain alike), `vocabulary` left as it
     is; None when nothing is held. Local errors are looked for beside it when none is found beside the
     vocabulary alone: a reversal left in the residual hides a step or a bump both directions share."""
-    trial = replace(vocabulary, held=list(vocabulary.held), notes=[])
+    trial = replace(vocabulary, held=list(vocabulary.held), notes=[], unresolved=list(vocabulary.unresolved))
     trial = hold_unresolved(data, trial, periods=False)
     return trial.final if len(trial.held) > len(vocabulary.held) else None
 
