@@ -78,6 +78,8 @@ WINDOW_WIDTHS = 5.0
 STEP_FLAT_Z = 40.0
 """The grid evaluates a step where its logistic's argument is within ±this (beyond, 1/(1 + e^-40) is
 1 in double precision, and e^-40 ≈ 4e-18 below)."""
+STEPPED_SHARE = 0.5
+"""A region term whose level after it is at least this share of its peak is a step (its level goes on)."""
 MIN_SEEN = 3
 """A bump is looked for only where at least this many targets see it at half its height or more:
 fewer cannot tell its size from its width, nor a bump from one target's odd reading."""
@@ -174,7 +176,7 @@ class LocalError:
             where = (f"between the targets at {self.between_mm[0]:.4g} and {self.between_mm[1]:.4g} {unit}"
                      if self.between_mm is not None else f"at {p['centre_mm']:.4g} {unit}")
             after = (f", and {p['level_after_um']:+.2g} {self.deviation_unit} after it (a step {where})"
-                     if abs(p["level_after_um"]) >= 0.5 * abs(self.size_um) else "")
+                     if abs(p["level_after_um"]) >= STEPPED_SHARE * abs(self.size_um) else "")
             return (f"an unexplained local error of {self.size_um:+.2g} {self.deviation_unit} from {p['start_mm']:.4g} "
                     f"to {p['end_mm']:.4g} {unit}{after}, {self._sides()}")
         if self.kind == "step" and self.between_mm is not None:

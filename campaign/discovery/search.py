@@ -727,8 +727,11 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
         beside = find_locals(data, linear_fit(data, [t for t in vocabulary.final.terms if t.name != name]))
         if beside:
             break
-    if not beside and (held := held_fit(data, vocabulary)) is not None:
-        beside = find_locals(data, held)  # beside a reversal its unresolved rivals hold alike
+    held_vocabulary = None  # the vocabulary's model with its unresolved groups held, once computed
+    if not beside:
+        held_vocabulary = held_fit(data, vocabulary) or vocabulary.final
+        if held_vocabulary is not vocabulary.final:
+            beside = find_locals(data, held_vocabulary)  # beside a reversal its unresolved rivals hold alike
     first = find_locals(data, vocabulary.start) if vocabulary.added else []
     routes = [vocabulary]
     for found in (beside, first):
@@ -741,7 +744,7 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     if regions is not None and (cv_rms_um(data, regions.final.terms, data.target_index)
                                 < cv_rms_um(data, vocabulary.final.terms, data.target_index)):
         routes.append(regions)  # unexplained local errors, only when they also predict left-out targets better
-    scores = [route_score(data, r) for r in routes]
+    scores = [route_score(data, r, held_vocabulary if r is vocabulary else None) for r in routes]
     best = min(range(len(routes)), key=lambda i: scores[i] + (0.0 if i == 0 else BIC_MARGIN))
     if best and routes[0].added:
         dropped = [name for name in routes[0].added if name not in routes[best].added]
@@ -907,13 +910,14 @@ def _same_places(a: list[LocalError], b: list[LocalError]) -> bool:
     return len(a) == len(b) and all(abs(x.params["centre_mm"] - y.params["centre_mm"]) < 1e-6 for x, y in zip(a, b))
 
 
-def route_score(data: CampaignData, result: Discovery) -> float:
+def route_score(data: CampaignData, result: Discovery, held: Fit | None = None) -> float:
     """How well a route explains the campaign: the BIC of its final model (with what its unresolved
-    groups show held, as the route chosen will hold it: held_fit), each local term's centre
+    groups show held, as the route chosen will hold it: held_fit; `held`, that model when already
+    computed), each local term's centre
     and width counted with its search's look-elsewhere factor (the grid's with its sides, a region
     term's without), a searched period with its own."""
     n = len(data)
-    score = bic(held_fit(data, result) or result.final, n)  # routes compared with their unresolved groups held
+    score = bic(held or held_fit(data, result) or result.final, n)  # routes compared with their groups held
     score += sum(2 * math.log(n) + 2 * math.log(look_elsewhere(data, 1 if e.kind == "region" else len(SIDES)))
                  for e in result.local_errors)
     if any(t.name in PERIOD_KEY and t.searched for t in result.final.terms):
@@ -1118,10 +1122,10 @@ def hold_what_is_left(data: CampaignData, result: Discovery) -> Discovery:
     period = period_candidate(result.remaining)
     beside = ([t for t in period.fitted.terms if t.name == period.name]
               if period is not None and period_unresolved(result.unresolved) else [])
-    added: list[LocalError] = []
     final = result.final
     taken = {term_index(t) for t in final.terms if t.name.startswith("local_error")}
     free = [k for k in range(1, MAX_LOCALS + 1) if k not in taken][:MAX_LOCALS - len(taken)]
+    found: list[LocalError] = []
     for index in free if not beside else []:
         more = find_local(data, final, index)  # a bump or a step the earlier routes did not keep
         if more is None or not within_targets(data, more.term):
@@ -1129,7 +1133,9 @@ def hold_what_is_left(data: CampaignData, result: Discovery) -> Discovery:
         trial = linear_fit(data, [*final.terms, more.term])
         if beyond_the_campaign(data, result.start, trial):
             break
-        final, added = trial, [described_in(data, trial, e) for e in [*added, more]]
+        final = trial
+        found.append(more)
+    added = [described_in(data, final, e) for e in found]  # as the fit they end in has them
     for _ in range(LEFT_ROUNDS):
         index = 1 + sum(1 for t in final.terms if t.name.startswith("local_region"))
         terms = held_regions(data, final, locate(data, data.y - final.prediction), index, beside)

@@ -33,7 +33,7 @@ from campaign.discovery.fit import (
     solve_normal,
     weighted,
 )
-from campaign.discovery.local import LocalError, look_elsewhere, passes
+from campaign.discovery.local import STEPPED_SHARE, LocalError, look_elsewhere, passes
 from campaign.discovery.locate import Located, Region
 
 REGION_SHARE = 0.5
@@ -128,7 +128,7 @@ def describe_region(data: CampaignData, fit: Fit, name: str, without: Fit) -> Lo
     b = region_basis(at, shape["start_mm"], shape["end_mm"], int(shape["pieces"]), shape["open_end"] > 0,
                      shape.get("open_start", 0.0) > 0)[0]
     peak_error = float(math.sqrt(max(float(b @ block @ b), 0.0)))
-    stepped = abs(params["level_after_um"]) >= 0.5 * abs(params["peak_um"])
+    stepped = abs(params["level_after_um"]) >= STEPPED_SHARE * abs(params["peak_um"])
     where, between = params["peak_at_mm"], None
     if stepped:  # between the neighbouring targets over which the fitted term changes most (not finer)
         between = steepest_between(_targets(data), shape, coefs)
