@@ -206,7 +206,9 @@ def judge(result: Discovery, truth: Truth) -> Judged:
     bracketed = not stated and truth.shape != "linear_growth" and (truth.shape == "step" and any(
         e.between_mm is not None and e.between_mm[0] <= centre <= e.between_mm[1]
         for e in result.local_errors for centre, _ in truth.regions) or any(
-        r.one_target and r.start <= centre <= r.end for r in after for centre, _ in truth.regions))
+        r.one_target and r.start <= centre <= r.end for r in after for centre, _ in truth.regions) or any(
+        e.kind == "target" and e.region_mm[0] <= centre <= e.region_mm[1]  # one target's departure, in the model
+        for e in result.local_errors for centre, _ in truth.regions))
     return Judged(located, false, gap_ratio, said, stated or bracketed, seen, bracketed)
 
 

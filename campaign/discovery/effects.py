@@ -79,6 +79,15 @@ def _local_columns(kind: str, by_direction: bool) -> Callable[[Samples, Shape, S
     return columns
 
 
+def _target_columns(by_direction: bool) -> Callable[[Samples, Shape, Shape], np.ndarray]:
+    def columns(data: Samples, shape: Shape, held: Shape) -> np.ndarray:
+        g = (np.round(data.x, 6) == round(shape["centre_mm"], 6)).astype(float)  # that target's points alone
+        if by_direction:
+            return np.column_stack([g * (data.d > 0), g * (data.d < 0)])
+        return g[:, None]
+    return columns
+
+
 def _cubic_basis(x: np.ndarray, knots: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The four cubic B-splines not zero at each x inside the knots (Cox-de Boor, vectorised): the
     first one's column per x, and their values (len(x) × 4)."""
@@ -148,13 +157,16 @@ LOCAL_FORMS: dict[str, EffectForm] = {f.name: f for f in (
     EffectForm("local_error_by_direction", ("plus_um", "minus_um"), (), "target", _local_columns("bump", True)),
     EffectForm("local_error_step", ("amplitude_um",), (), "target", _local_columns("step", False)),
     EffectForm("local_error_step_by_direction", ("plus_um", "minus_um"), (), "target", _local_columns("step", True)),
+    EffectForm("local_error_target", ("amplitude_um",), (), "target", _target_columns(False)),
+    EffectForm("local_error_target_by_direction", ("plus_um", "minus_um"), (), "target", _target_columns(True)),
     EffectForm("local_region", (), (), "target", _region_columns(0), _region_params),
     EffectForm("local_region_plus", (), (), "target", _region_columns(1), _region_params),
     EffectForm("local_region_minus", (), (), "target", _region_columns(-1), _region_params),
 )}
 """Not in the vocabulary: the local terms discovery adds for an error no effect of the model has the
 shape of (a screw defect, a worn zone, a joint between two sections): a bump or a step, in both
-directions or one amplitude per direction; or, over a region the locator found
+directions or one amplitude per direction; a departure at one target alone (local_error_target: an error
+narrower than the targets' spacing, or that target's own); or, over a region the locator found
 (campaign.discovery.unexplained), a spline whose shape follows the data (local_region, in both
 directions, or _plus / _minus for one). Their centre and width (mm) are found by their own search
 (campaign.discovery.local) and held in the term's shape; only the amplitudes are fitted with the

@@ -83,6 +83,11 @@ STEPPED_SHARE = 0.5
 MIN_SEEN = 3
 """A bump is looked for only where at least this many targets see it at half its height or more:
 fewer cannot tell its size from its width, nor a bump from one target's odd reading."""
+TARGET = "target"
+"""The local term of a departure at one target alone (its neighbours do not show it): an error narrower
+than the targets' spacing there, or that target's own; where between its neighbours it lies and how
+wide it is, the data do not say. Looked for at every target but the outer two (a departure at the end
+of the travel is a slope's or a bow's end as well)."""
 
 
 @dataclass(frozen=True)
@@ -111,7 +116,8 @@ class LocalError:
     deviation_unit: str = "µm"
     kind: str = "bump"
     """"bump" (centre_mm its peak, width_mm at half its height) or "step" (centre_mm the middle of
-    the rise, width_mm the rise from 10 % to 90 %, amplitude the step's height), or "region" (a term
+    the rise, width_mm the rise from 10 % to 90 %, amplitude the step's height), "target" (a departure
+    at the target centre_mm alone: somewhere between its neighbours from_mm and to_mm), or "region" (a term
     whose shape follows the data from start_mm to end_mm, campaign.discovery.unexplained: amplitude
     its peak, centre_mm the peak or, when its level goes on after the region, where it rises most)."""
     between_mm: tuple[float, float] | None = None
@@ -130,6 +136,8 @@ class LocalError:
         measured (a bump near the end of the travel reached beyond it)."""
         if self.kind == "region":
             return self.params["start_mm"], self.params["end_mm"]
+        if self.kind == TARGET:
+            return self.params["from_mm"], self.params["to_mm"]
         if self.kind == "step" and self.between_mm is not None:
             return self.between_mm
         c, w = self.params["centre_mm"], self.params["width_mm"]
@@ -184,6 +192,11 @@ class LocalError:
             return (f"a step of {self.size_um:+.2g} {self.deviation_unit} between the targets at {low:.4g} and "
                     f"{high:.4g} {unit} (where between them and how sharp: not resolved, targets in between would "
                     f"tell), {self._sides()}")
+        if self.kind == TARGET:
+            return (f"a departure of {self.size_um:+.2g} {self.deviation_unit} at the target at {p['centre_mm']:.4g} "
+                    f"{unit} alone (its neighbours at {p['from_mm']:.4g} and {p['to_mm']:.4g} {unit} do not show it: an "
+                    f"error narrower than their spacing, or that target's own; targets in between would tell), "
+                    f"{self._sides()}")
         if self.kind == "step":
             return (f"a step of {self.size_um:+.2g} {self.deviation_unit} at {p['centre_mm']:.4g} {unit}, rising over "
                     f"{p['width_mm']:.2g} {unit}, {self._sides()}")
@@ -272,7 +285,7 @@ def look_elsewhere(data: CampaignData, sides: int = 1) -> float:
     times `sides`: the grid's (find_local) are len(SIDES), two independent columns of which it takes
     the best of three projections of the residual, about three times as likely by chance as one. The
     region terms (their side is the locator's) and the routes' scores count one."""
-    total = 0.0
+    total = 1.0  # a departure at one target (TARGET)
     for kind in KINDS:
         widths = width_range(data, kind)
         total += 1.0 if widths is None else 1 + math.log2(widths[1] / widths[0])
@@ -280,7 +293,7 @@ def look_elsewhere(data: CampaignData, sides: int = 1) -> float:
 
 
 def term_kind(term: Term) -> str:
-    return "step" if "_step" in term.name else "bump"
+    return "step" if "_step" in term.name else TARGET if "_target" in term.name else "bump"
 
 
 def local_term(centre_mm: float, width_mm: float, by_direction: bool = False, kind: str = "bump",
@@ -289,6 +302,23 @@ def local_term(centre_mm: float, width_mm: float, by_direction: bool = False, ki
     name = "local_error" + ("_step" if kind == "step" else "") + ("_by_direction" if by_direction else "")
     return Term(name + (f"#{index}" if index > 1 else ""), {}, False,
                 {"centre_mm": float(centre_mm), "width_mm": float(width_mm)})
+
+
+def target_term(targets: np.ndarray, at_mm: float, by_direction: bool = False, index: int = 1) -> Term:
+    """The local term of a departure at the inner target `at_mm` of `targets` (sorted) alone (TARGET):
+    its shape holds the neighbours either side (from_mm, to_mm; width_mm, their distance)."""
+    k = int(np.argmin(np.abs(targets - at_mm)))
+    low, high = float(targets[max(k - 1, 0)]), float(targets[min(k + 1, len(targets) - 1)])
+    name = "local_error_target" + ("_by_direction" if by_direction else "")
+    return Term(name + (f"#{index}" if index > 1 else ""), {}, False,
+                {"centre_mm": float(targets[k]), "width_mm": high - low, "from_mm": low, "to_mm": high})
+
+
+def on_sides(term: Term, by_direction: bool) -> Term:
+    """The same local term (place, shape, index) with one amplitude per direction, or one for both."""
+    base, _, index = term.name.partition("#")
+    base = base.replace("_by_direction", "") + ("_by_direction" if by_direction else "")
+    return Term(base + (f"#{index}" if index else ""), {}, False, dict(term.shape))
 
 
 def is_local(term: Term) -> bool:
@@ -327,6 +357,7 @@ def _grid_best(data: CampaignData, fit: Fit) -> tuple[str, float, float, int] | 
         sums = np.column_stack([np.bincount(at, root * r, minlength=len(xs) + 1), q_at])[:-1]
         sides.append(_Side(which, count, sums, qr))
     _grid_scan(data, targets, centres, step, xs, sides)
+    _target_scan(targets, xs, sides, 1e-12 * len(data))
     best, power_best = None, -1.0
     for side in sides:  # in SIDES order, each side's best in the grid's order
         if side.best is not None and side.best[3] > power_best:
@@ -352,6 +383,26 @@ class _Side:
     def __post_init__(self) -> None:
         self.above = np.vstack([np.cumsum(self.sums[::-1], axis=0)[::-1], np.zeros((1, self.sums.shape[1]))])
         self.count_above = np.append(np.cumsum(self.count[::-1])[::-1], 0.0)
+
+
+def _target_scan(targets: np.ndarray, xs: np.ndarray, sides: list[_Side], tiny: float) -> None:
+    """A departure at one inner target alone (TARGET) for every target at once: its column is 1 on
+    that target's rows, so its sums are that target's own; each side's best kept in it when larger."""
+    if len(targets) < 3:
+        return
+    at = np.searchsorted(targets, np.round(xs, 6))  # the target of each distinct position
+    for side in sides:
+        sums = np.zeros((len(targets), side.sums.shape[1]))
+        np.add.at(sums, at, side.sums)
+        count = np.bincount(at, side.count, minlength=len(targets))
+        qg = sums[:, 1:]
+        norm = count - (qg * qg).sum(1)
+        rg = sums[:, 0] - qg @ side.qr
+        power = np.where(norm > tiny, rg**2 / np.maximum(norm, 1e-300), 0.0)
+        power[[0, -1]] = 0.0
+        i = int(np.argmax(power))
+        if power[i] > (side.best[3] if side.best is not None else -1.0):
+            side.best = (TARGET, float(targets[i]), 0.0, float(power[i]))
 
 
 def _grid_scan(data: CampaignData, targets: np.ndarray, centres: np.ndarray, step: float, xs: np.ndarray,
@@ -440,7 +491,10 @@ def term_index(term: Term) -> int:
 
 
 def _refine_term(data: CampaignData, others: list[Term], term: Term) -> Fit:
-    """The local `term`'s centre and width refined beside `others`, from its current values (_refine)."""
+    """The local `term`'s centre and width refined beside `others`, from its current values (_refine); a
+    departure at one target (TARGET) has no shape to refine: refitted."""
+    if term_kind(term) == TARGET:
+        return linear_fit(data, [*others, term])
     return _refine(data, others, (term.shape["centre_mm"], term.shape["width_mm"]), term_kind(term),
                    "_by_direction" in term.name, term_index(term))
 
@@ -451,15 +505,17 @@ def _index(fit: Fit, name: str) -> int:
 
 def _errors(data: CampaignData, fit: Fit, name: str, step: float = 1e-3) -> dict[str, float]:
     """1-σ errors of the local term `name`'s amplitudes, centre and width (cov = s²·(JᵀJ)⁻¹ over every
-    coefficient of the fit and the two shape parameters, the other shapes held)."""
+    coefficient of the fit and the two shape parameters, the other shapes held; a departure at one
+    target's amplitudes alone: its place is the target)."""
     i = _index(fit, name)
     term, coefs = fit.terms[i], fit.coefs[i]
-    extra = []
-    for key in ("centre_mm", "width_mm"):
+    keys = () if term_kind(term) == TARGET else ("centre_mm", "width_mm")
+    extra = np.zeros((len(data), len(keys)))
+    for j, key in enumerate(keys):
         h = step * term.shape["width_mm"]
         moved = replace(term, shape={**term.shape, key: term.shape[key] + h})
-        extra.append((moved.columns(data) - term.columns(data)) @ coefs / h)
-    blocks, normal, _ = normal_beside(data, fit.terms, np.column_stack(extra))  # JᵀWJ, no n × p design
+        extra[:, j] = (moved.columns(data) - term.columns(data)) @ coefs / h
+    blocks, normal, _ = normal_beside(data, fit.terms, extra)  # JᵀWJ, no n × p design
     n, p = len(data), len(normal)
     if n <= p:
         return {}
@@ -467,8 +523,8 @@ def _errors(data: CampaignData, fit: Fit, name: str, step: float = 1e-3) -> dict
     names = ["amplitude_um"] if "_by_direction" not in term.name else ["plus_um", "minus_um"]
     mine = blocks.slice_of(fit.terms, i)
     out = {name: float(math.sqrt(max(cov[j, j], 0.0))) for name, j in zip(names, range(mine.start, mine.stop))}
-    out["centre_mm"] = float(math.sqrt(max(cov[p - 2, p - 2], 0.0)))
-    out["width_mm"] = float(math.sqrt(max(cov[p - 1, p - 1], 0.0)))
+    for j, key in enumerate(keys):
+        out[key] = float(math.sqrt(max(cov[p - len(keys) + j, p - len(keys) + j], 0.0)))
     return out
 
 
@@ -501,19 +557,27 @@ def find_local(data: CampaignData, fit: Fit, index: int = 1) -> LocalError | Non
         return None
     kind, centre, width, side = start
     factor = look_elsewhere(data, len(SIDES))
-    on_grid = linear_fit(data, [*fit.terms, local_term(centre, width, side != 0, kind, index)])
+    placed = target_term(_targets(data), centre, side != 0, index) if kind == TARGET else local_term(
+        centre, width, side != 0, kind, index)
+    on_grid = linear_fit(data, [*fit.terms, placed])
     if bic(on_grid, n) - bic(fit, n) + 2 * math.log(factor) > HOPELESS:
         return None  # refining the shape would not bring it near the tests
-    best = _refine(data, fit.terms, (centre, width), kind, False, index)
-    term = best.terms[-1]
-    split = _refine(data, fit.terms, (centre, width), kind, True, index) if side != 0 else linear_fit(
-        data, [*fit.terms, local_term(term.shape["centre_mm"], term.shape["width_mm"], True, kind, index)])
-    if f_test_p(best, split, n) < ALPHA and _differs_locally(data, fit, split.terms[-1], kind, index):
-        best = split if side != 0 else _refine(data, fit.terms, (term.shape["centre_mm"], term.shape["width_mm"]),
-                                               kind, True, index)
-    shape = best.terms[-1].shape
-    if not _seen(_targets(data), kind, np.array(shape["centre_mm"]), shape["width_mm"]):
-        return None
+    if kind == TARGET:  # no shape to refine: its place is the target
+        best = linear_fit(data, [*fit.terms, on_sides(placed, False)])
+        split = on_grid if side != 0 else linear_fit(data, [*fit.terms, on_sides(placed, True)])
+        if f_test_p(best, split, n) < ALPHA and _differs_locally(data, fit, split.terms[-1]):
+            best = split
+    else:
+        best = _refine(data, fit.terms, (centre, width), kind, False, index)
+        term = best.terms[-1]
+        split = _refine(data, fit.terms, (centre, width), kind, True, index) if side != 0 else linear_fit(
+            data, [*fit.terms, on_sides(term, True)])
+        if f_test_p(best, split, n) < ALPHA and _differs_locally(data, fit, split.terms[-1]):
+            best = split if side != 0 else _refine(data, fit.terms, (term.shape["centre_mm"],
+                                                                     term.shape["width_mm"]), kind, True, index)
+        shape = best.terms[-1].shape
+        if not _seen(_targets(data), kind, np.array(shape["centre_mm"]), shape["width_mm"]):
+            return None
     delta_bic = bic(best, n) - bic(fit, n) + 2 * math.log(factor)
     p_value = min(1.0, f_test_p(fit, best, n) * factor)
     groups = data.target_index
@@ -532,7 +596,7 @@ def reversal_name() -> str | None:
     return next((e.name for e in effects() if e.reversal and e.form is not None), None)
 
 
-def _differs_locally(data: CampaignData, fit: Fit, term: Term, kind: str, index: int) -> bool:
+def _differs_locally(data: CampaignData, fit: Fit, term: Term) -> bool:
     """Do the directions differ over the local term's region more than a reversal constant along the
     whole travel would make them? Beside a model without a reversal, a term split by direction would
     otherwise take a machine's backlash or settling where it happens to lie, and the vocabulary would
@@ -542,9 +606,8 @@ def _differs_locally(data: CampaignData, fit: Fit, term: Term, kind: str, index:
     if reversal is None or any(t.name == reversal for t in fit.terms):
         return True
     beside = [*fit.terms, Term(reversal)]
-    c, w = term.shape["centre_mm"], term.shape["width_mm"]
-    both = linear_fit(data, [*beside, local_term(c, w, False, kind, index)])
-    split = linear_fit(data, [*beside, local_term(c, w, True, kind, index)])
+    both = linear_fit(data, [*beside, on_sides(term, False)])
+    split = linear_fit(data, [*beside, on_sides(term, True)])
     return f_test_p(both, split, len(data)) < ALPHA
 
 

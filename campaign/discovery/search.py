@@ -66,6 +66,7 @@ from campaign.discovery.fit import (
 from campaign.discovery.local import (
     HOPELESS,
     SIDES,
+    TARGET,
     LocalError,
     describe,
     find_local,
@@ -918,7 +919,8 @@ def route_score(data: CampaignData, result: Discovery, held: Fit | None = None) 
     term's without), a searched period with its own."""
     n = len(data)
     score = bic(held or held_fit(data, result) or result.final, n)  # routes compared with their groups held
-    score += sum(2 * math.log(n) + 2 * math.log(look_elsewhere(data, 1 if e.kind == "region" else len(SIDES)))
+    score += sum((1 if e.kind == TARGET else 2) * math.log(n)  # a target's place is one choice, not two shapes
+                 + 2 * math.log(look_elsewhere(data, 1 if e.kind == "region" else len(SIDES)))
                  for e in result.local_errors)
     if any(t.name in PERIOD_KEY and t.searched for t in result.final.terms):
         score += 2 * math.log(independent_periods(data))
@@ -981,9 +983,12 @@ def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]
     local error may be that period seen at few targets: said in a note)."""
     again = search_vocabulary(data, model, given, [local.term for local in found])
     if periodic and period_unresolved(again.unresolved):
-        _note(vocabulary.notes, f"{found[0].sentence()} would fit too, but the unresolved periodic error is still "
-                                "there beside it: it may be that error seen at few targets, so it is not added")
-        add_local_rivals(vocabulary, found)
+        # one target's departure is what a period seen at few targets shows everywhere (beside_period): no rival
+        rivals = [local for local in found if local.kind != TARGET]
+        if rivals:
+            _note(vocabulary.notes, f"{rivals[0].sentence()} would fit too, but the unresolved periodic error is "
+                                    "still there beside it: it may be that error seen at few targets, so it is not added")
+            add_local_rivals(vocabulary, rivals)
         return None
     # the local terms are tested beside what an unresolved group holds, which the route then keeps (and
     # route_score, and hold_unresolved after the route is chosen, find held already)
@@ -1227,6 +1232,8 @@ def within_targets(data: CampaignData, term: Term) -> bool:
     shape = term.shape
     if "start_mm" in shape and "end_mm" in shape:
         lo, hi = shape["start_mm"], shape["end_mm"]
+    elif "from_mm" in shape:  # a departure at one target, never at the outer two
+        lo = hi = shape["centre_mm"]
     else:
         reach = shape["width_mm"] if "step" not in term.name else shape["width_mm"] / 2
         lo, hi = shape["centre_mm"] - reach, shape["centre_mm"] + reach
