@@ -745,8 +745,12 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     if regions is not None and (cv_rms_um(data, regions.final.terms, data.target_index)
                                 < cv_rms_um(data, vocabulary.final.terms, data.target_index)):
         routes.append(regions)  # unexplained local errors, only when they also predict left-out targets better
-    scores = [route_score(data, r, held_vocabulary if r is vocabulary else None) for r in routes]
+    scores = [route_score(data, r, held_vocabulary if r is vocabulary and not periodic else None) for r in routes]
     best = min(range(len(routes)), key=lambda i: scores[i] + (0.0 if i == 0 else BIC_MARGIN))
+    if best == 0 and (closer := [i for i in range(1, len(routes)) if scores[i] < scores[0]]):
+        # BIC favours local terms, by less than its margin: undecided, so the leave-one-target-out CV decides
+        cvs = {i: cv_rms_um(data, routes[i].final.terms, data.target_index) for i in [0, *closer]}
+        best = min(cvs, key=lambda i: cvs[i])
     if best and routes[0].added:
         dropped = [name for name in routes[0].added if name not in routes[best].added]
         for name in dropped:
@@ -877,13 +881,15 @@ def hold_unresolved(data: CampaignData, result: Discovery, periods: bool) -> Dis
     return result
 
 
-def held_fit(data: CampaignData, vocabulary: Discovery) -> Fit | None:
+def held_fit(data: CampaignData, vocabulary: Discovery, periods: bool = False) -> Fit | None:
     """The vocabulary's final fit with what its unresolved groups (not a period) show held as
     hold_unresolved holds it (a reversal backlash and settling explain alike), `vocabulary` left as it
     is; None when nothing is held. Local errors are looked for beside it when none is found beside the
     vocabulary alone: a reversal left in the residual hides a step or a bump both directions share."""
     trial = replace(vocabulary, held=list(vocabulary.held), notes=[], unresolved=list(vocabulary.unresolved))
     trial = hold_unresolved(data, trial, periods=False)
+    if periods:  # and an unresolved period, by its best candidate (as the route chosen will hold it, last)
+        trial = hold_unresolved(data, trial, periods=True)
     return trial.final if len(trial.held) > len(vocabulary.held) else None
 
 
@@ -918,11 +924,12 @@ def route_score(data: CampaignData, result: Discovery, held: Fit | None = None) 
     and width counted with its search's look-elsewhere factor (the grid's with its sides, a region
     term's without), a searched period with its own."""
     n = len(data)
-    score = bic(held or held_fit(data, result) or result.final, n)  # routes compared with their groups held
+    final = held or held_fit(data, result, periods=True) or result.final  # routes compared with their groups held
+    score = bic(final, n)
     score += sum((1 if e.kind == TARGET else 2) * math.log(n)  # a target's place is one choice, not two shapes
                  + 2 * math.log(look_elsewhere(data, 1 if e.kind == "region" else len(SIDES)))
                  for e in result.local_errors)
-    if any(t.name in PERIOD_KEY and t.searched for t in result.final.terms):
+    if any(t.name.removeprefix(HELD_PREFIX) in PERIOD_KEY and t.searched for t in final.terms):
         score += 2 * math.log(independent_periods(data))
     return score
 
