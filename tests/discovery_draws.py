@@ -182,7 +182,8 @@ def _near(truth: Truth, centres: list[float]) -> bool:
 
 def judge(result: Discovery, truth: Truth) -> Judged:
     found = [(z.centre_mm, (z.region_mm[1] - z.region_mm[0]) / 2) for z in zones(result.local_errors)]
-    found += [(e.params["centre_mm"], e.params["width_mm"] / 2) for e in result.local_errors]
+    # a departure at one target says where between its neighbours it lies, not where: bracketed (below)
+    found += [(e.params["centre_mm"], e.params["width_mm"] / 2) for e in result.local_errors if e.kind != "target"]
     located = truth.shape == "linear_growth" and "linear_drift" in result.added
     for centre, half in truth.regions:
         tolerance = 10.0 if truth.shape == "step" else max(half, 10.0)

@@ -224,5 +224,6 @@ def test_a_route_the_bic_prefers_by_less_than_its_margin_is_decided_by_cross_val
     data = campaign_data(simulate_campaign(config, ErrorModel(truth.model), seed=8331, dwell_jitter=0.8))
     result = discover(data, ErrorModel({"linear_scale": {}}), {"linear_scale": set()})
     judged = judge(result, truth)
-    assert judged.stated and not judged.false_names, judged.said
+    assert judged.bracketed and not judged.false_names, judged.said
+    assert any(e.between_mm == (60.0, 120.0) for e in result.local_errors), judged.said
     assert {"nonlinear_lead", "backlash"} <= set(result.added), judged.said

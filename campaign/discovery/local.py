@@ -194,8 +194,9 @@ class LocalError:
                     f"tell), {self._sides()}")
         if self.kind == TARGET:
             return (f"a departure of {self.size_um:+.2g} {self.deviation_unit} at the target at {p['centre_mm']:.4g} "
-                    f"{unit} alone (its neighbours at {p['from_mm']:.4g} and {p['to_mm']:.4g} {unit} do not show it: an "
-                    f"error narrower than their spacing, or that target's own; targets in between would tell), "
+                    f"{unit} alone (the reading there, not the error's peak: an error somewhere between the targets at "
+                    f"{p['from_mm']:.4g} and {p['to_mm']:.4g} {unit}, about as narrow as their spacing or narrower, or "
+                    f"that target's own; its peak, place and width are not resolved, targets in between would tell), "
                     f"{self._sides()}")
         if self.kind == "step":
             return (f"a step of {self.size_um:+.2g} {self.deviation_unit} at {p['centre_mm']:.4g} {unit}, rising over "
@@ -306,12 +307,13 @@ def local_term(centre_mm: float, width_mm: float, by_direction: bool = False, ki
 
 def target_term(targets: np.ndarray, at_mm: float, by_direction: bool = False, index: int = 1) -> Term:
     """The local term of a departure at the inner target `at_mm` of `targets` (sorted) alone (TARGET):
-    its shape holds the neighbours either side (from_mm, to_mm; width_mm, their distance)."""
+    its shape holds the target (centre_mm) and the neighbours either side (from_mm, to_mm), between
+    which the error lies; no width: the data do not say one."""
     k = int(np.argmin(np.abs(targets - at_mm)))
     low, high = float(targets[max(k - 1, 0)]), float(targets[min(k + 1, len(targets) - 1)])
     name = "local_error_target" + ("_by_direction" if by_direction else "")
     return Term(name + (f"#{index}" if index > 1 else ""), {}, False,
-                {"centre_mm": float(targets[k]), "width_mm": high - low, "from_mm": low, "to_mm": high})
+                {"centre_mm": float(targets[k]), "from_mm": low, "to_mm": high})
 
 
 def on_sides(term: Term, by_direction: bool) -> Term:

@@ -79,6 +79,7 @@ from campaign.discovery.local import (
     refit_local,
     shapes_refined,
     term_index,
+    term_kind,
 )
 from campaign.discovery.local import MAX_REGIONS as MAX_LOCALS
 from campaign.discovery.locate import Located, beside_period, locate
@@ -1320,9 +1321,9 @@ def searched_comparison(data: CampaignData, fixed: Fit, named: Fit) -> Searched:
 
 
 def parameters(fit: Fit) -> int:
-    """A fit's parameters with each local term's searched centre and width counted (Fit.n_params
-    counts the vocabulary's searched shapes only)."""
-    return fit.n_params + sum(len(t.shape) for t in fit.terms if is_local(t))
+    """A fit's parameters with each local term's searched centre and width counted (a departure at one
+    target: its place once; Fit.n_params counts the vocabulary's searched shapes only)."""
+    return fit.n_params + sum(1 if term_kind(t) == TARGET else len(t.shape) for t in fit.terms if is_local(t))
 
 
 def needed_beside_regions(data: CampaignData, final: Fit, name: str, index: int) -> tuple[Fit | None, list[Term]]:
