@@ -461,7 +461,8 @@ def print_text(result: Discovery, time_unit: str, incomplete: list[str], verbose
                       f"shape; {local.time_text()}. It explains {local.explained_pct:.1f} % of the residual (ΔBIC "
                       f"{local.delta_bic:.1f} with its search's look-elsewhere, p {local.p_value:.2g}, "
                       f"{cv_text(local.cv_before_um, local.cv_after_um, dev)}); the model holds it as a "
-                      f"{'term at that target' if local.kind == 'target' else 'smooth local term'} (gap {local.gap_without_um:.3f} {dev} without it), not as an effect, and does not save it")
+                      f"{'term at that target' if local.kind == 'target' else 'smooth local term'} (gap "
+                      f"{local.gap_without_um:.3f} {dev} without it), not as an effect, and does not save it")
     for when, located in (("before anything is named", result.located_before),
                           ("left by the final model", result.located_after)):
         if located is None:

@@ -84,9 +84,9 @@ MIN_SEEN = 3
 """A bump is looked for only where at least this many targets see it at half its height or more:
 fewer cannot tell its size from its width, nor a bump from one target's odd reading."""
 TARGET = "target"
-"""The local term of a departure at one target alone (its neighbours do not show it): an error narrower
-than the targets' spacing there, or that target's own; where between its neighbours it lies and how
-wide it is, the data do not say. Looked for at every target but the outer two (a departure at the end
+"""The local term of a departure at one target alone (fitted at that target's points only): an error
+about as narrow as the targets' spacing there or narrower, or that target's own; where between its
+neighbours it lies, how wide and how high it is, the data do not say (its size is the reading there). Looked for at every target but the outer two (a departure at the end
 of the travel is a slope's or a bow's end as well)."""
 
 
@@ -283,7 +283,8 @@ def _seen(targets: np.ndarray, kind: str, centre_mm: np.ndarray, width_mm: float
 
 def look_elsewhere(data: CampaignData, sides: int = 1) -> float:
     """About how many independent local terms a search tries: one per target, octave of width and shape,
-    and one per target for a departure there alone (TARGET), times `sides`: the grid's (find_local) are len(SIDES), two independent columns of which it takes
+    and one per target for a departure there alone (TARGET), times `sides`: the grid's (find_local) are
+    len(SIDES), two independent columns of which it takes
     the best of three projections of the residual, about three times as likely by chance as one. The
     region terms (their side is the locator's) and the routes' scores count one."""
     total = 1.0  # a departure at one target (TARGET)
@@ -299,10 +300,16 @@ def term_kind(term: Term) -> str:
 
 def local_term(centre_mm: float, width_mm: float, by_direction: bool = False, kind: str = "bump",
                index: int = 1) -> Term:
-    """A local term; the `index`-th on the axis is named with "#index" from the second on."""
-    name = "local_error" + ("_step" if kind == "step" else "") + ("_by_direction" if by_direction else "")
-    return Term(name + (f"#{index}" if index > 1 else ""), {}, False,
+    """A local term (a bump or a step)."""
+    return Term(local_name(kind, by_direction, index), {}, False,
                 {"centre_mm": float(centre_mm), "width_mm": float(width_mm)})
+
+
+def local_name(kind: str, by_direction: bool, index: int) -> str:
+    """The name of a local term of `kind` (bump, step, TARGET); the `index`-th on the axis is named with
+    "#index" from the second on."""
+    suffix = {"step": "_step", TARGET: "_target"}.get(kind, "")
+    return "local_error" + suffix + ("_by_direction" if by_direction else "") + (f"#{index}" if index > 1 else "")
 
 
 def target_term(targets: np.ndarray, at_mm: float, by_direction: bool = False, index: int = 1) -> Term:
@@ -311,16 +318,13 @@ def target_term(targets: np.ndarray, at_mm: float, by_direction: bool = False, i
     which the error lies; no width: the data do not say one."""
     k = int(np.argmin(np.abs(targets - at_mm)))
     low, high = float(targets[max(k - 1, 0)]), float(targets[min(k + 1, len(targets) - 1)])
-    name = "local_error_target" + ("_by_direction" if by_direction else "")
-    return Term(name + (f"#{index}" if index > 1 else ""), {}, False,
+    return Term(local_name(TARGET, by_direction, index), {}, False,
                 {"centre_mm": float(targets[k]), "from_mm": low, "to_mm": high})
 
 
 def on_sides(term: Term, by_direction: bool) -> Term:
     """The same local term (place, shape, index) with one amplitude per direction, or one for both."""
-    base, _, index = term.name.partition("#")
-    base = base.replace("_by_direction", "") + ("_by_direction" if by_direction else "")
-    return Term(base + (f"#{index}" if index else ""), {}, False, dict(term.shape))
+    return Term(local_name(term_kind(term), by_direction, term_index(term)), {}, False, dict(term.shape))
 
 
 def is_local(term: Term) -> bool:
@@ -359,7 +363,7 @@ def _grid_best(data: CampaignData, fit: Fit) -> tuple[str, float, float, int] | 
         sums = np.column_stack([np.bincount(at, root * r, minlength=len(xs) + 1), q_at])[:-1]
         sides.append(_Side(which, count, sums, qr))
     _grid_scan(data, targets, centres, step, xs, sides)
-    _target_scan(targets, xs, sides, 1e-12 * len(data))
+    _target_scan(targets, xs, sides, NORM_FLOOR * len(data))
     best, power_best = None, -1.0
     for side in sides:  # in SIDES order, each side's best in the grid's order
         if side.best is not None and side.best[3] > power_best:
@@ -385,6 +389,11 @@ class _Side:
     def __post_init__(self) -> None:
         self.above = np.vstack([np.cumsum(self.sums[::-1], axis=0)[::-1], np.zeros((1, self.sums.shape[1]))])
         self.count_above = np.append(np.cumsum(self.count[::-1])[::-1], 0.0)
+
+
+NORM_FLOOR = 1e-12
+"""A grid term whose column outside the model's span has a squared norm below this times the rows holds
+nothing the model does not: its power is zero."""
 
 
 def _target_scan(targets: np.ndarray, xs: np.ndarray, sides: list[_Side], tiny: float) -> None:
@@ -439,7 +448,8 @@ def _grid_scan(data: CampaignData, targets: np.ndarray, centres: np.ndarray, ste
                     qg = both[1:]
                     norm = norm - (qg * qg).sum(0)
                     rg = both[0] - side.qr @ qg
-                    power[lo:lo + block] = np.where(norm > 1e-12 * len(data), rg**2 / np.maximum(norm, 1e-300), 0.0)
+                    power[lo:lo + block] = np.where(norm > NORM_FLOOR * len(data), rg**2 / np.maximum(norm, 1e-300),
+                                                    0.0)
             unseen = ~_seen(targets, kind, centres, width)
             for side, power in zip(sides, powers):
                 power[unseen] = 0.0

@@ -935,12 +935,15 @@ def route_score(data: CampaignData, result: Discovery, held: Fit | None = None) 
     return score
 
 
-def add_local_rivals(result: Discovery, found: list[LocalError]) -> None:
+def add_local_rivals(result: Discovery, found: list[LocalError]) -> list[LocalError]:
     """The unresolved period's group gets the local errors that would fit as well as rivals
-    (`local_rivals`: sentence and region, mm): what the campaign shows there is either."""
+    (`local_rivals`: sentence and region, mm): what the campaign shows there is either. One target's
+    departure never is: it is what a period seen at few targets shows at every target (beside_period).
+    The local errors made rivals."""
     at = next((i for i, u in enumerate(result.unresolved) if periodic_in(u.effects)), None)
-    if at is None:
-        return
+    found = [local for local in found if local.kind != TARGET]
+    if at is None or not found:
+        return []
     entry = result.unresolved[at]
     rivals = list(entry.local_rivals)
     for local in found:
@@ -952,6 +955,7 @@ def add_local_rivals(result: Discovery, found: list[LocalError]) -> None:
     if "denser targets over" not in how:
         how = f"{how}; or a local error at {said}: denser targets over it tell a wave from a local error"
     result.unresolved[at] = replace(entry, local_rivals=tuple(rivals), how_to_tell=how)
+    return found
 
 
 def result_unit(found: list[LocalError]) -> str:
@@ -991,12 +995,9 @@ def with_locals(data: CampaignData, model: ErrorModel, given: dict[str, set[str]
     local error may be that period seen at few targets: said in a note)."""
     again = search_vocabulary(data, model, given, [local.term for local in found])
     if periodic and period_unresolved(again.unresolved):
-        # one target's departure is what a period seen at few targets shows everywhere (beside_period): no rival
-        rivals = [local for local in found if local.kind != TARGET]
-        if rivals:
+        if rivals := add_local_rivals(vocabulary, found):
             _note(vocabulary.notes, f"{rivals[0].sentence()} would fit too, but the unresolved periodic error is "
                                     "still there beside it: it may be that error seen at few targets, so it is not added")
-            add_local_rivals(vocabulary, rivals)
         return None
     # the local terms are tested beside what an unresolved group holds, which the route then keeps (and
     # route_score, and hold_unresolved after the route is chosen, find held already)
@@ -1135,19 +1136,10 @@ def hold_what_is_left(data: CampaignData, result: Discovery) -> Discovery:
     period = period_candidate(result.remaining)
     beside = ([t for t in period.fitted.terms if t.name == period.name]
               if period is not None and period_unresolved(result.unresolved) else [])
-    final = result.final
-    taken = {term_index(t) for t in final.terms if t.name.startswith("local_error")}
-    free = [k for k in range(1, MAX_LOCALS + 1) if k not in taken][:MAX_LOCALS - len(taken)]
-    found: list[LocalError] = []
-    for index in free if not beside else []:
-        more = find_local(data, final, index)  # a bump or a step the earlier routes did not keep
-        if more is None or not within_targets(data, more.term):
-            break
-        trial = linear_fit(data, [*final.terms, more.term])
-        if beyond_the_campaign(data, result.start, trial):
-            break
-        final = trial
-        found.append(more)
+    final, found = result.final, list[LocalError]()
+    if not beside:  # a bump, a step or one target's departure the earlier routes did not keep
+        taken = {term_index(t) for t in final.terms if is_local(t)}
+        final, found = more_locals(data, final, result.start, taken)
     added = [described_in(data, final, e) for e in found]  # as the fit they end in has them
     for _ in range(LEFT_ROUNDS):
         index = 1 + sum(1 for t in final.terms if t.name.startswith("local_region"))
@@ -1353,6 +1345,25 @@ def needed_beside(data: CampaignData, fit: Fit, term: Term, cv_um: float) -> boo
     return passes(data, fit, with_it, (cv_um, cv_rms_um(data, with_it.terms, data.target_index)))
 
 
+def more_locals(data: CampaignData, fit: Fit, start: Fit, taken: set[int]) -> tuple[Fit, list[LocalError]]:
+    """Local errors looked for beside `fit` one after the other (find_local), at the indices not `taken`,
+    up to MAX_LOCALS on the axis in all: each kept while it lies within the targets (within_targets) and no
+    local term of the fit grows beyond what the campaign shows from `start` (beyond_the_campaign). The
+    fit with them, and them as found (each tested beside the fit before it)."""
+    free = [k for k in range(1, MAX_LOCALS + 1) if k not in taken][:MAX_LOCALS - len(taken)]
+    found: list[LocalError] = []
+    for index in free:
+        more = find_local(data, fit, index)
+        if more is None or not within_targets(data, more.term):
+            break
+        trial = linear_fit(data, [*fit.terms, more.term])
+        if beyond_the_campaign(data, start, trial):
+            break
+        fit = trial
+        found.append(more)
+    return fit, found
+
+
 def bumps_and_steps_without(data: CampaignData, result: Discovery, name: str) -> tuple[Fit | None, list[LocalError]]:
     """The final model without the named effect `name`, its bump and step terms refitted in its place
     and more looked for beside them (campaign.discovery.local, up to MAX_REGIONS in all), each kept
@@ -1365,20 +1376,8 @@ def bumps_and_steps_without(data: CampaignData, result: Discovery, name: str) ->
             continue
         fit, refined = refit_local(data, fit, local)
         kept.append(refined)
-    taken = {term_index(e.term) for e in kept}
-    for index in range(1, MAX_LOCALS + 1):
-        if len(kept) >= MAX_LOCALS:
-            break
-        if index in taken:
-            continue
-        more = find_local(data, fit, index)
-        if more is None or not within_targets(data, more.term):
-            break
-        trial = linear_fit(data, [*fit.terms, more.term])
-        if beyond_the_campaign(data, result.start, trial):
-            break
-        kept.append(more)
-        fit = trial
+    fit, more = more_locals(data, fit, result.start, {term_index(e.term) for e in kept})
+    kept += more
     for local in list(kept):
         without = linear_fit(data, [t for t in fit.terms if t.name != local.term.name])
         if not passes(data, without, fit, sides=len(SIDES)):
