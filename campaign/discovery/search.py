@@ -746,6 +746,15 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     if regions is not None and (cv_rms_um(data, regions.final.terms, data.target_index)
                                 < cv_rms_um(data, vocabulary.final.terms, data.target_index)):
         routes.append(regions)  # unexplained local errors, only when they also predict left-out targets better
+        if set(regions.added) - set(vocabulary.added):
+            # what the regions let the vocabulary name (a bow a step hid) may in turn show the step: bumps
+            # and steps looked for beside that vocabulary alone, the regions left out
+            named = held_fit(data, regions) or regions.final
+            found = find_locals(data, linear_fit(data, [t for t in named.terms if not is_region(t)]))
+            if found and not any(_same_places(found, r.local_errors) for r in routes[1:]):
+                route = with_locals(data, model, given, vocabulary, found, periodic)
+                if route is not None:
+                    routes.append(route)
     scores = [route_score(data, r, held_vocabulary if r is vocabulary and not periodic else None) for r in routes]
     best = min(range(len(routes)), key=lambda i: scores[i] + (0.0 if i == 0 else BIC_MARGIN))
     if best == 0 and (closer := [i for i in range(1, len(routes)) if scores[i] < scores[0]]):
