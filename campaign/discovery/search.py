@@ -23,7 +23,7 @@ screw growth about its fixed bearing).
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -1109,6 +1109,14 @@ def unnamed_beside_regions(data: CampaignData, result: Discovery) -> Discovery:
             local, local_cv = regions, cv_rms_um(data, regions.terms, data.target_index)
         elif local_cv > named_cv:
             continue
+        elif not (against := one_se_comparison(data, local, result.final, regions_located_again(
+                [t for t in without.terms if t not in beside], index), shapes_held)).bumps_win:
+            _note(result.notes, f"{name} stays named: local terms over the regions it explains, located again "
+                                f"without each left-out target, do not predict it better by enough (CV "
+                                f"{against.bumps_cv:.3f} against {against.effect_cv:.3f} {data.deviation_unit}; with "
+                                f"more parameters they must win by one standard error, {against.margin_cv:.2g}); with "
+                                f"the places located on every target {local_cv:.3f} against {named_cv:.3f}")
+            continue
         result.steps.remove(step)
         result.final, changed = local, True
         result.local_errors = [e for e in result.local_errors if e.term.name in {t.name for t in local.terms}] + [
@@ -1306,25 +1314,59 @@ def searched_comparison(data: CampaignData, fixed: Fit, named: Fit) -> Searched:
     paired difference of the folds' errors (the one-standard-error rule: when cross-validation cannot
     tell two models apart, the simpler is kept): a 0.66 µm bump stood in for a machine's 0.3 µm bow
     at CV 0.503 against 0.521 µm, 0.516 against 0.521 µm refined in each fold (a null draw, seed 16489)."""
+    return one_se_comparison(data, fixed, named, shapes_refined, shapes_refined)
+
+
+Refined = Callable[[CampaignData, list[Term]], list[Term]]
+"""The terms a CV fold fits (cv_searched_errors): from the terms fitted on all the data and the fold's rows."""
+
+
+def one_se_comparison(data: CampaignData, local: Fit, named: Fit, local_refined: Refined,
+                      named_refined: Refined) -> Searched:
+    """Local terms (`local`) against the `named` model by the CV whose folds (at most SEARCHED_FOLDS
+    blocks of targets) get their terms from `local_refined` and `named_refined`; with more parameters than
+    the named model, the local terms win only by more than one standard error of the paired difference
+    of the folds' errors."""
     targets = data.target_index
     count = int(targets.max()) + 1 if len(targets) else 0
     groups = targets if count <= SEARCHED_FOLDS else (targets * SEARCHED_FOLDS) // count
-    with_bumps = cv_searched_errors(data, fixed.terms, groups, shapes_refined)
-    with_effect = cv_searched_errors(data, named.terms, groups, shapes_refined)
+    with_local = cv_searched_errors(data, local.terms, groups, local_refined)
+    with_effect = cv_searched_errors(data, named.terms, groups, named_refined)
     n = max(len(data), 1)
-    diff = (with_bumps - with_effect) / n  # each fold's share of the difference in mean square
+    diff = (with_local - with_effect) / n  # each fold's share of the difference in mean square
     total = float(diff.sum())
-    simpler = parameters(named) < parameters(fixed)
+    simpler = parameters(named) < parameters(local)
     margin = float(np.std(diff, ddof=1) * math.sqrt(len(diff))) if simpler and len(diff) > 1 else 0.0
     effect_ms = float(with_effect.sum()) / n
-    return Searched(total < -margin if simpler else total <= 0.0, math.sqrt(float(with_bumps.sum()) / n),
+    return Searched(total < -margin if simpler else total <= 0.0, math.sqrt(float(with_local.sum()) / n),
                     math.sqrt(effect_ms), math.sqrt(effect_ms) - math.sqrt(max(effect_ms - margin, 0.0)))
+
+
+def shapes_held(data: CampaignData, terms: list[Term]) -> list[Term]:
+    """The terms as they are: a fold keeps every shape."""
+    return terms
+
+
+def regions_located_again(beside: list[Term], index: int) -> Refined:
+    """A fold's region terms located again on its own rows beside the terms `beside` (their shapes held),
+    numbered from `index` (as unnamed_beside_regions numbers them): the regions' places were chosen on
+    all the targets, so with them held the left-out target is predicted too well."""
+
+    def refined(fold: CampaignData, terms: list[Term]) -> list[Term]:
+        without = linear_fit(fold, beside)
+        found = region_terms(fold, without, locate(fold, fold.y - without.prediction))
+        return [*beside, *(replace(t, name=t.name.split("#")[0] + (f"#{index + k}" if index + k > 1 else ""))
+                           for k, t in enumerate(found))]
+
+    return refined
 
 
 def parameters(fit: Fit) -> int:
     """A fit's parameters with each local term's searched centre and width counted (a departure at one
-    target: its place once; Fit.n_params counts the vocabulary's searched shapes only)."""
-    return fit.n_params + sum(1 if term_kind(t) == TARGET else len(t.shape) for t in fit.terms if is_local(t))
+    target: its place once; a region term: its start and end, which the locator chose; Fit.n_params
+    counts the vocabulary's searched shapes only)."""
+    return fit.n_params + sum(1 if term_kind(t) == TARGET else len(t.shape) for t in fit.terms if is_local(t)) + sum(
+        2 for t in fit.terms if is_region(t))
 
 
 def needed_beside_regions(data: CampaignData, final: Fit, name: str, index: int) -> tuple[Fit | None, list[Term]]:
