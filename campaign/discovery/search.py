@@ -715,10 +715,12 @@ def prefer_simpler(best: Candidate, accepted: list[Candidate], n: int, notes: li
 
 def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) -> Discovery:
     """Run discovery on a campaign from a starting model (`given`: the parameters the user gave
-    per effect; the others are fitted). Three routes, the one that explains the campaign best
+    per effect; the others are fitted). Up to five routes, the one that explains the campaign best
     (route_score) kept: the vocabulary alone; the vocabulary, then errors outside it located
-    beside what it named (campaign.discovery.local); and errors outside it located first, beside
-    the starting model, then the vocabulary beside them. A vocabulary effect is thus named only when
+    beside what it named (campaign.discovery.local); errors outside it located first, beside
+    the starting model, then the vocabulary beside them; region terms over the located regions, then the
+    vocabulary beside them (with_regions); and, when those regions let the vocabulary name more, bumps and
+    steps located beside that vocabulary, then the vocabulary beside them. A vocabulary effect is thus named only when
     it explains the campaign better than local terms over the regions located: an effect that merely
     soaked up a local error (a bow, a short period, a reversal) is not named."""
     vocabulary = search_vocabulary(data, model, given)
@@ -1057,8 +1059,9 @@ def unnamed_beside_regions(data: CampaignData, result: Discovery) -> Discovery:
     term over the regions it explains. For each, the final model without it is located again
     (campaign.discovery.locate), local terms whose shape follows the data are fitted over the regions
     found (campaign.discovery.unexplained, each passing its tests); when that model's
-    leave-one-target-out CV is not above the named one's, the effect is not named and the regions
-    stay in the model as unexplained local errors (a note says so), in place of the effect and of any
+    leave-one-target-out CV is not above the named one's, and it still wins with its regions located again
+    in each fold (by one standard error when it has more parameters: regions_compared), the effect is not
+    named and the regions stay in the model as unexplained local errors (a note says so), in place of the effect and of any
     bump or step term beside it. Beside an unresolved period the regions may be that period seen at few
     targets: they are then also listed as its rivals (add_local_rivals)."""
     periodic = period_unresolved(result.unresolved)
@@ -1109,13 +1112,14 @@ def unnamed_beside_regions(data: CampaignData, result: Discovery) -> Discovery:
             local, local_cv = regions, cv_rms_um(data, regions.terms, data.target_index)
         elif local_cv > named_cv:
             continue
-        elif not (against := one_se_comparison(data, local, result.final, regions_located_again(
-                [t for t in without.terms if t not in beside], index), shapes_held)).bumps_win:
+        elif not (against := regions_compared(data, local, result.final, without.terms, beside, index)).bumps_win:
+            simpler = parameters(result.final) < parameters(local)
             _note(result.notes, f"{name} stays named: local terms over the regions it explains, located again "
-                                f"without each left-out target, do not predict it better by enough (CV "
-                                f"{against.bumps_cv:.3f} against {against.effect_cv:.3f} {data.deviation_unit}; with "
-                                f"more parameters they must win by one standard error, {against.margin_cv:.2g}); with "
-                                f"the places located on every target {local_cv:.3f} against {named_cv:.3f}")
+                                f"without the targets each fold leaves out, do not predict them better (CV "
+                                f"{against.bumps_cv:.3f} against {against.effect_cv:.3f} {data.deviation_unit}"
+                                + (f"; with more parameters they must win by one standard error, "
+                                   f"{against.margin_cv:.2g} {data.deviation_unit}" if simpler else "")
+                                + f"); with the places located on every target {local_cv:.3f} against {named_cv:.3f}")
             continue
         result.steps.remove(step)
         result.final, changed = local, True
@@ -1347,14 +1351,27 @@ def shapes_held(data: CampaignData, terms: list[Term]) -> list[Term]:
     return terms
 
 
+def regions_compared(data: CampaignData, local: Fit, named: Fit, without: list[Term], beside: list[Term],
+                     index: int) -> Searched:
+    """Region terms in a named effect's place (`local`) against the `named` model, each fold locating its
+    regions again beside `without` (the named model less the effect), both sides with the terms `beside`
+    (an unresolved period's stand-in) as their leave-one-target-out CVs have them."""
+    if beside:
+        local, named = linear_fit(data, [*local.terms, *beside]), linear_fit(data, [*named.terms, *beside])
+    return one_se_comparison(data, local, named, regions_located_again(without, index), shapes_held)
+
+
 def regions_located_again(beside: list[Term], index: int) -> Refined:
     """A fold's region terms located again on its own rows beside the terms `beside` (their shapes held),
-    numbered from `index` (as unnamed_beside_regions numbers them): the regions' places were chosen on
-    all the targets, so with them held the left-out target is predicted too well."""
+    numbered from `index` and dropped when one reaches past the outer targets (as unnamed_beside_regions
+    numbers and drops them): the regions' places were chosen on all the targets, so with them held the
+    left-out target is predicted too well."""
 
     def refined(fold: CampaignData, terms: list[Term]) -> list[Term]:
         without = linear_fit(fold, beside)
         found = region_terms(fold, without, locate(fold, fold.y - without.prediction))
+        if not all(within_targets(fold, t) for t in found):
+            found = []
         return [*beside, *(replace(t, name=t.name.split("#")[0] + (f"#{index + k}" if index + k > 1 else ""))
                            for k, t in enumerate(found))]
 
