@@ -58,8 +58,7 @@ def main() -> None:
                 tally = {"shape": shape, "targets": count, "offsets": offsets, "draws": 0, "visible": 0,
                          "located": 0, "stated": 0, "bracketed": 0, "seen": 0, "false_names": 0, "gap_within_1_3": 0,
                          "bad_names": 0, "regions_after": 0, "beyond": 0, "false": []}
-                for k in range(args.draws):
-                    seed = args.seed + 7919 * k + 31 * count + (0 if offsets == "none" else 1)
+                for seed in draw_seeds(args.seed, args.draws, count, offsets):
                     truth = draw(np.random.default_rng(seed), shape, config)
                     table = simulate_campaign(config, ErrorModel(truth.model), seed=seed, dwell_jitter=0.8)
                     data = campaign_data(table)
@@ -100,6 +99,11 @@ def main() -> None:
                              f"{r['false_names']} · {r['gap_within_1_3']}")
             print(f"| {shape} | {count} | {cells[0]} | {cells[1]} |")
     print(json.dumps(out["totals"]))
+
+
+def draw_seeds(seed: int, draws: int, count: int, offsets: str) -> list[int]:
+    """The generator seeds of one cell's draws (the bench's seed `seed`, `draws` per cell)."""
+    return [seed + 7919 * k + 31 * count + (0 if offsets == "none" else 1) for k in range(draws)]
 
 
 def totals(rows: list[dict]) -> dict:

@@ -725,8 +725,9 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     soaked up a local error (a bow, a short period, a reversal) is not named."""
     vocabulary = search_vocabulary(data, model, given)
     periodic = period_unresolved(vocabulary.unresolved)
+    soakers = [n for n in reversed(vocabulary.added) if may_soak(n)]
     beside = find_locals(data, vocabulary.final)
-    for name in [n for n in reversed(vocabulary.added) if may_soak(n)] if not beside else ():
+    for name in soakers if not beside else ():
         # a short period or a reversal may have soaked up most of it: look beside the rest
         beside = find_locals(data, linear_fit(data, [t for t in vocabulary.final.terms if t.name != name]))
         if beside:
@@ -736,6 +737,12 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
         held_vocabulary = held_fit(data, vocabulary) or vocabulary.final
         if held_vocabulary is not vocabulary.final:
             beside = find_locals(data, held_vocabulary)  # beside a reversal its unresolved rivals hold alike
+            for name in soakers if not beside else ():
+                # and beside it without a named effect that soaked up the local error: the reversal
+                # left in hides the local error from the grid, the effect holds it beside the reversal
+                beside = find_locals(data, linear_fit(data, [t for t in held_vocabulary.terms if t.name != name]))
+                if beside:
+                    break
     first = find_locals(data, vocabulary.start) if vocabulary.added else []
     routes = [vocabulary]
     for found in (beside, first):
