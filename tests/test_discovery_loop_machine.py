@@ -6,12 +6,15 @@ the fast tier (tests/test_discovery_loop.py) runs more seeds on the fast simulat
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import re
 
 import pytest
 
-from tests.conftest import DATA
+from campaign.cli import main
+from tests.conftest import DATA, CliResult
 
 BASE = (DATA / "configs" / "horizontal-sim.toml").read_text()
 BOW = ("[effects.linear_scale]\nppm = -12.4\n[effects.nonlinear_lead]\np2_um = 0.49\np3_um = 0.73\n"
@@ -99,12 +102,29 @@ def test_the_follow_up_scans_a_10_mm_lead(cli, tmp_path, seed):
     assert not both["local_errors"], both["local_errors"]
 
 
+BUMP = "[effects.local_defect]\namplitude_um = 3.0\ncentre_mm = 250.0\nwidth_mm = 100.0\n"
+
+
+@pytest.fixture(scope="module")
+def bump_first(tmp_path_factory):
+    """The 21-target campaign (30 mm apart) with a +3 µm bump 100 mm wide at 250 mm, recorded once for
+    the two tests that read it (one xdist group: one worker records it)."""
+
+    def quiet(*args: str) -> CliResult:
+        out, err = io.StringIO(), io.StringIO()
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = main([str(a) for a in args])
+        return CliResult(code, out.getvalue(), err.getvalue())
+
+    return first_campaign(quiet, tmp_path_factory.mktemp("bump"), BUMP, seed=3, count=21)
+
+
 @pytest.mark.machine
-def test_a_local_bump_outside_the_vocabulary(cli, tmp_path):
+@pytest.mark.xdist_group("bump_first")
+def test_a_local_bump_outside_the_vocabulary(cli, bump_first):
     """21 targets (30 mm apart), a +3 µm bump 100 mm wide at 250 mm: located within its width, the
     gap shrinks to the noise, nothing named for it, said as what it is."""
-    bump = "[effects.local_defect]\namplitude_um = 3.0\ncentre_mm = 250.0\nwidth_mm = 100.0\n"
-    first = first_campaign(cli, tmp_path, bump, seed=3, count=21)
+    first = bump_first
     found = discover_json(cli, first / "points.csv")
     local = found["local"]
     assert local is not None and abs(local["params"]["centre_mm"] - 250.0) <= 100.0
@@ -115,13 +135,12 @@ def test_a_local_bump_outside_the_vocabulary(cli, tmp_path):
 
 
 @pytest.mark.machine
-def test_the_follow_up_measures_a_located_local_error_densely(cli, tmp_path):
+@pytest.mark.xdist_group("bump_first")
+def test_the_follow_up_measures_a_located_local_error_densely(cli, tmp_path, bump_first):
     """Issue 34 item 6: a located local error gets denser targets over its region (not beside it),
     within the first campaign's machine time; fitted together, it is located within its width,
     nothing is named for it and nothing is unresolved."""
-    bump = "[effects.local_defect]\namplitude_um = 3.0\ncentre_mm = 250.0\nwidth_mm = 100.0\n"
-    first = first_campaign(cli, tmp_path, bump, seed=3, count=21)
-    alone, both = the_loop(cli, tmp_path, first)
+    alone, both = the_loop(cli, tmp_path, bump_first)
     follow = alone["follow_up"]
     assert follow["duration_s"] <= follow["first_duration_s"]
     regions = [z["region_mm"] for z in alone["zones"]]
