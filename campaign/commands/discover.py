@@ -461,7 +461,7 @@ def print_text(result: Discovery, time_unit: str, incomplete: list[str], verbose
                       f"shape; {local.time_text()}. It explains {local.explained_pct:.1f} % of the residual (ΔBIC "
                       f"{local.delta_bic:.1f} with its search's look-elsewhere, p {local.p_value:.2g}, "
                       f"{cv_text(local.cv_before_um, local.cv_after_um, dev)}); the model holds it as a "
-                      f"{'term at that target' if local.kind == 'target' else 'smooth local term'} (gap "
+                      f"{target_term_said(local) if local.kind == 'target' else 'smooth local term'} (gap "
                       f"{local.gap_without_um:.3f} {dev} without it), not as an effect, and does not save it")
     for when, located in (("before anything is named", result.located_before),
                           ("left by the final model", result.located_after)):
@@ -572,6 +572,11 @@ def read_tables(files: list[str]) -> tuple[CampaignData, list[Outliers], list[st
         notes = [] if profile else incomplete_notes(name)  # a profile has no plan to be short of
         incomplete += [f"incomplete campaign: {name}: {n.split(': ', 1)[1]}" if len(files) > 1 else n for n in notes]
     return join_campaigns(parts, files), found, incomplete, read
+
+
+def target_term_said(local: LocalError) -> str:
+    """How the model holds one target's departure, or two neighbouring targets' together."""
+    return "term at those two targets" if "last_mm" in local.params else "term at that target"
 
 
 def follow_up_config(args: argparse.Namespace) -> Config:

@@ -81,7 +81,8 @@ def _local_columns(kind: str, by_direction: bool) -> Callable[[Samples, Shape, S
 
 def _target_columns(by_direction: bool) -> Callable[[Samples, Shape, Shape], np.ndarray]:
     def columns(data: Samples, shape: Shape, held: Shape) -> np.ndarray:
-        g = (np.round(data.x, 6) == round(shape["centre_mm"], 6)).astype(float)  # that target's points alone
+        x = np.round(data.x, 6)  # that target's points alone, or those of it and the next (last_mm)
+        g = ((x >= round(shape["centre_mm"], 6)) & (x <= round(shape.get("last_mm", shape["centre_mm"]), 6))).astype(float)
         if by_direction:
             return np.column_stack([g * (data.d > 0), g * (data.d < 0)])
         return g[:, None]
@@ -166,7 +167,8 @@ LOCAL_FORMS: dict[str, EffectForm] = {f.name: f for f in (
 """Not in the vocabulary: the local terms discovery adds for an error no effect of the model has the
 shape of (a screw defect, a worn zone, a joint between two sections): a bump or a step, in both
 directions or one amplitude per direction; a departure at one target alone (local_error_target: an error
-narrower than the targets' spacing, or that target's own); or, over a region the locator found
+narrower than the targets' spacing, or that target's own), or at two neighbouring targets together (last_mm
+in its shape); or, over a region the locator found
 (campaign.discovery.unexplained), a spline whose shape follows the data (local_region, in both
 directions, or _plus / _minus for one). Their centre and width (mm) are found by their own search
 (campaign.discovery.local) and held in the term's shape; only the amplitudes are fitted with the

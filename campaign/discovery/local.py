@@ -192,6 +192,11 @@ class LocalError:
             return (f"a step of {self.size_um:+.2g} {self.deviation_unit} between the targets at {low:.4g} and "
                     f"{high:.4g} {unit} (where between them and how sharp: not resolved, targets in between would "
                     f"tell), {self._sides()}")
+        if self.kind == TARGET and "last_mm" in p:
+            return (f"a departure of {self.size_um:+.2g} {self.deviation_unit} at the targets at {p['centre_mm']:.4g} and "
+                    f"{p['last_mm']:.4g} {unit} together (the readings there, not the error's peak: an error somewhere "
+                    f"between the targets at {p['from_mm']:.4g} and {p['to_mm']:.4g} {unit} that both see; its peak, "
+                    f"place, width and shape are not resolved, targets in between would tell), {self._sides()}")
         if self.kind == TARGET:
             return (f"a departure of {self.size_um:+.2g} {self.deviation_unit} at the target at {p['centre_mm']:.4g} "
                     f"{unit} alone (the reading there, not the error's peak: an error somewhere between the targets at "
@@ -283,11 +288,11 @@ def _seen(targets: np.ndarray, kind: str, centre_mm: np.ndarray, width_mm: float
 
 def look_elsewhere(data: CampaignData, sides: int = 1) -> float:
     """About how many independent local terms a search tries: one per target, octave of width and shape,
-    and one per target for a departure there alone (TARGET), times `sides`: the grid's (find_local) are
+    one per target for a departure there alone (TARGET) and one for it with the next, times `sides`: the grid's (find_local) are
     len(SIDES), two independent columns of which it takes
     the best of three projections of the residual, about three times as likely by chance as one. The
     region terms (their side is the locator's) and the routes' scores count one."""
-    total = 1.0  # a departure at one target (TARGET)
+    total = 2.0  # a departure at one target (TARGET), and one at it and the next together
     for kind in KINDS:
         widths = width_range(data, kind)
         total += 1.0 if widths is None else 1 + math.log2(widths[1] / widths[0])
@@ -312,14 +317,19 @@ def local_name(kind: str, by_direction: bool, index: int) -> str:
     return "local_error" + suffix + ("_by_direction" if by_direction else "") + (f"#{index}" if index > 1 else "")
 
 
-def target_term(targets: np.ndarray, at_mm: float, by_direction: bool = False, index: int = 1) -> Term:
-    """The local term of a departure at the inner target `at_mm` of `targets` (sorted) alone (TARGET):
-    its shape holds the target (centre_mm) and the neighbours either side (from_mm, to_mm), between
-    which the error lies; no width: the data do not say one."""
+def target_term(targets: np.ndarray, at_mm: float, by_direction: bool = False, index: int = 1,
+                pair: bool = False) -> Term:
+    """The local term of a departure at the inner target `at_mm` of `targets` (sorted) alone (TARGET), or
+    with `pair` at it and the next target together (one size: an error between them that both see):
+    its shape holds the target (centre_mm), the next one with `pair` (last_mm), and the neighbours
+    either side (from_mm, to_mm), between which the error lies; no width: the data do not say one."""
     k = int(np.argmin(np.abs(targets - at_mm)))
-    low, high = float(targets[max(k - 1, 0)]), float(targets[min(k + 1, len(targets) - 1)])
-    return Term(local_name(TARGET, by_direction, index), {}, False,
-                {"centre_mm": float(targets[k]), "from_mm": low, "to_mm": high})
+    last = min(k + 1, len(targets) - 1) if pair else k
+    low, high = float(targets[max(k - 1, 0)]), float(targets[min(last + 1, len(targets) - 1)])
+    shape = {"centre_mm": float(targets[k]), "from_mm": low, "to_mm": high}
+    if pair:
+        shape["last_mm"] = float(targets[last])
+    return Term(local_name(TARGET, by_direction, index), {}, False, shape)
 
 
 def on_sides(term: Term, by_direction: bool) -> Term:
@@ -397,8 +407,10 @@ nothing the model does not: its power is zero."""
 
 
 def _target_scan(targets: np.ndarray, xs: np.ndarray, sides: list[_Side], tiny: float) -> None:
-    """A departure at one inner target alone (TARGET) for every target at once: its column is 1 on
-    that target's rows, so its sums are that target's own; each side's best kept in it when larger."""
+    """A departure at one inner target alone (TARGET) for every target at once, and at two neighbouring
+    inner targets together: its column is 1 on that target's rows (on the two targets' rows), so its sums
+    are that target's own (the two's together); each side's best kept in it when larger, a pair's with
+    the spacing to the next target as its width (a single target's: 0)."""
     if len(targets) < 3:
         return
     at = np.searchsorted(targets, np.round(xs, 6))  # the target of each distinct position
@@ -406,14 +418,16 @@ def _target_scan(targets: np.ndarray, xs: np.ndarray, sides: list[_Side], tiny: 
         sums = np.zeros((len(targets), side.sums.shape[1]))
         np.add.at(sums, at, side.sums)
         count = np.bincount(at, side.count, minlength=len(targets))
-        qg = sums[:, 1:]
-        norm = count - (qg * qg).sum(1)
-        rg = sums[:, 0] - qg @ side.qr
-        power = np.where(norm > tiny, rg**2 / np.maximum(norm, 1e-300), 0.0)
-        power[[0, -1]] = 0.0
-        i = int(np.argmax(power))
-        if power[i] > (side.best[3] if side.best is not None else -1.0):
-            side.best = (TARGET, float(targets[i]), 0.0, float(power[i]))
+        for width, (these, weights) in enumerate(((sums, count), (sums[:-1] + sums[1:], count[:-1] + count[1:]))):
+            qg = these[:, 1:]
+            norm = weights - (qg * qg).sum(1)
+            rg = these[:, 0] - qg @ side.qr
+            power = np.where(norm > tiny, rg**2 / np.maximum(norm, 1e-300), 0.0)
+            power[[0, -1]] = 0.0  # never at the outer targets (a pair's last is the next target)
+            i = int(np.argmax(power))
+            if power[i] > (side.best[3] if side.best is not None else -1.0):
+                side.best = (TARGET, float(targets[i]), float(targets[i + 1] - targets[i]) if width else 0.0,
+                             float(power[i]))
 
 
 def _grid_scan(data: CampaignData, targets: np.ndarray, centres: np.ndarray, step: float, xs: np.ndarray,
@@ -569,7 +583,7 @@ def find_local(data: CampaignData, fit: Fit, index: int = 1) -> LocalError | Non
         return None
     kind, centre, width, side = start
     factor = look_elsewhere(data, len(SIDES))
-    placed = target_term(_targets(data), centre, side != 0, index) if kind == TARGET else local_term(
+    placed = target_term(_targets(data), centre, side != 0, index, pair=width > 0) if kind == TARGET else local_term(
         centre, width, side != 0, kind, index)
     on_grid = linear_fit(data, [*fit.terms, placed])
     if bic(on_grid, n) - bic(fit, n) + 2 * math.log(factor) > HOPELESS:

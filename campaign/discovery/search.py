@@ -1260,8 +1260,8 @@ def within_targets(data: CampaignData, term: Term) -> bool:
     shape = term.shape
     if "start_mm" in shape and "end_mm" in shape:
         lo, hi = shape["start_mm"], shape["end_mm"]
-    elif "from_mm" in shape:  # a departure at one target, never at the outer two
-        lo = hi = shape["centre_mm"]
+    elif "from_mm" in shape:  # a departure at one target (or two neighbours), never at the outer two
+        lo, hi = shape["centre_mm"], shape.get("last_mm", shape["centre_mm"])
     else:
         reach = shape["width_mm"] if "step" not in term.name else shape["width_mm"] / 2
         lo, hi = shape["centre_mm"] - reach, shape["centre_mm"] + reach
