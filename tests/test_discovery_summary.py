@@ -77,7 +77,7 @@ def test_the_named_sizes_are_the_final_models(tmp_path):
     from campaign.pointtable import read_points
 
     refit = 0
-    for seed in (3,):
+    for seed in (1, 2):  # tables where two effects are named (at seed 3 the bow is now held beside local terms)
         table = iso_table(tmp_path / f"b{seed}.csv", lambda x, d, rng: 8e-6 * (x - 300.0) ** 2
                           + 1.5 * np.sin(2 * np.pi * x / 230.0 + 0.4) + rng.normal(0, 0.3), targets=21, spacing=30.0,
                           seed=seed)
