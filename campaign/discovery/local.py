@@ -288,10 +288,10 @@ def _seen(targets: np.ndarray, kind: str, centre_mm: np.ndarray, width_mm: float
 
 def look_elsewhere(data: CampaignData, sides: int = 1) -> float:
     """About how many independent local terms a search tries: one per target, octave of width and shape,
-    one per target for a departure there alone (TARGET) and one for it with the next, times `sides`: the grid's (find_local) are
-    len(SIDES), two independent columns of which it takes
-    the best of three projections of the residual, about three times as likely by chance as one. The
-    region terms (their side is the locator's) and the routes' scores count one."""
+    one per target for a departure there alone (TARGET) and one for it with the next, times `sides`: the
+    grid's (find_local) are len(SIDES), two independent columns of which it takes the best of three
+    projections of the residual, about three times as likely by chance as one. The region terms (their
+    side is the locator's) and the routes' scores count one."""
     total = 2.0  # a departure at one target (TARGET), and one at it and the next together
     for kind in KINDS:
         widths = width_range(data, kind)

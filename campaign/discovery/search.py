@@ -1050,10 +1050,12 @@ OUTSIDE_MIN_ROWS = 10
 def outside_p(data: CampaignData, fit: Fit, name: str, found: list[LocalError]) -> float:
     """The F-test p of the effect `name` of `fit` on the rows outside the regions of the local errors
     `found`, the other effects of `fit` fitted with it there, and its steps (a step's level goes on past
-    its rise; a bump or a departure is about nil there); 0 when too few rows lie outside to tell. An effect along the travel that the vocabulary named only
-    beside local terms must show outside them too: otherwise it holds what they leave of an error they
-    describe in part (a wave of 9.9 mm over 261-416 mm on 17 uniform targets, said as two steps and a
-    two targets' departure, left a 0.4 µm wave of 81 mm that a screw lead took, p 0.26 outside)."""
+    its rise; a bump or a departure is about nil there); 0 when too few rows lie outside to tell.
+
+    An effect along the travel that the vocabulary named only beside local terms must show outside them
+    too: otherwise it holds what they leave of an error they describe in part (a wave of 9.9 mm over
+    261-416 mm on 17 uniform targets, said as two steps and two targets' departure, left a 0.4 µm wave of
+    81 mm that a screw lead took, p 0.26 outside)."""
     inside = np.zeros(len(data), dtype=bool)
     for local in found:
         low, high = local.region_mm
