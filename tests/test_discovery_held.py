@@ -161,8 +161,7 @@ def test_an_effect_local_terms_fit_as_well_is_held_not_named_nor_replaced(cli, t
 def test_a_small_bow_no_bump_stands_in_for_is_named():
     """A null draw with a 0.3 µm P3 bow (seed 16489, 21 uniform targets): a 0.66 µm bump at 151 mm once
     fitted it as well, so the bow was held, not named. With two neighbouring targets' departure among the
-    grid's candidates no local term passes in the bow's place any more (bumps_and_steps_without finds
-    none): the bow and the backlash the machine has are named, within 3σ of the truth, and nothing else."""
+    grid's candidates the local terms no longer take the bow's place: the bow and the backlash the machine has are named, within 3σ of the truth, and nothing else."""
     config = plan_config(21, "none")
     truth = draw(np.random.default_rng(16489), "null", config)
     table = simulate_campaign(config, ErrorModel(truth.model), seed=16489, dwell_jitter=0.8)

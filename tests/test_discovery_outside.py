@@ -32,10 +32,12 @@ def test_a_lead_that_shows_only_where_local_terms_are_is_not_named():
     assert any("periodic_lead explained part of the residual beside the local errors" in n for n in result.notes)
 
 
-@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize("seed", [4, 5, 8])
 def test_a_bow_beside_a_local_error_shows_outside_it(seed: int):
-    """A drawn 1-2 µm bow beside a 3 µm bump 60-100 mm wide on 21 targets: outside the bump's region the
-    bow is still significant (a bow is along the whole travel), so it stays nameable beside the bump."""
+    """A drawn 1-2 µm bow beside a 3 µm bump 60-100 mm wide on 21 targets: the bump is found (at these
+    seeds its refined width is seen by two targets only, and before the grid's own shape was kept it was
+    dropped: 6 of 12 seeds), and outside its region the bow is still significant (a bow is along the whole
+    travel), so it stays nameable beside the bump."""
     rng = np.random.default_rng(seed)
     config = plan_config(21, "none")
     bow = {"p2_um": float(rng.uniform(1, 2)) * float(rng.choice([-1.0, 1.0])), "p3_um": float(rng.uniform(-0.5, 0.5)),
