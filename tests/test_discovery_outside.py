@@ -21,7 +21,7 @@ def test_a_lead_that_shows_only_where_local_terms_are_is_not_named():
     """The bench's draw at seed 11 (a wave of 9.9 mm, 3.3 µm, over 261-416 mm on 17 uniform targets, beside
     a bow and a 3.3 µm backlash): at the targets the wave is a drop and a rise, said as two steps and two
     targets' departure; beside them a 0.4 µm wave of 81 mm took the rest and periodic_lead was named.
-    Outside the local errors' regions it explains nothing (p 0.26): not named, said why."""
+    Outside the local errors' regions it explains nothing (p 0.64): not named, said why."""
     config = plan_config(17, "none")
     truth = draw(np.random.default_rng(8457), "partial_wave", config)
     data = campaign_data(simulate_campaign(config, ErrorModel(truth.model), seed=8457, dwell_jitter=0.8))
