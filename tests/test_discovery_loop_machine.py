@@ -65,17 +65,10 @@ def machine_time_s(directory) -> float:
     return float(json.loads((directory / "events.jsonl").read_text().splitlines()[-1])["t_s"])
 
 
-@pytest.mark.machine
-@pytest.mark.parametrize("truth, extra", [("backlash", "[effects.backlash]\nb_um = 1.5\n"),
-                                          ("settling", "[effects.settling]\ne0_um = 3.0\ntau_s = 2.0\n")])
-def test_the_follow_up_names_backlash_or_settling(cli, tmp_path, truth, extra):
-    first = first_campaign(cli, tmp_path, extra, seed=1, fixed_dwell=True)
-    alone, both = the_loop(cli, tmp_path, first)
-    assert any(set(u["effects"]) == {"backlash", "settling"} for u in alone["unresolved"])
-    assert alone["follow_up"]["duration_s"] <= alone["follow_up"]["first_duration_s"]
-    assert truth in both["added"] and set(both["added"]) <= {truth, "nonlinear_lead"}
-    assert not both["unresolved"], both["unresolved"]
-    assert both["gap_after_um"] <= 1.3 * both["noise_um"]
+# A fixed-dwell first campaign with backlash or settling alone, followed up, is tested on the fast simulator
+# (tests/test_discovery_loop.py::test_the_follow_up_tells_backlash_from_settling, two seeds each); on this
+# machine both reversals are followed up beside an aliased lead (the last test here). Its own machine run
+# (about 14 s of CPU) was left out on 2026-11-28 to keep the suite under 10 minutes.
 
 
 @pytest.mark.machine
