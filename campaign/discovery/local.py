@@ -418,7 +418,7 @@ def _target_scan(targets: np.ndarray, xs: np.ndarray, sides: list[_Side], tiny: 
         sums = np.zeros((len(targets), side.sums.shape[1]))
         np.add.at(sums, at, side.sums)
         count = np.bincount(at, side.count, minlength=len(targets))
-        for width, (these, weights) in enumerate(((sums, count), (sums[:-1] + sums[1:], count[:-1] + count[1:]))):
+        for pair, (these, weights) in enumerate(((sums, count), (sums[:-1] + sums[1:], count[:-1] + count[1:]))):
             qg = these[:, 1:]
             norm = weights - (qg * qg).sum(1)
             rg = these[:, 0] - qg @ side.qr
@@ -426,7 +426,7 @@ def _target_scan(targets: np.ndarray, xs: np.ndarray, sides: list[_Side], tiny: 
             power[[0, -1]] = 0.0  # never at the outer targets (a pair's last is the next target)
             i = int(np.argmax(power))
             if power[i] > (side.best[3] if side.best is not None else -1.0):
-                side.best = (TARGET, float(targets[i]), float(targets[i + 1] - targets[i]) if width else 0.0,
+                side.best = (TARGET, float(targets[i]), float(targets[i + 1] - targets[i]) if pair else 0.0,
                              float(power[i]))
 
 

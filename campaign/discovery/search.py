@@ -726,23 +726,14 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     vocabulary = search_vocabulary(data, model, given)
     periodic = period_unresolved(vocabulary.unresolved)
     soakers = [n for n in reversed(vocabulary.added) if may_soak(n)]
-    beside = find_locals(data, vocabulary.final)
-    for name in soakers if not beside else ():
-        # a short period or a reversal may have soaked up most of it: look beside the rest
-        beside = find_locals(data, linear_fit(data, [t for t in vocabulary.final.terms if t.name != name]))
-        if beside:
-            break
+    beside = locals_beside(data, vocabulary.final, soakers)
     held_vocabulary = None  # the vocabulary's model with its unresolved groups held, once computed
     if not beside:
         held_vocabulary = held_fit(data, vocabulary) or vocabulary.final
         if held_vocabulary is not vocabulary.final:
-            beside = find_locals(data, held_vocabulary)  # beside a reversal its unresolved rivals hold alike
-            for name in soakers if not beside else ():
-                # and beside it without a named effect that soaked up the local error: the reversal
-                # left in hides the local error from the grid, the effect holds it beside the reversal
-                beside = find_locals(data, linear_fit(data, [t for t in held_vocabulary.terms if t.name != name]))
-                if beside:
-                    break
+            # beside a reversal its unresolved rivals hold alike: left in, it hides the local error from the
+            # grid, and a named effect may hold it beside the reversal
+            beside = locals_beside(data, held_vocabulary, soakers)
     first = find_locals(data, vocabulary.start) if vocabulary.added else []
     routes = [vocabulary]
     for found in (beside, first):
@@ -791,6 +782,18 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
             located.regions[:] = beside_period(located.regions, float(np.ptp(data.x)) or 1.0)
     result.noise_measured = noise_measured(data)
     return result
+
+
+def locals_beside(data: CampaignData, fit: Fit, soakers: list[str]) -> list[LocalError]:
+    """The local errors found beside `fit` (campaign.discovery.local.find_locals), or, when none is, beside
+    `fit` without each named effect of `soakers` in turn (a short period or a reversal may have soaked up
+    most of it): the first found."""
+    found = find_locals(data, fit)
+    for name in soakers if not found else ():
+        found = find_locals(data, linear_fit(data, [t for t in fit.terms if t.name != name]))
+        if found:
+            break
+    return found
 
 
 RIVAL_NOT_EXCLUDED_SHARE = 0.5
