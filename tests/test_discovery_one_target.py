@@ -18,6 +18,19 @@ from campaign.model import ErrorModel
 from tests.discovery_draws import plan_config
 
 
+def narrow_error_found(rng: np.random.Generator, config, at: float, widths_mm: tuple[float, float], seed: int):
+    """A drawn machine with a 2-4 µm raised-cosine error at `at` mm (width drawn from `widths_mm`) beside
+    a scale and 0.3-0.6 µm noise, its campaign on `config`, and the local errors found beside the scale:
+    (machine, data, found)."""
+    size = float(rng.uniform(2, 4)) * float(rng.choice([-1.0, 1.0]))
+    machine = {"linear_scale": {"ppm": float(rng.uniform(-10, 10))},
+               "local_defect": {"amplitude_um": size, "centre_mm": at, "width_mm": float(rng.uniform(*widths_mm)),
+                                "skew": 0.0},
+               "noise": {"sigma_um": float(rng.uniform(0.3, 0.6))}}
+    data = campaign_data(simulate_campaign(config, ErrorModel(machine), seed=seed, dwell_jitter=0.8))
+    return machine, find_locals(data, linear_fit(data, [Term("linear_scale")]))
+
+
 @pytest.mark.parametrize("seed", range(3))
 def test_a_departure_at_one_target_is_found_there_with_its_size(seed: int) -> None:
     """A 2-4 µm error 2-6 mm wide on an inner target of 17 targets 37.5 mm apart, beside a scale: the
@@ -27,13 +40,8 @@ def test_a_departure_at_one_target_is_found_there_with_its_size(seed: int) -> No
     rng = np.random.default_rng(seed)
     config = plan_config(17, "none")
     at = 37.5 * int(rng.integers(2, 15))
-    size = float(rng.uniform(2, 4)) * float(rng.choice([-1.0, 1.0]))
-    machine = {"linear_scale": {"ppm": float(rng.uniform(-10, 10))},
-               "local_defect": {"amplitude_um": size, "centre_mm": at, "width_mm": float(rng.uniform(2, 6)),
-                                "skew": 0.0},
-               "noise": {"sigma_um": float(rng.uniform(0.3, 0.6))}}
-    data = campaign_data(simulate_campaign(config, ErrorModel(machine), seed=seed, dwell_jitter=0.8))
-    found = find_locals(data, linear_fit(data, [Term("linear_scale")]))
+    machine, found = narrow_error_found(rng, config, at, (2, 6), seed)
+    size = machine["local_defect"]["amplitude_um"]
     assert found and found[0].kind == TARGET, [e.sentence() for e in found]
     first = found[0]
     assert first.params["centre_mm"] == pytest.approx(at)

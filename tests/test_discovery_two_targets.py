@@ -9,12 +9,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from campaign.discovery.data import campaign_data
-from campaign.discovery.fit import Term, linear_fit
-from campaign.discovery.local import TARGET, find_locals
-from campaign.discovery.simulate import simulate_campaign
-from campaign.model import ErrorModel, effect_um
+from campaign.discovery.local import TARGET
+from campaign.model import effect_um
 from tests.discovery_draws import plan_config
+from tests.test_discovery_one_target import narrow_error_found
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -26,13 +24,7 @@ def test_two_neighbouring_targets_that_depart_together_are_found_together(seed: 
     config = plan_config(17, "none")
     k = int(rng.integers(2, 13))
     at = 37.5 * k + float(rng.uniform(15.0, 22.5))  # within 3.75 mm of the middle of targets k and k + 1
-    size = float(rng.uniform(2, 4)) * float(rng.choice([-1.0, 1.0]))
-    machine = {"linear_scale": {"ppm": float(rng.uniform(-10, 10))},
-               "local_defect": {"amplitude_um": size, "centre_mm": at, "width_mm": float(rng.uniform(35, 50)),
-                                "skew": 0.0},
-               "noise": {"sigma_um": float(rng.uniform(0.3, 0.6))}}
-    data = campaign_data(simulate_campaign(config, ErrorModel(machine), seed=seed, dwell_jitter=0.8))
-    found = find_locals(data, linear_fit(data, [Term("linear_scale")]))
+    machine, found = narrow_error_found(rng, config, at, (35, 50), seed)
     assert found and found[0].kind == TARGET and "last_mm" in found[0].params, [e.sentence() for e in found]
     first = found[0]
     assert (first.params["centre_mm"], first.params["last_mm"]) == pytest.approx((37.5 * k, 37.5 * (k + 1)))
