@@ -12,27 +12,33 @@ from campaign.config import parse_config
 from campaign.errors import CampaignInterrupted
 from campaign.measure import Control, Observer, resume_campaign, start_campaign
 from drivers.factory import open_hardware
+from tests.conftest import once_per_run
 from tests.test_demo_e2e import axiscal
 from tests.test_scan_run import SCAN, draw
 
 
 @pytest.fixture(scope="module")
 def scans(tmp_path_factory):
-    """(a scan interrupted after pass 1, the same scan resumed to its end)."""
-    tmp = tmp_path_factory.mktemp("scans")
-    config = parse_config(SCAN.format(**{**draw(9), "velocity": 20.0}), "scan.toml")
-    control = Control()
+    """(a scan interrupted after pass 1, the same scan resumed to its end), recorded once for the whole
+    run (once_per_run); the tests copy them before they change anything."""
 
-    class AbortAfterPass1(Observer):
-        def emit(self, event):
-            if event.kind == "sweep" and event.point == 1:
-                control.request_abort("key a")
+    def make(directory):
+        config = parse_config(SCAN.format(**{**draw(9), "velocity": 20.0}), "scan.toml")
+        control = Control()
 
-    with pytest.raises(CampaignInterrupted):
-        start_campaign(config, tmp / "stopped", opener=open_hardware, observer=AbortAfterPass1(), control=control)
-    shutil.copytree(tmp / "stopped", tmp / "done")
-    assert resume_campaign(tmp / "done", opener=open_hardware).status == "completed"
-    return tmp / "stopped", tmp / "done"
+        class AbortAfterPass1(Observer):
+            def emit(self, event):
+                if event.kind == "sweep" and event.point == 1:
+                    control.request_abort("key a")
+
+        with pytest.raises(CampaignInterrupted):
+            start_campaign(config, directory / "stopped", opener=open_hardware, observer=AbortAfterPass1(),
+                           control=control)
+        shutil.copytree(directory / "stopped", directory / "done")
+        assert resume_campaign(directory / "done", opener=open_hardware).status == "completed"
+
+    base = once_per_run(tmp_path_factory, "scan-input", make)
+    return base / "stopped", base / "done"
 
 
 def _one_error(proc, *words):
