@@ -39,3 +39,22 @@ def test_a_step_beside_a_bow_is_located_and_the_bow_named(count, offsets, seed):
     steps = [e for e in result.local_errors if e.kind == "step"]
     assert len(steps) == 1 and abs(steps[0].size_um) == pytest.approx(abs(truth.model["local_step"]["height_um"]),
                                                                       rel=0.35), judged.said
+
+
+@pytest.mark.machine  # two simulated campaigns and discoveries
+@pytest.mark.parametrize("seed", [541, 353])
+def test_a_step_beside_a_bow_is_the_rival_of_the_period_it_hides_behind(seed):
+    """Steps of 3.5 and 3.6 µm (at 319 mm, and at 403 mm rising over 40 mm) beside bows of 1.1 and
+    0.8 µm, noise 0.8 µm, 11 golden targets (bench seeds 199 and 11). An unresolved screw lead holds half
+    the residual; beside the vocabulary alone the grid finds one wide bump, which leaves the period
+    unresolved. Before, nothing was said of the step. Beside the bow the grid finds the step, and
+    beside it the bow is named and no period is left: the step, with the bow beside it, is the period's
+    rival (its place within 10 mm, as the bench judges a step), and the follow-up measures densely there."""
+    truth, data = drawn("step", 11, "golden", seed)
+    result = discover(data, *START)
+    (position, _), = truth.regions
+    group = next(u for u in result.unresolved if "periodic_lead" in u.effects)
+    beside_bow = [r for r in group.local_rivals if "with nonlinear_lead beside it" in r.sentence]
+    assert beside_bow and any(abs((r.region_mm[0] + r.region_mm[1]) / 2 - position) <= 10.0 for r in beside_bow), \
+        group.local_rivals
+    assert judge(result, truth).stated and not judge(result, truth).false_names
