@@ -422,11 +422,15 @@ def regions_to_measure(result: Discovery) -> list[tuple[float, float]]:
 def with_its_place_uncertain(zone: Zone) -> tuple[float, float]:
     """A zone's region widened by twice the standard error of its members' centres: where it may be,
     not only where it was fitted (a step fitted at 337 ± 18 mm lay at 300 mm, and the follow-up over
-    309-365 mm never measured its rise). A step placed between two targets is already bracketed."""
+    309-365 mm never measured its rise). A step placed between two targets is widened by half the gap
+    between them on each side: what it says is that the two targets read different levels, and an error
+    that ends at one of them reads the same (a wave over 136-280 mm on 11 golden targets was said as a
+    step between the targets at 277.9 and 371.3 mm, and the follow-up over that gap never measured it)."""
     low, high = zone.region_mm
     errors = [m.errors.get("centre_mm", 0.0) for m in zone.members if m.between_mm is None]
     sigma = max((e for e in errors if math.isfinite(e)), default=0.0)
-    return low - 2 * sigma, high + 2 * sigma
+    gaps = [m.between_mm[1] - m.between_mm[0] for m in zone.members if m.between_mm is not None]
+    return low - max(2 * sigma, max(gaps, default=0.0) / 2), high + max(2 * sigma, max(gaps, default=0.0) / 2)
 
 
 def measured_stable_wait_s(data: CampaignData, config: Config) -> float:
