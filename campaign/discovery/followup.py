@@ -430,7 +430,8 @@ def with_its_place_uncertain(zone: Zone) -> tuple[float, float]:
     errors = [m.errors.get("centre_mm", 0.0) for m in zone.members if m.between_mm is None]
     sigma = max((e for e in errors if math.isfinite(e)), default=0.0)
     gaps = [m.between_mm[1] - m.between_mm[0] for m in zone.members if m.between_mm is not None]
-    return low - max(2 * sigma, max(gaps, default=0.0) / 2), high + max(2 * sigma, max(gaps, default=0.0) / 2)
+    widen = max(2 * sigma, max(gaps, default=0.0) / 2)
+    return low - widen, high + widen
 
 
 def measured_stable_wait_s(data: CampaignData, config: Config) -> float:

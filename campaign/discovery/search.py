@@ -966,9 +966,9 @@ def rivals_beside_hidden(data: CampaignData, model: ErrorModel, given: dict[str,
     period may stand in for it: a step's rise bends the residual, so beside the vocabulary alone the
     grid finds one wide bump, and only beside a bow the step (a 3.5 µm step on 11 golden targets beside
     a 1.1 µm bow, bench seed 199, draw 541: the period held 51 % of the residual, and nothing was said
-    of the step). For each effect the search did not name (not a period), local errors are looked for
-    beside the vocabulary with it (one whose form has no shape to search). When the vocabulary searched again beside them names what it names
-    and leaves no period unresolved (with_locals), and that model predicts left-out targets at least as
+    of the step). For each effect the search did not name (not a period, and with no shape to search),
+    local errors are looked for beside the vocabulary with it. When the vocabulary searched again beside
+    them leaves no period unresolved (with_locals), and that model predicts left-out targets at least as
     well as the vocabulary with the period held by its best candidate (its period held in every fold,
     which favours the period), its local errors become the period's rivals, said with what is named
     beside them. The route is not chosen by this (its place and shape count against it in
@@ -1413,7 +1413,7 @@ def searched_comparison(data: CampaignData, fixed: Fit, named: Fit) -> Searched:
     of the paired difference of the folds' errors (when cross-validation cannot tell two models apart, the
     simpler is kept, and the local terms stay its rivals): a 0.66 µm bump stood in for a machine's 0.3 µm bow
     at CV 0.503 against 0.521 µm, 0.516 against 0.521 µm refined in each fold (a null draw, seed 16489)."""
-    return one_se_comparison(data, fixed, named, shapes_refined, shapes_refined)
+    return margin_comparison(data, fixed, named, shapes_refined, shapes_refined)
 
 
 REPLACE_SE = 2.0
@@ -1431,7 +1431,7 @@ Refined = Callable[[CampaignData, list[Term]], list[Term]]
 """The terms a CV fold fits (cv_searched_errors): from the terms fitted on all the data and the fold's rows."""
 
 
-def one_se_comparison(data: CampaignData, local: Fit, named: Fit, local_refined: Refined,
+def margin_comparison(data: CampaignData, local: Fit, named: Fit, local_refined: Refined,
                       named_refined: Refined) -> Searched:
     """Local terms (`local`) against the `named` model by the CV whose folds (at most SEARCHED_FOLDS
     blocks of targets) get their terms from `local_refined` and `named_refined`; with more parameters than
@@ -1464,7 +1464,7 @@ def regions_compared(data: CampaignData, local: Fit, named: Fit, without: list[T
     (an unresolved period's stand-in) as their leave-one-target-out CVs have them."""
     if beside:
         local, named = linear_fit(data, [*local.terms, *beside]), linear_fit(data, [*named.terms, *beside])
-    return one_se_comparison(data, local, named, regions_located_again(without, index), shapes_held)
+    return margin_comparison(data, local, named, regions_located_again(without, index), shapes_held)
 
 
 def regions_located_again(beside: list[Term], index: int) -> Refined:
