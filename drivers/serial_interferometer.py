@@ -69,8 +69,11 @@ class SerialInterferometer:
             raise InstrumentError(f"interferometer port {self.port_name} failed: {e}") from e
 
     def _poll_stream(self) -> list[Reading]:
-        while chunk := self._port.read(_CHUNK_BYTES):
+        while True:  # a short read took all there was: one read per poll, not one more to find nothing
+            chunk = self._port.read(_CHUNK_BYTES)
             self._buffer += chunk
+            if len(chunk) < _CHUNK_BYTES:
+                break
         *lines, self._buffer = self._buffer.split(self._terminator)
         if len(self._buffer) > MAX_LINE_BYTES:
             self._buffer = b""

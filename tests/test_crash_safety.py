@@ -14,9 +14,9 @@ from campaign.record.directory import open_campaign
 from tests.conftest import ROOT, events, status
 
 
-def start_slow_demo(out):
+def start_slow_demo(out, *options):
     # --speed 100: the 20-minute campaign takes about 12 s of wall time, slow enough to interrupt
-    return subprocess.Popen([sys.executable, "-m", "campaign", "demo", "--speed", "100", "--out", str(out)],
+    return subprocess.Popen([sys.executable, "-m", "campaign", "demo", "--speed", "100", "--out", str(out), *options],
                             cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
 
 
