@@ -60,7 +60,7 @@ def followed(truth: Truth, count: int, offsets: str, seed: int, directory: Path)
         axiscal(["discover", str(first / "points.csv"), "--follow-up", "-o", str(directory / "follow.toml"), "--json"])
     follow = json.loads(printed.getvalue()).get("follow_up")
     row["followed"] = True
-    if not follow:
+    if not follow or not follow["campaigns"]:  # nothing planned (each group said in its "unplanned")
         return {**row, "follow_up": None}
     row["follow_up"] = {"seconds": follow["duration_s"], "first_seconds": follow["first_duration_s"],
                         "captures": [c["capture"] for c in follow["campaigns"]]}

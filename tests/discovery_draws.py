@@ -146,6 +146,10 @@ def _visible(effects: dict, targets: np.ndarray, noise: float) -> bool:
     return bool(np.max(np.abs(total)) > 2 * noise)
 
 
+DRIFTS = {"linear_drift", "thermal_drift"}
+"""The slopes that change in time: an unresolved group of them says a growth in time is there."""
+
+
 @dataclass
 class Judged:
     """How discovery did on one draw: located (an out-of-vocabulary region found within its
@@ -154,7 +158,8 @@ class Judged:
     by a local term, or said as unexplained structure (a region the locator finds in what the final
     model leaves) or as a local error an unresolved effect cannot be told from (its `local_rivals`)
     within the same tolerance (a linear growth: the slope along the travel departing in time, in what
-    the final model leaves), or bracketed (below); seen: a region the locator finds before anything is named
+    the final model leaves, or an unresolved group of drifts in time with linear_drift among them: the
+    growth is said, its shape in time left open), or bracketed (below); seen: a region the locator finds before anything is named
     within it."""
 
     located: bool
@@ -166,7 +171,8 @@ class Judged:
     bracketed: bool = False
     """Stated only as lying between two targets with no target between them, as finely as the plan
     lets it be placed when that is coarser than the tolerance (not `located`): a step said between the
-    targets that hold it (LocalError.between_mm), or what one target alone shows, said between its
+    targets that hold it (LocalError.between_mm; or so said as an unresolved period's rival,
+    LocalRival.between_mm), or what one target alone shows, said between its
     neighbours (a one-target region in what the final model leaves). Counted in `stated`."""
 
 
@@ -197,16 +203,19 @@ def judge(result: Discovery, truth: Truth) -> Judged:
     before = result.located_before.along if result.located_before is not None else []
     if truth.shape == "linear_growth":  # said as the slope along the travel departing in time, not a place
         timed = result.located_after.regions if result.located_after is not None else []
-        stated = located or any(r.over == "time" and r.what == "slope" for r in timed)
+        stated = located or any(r.over == "time" and r.what == "slope" for r in timed) or any(
+            "linear_drift" in u.effects and set(u.effects) <= DRIFTS for u in result.unresolved)
     else:
         rivals = [(lo + hi) / 2 for u in result.unresolved for lo, hi in (r.region_mm for r in u.local_rivals)]
         stated = located or _near(truth, [r.centre for r in after]) or _near(truth, rivals)
     seen = _near(truth, [r.centre for r in before]) or (truth.shape == "linear_growth" and result.located_before
                                                           is not None and any(r.over == "time"
                                                                               for r in result.located_before.regions))
+    brackets = [e.between_mm for e in result.local_errors] + [r.between_mm for u in result.unresolved
+                                                               for r in u.local_rivals]
     bracketed = not stated and truth.shape != "linear_growth" and (truth.shape == "step" and any(
-        e.between_mm is not None and e.between_mm[0] <= centre <= e.between_mm[1]
-        for e in result.local_errors for centre, _ in truth.regions) or any(
+        between is not None and between[0] <= centre <= between[1]
+        for between in brackets for centre, _ in truth.regions) or any(
         r.one_target and r.start <= centre <= r.end for r in after for centre, _ in truth.regions) or any(
         e.kind == "target" and e.region_mm[0] <= centre <= e.region_mm[1]  # one target's departure, in the model
         for e in result.local_errors for centre, _ in truth.regions))

@@ -66,3 +66,25 @@ def test_the_follow_up_of_a_step_between_two_targets_measures_beyond_them(cli, t
     truth, result = followed_up(cli, tmp_path, "partial_wave", 16233)
     judged = judge(result, truth)
     assert judged.stated and not judged.false_names, judged.said
+
+
+def test_a_linear_growth_that_could_be_exponential_is_said_not_planned_with_what_would_tell(cli, tmp_path):
+    """A slope growing linearly in time (bench seed 199, draw 726: 17 uniform targets beside a backlash):
+    linear_drift and thermal_drift explain it alike, so it is unresolved. The follow-up does not ask
+    repeated runs for it (they tell a drift from a scale, not a linear growth from one that levels off,
+    and the joint fit starts each campaign's time again): it says so, and how long one campaign must
+    last to tell them, from the time constant fitted."""
+    truth = draw(np.random.default_rng(726), "linear_growth", plan_config(17, "none"))
+    first = tmp_path / "first"
+    first.mkdir()
+    (first / "config.toml").write_text(PLAN.format(count=17, offsets="none"))
+    write_points(first / "points.csv", simulate_campaign(load_config(first / "config.toml"), ErrorModel(truth.model),
+                                                         seed=726, dwell_jitter=0.8))
+    said = cli("discover", first / "points.csv", "--follow-up", "-o", tmp_path / "follow.toml", "--json")
+    assert said.code == 0, said.err
+    result = json.loads(said.out)
+    assert {"linear_drift", "thermal_drift"} in [set(u["effects"]) for u in result["unresolved"]], result["unresolved"]
+    follow = result["follow_up"] or {}
+    assert not any("linear_drift" in " ".join(c.get("tells", [])) for c in follow.get("campaigns", [])), follow
+    unplanned = " ".join(follow.get("unplanned", [])) + " ".join(result.get("not_planned", []))
+    assert "levels off" in unplanned and "time constant of" in unplanned, result

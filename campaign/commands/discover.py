@@ -689,7 +689,7 @@ def follow_up_lines(follow: FollowUp | None, path: str, unresolved: list[tuple[s
         return [("follow-up: nothing is unresolved that another campaign could separate, and no region is left to "
                  "measure densely; no file written")]
     if not follow.parts:
-        return ["follow-up: no part fits within the budget; no file written",
+        return ["follow-up: no campaign planned (why, below); no file written",
                 *(f"  [yellow]not planned:[/] {u}" for u in follow.unplanned)]
     lines = []
     for campaign in follow.campaigns:

@@ -18,7 +18,9 @@ so that each keeps its cycles and waits and their machine times add up. The part
   budget and the period to resolve), whose dense profile the joint fit reads;
 - thermal drift against linear scale (or the environment): twice the first campaign's runs at its
   targets over the whole travel (a slope is seen over the travel), so about twice its time;
-- a growing against a constant reversal: both directions at targets over the whole travel.
+- a growing against a constant reversal: both directions at targets over the whole travel;
+- a linear against an exponential growth in time (linear_drift or thermal_drift): not planned, with
+  how long one campaign would have to last (each campaign's time starts again in the joint fit).
 Parts of one campaign that ask for different targets get the union of them.
 A group none of these fits is said, not planned.
 
@@ -41,7 +43,7 @@ from campaign.discovery.data import CampaignData
 from campaign.discovery.effects import HELD_PREFIX
 from campaign.discovery.fit import Fit, Term, linear_fit
 from campaign.discovery.local import Zone, zones
-from campaign.discovery.records import Unresolved
+from campaign.discovery.records import LocalRival, Unresolved
 from campaign.discovery.search import RIVAL_MARGIN, Discovery
 from campaign.effects import REGISTRY
 from campaign.effects.base import stop_waits
@@ -281,6 +283,29 @@ def _periods_of(group: Unresolved, remaining: list[Any]) -> list[float]:
     return []
 
 
+DRIFTS = frozenset({"linear_drift", "thermal_drift"})
+"""Slopes that change in time, in two shapes: a follow-up of repeated runs cannot tell them apart."""
+DRIFT_SPANS = 3.0
+"""Time constants a campaign must last to show an exponential growth level off."""
+
+
+def _drift_shape_unplanned(group: Unresolved, remaining: list[Any], data: CampaignData) -> str:
+    """Why a group of drifts in time of different shapes (linear, exponential) is not planned, and what
+    would tell them: a campaign DRIFT_SPANS of the fitted time constants long. The joint fit starts each
+    campaign's time again (join_campaigns), so a follow-up of its own shows no more of the shape than
+    the first campaign did."""
+    tau = next((float(c.fit.params()["thermal_drift"]["tau_s"]) for c in remaining
+                if c.name == "thermal_drift" and c.fit is not None), math.nan)
+    span = float(np.nanmax(data.t) - np.nanmin(data.t)) if data.t.size else math.nan
+    unit = "s" if data.time_source == "time_s" else "points"
+    long = (f"about {DRIFT_SPANS * tau:.3g} {unit} ({DRIFT_SPANS:g} times the time constant of {tau:.3g} {unit} "
+            f"fitted; this campaign lasted {span:.3g} {unit})" if math.isfinite(tau) and tau > 0
+            else f"several of the drift's time constants (this campaign lasted {span:.3g} {unit})")
+    return (f"{' or '.join(group.effects)}: an exponential growth levels off and a linear one does not, "
+            f"which only one campaign lasting {long} shows, runs at {FEW_TARGETS} targets over the travel repeated "
+            "throughout; a follow-up fitted with this one starts its time again, so it cannot tell them")
+
+
 def _moved_paths(config: Config, out_dir: Path) -> dict[str, dict[str, Any]]:
     """The paths in the config (the sim model, a LinuxCNC comp file) made relative to where the
     follow-up config is written, as config changes."""
@@ -362,6 +387,8 @@ def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData
             if scan is None:
                 cluster.part.why += f"; {refused}"
             asks.append(scan or cluster)
+        elif parts == {"runs"} and names <= DRIFTS:
+            unplanned.append(_drift_shape_unplanned(group, remaining, data))
         elif "runs" in parts:
             asks.append(_Ask(Part(sorted(names), (
                 f"a slope that changes from run to run or not at all: {2 * first_cycles} runs (the first campaign "
@@ -371,11 +398,11 @@ def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData
             asks.append(_Ask(Part(sorted(names), "a reversal that may grow along the travel: both directions at "
                                                  f"{FEW_TARGETS} targets over the whole travel"), _spread(data), 1))
         elif group.local_rivals:  # an effect or local errors there: denser targets over them tell
-            regions = [*regions, *((r.region_mm[0], r.region_mm[1]) for r in group.local_rivals)]
+            regions = [*regions, *(rival_region(r) for r in group.local_rivals)]
             only_rivals.append(group)
         else:
             unplanned.append(f"{' or '.join(group.effects)}: {group.how_to_tell}")
-    rivals = [tuple(r.region_mm) for group in unresolved for r in group.local_rivals]
+    rivals = [rival_region(r) for group in unresolved for r in group.local_rivals]
     first_t = _first_targets(data)
     spacing = float(np.median(np.diff(first_t))) if len(first_t) > 1 else 1.0
     lo, hi = float(_targets(data)[0]), float(_targets(data)[-1])
@@ -413,7 +440,7 @@ def regions_to_measure(result: Discovery) -> list[tuple[float, float]]:
     local error rivals an unresolved effect, and what the final model leaves unexplained along the
     axis (but a reversal over the travel). A region the
     tables already measure densely is left out by the planner (the loop ends there)."""
-    rivals = [r.region_mm for u in result.unresolved for r in u.local_rivals]
+    rivals = [rival_region(r) for u in result.unresolved for r in u.local_rivals]
     left = [(r.start, r.end) for r in (result.located_after.along if result.located_after else [])
             if r.direction != "opposite"]
     return [with_its_place_uncertain(zone) for zone in zones(result.local_errors)] + rivals + left
@@ -432,6 +459,15 @@ def with_its_place_uncertain(zone: Zone) -> tuple[float, float]:
     gaps = [m.between_mm[1] - m.between_mm[0] for m in zone.members if m.between_mm is not None]
     widen = max(2 * sigma, max(gaps, default=0.0) / 2)
     return low - widen, high + widen
+
+
+def rival_region(rival: LocalRival) -> tuple[float, float]:
+    """Where a follow-up measures a local error that rivals an unresolved effect: its region, and for a
+    step placed only between two targets half their gap beyond it on each side, as
+    with_its_place_uncertain widens a located one."""
+    low, high = rival.region_mm
+    half = (rival.between_mm[1] - rival.between_mm[0]) / 2 if rival.between_mm is not None else 0.0
+    return low - half, high + half
 
 
 def measured_stable_wait_s(data: CampaignData, config: Config) -> float:
@@ -536,7 +572,8 @@ def plan_follow_up(unresolved: list[Unresolved], remaining: list[Any], data: Cam
     """The follow-up campaign for the `unresolved` groups of a discovery on `data` (and denser
     targets over the located `regions`, (from, to) mm, where the model and the measurement disagree
     beyond the noise), from the first campaign's `config` (written to `out`), `final` the model
-    fitted; None when there is nothing to plan for. `reversal_um`: the size of a reversal kept as a
+    fitted; None when there is nothing to plan for (a FollowUp with no parts when no group could be
+    planned, each said in `unplanned`). `reversal_um`: the size of a reversal kept as a
     stand-in or named rival (sets the dwell part's points).
 
     Parts of different kinds (`_kind`: the wait ladder, repeated runs, targets measured once) are
@@ -547,7 +584,7 @@ def plan_follow_up(unresolved: list[Unresolved], remaining: list[Any], data: Cam
     marked `[campaign] purpose = "follow-up"`, `follows` the first campaign's directory, so that it
     is never taken for an acceptance test."""
     asks, unplanned = _asks(unresolved, remaining, data, final, config, reversal_um, noise_um, regions or [])
-    if not asks:
+    if not asks and not unplanned:
         return None
     if any(a.stops is None for a in asks if _kind(a) == "targets"):  # one campaign has one capture method:
         asks = [_stopped(a) if _kind(a) == "targets" else a for a in asks]  # a scan does not stop where the others do

@@ -532,10 +532,15 @@ def _index(fit: Fit, name: str) -> int:
 def _errors(data: CampaignData, fit: Fit, name: str, step: float = 1e-3) -> dict[str, float]:
     """1-σ errors of the local term `name`'s amplitudes, centre and width (cov = s²·(JᵀJ)⁻¹ over every
     coefficient of the fit and the two shape parameters, the other shapes held; a departure at one
-    target's amplitudes alone: its place is the target)."""
+    target's amplitudes alone: its place is the target; likewise a step whose rise holds no target or
+    one (unresolved_rise): what it says is the difference between the levels of the targets either
+    side, not where between them nor how sharp, and its shape moved between them trades its amplitude
+    for the fraction of the rise the nearer target reads (a 4.1 µm step between targets 93 mm apart,
+    its rise ending 2 mm before one of them: ± 2.7 µm with its shape free, bench seed 53, draw 8314))."""
     i = _index(fit, name)
     term, coefs = fit.terms[i], fit.coefs[i]
-    keys = () if term_kind(term) == TARGET else ("centre_mm", "width_mm")
+    bracketed = term_kind(term) == "step" and unresolved_rise(data, term.shape) is not None
+    keys = () if term_kind(term) == TARGET or bracketed else ("centre_mm", "width_mm")
     extra = np.zeros((len(data), len(keys)))
     for j, key in enumerate(keys):
         h = step * term.shape["width_mm"]

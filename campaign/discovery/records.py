@@ -17,13 +17,18 @@ from typing import Any
 @dataclass(frozen=True)
 class LocalRival:
     """A local error that would fit as well as an unresolved period: what it is, in words, and
-    where (from, to)."""
+    where (from, to); `between_mm`: for a step placed only between two targets, those targets (as
+    LocalError.between_mm), else None."""
 
     sentence: str
     region_mm: tuple[float, float]
+    between_mm: tuple[float, float] | None = None
 
     def as_dict(self) -> dict[str, Any]:
-        return {"sentence": self.sentence, "region_mm": list(self.region_mm)}
+        out: dict[str, Any] = {"sentence": self.sentence, "region_mm": list(self.region_mm)}
+        if self.between_mm is not None:
+            out["between_mm"] = list(self.between_mm)
+        return out
 
 
 @dataclass(frozen=True)
