@@ -69,11 +69,10 @@ class SerialInterferometer:
             raise InstrumentError(f"interferometer port {self.port_name} failed: {e}") from e
 
     def _poll_stream(self) -> list[Reading]:
-        while True:  # a short read took all there was: one read per poll, not one more to find nothing
-            chunk = self._port.read(_CHUNK_BYTES)
+        # until a read finds nothing: a pty hands over what was written in pieces, so a short read does
+        # not mean the rest has not arrived (one read per poll lost readings to the next poll)
+        while chunk := self._port.read(_CHUNK_BYTES):
             self._buffer += chunk
-            if len(chunk) < _CHUNK_BYTES:
-                break
         *lines, self._buffer = self._buffer.split(self._terminator)
         if len(self._buffer) > MAX_LINE_BYTES:
             self._buffer = b""

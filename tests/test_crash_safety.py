@@ -15,7 +15,7 @@ from tests.conftest import ROOT, events, status
 
 
 def start_slow_demo(out, *options):
-    # --speed 100: the 20-minute campaign takes about 12 s of wall time, slow enough to interrupt
+    # --speed 100: the 20-minute campaign takes about 12 s of wall time (two runs, --cycles 2: about 5 s), slow enough to interrupt
     return subprocess.Popen([sys.executable, "-m", "campaign", "demo", "--speed", "100", "--out", str(out), *options],
                             cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
 

@@ -84,7 +84,8 @@ def test_a_linear_growth_that_could_be_exponential_is_said_not_planned_with_what
     assert said.code == 0, said.err
     result = json.loads(said.out)
     assert {"linear_drift", "thermal_drift"} in [set(u["effects"]) for u in result["unresolved"]], result["unresolved"]
-    follow = result["follow_up"] or {}
-    assert not any("linear_drift" in " ".join(c.get("tells", [])) for c in follow.get("campaigns", [])), follow
-    unplanned = " ".join(follow.get("unplanned", [])) + " ".join(result.get("not_planned", []))
-    assert "levels off" in unplanned and "time constant of" in unplanned, result
+    follow = result["follow_up"]
+    assert follow is not None and follow["file"] is None and not (tmp_path / "follow.toml").exists(), follow
+    assert not any("linear_drift" in part["effects"] for part in follow["parts"]), follow
+    unplanned = " ".join(follow["unplanned"])
+    assert "levels off" in unplanned and "time constant of" in unplanned, follow

@@ -45,7 +45,7 @@ def the_loop(cli, tmp_path, first) -> tuple[dict, dict]:
     in second/, any other in second-2/, ...), discover them all together (a scan's dense profile.csv
     with the first table)."""
     alone = discover_json(cli, first / "points.csv", "--follow-up", "-o", tmp_path / "follow.toml")
-    assert alone["follow_up"] is not None, alone["unresolved"]
+    assert alone["follow_up"] and alone["follow_up"]["campaigns"], (alone["unresolved"], alone["follow_up"])
     tables = []
     for i, campaign in enumerate(alone["follow_up"]["campaigns"]):
         out = tmp_path / ("second" if i == 0 else f"second-{i + 1}")

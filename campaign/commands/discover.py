@@ -24,7 +24,7 @@ from campaign.discovery.data import (
     read_start_model,
 )
 from campaign.discovery.fit import derived
-from campaign.discovery.followup import FollowUp, plan_follow_up, regions_to_measure
+from campaign.discovery.followup import DRIFTS, FollowUp, plan_follow_up, regions_to_measure
 from campaign.discovery.local import LocalError, Zone, zones
 from campaign.discovery.locate import Located, short
 from campaign.discovery.records import Unresolved
@@ -401,7 +401,8 @@ def next_command(result: Discovery, files: list[str]) -> str | None:
     noise is left: the follow-up that would tell (within the first campaign's machine time), or a
     look at where the residual is."""
     said = " ".join(files)
-    if result.unresolved or result.not_excluded or (result.local_errors and not loop_ends(result, files)):
+    plannable = [u for u in result.unresolved if not set(u.effects) <= DRIFTS]  # a drift's shape: one longer campaign
+    if plannable or result.not_excluded or (result.local_errors and not loop_ends(result, files)):
         return f"next: axiscal discover {said} --follow-up -o FOLLOW.toml"
     if noise_verdict(result) != "noise":
         return f"next: axiscal discover {said} --plot residual.png"
@@ -639,7 +640,8 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         extra = {"campaigns": args.files, "offsets_um": [round(o, 4) for o in result.final.offsets_um]}
         if args.follow_up:
-            extra["follow_up"] = None if follow is None else {**follow.as_dict(), "file": args.output}
+            extra["follow_up"] = None if follow is None else {**follow.as_dict(),
+                                                               "file": args.output if follow.parts else None}
             if failed is not None:
                 extra["follow_up_error"] = str(failed)
         print_json({**as_json(result), **all_outliers_json(outliers, args.files), **extra})

@@ -115,7 +115,8 @@ class Campaign:
 class FollowUp:
     """The follow-up campaign: its config (validated, within the limits), the TOML text to write,
     the parts and why each is there, the groups it cannot plan for, and the machine time of the
-    follow-up and of the first campaign (the project's estimate, s)."""
+    follow-up and of the first campaign (the project's estimate, s). With no parts nothing is written
+    (config is the first campaign's, text empty): only `unplanned` says anything."""
 
     config: Config
     text: str
@@ -130,6 +131,9 @@ class FollowUp:
     that ask for different cycles or waits are campaigns of their own, so that each keeps them."""
 
     def as_dict(self) -> dict[str, Any]:
+        if not self.parts:  # nothing written: what could not be planned, and why
+            return {"campaigns": [], "parts": [], "unplanned": self.unplanned, "duration_s": 0.0,
+                    "first_duration_s": round(self.first_duration_s, 1), "longer_warning": None}
         return {"campaigns": [c.as_dict() for c in self.campaigns],
                 "parts": [{"effects": p.effects, "why": p.why} for p in self.parts], "unplanned": self.unplanned,
                 "duration_s": round(self.duration_s, 1), "first_duration_s": round(self.first_duration_s, 1),
@@ -296,14 +300,24 @@ def _drift_shape_unplanned(group: Unresolved, remaining: list[Any], data: Campai
     the first campaign did."""
     tau = next((float(c.fit.params()["thermal_drift"]["tau_s"]) for c in remaining
                 if c.name == "thermal_drift" and c.fit is not None), math.nan)
-    span = float(np.nanmax(data.t) - np.nanmin(data.t)) if data.t.size else math.nan
-    unit = "s" if data.time_source == "time_s" else "points"
-    long = (f"about {DRIFT_SPANS * tau:.3g} {unit} ({DRIFT_SPANS:g} times the time constant of {tau:.3g} {unit} "
-            f"fitted; this campaign lasted {span:.3g} {unit})" if math.isfinite(tau) and tau > 0
-            else f"several of the drift's time constants (this campaign lasted {span:.3g} {unit})")
+    span = float(np.nanmax(data.t) - np.nanmin(data.t)) if np.isfinite(data.t).any() else math.nan
+    seconds = data.time_source == "time_s"
+    lasted = f"{'the longest of these campaigns' if data.campaign is not None else 'this campaign'} lasted " + (
+        _duration(span) if seconds else f"{span:.0f} points")
+    long = ((f"about {_duration(DRIFT_SPANS * tau)} ({DRIFT_SPANS:g} times the time constant of {_duration(tau)} "
+             if seconds else f"about {DRIFT_SPANS * tau:.0f} points ({DRIFT_SPANS:g} times the time constant of "
+             f"{tau:.0f} points ") + f"fitted; {lasted})" if math.isfinite(tau) and tau > 0
+            else f"several of the drift's time constants ({lasted})")
     return (f"{' or '.join(group.effects)}: an exponential growth levels off and a linear one does not, "
             f"which only one campaign lasting {long} shows, runs at {FEW_TARGETS} targets over the travel repeated "
             "throughout; a follow-up fitted with this one starts its time again, so it cannot tell them")
+
+
+def _duration(seconds: float) -> str:
+    """A time in words: '25 s', '8.4 min', '2.1 h'."""
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    return f"{seconds / 60:.1f} min" if seconds < 7200 else f"{seconds / 3600:.1f} h"
 
 
 def _moved_paths(config: Config, out_dir: Path) -> dict[str, dict[str, Any]]:
