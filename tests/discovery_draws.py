@@ -19,6 +19,7 @@ import numpy as np
 
 from campaign.config import Config, parse_config
 from campaign.discovery.data import CampaignData
+from campaign.discovery.followup import is_drift_shape_group
 from campaign.discovery.local import zones
 from campaign.discovery.search import Discovery
 from campaign.plan import build_plan
@@ -146,10 +147,6 @@ def _visible(effects: dict, targets: np.ndarray, noise: float) -> bool:
     return bool(np.max(np.abs(total)) > 2 * noise)
 
 
-DRIFTS = {"linear_drift", "thermal_drift"}
-"""The slopes that change in time: an unresolved group of them says a growth in time is there."""
-
-
 @dataclass
 class Judged:
     """How discovery did on one draw: located (an out-of-vocabulary region found within its
@@ -204,7 +201,7 @@ def judge(result: Discovery, truth: Truth) -> Judged:
     if truth.shape == "linear_growth":  # said as the slope along the travel departing in time, not a place
         timed = result.located_after.regions if result.located_after is not None else []
         stated = located or any(r.over == "time" and r.what == "slope" for r in timed) or any(
-            "linear_drift" in u.effects and set(u.effects) <= DRIFTS for u in result.unresolved)
+            "linear_drift" in u.effects and is_drift_shape_group(u.effects) for u in result.unresolved)
     else:
         rivals = [(lo + hi) / 2 for u in result.unresolved for lo, hi in (r.region_mm for r in u.local_rivals)]
         stated = located or _near(truth, [r.centre for r in after]) or _near(truth, rivals)

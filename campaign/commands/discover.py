@@ -24,7 +24,7 @@ from campaign.discovery.data import (
     read_start_model,
 )
 from campaign.discovery.fit import derived
-from campaign.discovery.followup import DRIFTS, FollowUp, plan_follow_up, regions_to_measure
+from campaign.discovery.followup import FollowUp, is_drift_shape_group, plan_follow_up, regions_to_measure
 from campaign.discovery.local import LocalError, Zone, zones
 from campaign.discovery.locate import Located, short
 from campaign.discovery.records import Unresolved
@@ -401,7 +401,7 @@ def next_command(result: Discovery, files: list[str]) -> str | None:
     noise is left: the follow-up that would tell (within the first campaign's machine time), or a
     look at where the residual is."""
     said = " ".join(files)
-    plannable = [u for u in result.unresolved if not set(u.effects) <= DRIFTS]  # a drift's shape: one longer campaign
+    plannable = [u for u in result.unresolved if not is_drift_shape_group(u.effects)]  # one longer campaign tells
     if plannable or result.not_excluded or (result.local_errors and not loop_ends(result, files)):
         return f"next: axiscal discover {said} --follow-up -o FOLLOW.toml"
     if noise_verdict(result) != "noise":

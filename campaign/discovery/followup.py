@@ -287,27 +287,32 @@ def _periods_of(group: Unresolved, remaining: list[Any]) -> list[float]:
     return []
 
 
-DRIFTS = frozenset({"linear_drift", "thermal_drift"})
-"""Slopes that change in time, in two shapes: a follow-up of repeated runs cannot tell them apart."""
+def is_drift_shape_group(effects: tuple[str, ...]) -> bool:
+    """Whether an unresolved group holds only slopes that change in time (the registered effects that
+    need several runs: a linear and an exponential growth), which a follow-up of repeated runs cannot
+    tell apart: the joint fit starts each campaign's time again (join_campaigns)."""
+    return bool(effects) and all(name in REGISTRY and REGISTRY[name].needs == "runs" for name in effects)
+
+
 DRIFT_SPANS = 3.0
 """Time constants a campaign must last to show an exponential growth level off."""
 
 
 def _drift_shape_unplanned(group: Unresolved, remaining: list[Any], data: CampaignData) -> str:
     """Why a group of drifts in time of different shapes (linear, exponential) is not planned, and what
-    would tell them: a campaign DRIFT_SPANS of the fitted time constants long. The joint fit starts each
-    campaign's time again (join_campaigns), so a follow-up of its own shows no more of the shape than
-    the first campaign did."""
-    tau = next((float(c.fit.params()["thermal_drift"]["tau_s"]) for c in remaining
-                if c.name == "thermal_drift" and c.fit is not None), math.nan)
+    would tell them: one campaign DRIFT_SPANS of the fitted time constant long (the first `tau_s` fitted
+    among the group's candidates)."""
+    taus = [float(p["tau_s"]) for c in remaining if c.name in group.effects and c.fit is not None
+            and "tau_s" in (p := c.fit.params()[c.name])]
+    tau = taus[0] if taus else math.nan
     span = float(np.nanmax(data.t) - np.nanmin(data.t)) if np.isfinite(data.t).any() else math.nan
-    seconds = data.time_source == "time_s"
-    lasted = f"{'the longest of these campaigns' if data.campaign is not None else 'this campaign'} lasted " + (
-        _duration(span) if seconds else f"{span:.0f} points")
-    long = ((f"about {_duration(DRIFT_SPANS * tau)} ({DRIFT_SPANS:g} times the time constant of {_duration(tau)} "
-             if seconds else f"about {DRIFT_SPANS * tau:.0f} points ({DRIFT_SPANS:g} times the time constant of "
-             f"{tau:.0f} points ") + f"fitted; {lasted})" if math.isfinite(tau) and tau > 0
-            else f"several of the drift's time constants ({lasted})")
+
+    def said(value: float) -> str:
+        return _duration(value) if data.time_source == "time_s" else f"{value:.0f} points"
+
+    lasted = f"{'the longest of these campaigns' if data.campaign is not None else 'this campaign'} lasted {said(span)}"
+    long = (f"about {said(DRIFT_SPANS * tau)} ({DRIFT_SPANS:g} times the time constant of {said(tau)} fitted; {lasted})"
+            if math.isfinite(tau) and tau > 0 else f"several of the drift's time constants ({lasted})")
     return (f"{' or '.join(group.effects)}: an exponential growth levels off and a linear one does not, "
             f"which only one campaign lasting {long} shows, runs at {FEW_TARGETS} targets over the travel repeated "
             "throughout; a follow-up fitted with this one starts its time again, so it cannot tell them")
@@ -401,7 +406,7 @@ def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData
             if scan is None:
                 cluster.part.why += f"; {refused}"
             asks.append(scan or cluster)
-        elif parts == {"runs"} and names <= DRIFTS:
+        elif is_drift_shape_group(group.effects):
             unplanned.append(_drift_shape_unplanned(group, remaining, data))
         elif "runs" in parts:
             asks.append(_Ask(Part(sorted(names), (

@@ -1031,11 +1031,18 @@ def as_good(data: CampaignData, fit: Fit, other: Fit) -> bool:
     """Does `fit` predict left-out targets as well as `other`: its leave-one-target-out mean square (shapes
     held) above the other's by at most RIVAL_SE standard errors of the targets' paired differences?"""
     groups = data.target_index
-    mine = cv_searched_errors(data, fit.terms, groups, shapes_held)
-    theirs = cv_searched_errors(data, other.terms, groups, shapes_held)
+    total, se = paired_difference(data, cv_searched_errors(data, fit.terms, groups, shapes_held),
+                                  cv_searched_errors(data, other.terms, groups, shapes_held))
+    return total <= RIVAL_SE * se
+
+
+def paired_difference(data: CampaignData, mine: np.ndarray, theirs: np.ndarray) -> tuple[float, float]:
+    """Two models' CV compared fold by fold (each fold's sum of squared left-out residuals,
+    cv_searched_errors): the difference of their mean squares (mine less theirs, µm²) and its standard
+    error from the spread of the folds' shares of it (0 with one fold)."""
     diff = (mine - theirs) / max(len(data), 1)
     se = float(np.std(diff, ddof=1) * math.sqrt(len(diff))) if len(diff) > 1 else 0.0
-    return float(diff.sum()) <= RIVAL_SE * se
+    return float(diff.sum()), se
 
 
 def add_local_rivals(result: Discovery, found: list[LocalError], beside: list[str] | None = None) -> list[LocalError]:
@@ -1507,10 +1514,9 @@ def margin_comparison(data: CampaignData, local: Fit, named: Fit, local_refined:
     with_local = cv_searched_errors(data, local.terms, groups, local_refined)
     with_effect = cv_searched_errors(data, named.terms, groups, named_refined)
     n = max(len(data), 1)
-    diff = (with_local - with_effect) / n  # each fold's share of the difference in mean square
-    total = float(diff.sum())
+    total, se = paired_difference(data, with_local, with_effect)
     simpler = parameters(named) < parameters(local)
-    margin = REPLACE_SE * float(np.std(diff, ddof=1) * math.sqrt(len(diff))) if simpler and len(diff) > 1 else 0.0
+    margin = REPLACE_SE * se if simpler else 0.0
     effect_ms = float(with_effect.sum()) / n
     return Searched(total < -margin if simpler else total <= 0.0, math.sqrt(float(with_local.sum()) / n),
                     math.sqrt(effect_ms), math.sqrt(effect_ms) - math.sqrt(max(effect_ms - margin, 0.0)))
