@@ -21,6 +21,7 @@ from campaign.config import Config, parse_config
 from campaign.discovery.data import CampaignData
 from campaign.discovery.followup import is_drift_shape_group
 from campaign.discovery.local import zones
+from campaign.discovery.records import LocalRival
 from campaign.discovery.search import Discovery
 from campaign.plan import build_plan
 
@@ -154,7 +155,7 @@ class Judged:
     effects named that the machine lacks), the gap after against the noise estimate; stated: located
     by a local term, or said as unexplained structure (a region the locator finds in what the final
     model leaves) or as a local error an unresolved effect cannot be told from (its `local_rivals`)
-    within the same tolerance (a linear growth: the slope along the travel departing in time, in what
+    or as the other shape a local error may have (its `shape_rival`) within the same tolerance (a linear growth: the slope along the travel departing in time, in what
     the final model leaves, or an unresolved group of drifts in time with linear_drift among them: the
     growth is said, its shape in time left open), or bracketed (below); seen: a region the locator finds before anything is named
     within it."""
@@ -183,6 +184,13 @@ def _near(truth: Truth, centres: list[float]) -> bool:
     return False
 
 
+def every_rival(result: Discovery) -> list[LocalRival]:
+    """The local errors said to fit as well as what is in the model: an unresolved effect's
+    (`local_rivals`) and a local error's other shape (LocalError.shape_rival)."""
+    return [r for u in result.unresolved for r in u.local_rivals] + [
+        e.shape_rival for e in result.local_errors if e.shape_rival is not None]
+
+
 def judge(result: Discovery, truth: Truth) -> Judged:
     found = [(z.centre_mm, (z.region_mm[1] - z.region_mm[0]) / 2) for z in zones(result.local_errors)]
     # a departure at one target says where between its neighbours it lies, not where: bracketed (below)
@@ -203,13 +211,12 @@ def judge(result: Discovery, truth: Truth) -> Judged:
         stated = located or any(r.over == "time" and r.what == "slope" for r in timed) or any(
             "linear_drift" in u.effects and is_drift_shape_group(u.effects) for u in result.unresolved)
     else:
-        rivals = [(lo + hi) / 2 for u in result.unresolved for lo, hi in (r.region_mm for r in u.local_rivals)]
+        rivals = [(lo + hi) / 2 for lo, hi in (r.region_mm for r in every_rival(result))]
         stated = located or _near(truth, [r.centre for r in after]) or _near(truth, rivals)
     seen = _near(truth, [r.centre for r in before]) or (truth.shape == "linear_growth" and result.located_before
                                                           is not None and any(r.over == "time"
                                                                               for r in result.located_before.regions))
-    brackets = [e.between_mm for e in result.local_errors] + [r.between_mm for u in result.unresolved
-                                                               for r in u.local_rivals]
+    brackets = [e.between_mm for e in result.local_errors] + [r.between_mm for r in every_rival(result)]
     bracketed = not stated and truth.shape != "linear_growth" and (truth.shape == "step" and any(
         between is not None and between[0] <= centre <= between[1]
         for between in brackets for centre, _ in truth.regions) or any(

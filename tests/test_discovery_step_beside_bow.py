@@ -99,3 +99,46 @@ def test_a_step_the_period_took_first_is_its_rival_with_the_bow_put_beside_it(se
     low, high = rival.between_mm
     widened = (low - (high - low) / 2, high + (high - low) / 2)
     assert any(region == pytest.approx(widened, abs=0.1) for region in regions_to_measure(result)), widened
+
+
+@pytest.mark.machine  # one simulated campaign and discovery
+def test_a_bow_a_step_hides_is_put_in_and_the_grid_finds_the_step_beside_it():
+    """A 2.9 µm step at 424 mm rising over 16 mm beside a 1.2 µm bow and a 2.4 µm backlash, 17 golden
+    targets, noise 0.8 µm (bench seed 131, draw 8578). The step's level takes the bow's end: the vocabulary
+    names the backlash alone, beside it the grid finds a bump at 484 mm, width 94 mm, and beside that
+    bump the bow is not significant. With the bow put in (its candidate lowered the BIC, but the search did
+    not name it) the grid finds the step, and the vocabulary searched beside it names the bow: a BIC 20
+    lower than the bump's."""
+    truth, data = drawn("step", 17, "golden", 8578)
+    result = discover(data, *START)
+    judged = judge(result, truth)
+    assert judged.located and not judged.false_names, judged.said
+    assert {"backlash", "nonlinear_lead"} <= set(result.added), judged.said
+    steps = [e for e in result.local_errors if e.kind == "step"]
+    assert len(steps) == 1 and abs(steps[0].size_um) == pytest.approx(truth.model["local_step"]["height_um"],
+                                                                      rel=0.35), judged.said
+
+
+@pytest.mark.machine  # one simulated campaign and discovery
+def test_a_bump_a_step_beside_a_bow_fits_as_well_is_said_with_that_other_shape():
+    """A 2.8 µm step at 187 mm rising over 140 mm beside a 1.4 µm bow and a 1.7 µm backlash, 17 golden
+    targets, noise 0.8 µm (bench seed 11, draw 24296). Beside the backlash a bump at 270 mm, width 117 mm,
+    explains the campaign best (BIC 4.7 lower than the step with the bow); the step beside the bow predicts
+    left-out targets as well (CV 0.736 against 0.733 µm). Before, the bump alone was said. Now the bump
+    is said with the step (between the targets either side of its middle, one target on its rise) as its
+    other shape, the bow beside it said, not named, and the follow-up measures over the step's region too."""
+    from campaign.discovery.followup import regions_to_measure
+
+    truth, data = drawn("step", 17, "golden", 24296)
+    result = discover(data, *START)
+    (position, _), = truth.regions
+    bumps = [e for e in result.local_errors if e.kind == "bump" and e.shape_rival is not None]
+    assert len(bumps) == 1, [e.sentence() for e in result.local_errors]
+    rival = bumps[0].shape_rival
+    assert rival.sentence.startswith("a step") and rival.sentence.endswith("with nonlinear_lead beside it"), rival
+    # one target on its rise: placed between the targets either side of its middle, as the bench judges it
+    assert rival.between_mm is not None and rival.between_mm[0] <= position <= rival.between_mm[1], rival
+    assert "nonlinear_lead" not in result.added and judge(result, truth).stated
+    assert bumps[0].as_dict()["shape_rival"]["region_mm"] == list(rival.region_mm)
+    assert "which shape it is, the campaign does not say" in bumps[0].sentence()
+    assert any(low <= rival.region_mm[0] and rival.region_mm[1] <= high for low, high in regions_to_measure(result))

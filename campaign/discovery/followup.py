@@ -456,13 +456,15 @@ def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData
 
 def regions_to_measure(result: Discovery) -> list[tuple[float, float]]:
     """Where a follow-up should measure densely: the located local errors' regions, those where a
-    local error rivals an unresolved effect, and what the final model leaves unexplained along the
+    local error rivals an unresolved effect, where a located one's other shape would lie (its
+    shape_rival), and what the final model leaves unexplained along the
     axis (but a reversal over the travel). A region the
     tables already measure densely is left out by the planner (the loop ends there)."""
     rivals = [rival_region(r) for u in result.unresolved for r in u.local_rivals]
     left = [(r.start, r.end) for r in (result.located_after.along if result.located_after else [])
             if r.direction != "opposite"]
-    return [with_its_place_uncertain(zone) for zone in zones(result.local_errors)] + rivals + left
+    shapes = [rival_region(e.shape_rival) for e in result.local_errors if e.shape_rival is not None]
+    return [with_its_place_uncertain(zone) for zone in zones(result.local_errors)] + rivals + shapes + left
 
 
 def with_its_place_uncertain(zone: Zone) -> tuple[float, float]:

@@ -42,6 +42,7 @@ from campaign.discovery.fit import (
     span_at_positions,
     weighted,
 )
+from campaign.discovery.records import LocalRival
 from campaign.effects import effects
 
 ALPHA = 0.001
@@ -127,6 +128,10 @@ class LocalError:
     (unexplained.steepest_between)."""
     measured_mm: tuple[float, float] | None = None
     """The first and last position measured: what the data show of it lies between them."""
+    shape_rival: LocalRival | None = None
+    """A local error of the other shape (a step for a bump, a bump for a step) that fits the campaign as
+    well, perhaps with an effect beside it (campaign.discovery.search.shape_rivals): which shape it is, the
+    campaign does not say."""
 
     @property
     def region_mm(self) -> tuple[float, float]:
@@ -178,7 +183,15 @@ class LocalError:
 
     def sentence(self) -> str:
         """'a local error of +2.4 µm at 214 mm, width 18 mm, both directions' or 'a step of -2.6 µm at
-        250 mm, rising over 8 mm, both directions' (the axis's units)."""
+        250 mm, rising over 8 mm, both directions' (the axis's units), and its shape's rival if any."""
+        if self.shape_rival is None:
+            return self._shape_sentence()
+        low, high = self.shape_rival.region_mm
+        return (f"{self._shape_sentence()}; or, fitting as well, {self.shape_rival.sentence} (which shape it is, "
+                f"the campaign does not say: denser targets over {min(low, self.region_mm[0]):.4g} to "
+                f"{max(high, self.region_mm[1]):.4g} {self.position_unit} would tell)")
+
+    def _shape_sentence(self) -> str:
         p, unit = self.params, self.position_unit
         if self.kind == "region":
             where = (f"between the targets at {self.between_mm[0]:.4g} and {self.between_mm[1]:.4g} {unit}"
@@ -229,7 +242,8 @@ class LocalError:
                 "explained_pct": round(self.explained_pct, 2),
                 "delta_bic": round(self.delta_bic, 2), "p_value": float(f"{self.p_value:.3g}"),
                 "cv_before_um": round(self.cv_before_um, 4), "cv_after_um": round(self.cv_after_um, 4),
-                "gap_without_um": round(self.gap_without_um, 4)}
+                "gap_without_um": round(self.gap_without_um, 4),
+                **({"shape_rival": self.shape_rival.as_dict()} if self.shape_rival is not None else {})}
 
 
 def point_weights(data: CampaignData) -> np.ndarray:
@@ -346,9 +360,10 @@ SIDES = (0, 1, -1)
 worn zone that only one approach meets, as a step seen only when the nut bears on one flank)."""
 
 
-def _grid_best(data: CampaignData, fit: Fit) -> tuple[str, float, float, int] | None:
+def _grid_best(data: CampaignData, fit: Fit, kinds: tuple[str, ...] = KINDS) -> tuple[str, float, float, int] | None:
     """The (shape, centre, width, side) on the grid whose term explains most of the residual beside the
-    model (side: SIDES); None when the targets can see none."""
+    model (side: SIDES); None when the targets can see none. `kinds`: the shapes looked for (KINDS, and
+    a departure at one target or two, when all)."""
     targets = _targets(data)
     step = max(float(np.median(np.diff(targets))) / 4, float(np.ptp(targets)) / MAX_CENTRES)
     centres = np.arange(targets[0], targets[-1] + step / 2, step)
@@ -372,8 +387,9 @@ def _grid_best(data: CampaignData, fit: Fit) -> tuple[str, float, float, int] | 
         q_at, qr = span_at_positions(data, fit, at, len(xs) + 1)
         sums = np.column_stack([np.bincount(at, root * r, minlength=len(xs) + 1), q_at])[:-1]
         sides.append(_Side(which, count, sums, qr))
-    _grid_scan(data, targets, centres, step, xs, sides)
-    _target_scan(targets, xs, sides, NORM_FLOOR * len(data))
+    _grid_scan(data, targets, centres, step, xs, sides, kinds)
+    if kinds == KINDS:
+        _target_scan(targets, xs, sides, NORM_FLOOR * len(data))
     best, power_best = None, -1.0
     for side in sides:  # in SIDES order, each side's best in the grid's order
         if side.best is not None and side.best[3] > power_best:
@@ -431,10 +447,10 @@ def _target_scan(targets: np.ndarray, xs: np.ndarray, sides: list[_Side], tiny: 
 
 
 def _grid_scan(data: CampaignData, targets: np.ndarray, centres: np.ndarray, step: float, xs: np.ndarray,
-               sides: list[_Side]) -> None:
-    """The grid over shapes, widths and centres, each shape's values at the positions computed once for
-    every side; each side's best kept in it."""
-    for kind in KINDS:
+               sides: list[_Side], kinds: tuple[str, ...]) -> None:
+    """The grid over shapes (`kinds`), widths and centres, each shape's values at the positions computed
+    once for every side; each side's best kept in it."""
+    for kind in kinds:
         widths = width_range(data, kind)
         if widths is None:
             continue
@@ -622,6 +638,15 @@ def find_local(data: CampaignData, fit: Fit, index: int = 1) -> LocalError | Non
                     gap_without_um=gap_um(data, data.y - fit.prediction))
 
 
+def other_shape(data: CampaignData, fit: Fit, kind: str, index: int) -> Fit | None:
+    """`fit` with the best local term of `kind` ("bump" or "step", in both directions) beside its model:
+    the grid's best of that shape, its centre and width refined; None when the targets can see none."""
+    start = _grid_best(data, fit, (kind,))
+    if start is None:
+        return None
+    return _refine(data, fit.terms, (start[1], start[2]), kind, False, index)
+
+
 def reversal_name() -> str | None:
     """The registered effect whose column is a reversal constant along the travel (Effect.reversal):
     what backlash, settling at one wait, or the stand-in for them hold; None when no effect with a form
@@ -685,7 +710,9 @@ def describe(data: CampaignData, fit: Fit, name: str, **tests: float) -> LocalEr
         if shows["+"] != shows["-"]:
             directions = "+" if shows["+"] else "-"
     time_p, change, change_error = _time_test(data, fit, name)
-    return LocalError(term, params, errors, directions, time_p, change, **tests, time_change_error_um=change_error,
+    return LocalError(term, params, errors, directions, time_p, change, tests["explained_pct"], tests["delta_bic"],
+                      tests["p_value"], tests["cv_before_um"], tests["cv_after_um"],
+                      gap_without_um=tests.get("gap_without_um", 0.0), time_change_error_um=change_error,
                       position_unit=data.position_unit, deviation_unit=data.deviation_unit, kind=term_kind(term),
                       between_mm=unresolved_rise(data, params) if term_kind(term) == "step" else None,
                       measured_mm=(float(np.min(data.x)), float(np.max(data.x))))
