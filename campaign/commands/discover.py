@@ -319,7 +319,8 @@ def local_said(local: LocalError) -> str:
     errs = ", ".join(f"{k.split('_')[0]} ± {e[k]:.2g} "
                      f"{local.deviation_unit if k.endswith('um') else local.position_unit}"
                      for k in (size, *place) if k and k in e)
-    return f"{local.sentence()} ({errs})" if errs else local.sentence()
+    # the errors are this error's: said before its shape rival's clause, which has its own numbers
+    return f"{local.shape_sentence()} ({errs}){local.rival_clause()}" if errs else local.sentence()
 
 
 def summary_lines(result: Discovery, incomplete: list[str], time_unit: str = "s", kind: str = "linear") -> list[str]:

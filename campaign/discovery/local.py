@@ -184,14 +184,20 @@ class LocalError:
     def sentence(self) -> str:
         """'a local error of +2.4 µm at 214 mm, width 18 mm, both directions' or 'a step of -2.6 µm at
         250 mm, rising over 8 mm, both directions' (the axis's units), and its shape's rival if any."""
-        if self.shape_rival is None:
-            return self._shape_sentence()
-        low, high = self.shape_rival.region_mm
-        return (f"{self._shape_sentence()}; or, fitting as well, {self.shape_rival.sentence} (which shape it is, "
-                f"the campaign does not say: denser targets over {min(low, self.region_mm[0]):.4g} to "
-                f"{max(high, self.region_mm[1]):.4g} {self.position_unit} would tell)")
+        return self.shape_sentence() + self.rival_clause()
 
-    def _shape_sentence(self) -> str:
+    def rival_clause(self) -> str:
+        """'; or, fitting as well, a step of … (which shape it is, the campaign does not say: …)', or ''
+        without a shape rival."""
+        if self.shape_rival is None:
+            return ""
+        low, high = self.shape_rival.region_mm
+        return (f"; or, fitting as well, {self.shape_rival.sentence} (which shape it is, the campaign does not "
+                f"say: denser targets over {min(low, self.region_mm[0]):.4g} to {max(high, self.region_mm[1]):.4g} "
+                f"{self.position_unit} would tell)")
+
+    def shape_sentence(self) -> str:
+        """What it is and where, its shape rival left out (sentence)."""
         p, unit = self.params, self.position_unit
         if self.kind == "region":
             where = (f"between the targets at {self.between_mm[0]:.4g} and {self.between_mm[1]:.4g} {unit}"
@@ -786,7 +792,7 @@ def zones(errors: list[LocalError]) -> list[Zone]:
                     f"{a.params['centre_mm']:.4g} to {b.params['centre_mm']:.4g} {unit} (a step of {a.size_um:+.2g} "
                     f"{dev} rising over {a.params['width_mm']:.2g} {unit}, one of {b.size_um:+.2g} {dev} over "
                     f"{b.params['width_mm']:.2g} {unit}), {a._sides()}")
-            out.append(Zone((start, end), size, said, (a, b)))
+            out.append(Zone((start, end), size, said + a.rival_clause() + b.rival_clause(), (a, b)))
             i += 2
             continue
         out.append(Zone(a.region_mm, a.size_um, a.sentence(), (a,)))

@@ -16,8 +16,8 @@ from typing import Any
 
 @dataclass(frozen=True)
 class LocalRival:
-    """A local error that would fit as well as an unresolved period: what it is, in words, and
-    where (from, to); `between_mm`: for a step placed only between two targets, those targets (as
+    """A local error that would fit as well as an unresolved effect (its `local_rivals`) or as a located
+    local error of the other shape (LocalError.shape_rival): what it is, in words, and where (from, to); `between_mm`: for a step placed only between two targets, those targets (as
     LocalError.between_mm), else None."""
 
     sentence: str

@@ -830,10 +830,12 @@ def locals_beside_unnamed(data: CampaignData, vocabulary: Discovery, beside: lis
     finds a bump at 484 mm, width 94 mm, and beside it the bow is not significant; beside the backlash and
     the bow it finds the step, BIC 20 lower, bench seed 131, draw 8578). Only those that hold more than
     the local errors found beside the vocabulary (`beside`): the model with the effect and them has a
-    lower BIC than the vocabulary's with those (and than the vocabulary's alone); the route then searches
+    lower BIC than the vocabulary's with those (than the vocabulary's alone when none was found); the route then searches
     the vocabulary again beside them (with_locals), which names the effect only if it passes there. Tried
     only for an effect that explains part of the residual there (its candidate's BIC below the vocabulary's,
-    by BIC_MARGIN) and is not in the model already (a stand-in): on the dense bench's table none is, and
+    by BIC_MARGIN; the candidate as the search fitted it, beside a stand-in when one holds an unresolved
+    group, so there the stand-in's share counts too and the limit lets most effects through) and is not in
+    the model already (a stand-in): on the dense bench's table none is, and
     each grid there takes 0.4 s. Beside a period the vocabulary leaves unresolved (`periodic`), only local
     errors in one place (places): several places that take the period's place with the effect are the period seen at few targets
     (a 1 µm, 10 mm lead on 11 targets beside a bow and a 3 µm bump 150 mm wide: with the bow put in, three
