@@ -135,7 +135,7 @@ def test_a_bump_a_step_beside_a_bow_fits_as_well_is_said_with_that_other_shape()
     bumps = [e for e in result.local_errors if e.kind == "bump" and e.shape_rival is not None]
     assert len(bumps) == 1, [e.sentence() for e in result.local_errors]
     rival = bumps[0].shape_rival
-    assert rival.sentence.startswith("a step") and rival.sentence.endswith("with nonlinear_lead beside it"), rival
+    assert rival.sentence.startswith("a step") and rival.sentence.endswith("with nonlinear_lead beside it, named only with this shape"), rival
     # one target on its rise: placed between the targets either side of its middle, as the bench judges it
     assert rival.between_mm is not None and rival.between_mm[0] <= position <= rival.between_mm[1], rival
     assert "nonlinear_lead" not in result.added and judge(result, truth).stated

@@ -366,10 +366,11 @@ SIDES = (0, 1, -1)
 worn zone that only one approach meets, as a step seen only when the nut bears on one flank)."""
 
 
-def _grid_best(data: CampaignData, fit: Fit, kinds: tuple[str, ...] = KINDS) -> tuple[str, float, float, int] | None:
+def _grid_best(data: CampaignData, fit: Fit, kinds: tuple[str, ...] = KINDS, directions: tuple[int, ...] = SIDES
+               ) -> tuple[str, float, float, int] | None:
     """The (shape, centre, width, side) on the grid whose term explains most of the residual beside the
-    model (side: SIDES); None when the targets can see none. `kinds`: the shapes looked for (KINDS, and
-    a departure at one target or two, when all)."""
+    model (side: one of `directions`, SIDES); None when the targets can see none. `kinds`: the shapes looked
+    for (KINDS, and a departure at one target or two, when all)."""
     targets = _targets(data)
     step = max(float(np.median(np.diff(targets))) / 4, float(np.ptp(targets)) / MAX_CENTRES)
     centres = np.arange(targets[0], targets[-1] + step / 2, step)
@@ -381,8 +382,8 @@ def _grid_best(data: CampaignData, fit: Fit, kinds: tuple[str, ...] = KINDS) -> 
     # to one more position, dropped)
     xs, where = np.unique(data.x, return_inverse=True)
     root = data.row_scale if data.row_scale is not None else np.ones(len(data))
-    sides = []
-    for which in SIDES:
+    scanned = []
+    for which in directions:
         rows = np.ones(len(data), dtype=bool) if which == 0 else data.d == which
         if not rows.any() or (which != 0 and rows.all()):
             continue
@@ -392,12 +393,12 @@ def _grid_best(data: CampaignData, fit: Fit, kinds: tuple[str, ...] = KINDS) -> 
         # the design's blocks, span_at_positions: no n × p design on a dense table)
         q_at, qr = span_at_positions(data, fit, at, len(xs) + 1)
         sums = np.column_stack([np.bincount(at, root * r, minlength=len(xs) + 1), q_at])[:-1]
-        sides.append(_Side(which, count, sums, qr))
-    _grid_scan(data, targets, centres, step, xs, sides, kinds)
+        scanned.append(_Side(which, count, sums, qr))
+    _grid_scan(data, targets, centres, step, xs, scanned, kinds)
     if kinds == KINDS:
-        _target_scan(targets, xs, sides, NORM_FLOOR * len(data))
+        _target_scan(targets, xs, scanned, NORM_FLOOR * len(data))
     best, power_best = None, -1.0
-    for side in sides:  # in SIDES order, each side's best in the grid's order
+    for side in scanned:  # in SIDES order, each side's best in the grid's order
         if side.best is not None and side.best[3] > power_best:
             best, power_best = (side.best[0], side.best[1], side.best[2], side.side), side.best[3]
     return best if power_best > 0 else None
@@ -646,11 +647,17 @@ def find_local(data: CampaignData, fit: Fit, index: int = 1) -> LocalError | Non
 
 def other_shape(data: CampaignData, fit: Fit, kind: str, index: int) -> Fit | None:
     """`fit` with the best local term of `kind` ("bump" or "step", in both directions) beside its model:
-    the grid's best of that shape, its centre and width refined; None when the targets can see none."""
-    start = _grid_best(data, fit, (kind,))
+    the grid's best of that shape in both directions, its centre and width refined (the grid's own when
+    refined past what the targets can tell, as find_local); None when the targets can see none."""
+    start = _grid_best(data, fit, (kind,), (0,))
     if start is None:
         return None
-    return _refine(data, fit.terms, (start[1], start[2]), kind, False, index)
+    _, centre, width, _ = start
+    best = _refine(data, fit.terms, (centre, width), kind, False, index)
+    shape = best.terms[-1].shape
+    if _seen(_targets(data), kind, np.array(shape["centre_mm"]), shape["width_mm"]):
+        return best
+    return linear_fit(data, [*fit.terms, local_term(centre, width, False, kind, index)])
 
 
 def reversal_name() -> str | None:
@@ -704,8 +711,10 @@ def passes(data: CampaignData, without: Fit, with_local: Fit,
     return bool(after < before)
 
 
-def describe(data: CampaignData, fit: Fit, name: str, **tests: float) -> LocalError:
-    """The LocalError of the local term `name` in `fit`: parameters, errors, directions, time."""
+def describe(data: CampaignData, fit: Fit, name: str, *, explained_pct: float, delta_bic: float, p_value: float,
+             cv_before_um: float, cv_after_um: float, gap_without_um: float = 0.0) -> LocalError:
+    """The LocalError of the local term `name` in `fit`: parameters, errors, directions, time; the tests
+    it passed as given (LocalError's fields of the same names)."""
     term = fit.terms[_index(fit, name)]
     params = fit.params()[term.name]
     errors = _errors(data, fit, name)
@@ -716,9 +725,8 @@ def describe(data: CampaignData, fit: Fit, name: str, **tests: float) -> LocalEr
         if shows["+"] != shows["-"]:
             directions = "+" if shows["+"] else "-"
     time_p, change, change_error = _time_test(data, fit, name)
-    return LocalError(term, params, errors, directions, time_p, change, tests["explained_pct"], tests["delta_bic"],
-                      tests["p_value"], tests["cv_before_um"], tests["cv_after_um"],
-                      gap_without_um=tests.get("gap_without_um", 0.0), time_change_error_um=change_error,
+    return LocalError(term, params, errors, directions, time_p, change, explained_pct, delta_bic, p_value,
+                      cv_before_um, cv_after_um, gap_without_um=gap_without_um, time_change_error_um=change_error,
                       position_unit=data.position_unit, deviation_unit=data.deviation_unit, kind=term_kind(term),
                       between_mm=unresolved_rise(data, params) if term_kind(term) == "step" else None,
                       measured_mm=(float(np.min(data.x)), float(np.max(data.x))))
