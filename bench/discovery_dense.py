@@ -6,9 +6,12 @@ in a fresh process, the table is read (campaign.pointtable.read_points) and disc
 each, the ratios of the discovery's times to the reading's, and the load average (on a shared
 machine the wall time counts the others' work too), and OPENBLAS_NUM_THREADS as set (the children
 inherit it; unset, `axiscal` takes one thread: OpenBLAS's own threads spin on the fits' small
-products and multiply the CPU time). Writes bench/results/discovery_dense.json.
+products and multiply the CPU time). Writes bench/results/discovery_dense.json. `--local bump` or
+`--local step` adds a local error the table was not built with (a 3 µm Gaussian bump at 300 mm, σ
+20 mm; a 2.5 µm logistic step at 420 mm, scale 3 mm), which wakes the local search, its routes and the
+shape rivals; it writes discovery_dense-bump.json or …-step.json.
 
-    .venv/bin/python bench/discovery_dense.py [--rows N]
+    .venv/bin/python bench/discovery_dense.py [--rows N] [--local none|bump|step]
 """
 
 from __future__ import annotations
@@ -29,8 +32,17 @@ from campaign.pointtable import PointTable, write_points
 RESULTS = Path(__file__).parent / "results"
 
 
-def dense_table(rows: int, seed: int = 1) -> PointTable:
-    """`rows` points: targets over 600 mm, both directions, 5 runs, in campaign order."""
+LOCAL_ERRORS = {
+    "none": lambda x: 0.0 * x,
+    "bump": lambda x: 3.0 * np.exp(-0.5 * ((x - 300.0) / 20.0) ** 2),
+    "step": lambda x: 2.5 / (1 + np.exp(-(x - 420.0) / 3.0)),
+}
+"""The local error added to the table (µm, of position in mm), by --local."""
+
+
+def dense_table(rows: int, seed: int = 1, local: str = "none") -> PointTable:
+    """`rows` points: targets over 600 mm, both directions, 5 runs, in campaign order; with the local
+    error `local` (LOCAL_ERRORS) added."""
     runs = 5
     targets = np.linspace(0.0, 600.0, max(rows // (2 * runs), 2))
     run, direction, target = [], [], []
@@ -42,7 +54,8 @@ def dense_table(rows: int, seed: int = 1) -> PointTable:
     x, d = np.array(target), np.array(direction)
     u = 2 * x / 600.0 - 1
     rng = np.random.default_rng(seed)
-    y = (np.sin(2 * np.pi * x / 10.0 + 0.3) + 0.5 * (3 * u**2 - 1) / 2 - d * 0.75 + rng.normal(0, 0.3, len(x)))
+    y = (np.sin(2 * np.pi * x / 10.0 + 0.3) + 0.5 * (3 * u**2 - 1) / 2 - d * 0.75 + rng.normal(0, 0.3, len(x))
+         + LOCAL_ERRORS[local](x))
     return PointTable(kind="linear", run=np.array(run), direction=d, target=x, deviation=y,
                       optional={"time_s": np.arange(len(x)) * 0.05}, meta={}, source="<dense>")
 
@@ -63,20 +76,22 @@ def timed(code: str) -> tuple[float, float, float, str]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rows", type=int, default=100_000)
+    parser.add_argument("--local", choices=sorted(LOCAL_ERRORS), default="none")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "dense.csv"
-        write_points(path, dense_table(args.rows))
+        write_points(path, dense_table(args.rows, local=args.local))
         read_s, read_cpu, read_mb, _ = timed(f"from campaign.pointtable import read_points; read_points({str(path)!r})")
         disc_s, disc_cpu, disc_mb, said = timed(f"from campaign.cli import main; main(['discover', {str(path)!r}])")
     load = os.getloadavg()[0]
-    out = {"rows": args.rows, "read_s": round(read_s, 2), "read_cpu_s": round(read_cpu, 2), "read_peak_mb": round(read_mb),
+    out = {"rows": args.rows, "local": args.local, "read_s": round(read_s, 2), "read_cpu_s": round(read_cpu, 2), "read_peak_mb": round(read_mb),
            "discover_s": round(disc_s, 2), "discover_cpu_s": round(disc_cpu, 2), "discover_peak_mb": round(disc_mb),
            "ratio": round(disc_s / read_s, 1), "cpu_ratio": round(disc_cpu / read_cpu, 1),
            "load_average": round(load, 1), "blas_threads": os.environ.get("OPENBLAS_NUM_THREADS", "1 (axiscal's default)"),
            "said": said.splitlines()[:6]}
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "discovery_dense.json").write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
+    name = "discovery_dense" + ("" if args.local == "none" else f"-{args.local}")
+    (RESULTS / f"{name}.json").write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
     print(json.dumps(out, indent=1))
 
 

@@ -86,6 +86,14 @@ class CampaignData:
         return len(self.y)
 
     @cached_property
+    def targets_mm(self) -> np.ndarray:
+        """The distinct targets, sorted (positions rounded to 1e-6, as target_index; computed once: the
+        local search asks for them at every step)."""
+        targets = np.unique(np.round(self.x, 6))
+        targets.flags.writeable = False  # shared by every caller
+        return targets
+
+    @cached_property
     def target_index(self) -> np.ndarray:
         """Index of each point's target among the distinct targets (computed once: the arrays are not
         changed in place, and on a dense table every cross-validation asks for it)."""

@@ -603,8 +603,9 @@ def linear_fit(data: CampaignData, terms: list[Term]) -> Fit:
 def shape_bounds(data: CampaignData, name: str, key: str) -> tuple[float, float]:
     """The bounds of a searched shape parameter: the period's range, or a third of the lowest and
     three times the highest value of its grid (a time constant's; a grid runs upwards)."""
-    if key == period_key(name):
-        return period_limits(data)
+    if key == period_key(name):  # the same for every period term of the data (remembered: a search asks often)
+        low, high = remembered(data, ("period_limits",), lambda: np.array(period_limits(data)))
+        return float(low), float(high)
     grid = form_of(name).grid(data, {})
     return grid[0][key] / 3, grid[-1][key] * 3
 
@@ -626,6 +627,18 @@ REDUCE_SHARE = 0.5
 share of its rows as distinct (position, direction) pairs."""
 
 
+def _distinct(data: CampaignData, by_direction: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The first row of each distinct position (or position and direction) and each row's index among
+    them, in their sorted order (np.unique's); remembered, the two arrays end to end."""
+    def both() -> np.ndarray:
+        by = np.column_stack([data.x, data.d]) if by_direction else data.x[:, None]
+        _, first, index = np.unique(by, axis=0, return_index=True, return_inverse=True)
+        return np.concatenate([first, index.ravel()])
+
+    packed = remembered(data, ("distinct", by_direction), both)
+    return packed[:len(packed) - len(data)], packed[len(packed) - len(data):]
+
+
 def reduced_residual(data: CampaignData, terms: list[Term], moving: list[int],
                      probes: list[list[Term]]) -> Callable[[list[Term]], np.ndarray] | None:
     """The residual of a shape search, projected exactly onto a smaller space, when the moving terms'
@@ -637,11 +650,10 @@ def reduced_residual(data: CampaignData, terms: list[Term], moving: list[int],
     Jacobian's normal matrix of the full residual: least squares takes the same steps on about one
     row per position (or pair). None when the moving columns are not such functions or the saving is small
     (REDUCE_SHARE)."""
-    for by in (data.x[:, None], np.column_stack([data.x, data.d])):  # positions, else pairs
-        keys, first, index = np.unique(by, axis=0, return_index=True, return_inverse=True)
-        index = index.ravel()
+    for by_direction in (False, True):  # positions, else pairs
+        first, index = _distinct(data, by_direction)
         count = np.bincount(index).astype(float)
-        if len(keys) <= REDUCE_SHARE * len(data) and _constant_within(data, index, count, moving, probes):
+        if len(first) <= REDUCE_SHARE * len(data) and _constant_within(data, index, count, moving, probes):
             break
     else:
         return None
@@ -874,16 +886,26 @@ def cv_rms_um(data: CampaignData, terms: list[Term], groups: np.ndarray) -> floa
     held at their fitted values (a direction the fold cannot determine is left out: CV_RCOND);
     on weighted rows (`weighted`), as the fit; computed once per model and grouping (remembered:
     every candidate of a step compares with the same model)."""
+    return float(np.sqrt(cv_group_errors(data, terms, groups).sum() / len(data))) if len(data) else 0.0
+
+
+def cv_group_errors(data: CampaignData, terms: list[Term], groups: np.ndarray) -> np.ndarray:
+    """Each group's weighted sum of squared left-out residuals (µm², in the order of the groups' sorted
+    names), as cv_rms_um computes them: by refitting each fold, or from the hat matrix beyond
+    CV_FOLDS_REFITTED groups (time linear in the rows); remembered per model and grouping."""
     key = ("cv", *((_key(t), t.keep, t.fixed) for t in terms), hash(np.asarray(groups).tobytes()))
-    return float(remembered(data, key, lambda: np.array([_cv_rms_um(data, terms, groups)]))[0])
+    return remembered(data, key, lambda: _cv_group_errors(data, terms, groups))
 
 
-def _cv_rms_um(data: CampaignData, terms: list[Term], groups: np.ndarray) -> float:
+def _cv_group_errors(data: CampaignData, terms: list[Term], groups: np.ndarray) -> np.ndarray:
     blocks = Blocks(data, terms)
     y = data.y - fixed_deviation(data, terms)
-    names, index = np.unique(groups, return_inverse=True)
-    index = index.ravel()
-    if len(names) > CV_FOLDS_REFITTED:
+    if groups is data.target_index:  # the commonest grouping, its indices already those of the sorted targets
+        count, index = len(data.targets_mm), groups
+    else:
+        names, inverse = np.unique(groups, return_inverse=True)
+        count, index = len(names), inverse.ravel()
+    if count > CV_FOLDS_REFITTED:
         return _cv_from_hat(blocks, y, index, hash(np.asarray(groups).tobytes()))
     return _cv_refitted(blocks, y, index, hash(np.asarray(groups).tobytes()))
 
@@ -917,8 +939,8 @@ def _fold_beta(fold_gram: np.ndarray, fold_aty: np.ndarray) -> np.ndarray:
     return _fold_solve(fold_gram, fold_aty)
 
 
-def _cv_refitted(blocks: Blocks, y: np.ndarray, index: np.ndarray, groups_hash: int) -> float:
-    """The grouped leave-out RMS, each fold refitted from its normal equations: the whole design's
+def _cv_refitted(blocks: Blocks, y: np.ndarray, index: np.ndarray, groups_hash: int) -> np.ndarray:
+    """Each group's leave-out sum of squares (cv_group_errors), each fold refitted from its normal equations: the whole design's
     less its group's (G - A_gᵀWA_g, each group's remembered per pair of blocks: time linear in the
     rows, and only a new term's products computed for a model that differs from a known one by it)."""
     data = blocks.data
@@ -927,8 +949,7 @@ def _cv_refitted(blocks: Blocks, y: np.ndarray, index: np.ndarray, groups_hash: 
     members = [np.flatnonzero(index == g) for g in range(count)]
     per_group = blocks.gram((groups_hash, members))
     w = data.row_scale**2 if data.row_scale is not None else np.ones(len(y))
-    total = sum(_fold_ss(blocks, y, w, np.flatnonzero(index == g), gram, aty, per_group[g]) for g in range(count))
-    return float(np.sqrt(total / len(y))) if len(y) else 0.0
+    return np.array([_fold_ss(blocks, y, w, np.flatnonzero(index == g), gram, aty, per_group[g]) for g in range(count)])
 
 
 def _fold_ss(blocks: Blocks, y: np.ndarray, w: np.ndarray, out: np.ndarray, gram: np.ndarray,
@@ -965,8 +986,8 @@ HAT_CELLS = 1_000_000
 """Numbers gathered at a time by the hat route's blocks (8 MB per array, as PERIODOGRAM_CELLS)."""
 
 
-def _cv_from_hat(blocks: Blocks, y: np.ndarray, index: np.ndarray, groups_hash: int) -> float:
-    """The grouped leave-out RMS from the hat matrix of the whole fit (column-normalised, directions
+def _cv_from_hat(blocks: Blocks, y: np.ndarray, index: np.ndarray, groups_hash: int) -> np.ndarray:
+    """Each group's leave-out sum of squares (cv_group_errors) from the hat matrix of the whole fit (column-normalised, directions
     below CV_RCOND left out): e_g = (I - H_gg)⁻¹ r_g (a pseudo-inverse with CV_RCOND), the groups of
     one size at once. The basis of the fit's span, Q = A·T, comes from the eigenvectors of the p × p
     normal matrix (singular values above CV_RCOND of the largest only, so accurate to about 1e-10);
@@ -989,7 +1010,7 @@ def _cv_from_hat(blocks: Blocks, y: np.ndarray, index: np.ndarray, groups_hash: 
     starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
     same = blocks.constant_within(index, groups_hash)
     same_cols = blocks.columns_of(same)
-    total = 0.0
+    sums = np.zeros(len(sizes))
     for size in np.unique(sizes[sizes > 0]):
         chosen = np.flatnonzero(sizes == size)
         if size > CV_BLOCK_MAX:
@@ -998,7 +1019,7 @@ def _cv_from_hat(blocks: Blocks, y: np.ndarray, index: np.ndarray, groups_hash: 
                 ag = blocks.rows(out)
                 wg = root[out] ** 2
                 beta = _fold_solve(gram - ag.T @ (wg[:, None] * ag), aty - ag.T @ (wg * y[out]))
-                total += float(np.sum(wg * (y[out] - ag @ beta) ** 2))
+                sums[g] = float(np.sum(wg * (y[out] - ag @ beta) ** 2))
             continue
         cells = len(chosen) * int(size) * max(int(size), blocks.width)  # the blocks' and their rows' of A
         for part in np.array_split(chosen, max(1, cells // HAT_CELLS + 1)):
@@ -1012,20 +1033,20 @@ def _cv_from_hat(blocks: Blocks, y: np.ndarray, index: np.ndarray, groups_hash: 
             # the block's eigenvalues are 1 - σ²(Q_g) >= 1 - Σ leverages: above CV_RCOND (of at most 1)
             # its pseudo-inverse is its inverse, and a solve does
             plain = (qg**2).sum(axis=(1, 2)) < 1 - CV_RCOND
-            total += _left_out_ss(block, plain, r[rows][..., None])
-    return float(np.sqrt(total / len(y)))
+            sums[part] = _left_out_ss(block, plain, r[rows][..., None])
+    return sums
 
 
-def _left_out_ss(block: np.ndarray, plain: np.ndarray, rg: np.ndarray) -> float:
-    """The sum of squared left-out residuals of groups of one size, (I - H_g)⁻¹ r_g for each group's
-    block I - H_g and residual r_g (µm): by a solve where the block is well conditioned (`plain`),
-    by a pseudo-inverse cut at CV_RCOND where a fold cannot determine a direction."""
-    total = 0.0
+def _left_out_ss(block: np.ndarray, plain: np.ndarray, rg: np.ndarray) -> np.ndarray:
+    """Each group's sum of squared left-out residuals, for groups of one size: (I - H_g)⁻¹ r_g for each
+    group's block I - H_g and residual r_g (µm): by a solve where the block is well conditioned
+    (`plain`), by a pseudo-inverse cut at CV_RCOND where a fold cannot determine a direction."""
+    sums = np.zeros(len(block))
     if plain.any():
-        total += float(np.sum(np.linalg.solve(block[plain], rg[plain]) ** 2))
+        sums[plain] = np.sum(np.linalg.solve(block[plain], rg[plain]) ** 2, axis=(1, 2))
     if not plain.all():
-        total += float(np.sum((np.linalg.pinv(block[~plain], rcond=CV_RCOND) @ rg[~plain]) ** 2))
-    return total
+        sums[~plain] = np.sum((np.linalg.pinv(block[~plain], rcond=CV_RCOND) @ rg[~plain]) ** 2, axis=(1, 2))
+    return sums
 
 
 def bic(fit: Fit, n: int) -> float:
@@ -1206,7 +1227,7 @@ class GrowingFit:
             size = rows.shape[1]
             block = np.eye(size) - hat
             plain = np.trace(hat, axis1=1, axis2=2) < 1 - CV_RCOND
-            total += _left_out_ss(block, plain, residual[rows][..., None])
+            total += float(_left_out_ss(block, plain, residual[rows][..., None]).sum())
         return float(np.sqrt(total / len(residual)))
 
     def trial(self, term: Term) -> tuple[float, int, float, tuple]:

@@ -267,7 +267,7 @@ def gap_um(data: CampaignData, residual: np.ndarray) -> float:
 
 
 def _targets(data: CampaignData) -> np.ndarray:
-    return np.unique(np.round(data.x, 6))
+    return data.targets_mm
 
 
 def width_range(data: CampaignData, kind: str = "bump") -> tuple[float, float] | None:

@@ -50,6 +50,7 @@ from campaign.discovery.fit import (
     Term,
     bic,
     confounders,
+    cv_group_errors,
     cv_rms_um,
     cv_searched_errors,
     derived,
@@ -1134,10 +1135,11 @@ of the paired difference of their targets' errors (as_good)."""
 
 def as_good(data: CampaignData, fit: Fit, other: Fit) -> bool:
     """Does `fit` predict left-out targets as well as `other`: its leave-one-target-out mean square (shapes
-    held) above the other's by at most RIVAL_SE standard errors of the targets' paired differences?"""
+    held, cv_group_errors: linear in the rows on a dense table) above the other's by at most RIVAL_SE
+    standard errors of the targets' paired differences?"""
     groups = data.target_index
-    total, se = paired_difference(data, cv_searched_errors(data, fit.terms, groups, shapes_held),
-                                  cv_searched_errors(data, other.terms, groups, shapes_held))
+    total, se = paired_difference(data, cv_group_errors(data, fit.terms, groups),
+                                  cv_group_errors(data, other.terms, groups))
     return total <= RIVAL_SE * se
 
 

@@ -45,7 +45,7 @@ SIDES = {"both": "", "+": "_plus", "-": "_minus"}
 
 
 def _targets(data: CampaignData) -> np.ndarray:
-    return np.unique(np.round(data.x, 6))
+    return data.targets_mm
 
 
 def candidate_regions(data: CampaignData, located: Located | None) -> list[Region]:

@@ -1,0 +1,49 @@
+"""Each target's leave-one-target-out sum of squares (campaign.discovery.fit.cv_group_errors), which
+cv_rms_um sums and as_good compares target by target, against a brute-force refit of every fold by
+numpy's least squares: by refitting each fold (up to CV_FOLDS_REFITTED targets) and from the hat
+matrix beyond (a dense table: linear in the rows)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from campaign.discovery.data import campaign_data
+from campaign.discovery.fit import CV_FOLDS_REFITTED, Term, cv_group_errors, cv_rms_um, design, weighted
+from campaign.discovery.local import local_term
+from campaign.pointtable import PointTable
+
+
+def campaign(targets: int, seed: int):
+    rng = np.random.default_rng(seed)
+    x = np.sort(rng.uniform(0.0, 500.0, targets))
+    run = np.repeat([1, 2], 2 * targets)
+    direction = np.tile(np.repeat([1, -1], targets), 2)
+    target = np.tile(np.concatenate([x, x[::-1]]), 2)
+    deviation = (4e-3 * target - 0.8 * direction + 2.5 * np.exp(-0.5 * ((target - 230.0) / 30.0) ** 2)
+                 + rng.normal(0.0, 0.4, len(target)))
+    return campaign_data(PointTable(kind="linear", run=run, direction=direction, target=target,
+                                    deviation=deviation, optional={}, meta={}, source="<test>"))
+
+
+def brute_force(data, terms, groups):
+    a, y = weighted(data, design(data, terms)[0]), weighted(data, data.y)
+    _, index = np.unique(groups, return_inverse=True)
+    sums = np.zeros(index.max() + 1)
+    for g in range(len(sums)):
+        out = index == g
+        beta = np.linalg.lstsq(a[~out], y[~out], rcond=None)[0]
+        sums[g] = np.sum((y[out] - a[out] @ beta) ** 2)
+    return sums
+
+
+@pytest.mark.parametrize("targets, seed", [(23, 1), (60, 2), (CV_FOLDS_REFITTED + 37, 3), (400, 4)])
+def test_each_targets_left_out_sum_of_squares_is_a_refit_without_it(targets, seed):
+    data = campaign(targets, seed)
+    terms = [Term("linear_scale"), Term("backlash"), local_term(225.0, 60.0)]
+    groups = cv_group_errors(data, terms, data.target_index)
+    expected = brute_force(data, terms, data.target_index)
+    assert groups == pytest.approx(expected, rel=1e-7, abs=1e-12)
+    assert cv_rms_um(data, terms, data.target_index) == pytest.approx(np.sqrt(expected.sum() / len(data)), rel=1e-9)
+    # another grouping than the targets' (the runs, each left out in turn)
+    assert cv_group_errors(data, terms, data.run) == pytest.approx(brute_force(data, terms, data.run), rel=1e-7)
