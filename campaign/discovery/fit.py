@@ -993,7 +993,10 @@ def _cv_from_hat(blocks: Blocks, y: np.ndarray, index: np.ndarray, groups_hash: 
     normal matrix (singular values above CV_RCOND of the largest only, so accurate to about 1e-10);
     Q's rows are formed a few groups at a time from the design's blocks (never n × p at once), a block
     that is the same at every row of a group (a function of position, the groups being targets) once
-    per group. A group above CV_BLOCK_MAX rows is refitted instead."""
+    per group. A group above CV_BLOCK_MAX rows is refitted instead, and so is a group whose block is
+    not well conditioned (its leverages sum to 1 or more: a direction the fold may not determine, as a
+    departure at the one target left out, where the pseudo-inverse would drop the residual's part in
+    it and predict the group better than the fold can)."""
     data = blocks.data
     root = data.row_scale if data.row_scale is not None else np.ones(len(y))
     gram = blocks.gram()
@@ -1015,11 +1018,7 @@ def _cv_from_hat(blocks: Blocks, y: np.ndarray, index: np.ndarray, groups_hash: 
         chosen = np.flatnonzero(sizes == size)
         if size > CV_BLOCK_MAX:
             for g in chosen:
-                out = np.flatnonzero(index == g)
-                ag = blocks.rows(out)
-                wg = root[out] ** 2
-                beta = _fold_solve(gram - ag.T @ (wg[:, None] * ag), aty - ag.T @ (wg * y[out]))
-                sums[g] = float(np.sum(wg * (y[out] - ag @ beta) ** 2))
+                sums[g] = _refitted_ss(blocks, gram, aty, y, root, np.flatnonzero(index == g))
             continue
         cells = len(chosen) * int(size) * max(int(size), blocks.width)  # the blocks' and their rows' of A
         for part in np.array_split(chosen, max(1, cells // HAT_CELLS + 1)):
@@ -1033,8 +1032,19 @@ def _cv_from_hat(blocks: Blocks, y: np.ndarray, index: np.ndarray, groups_hash: 
             # the block's eigenvalues are 1 - σ²(Q_g) >= 1 - Σ leverages: above CV_RCOND (of at most 1)
             # its pseudo-inverse is its inverse, and a solve does
             plain = (qg**2).sum(axis=(1, 2)) < 1 - CV_RCOND
-            sums[part] = _left_out_ss(block, plain, r[rows][..., None])
+            sums[part[plain]] = _left_out_ss(block[plain], plain[plain], r[rows[plain]][..., None])
+            for g, out in zip(part[~plain], rows[~plain]):
+                sums[g] = _refitted_ss(blocks, gram, aty, y, root, out)
     return sums
+
+
+def _refitted_ss(blocks: Blocks, gram: np.ndarray, aty: np.ndarray, y: np.ndarray, root: np.ndarray,
+                 out: np.ndarray) -> float:
+    """The weighted sum of squares of the rows `out` predicted by the fold without them, refitted from
+    the whole design's normal equations (`gram`, `aty`) less theirs (_fold_solve)."""
+    ag, wg = blocks.rows(out), root[out] ** 2
+    beta = _fold_solve(gram - ag.T @ (wg[:, None] * ag), aty - ag.T @ (wg * y[out]))
+    return float(np.sum(wg * (y[out] - ag @ beta) ** 2))
 
 
 def _left_out_ss(block: np.ndarray, plain: np.ndarray, rg: np.ndarray) -> np.ndarray:

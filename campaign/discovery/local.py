@@ -398,7 +398,7 @@ def _grid_best(data: CampaignData, fit: Fit, kinds: tuple[str, ...] = KINDS, dir
     if kinds == KINDS:
         _target_scan(targets, xs, scanned, NORM_FLOOR * len(data))
     best, power_best = None, -1.0
-    for side in scanned:  # in SIDES order, each side's best in the grid's order
+    for side in scanned:  # in `directions` order, each side's best in the grid's order
         if side.best is not None and side.best[3] > power_best:
             best, power_best = (side.best[0], side.best[1], side.best[2], side.side), side.best[3]
     return best if power_best > 0 else None

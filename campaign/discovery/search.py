@@ -891,8 +891,8 @@ def shape_rivals(data: CampaignData, result: Discovery) -> None:
     """For each bump or step of the final model (in both directions), the best local error of the other
     shape in its place: beside the rest of the model, and beside it with each effect of fixed shape that
     is not in the model put in (unnamed_forms; a bow takes a step's level beyond it and leaves a bump).
-    When one passes the tests of a local error there (the look-elsewhere factor of a grid in both
-    directions alone), lies where this one does (their regions overlap),
+    When one passes the tests of a local error there (the look-elsewhere factor of the grid in one
+    direction: its shapes, widths and targets, not the three directions), lies where this one does (their regions overlap),
     the effect put in passes beside it (passes_beside) and it fits as well (as_good: its leave-one-target-out CV within RIVAL_SE of the final model's;
     or a lower BIC), it is this error's `shape_rival`: which shape it is, the campaign does not say (a
     2.8 µm step rising over 140 mm at 187 mm beside a 1.4 µm bow, 17 golden targets, noise 0.8 µm, was said
@@ -1145,7 +1145,7 @@ def as_good(data: CampaignData, fit: Fit, other: Fit) -> bool:
 
 def paired_difference(data: CampaignData, mine: np.ndarray, theirs: np.ndarray) -> tuple[float, float]:
     """Two models' CV compared fold by fold (each fold's sum of squared left-out residuals,
-    cv_searched_errors): the difference of their mean squares (mine less theirs, µm²) and its standard
+    cv_searched_errors or cv_group_errors): the difference of their mean squares (mine less theirs, µm²) and its standard
     error from the spread of the folds' shares of it (0 with one fold)."""
     diff = (mine - theirs) / max(len(data), 1)
     se = float(np.std(diff, ddof=1) * math.sqrt(len(diff))) if len(diff) > 1 else 0.0
