@@ -12,7 +12,7 @@ import pytest
 from campaign.discovery.data import campaign_data
 from campaign.discovery.effects import fixed_shape
 from campaign.discovery.fit import Term, linear_fit
-from campaign.discovery.local import MIN_SEEN, _targets, other_shape, seen_at
+from campaign.discovery.local import MIN_SEEN, other_shape, seen_at
 from campaign.discovery.simulate import simulate_campaign
 from campaign.model import ErrorModel
 from tests.discovery_draws import draw, plan_config
@@ -33,4 +33,4 @@ def test_the_other_shape_is_a_bump_in_both_directions_the_targets_see(beside_bow
     rival = other_shape(data, linear_fit(data, terms), "bump", 1)
     assert rival is not None
     shape = rival.terms[-1].shape
-    assert seen_at(_targets(data), np.array([shape["centre_mm"]]), shape["width_mm"])[0] >= MIN_SEEN, shape
+    assert seen_at(data.targets_mm, np.array([shape["centre_mm"]]), shape["width_mm"])[0] >= MIN_SEEN, shape

@@ -96,8 +96,8 @@ class CampaignData:
     @cached_property
     def target_index(self) -> np.ndarray:
         """Index of each point's target among the distinct targets (computed once: the arrays are not
-        changed in place, and on a dense table every cross-validation asks for it)."""
-        return np.unique(np.round(self.x, 6), return_inverse=True)[1]
+        changed in place, and on a dense table every cross-validation asks for it): its place in targets_mm."""
+        return np.searchsorted(self.targets_mm, np.round(self.x, 6))
 
     @property
     def campaign_index(self) -> np.ndarray:

@@ -627,9 +627,11 @@ REDUCE_SHARE = 0.5
 share of its rows as distinct (position, direction) pairs."""
 
 
-def _distinct(data: CampaignData, by_direction: bool) -> tuple[np.ndarray, np.ndarray]:
+def distinct_rows(data: CampaignData, by_direction: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """The first row of each distinct position (or position and direction) and each row's index among
-    them, in their sorted order (np.unique's); remembered, the two arrays end to end."""
+    them, in their sorted order (np.unique's: data.x[first] are the sorted distinct positions);
+    remembered, the two arrays end to end (the shape searches, the local grid and the periodogram ask
+    for them on every model)."""
     def both() -> np.ndarray:
         by = np.column_stack([data.x, data.d]) if by_direction else data.x[:, None]
         _, first, index = np.unique(by, axis=0, return_index=True, return_inverse=True)
@@ -651,7 +653,7 @@ def reduced_residual(data: CampaignData, terms: list[Term], moving: list[int],
     row per position (or pair). None when the moving columns are not such functions or the saving is small
     (REDUCE_SHARE)."""
     for by_direction in (False, True):  # positions, else pairs
-        first, index = _distinct(data, by_direction)
+        first, index = distinct_rows(data, by_direction)
         count = np.bincount(index).astype(float)
         if len(first) <= REDUCE_SHARE * len(data) and _constant_within(data, index, count, moving, probes):
             break
@@ -819,7 +821,8 @@ def periodogram_periods(data: CampaignData, fit: Fit, top: int = 3) -> list[floa
     # a sine of x takes one value per distinct position: every sum below is over those, with the
     # residual's and the basis's sums there (exactly the sums over the weighted rows: a row's sine
     # is its weight's square root, `root`, times the sine at its position)
-    xs, where = np.unique(data.x, return_inverse=True)
+    first, where = distinct_rows(data)
+    xs = data.x[first]
     root = data.row_scale if data.row_scale is not None else np.ones(len(data))
     count = np.bincount(where, root**2)
     r_at = np.bincount(where, root * r)
@@ -961,6 +964,11 @@ def _fold_ss(blocks: Blocks, y: np.ndarray, w: np.ndarray, out: np.ndarray, gram
     return float(np.sum(wg * (yg - ag @ beta) ** 2))
 
 
+def shapes_held(data: CampaignData, terms: list[Term]) -> list[Term]:
+    """The terms as they are: a fold of cv_searched_errors keeps every shape."""
+    return terms
+
+
 def cv_searched_errors(data: CampaignData, terms: list[Term], groups: np.ndarray,
                        refined: Callable[[CampaignData, list[Term]], list[Term]]) -> np.ndarray:
     """Each group's sum of squared left-out residuals (weighted, µm²), as cv_rms_um but with every
@@ -968,7 +976,10 @@ def cv_searched_errors(data: CampaignData, terms: list[Term], groups: np.ndarray
     its value on all the data: a shape chosen on all the targets predicts the one left out too well,
     so a searched bump would beat an effect of fixed shape (a bow) that fits as well. `refined(fold,
     terms)`: the terms with their shapes refined on the fold's rows. One refinement per group: for
-    the comparisons where that matters, not for every candidate."""
+    the comparisons where that matters, not for every candidate. With `shapes_held` no fold refines
+    anything: cv_group_errors, without a copy of the rows per fold."""
+    if refined is shapes_held:
+        return cv_group_errors(data, terms, groups)
     _, index = np.unique(groups, return_inverse=True)
     index = index.ravel()
     w = data.row_scale**2 if data.row_scale is not None else np.ones(len(data))

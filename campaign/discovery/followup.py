@@ -144,15 +144,11 @@ class FollowUp:
                 "rate_hz": self.config.instrument.rate_hz}
 
 
-def _targets(data: CampaignData) -> np.ndarray:
-    return np.unique(np.round(data.x, 6))
-
-
 def _first_targets(data: CampaignData) -> np.ndarray:
     """The first campaign's targets (of tables fitted together, the first table's: its spacing is
     the one a follow-up refines, not that of a dense follow-up already measured)."""
     if data.campaign is None:
-        return _targets(data)
+        return data.targets_mm
     return np.unique(np.round(data.x[data.campaign == 0], 6))
 
 
@@ -189,7 +185,7 @@ def _cluster(data: CampaignData, final: Fit, periods: list[float], delta_bic: li
     aliases there), over a few of the longest plausible candidate periods (ΔBIC below
     RIVAL_MARGIN), and long enough that the cluster alone tells the two closest plausible
     candidates apart by SEPARATION standard errors of the frequency; and why it looks so."""
-    t = _targets(data)
+    t = data.targets_mm
     plausible = [p for p, d in zip(periods, delta_bic or [0.0] * len(periods)) if d < RIVAL_MARGIN] or periods[:1]
     shortest, longest = min(periods), max(plausible)
     step = shortest / CLUSTER_STEP
@@ -424,8 +420,8 @@ def _asks(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData
     rivals = [rival_region(r) for group in unresolved for r in group.local_rivals]
     first_t = _first_targets(data)
     spacing = float(np.median(np.diff(first_t))) if len(first_t) > 1 else 1.0
-    lo, hi = float(_targets(data)[0]), float(_targets(data)[-1])
-    every = _targets(data)
+    lo, hi = float(data.targets_mm[0]), float(data.targets_mm[-1])
+    every = data.targets_mm
     dense_already: list[tuple[float, float]] = []
     for start, end in _joined(regions):
         step = max(min(spacing / 4, (end - start) / 8), 1e-3)

@@ -32,6 +32,7 @@ from campaign.discovery.fit import (
     Term,
     bic,
     cv_rms_um,
+    distinct_rows,
     f_test_p,
     fixed_deviation,
     linear_fit,
@@ -266,15 +267,11 @@ def gap_um(data: CampaignData, residual: np.ndarray) -> float:
     return float(np.sqrt(np.sum(w * residual**2) / np.sum(w))) if len(residual) else 0.0
 
 
-def _targets(data: CampaignData) -> np.ndarray:
-    return data.targets_mm
-
-
 def width_range(data: CampaignData, kind: str = "bump") -> tuple[float, float] | None:
     """The widths looked for, mm: a bump's from MIN_WIDTH_SPACINGS target spacings (the median
     spacing), a step's from STEP_MIN_SPACINGS, to half the travel; None when the targets are too
     few for that."""
-    targets = _targets(data)
+    targets = data.targets_mm
     if len(targets) < 5:
         return None
     spacing = float(np.median(np.diff(targets)))
@@ -316,7 +313,7 @@ def look_elsewhere(data: CampaignData, sides: int = 1) -> float:
     for kind in KINDS:
         widths = width_range(data, kind)
         total += 1.0 if widths is None else 1 + math.log2(widths[1] / widths[0])
-    return len(_targets(data)) * total * sides
+    return len(data.targets_mm) * total * sides
 
 
 def term_kind(term: Term) -> str:
@@ -371,7 +368,7 @@ def _grid_best(data: CampaignData, fit: Fit, kinds: tuple[str, ...] = KINDS, dir
     """The (shape, centre, width, side) on the grid whose term explains most of the residual beside the
     model (side: one of `directions`, SIDES); None when the targets can see none. `kinds`: the shapes looked
     for (KINDS, and a departure at one target or two, when all)."""
-    targets = _targets(data)
+    targets = data.targets_mm
     step = max(float(np.median(np.diff(targets))) / 4, float(np.ptp(targets)) / MAX_CENTRES)
     centres = np.arange(targets[0], targets[-1] + step / 2, step)
     r = weighted(data, data.y - fit.prediction)
@@ -380,7 +377,8 @@ def _grid_best(data: CampaignData, fit: Fit, kinds: tuple[str, ...] = KINDS, dir
     # is its weight's square root, `root`, times the shape at its position); a term of one direction
     # is the same shape on that direction's rows alone, so its sums are over those rows (the others go
     # to one more position, dropped)
-    xs, where = np.unique(data.x, return_inverse=True)
+    first, where = distinct_rows(data)
+    xs = data.x[first]
     root = data.row_scale if data.row_scale is not None else np.ones(len(data))
     scanned = []
     for which in directions:
@@ -500,7 +498,7 @@ def _refine(data: CampaignData, terms: list[Term], start: tuple[float, float], k
     """Centre and width of the local term beside `terms`, by least squares from `start`."""
     from scipy import optimize
 
-    targets = _targets(data)
+    targets = data.targets_mm
     widths = width_range(data, kind) or (start[1], start[1] * 1.001)
     lower, upper = np.array([targets[0], widths[0]]), np.array([targets[-1], widths[1]])
 
@@ -611,7 +609,7 @@ def find_local(data: CampaignData, fit: Fit, index: int = 1) -> LocalError | Non
         return None
     kind, centre, width, side = start
     factor = look_elsewhere(data, len(SIDES))
-    placed = target_term(_targets(data), centre, side != 0, index, pair=width > 0) if kind == TARGET else local_term(
+    placed = target_term(data.targets_mm, centre, side != 0, index, pair=width > 0) if kind == TARGET else local_term(
         centre, width, side != 0, kind, index)
     on_grid = linear_fit(data, [*fit.terms, placed])
     if bic(on_grid, n) - bic(fit, n) + 2 * math.log(factor) > HOPELESS:
@@ -630,7 +628,7 @@ def find_local(data: CampaignData, fit: Fit, index: int = 1) -> LocalError | Non
             best = split if side != 0 else _refine(data, fit.terms, (term.shape["centre_mm"],
                                                                      term.shape["width_mm"]), kind, True, index)
         shape = best.terms[-1].shape
-        if not _seen(_targets(data), kind, np.array(shape["centre_mm"]), shape["width_mm"]):
+        if not _seen(data.targets_mm, kind, np.array(shape["centre_mm"]), shape["width_mm"]):
             # refined a little past what the targets can tell (a bump 64 mm wide seen at half its height by
             # two targets 30 mm apart, where the grid's 68 mm saw three): the grid's own shape, which they see
             best = linear_fit(data, [*fit.terms, on_sides(placed, "_by_direction" in best.terms[-1].name)])
@@ -655,7 +653,7 @@ def other_shape(data: CampaignData, fit: Fit, kind: str, index: int) -> Fit | No
     _, centre, width, _ = start
     best = _refine(data, fit.terms, (centre, width), kind, False, index)
     shape = best.terms[-1].shape
-    if _seen(_targets(data), kind, np.array(shape["centre_mm"]), shape["width_mm"]):
+    if _seen(data.targets_mm, kind, np.array(shape["centre_mm"]), shape["width_mm"]):
         return best
     return linear_fit(data, [*fit.terms, local_term(centre, width, False, kind, index)])
 

@@ -62,6 +62,7 @@ from campaign.discovery.fit import (
     periodogram_periods,
     refine,
     shape_bounds,
+    shapes_held,
     standard_errors,
     weighted,
 )
@@ -1636,11 +1637,6 @@ def margin_comparison(data: CampaignData, local: Fit, named: Fit, local_refined:
     effect_ms = float(with_effect.sum()) / n
     return Searched(total < -margin if simpler else total <= 0.0, math.sqrt(float(with_local.sum()) / n),
                     math.sqrt(effect_ms), math.sqrt(effect_ms) - math.sqrt(max(effect_ms - margin, 0.0)))
-
-
-def shapes_held(data: CampaignData, terms: list[Term]) -> list[Term]:
-    """The terms as they are: a fold keeps every shape."""
-    return terms
 
 
 def regions_compared(data: CampaignData, local: Fit, named: Fit, without: list[Term], beside: list[Term],

@@ -44,10 +44,6 @@ MAX_PIECES = 6
 SIDES = {"both": "", "+": "_plus", "-": "_minus"}
 
 
-def _targets(data: CampaignData) -> np.ndarray:
-    return data.targets_mm
-
-
 def candidate_regions(data: CampaignData, located: Located | None) -> list[Region]:
     """The located regions along the axis a local term may hold: not a reversal over the travel, not
     wider than REGION_SHARE of it, not one target's odd reading (a local error there, or an aliased
@@ -64,7 +60,7 @@ def region_term(data: CampaignData, region: Region, index: int) -> Term | None:
     the curve is still inside its band); its level goes on after the region only where the locator
     saw a step or a slope change (otherwise it returns to zero: a bump of any shape); None when fewer
     than two targets lie in it."""
-    targets = _targets(data)
+    targets = data.targets_mm
     spacing = float(np.median(np.diff(targets))) if len(targets) > 1 else 1.0
     start = max(float(targets[0]), region.start - spacing)
     end = min(float(targets[-1]), region.end + spacing)
@@ -131,7 +127,7 @@ def describe_region(data: CampaignData, fit: Fit, name: str, without: Fit) -> Lo
     stepped = abs(params["level_after_um"]) >= STEPPED_SHARE * abs(params["peak_um"])
     where, between = params["peak_at_mm"], None
     if stepped:  # between the neighbouring targets over which the fitted term changes most (not finer)
-        between = steepest_between(_targets(data), shape, coefs)
+        between = steepest_between(data.targets_mm, shape, coefs)
         where = (between[0] + between[1]) / 2 if between is not None else where
     direction = {"local_region_plus": "+", "local_region_minus": "-"}.get(name.split("#")[0], "both")
     shown = {"amplitude_um": params["peak_um"], "centre_mm": where, "width_mm": shape["end_mm"] - shape["start_mm"],
@@ -211,7 +207,7 @@ def wave_over_part(data: CampaignData, fit: Fit, name: str = "periodic_lead") ->
     if i is None or fit.terms[i].fixed:
         return None
     term = fit.terms[i]
-    targets = _targets(data)
+    targets = data.targets_mm
     if len(targets) < 3 * SECTIONS:
         return None
     edges = np.quantile(targets, np.linspace(0, 1, SECTIONS + 1))
