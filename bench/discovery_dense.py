@@ -9,9 +9,11 @@ inherit it; unset, `axiscal` takes one thread: OpenBLAS's own threads spin on th
 products and multiply the CPU time). Writes bench/results/discovery_dense.json. `--local bump` or
 `--local step` adds a local error the table was not built with (a 3 µm Gaussian bump at 300 mm, σ
 20 mm; a 2.5 µm logistic step at 420 mm, scale 3 mm), which wakes the local search, its routes and the
-shape rivals; it writes discovery_dense-bump.json or …-step.json.
+shape rivals; it writes discovery_dense-bump.json or …-step.json. `--local random --seed S` draws
+one at random (random_local: a bump or a step, 2–4 µm of either sign, 5–150 mm wide, centred in
+50–550 mm) on the table with noise of that seed; it writes discovery_dense-random-S.json.
 
-    .venv/bin/python bench/discovery_dense.py [--rows N] [--local none|bump|step]
+    .venv/bin/python bench/discovery_dense.py [--rows N] [--local none|bump|step|random] [--seed S]
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -40,9 +43,22 @@ LOCAL_ERRORS = {
 """The local error added to the table (µm, of position in mm), by --local."""
 
 
-def dense_table(rows: int, seed: int = 1, local: str = "none") -> PointTable:
+def random_local(seed: int) -> tuple[str, Callable[[np.ndarray], np.ndarray]]:
+    """A local error drawn at random (`seed`): a Gaussian bump `width` wide at half its height, or a
+    logistic step rising over `width` (10 to 90 %); its description and its deviation (µm) of position."""
+    rng = np.random.default_rng(seed)
+    kind = str(rng.choice(["bump", "step"]))
+    at, width = rng.uniform(50, 550), float(np.exp(rng.uniform(np.log(5), np.log(150))))
+    height = rng.uniform(2, 4) * rng.choice([-1, 1])
+    said = f"{kind} of {height:+.2f} µm at {at:.1f} mm, {width:.1f} mm wide"
+    if kind == "bump":
+        return said, lambda x: height * np.exp(-4 * np.log(2) * ((x - at) / width) ** 2)
+    return said, lambda x: height / (1 + np.exp(-(x - at) * 2 * np.log(9) / width))
+
+
+def dense_table(rows: int, seed: int = 1, local: str | Callable[[np.ndarray], np.ndarray] = "none") -> PointTable:
     """`rows` points: targets over 600 mm, both directions, 5 runs, in campaign order; with the local
-    error `local` (LOCAL_ERRORS) added."""
+    error `local` (a name of LOCAL_ERRORS, or a deviation of position) added."""
     runs = 5
     targets = np.linspace(0.0, 600.0, max(rows // (2 * runs), 2))
     run, direction, target = [], [], []
@@ -55,7 +71,7 @@ def dense_table(rows: int, seed: int = 1, local: str = "none") -> PointTable:
     u = 2 * x / 600.0 - 1
     rng = np.random.default_rng(seed)
     y = (np.sin(2 * np.pi * x / 10.0 + 0.3) + 0.5 * (3 * u**2 - 1) / 2 - d * 0.75 + rng.normal(0, 0.3, len(x))
-         + LOCAL_ERRORS[local](x))
+         + (LOCAL_ERRORS[local] if isinstance(local, str) else local)(x))
     return PointTable(kind="linear", run=np.array(run), direction=d, target=x, deviation=y,
                       optional={"time_s": np.arange(len(x)) * 0.05}, meta={}, source="<dense>")
 
@@ -76,21 +92,24 @@ def timed(code: str) -> tuple[float, float, float, str]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rows", type=int, default=100_000)
-    parser.add_argument("--local", choices=sorted(LOCAL_ERRORS), default="none")
+    parser.add_argument("--local", choices=[*sorted(LOCAL_ERRORS), "random"], default="none")
+    parser.add_argument("--seed", type=int, default=1, help="the table's noise, and with --local random the draw")
     args = parser.parse_args()
+    drawn, local = random_local(args.seed) if args.local == "random" else ("", args.local)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "dense.csv"
-        write_points(path, dense_table(args.rows, local=args.local))
+        write_points(path, dense_table(args.rows, seed=args.seed, local=local))
         read_s, read_cpu, read_mb, _ = timed(f"from campaign.pointtable import read_points; read_points({str(path)!r})")
         disc_s, disc_cpu, disc_mb, said = timed(f"from campaign.cli import main; main(['discover', {str(path)!r}])")
     load = os.getloadavg()[0]
-    out = {"rows": args.rows, "local": args.local, "read_s": round(read_s, 2), "read_cpu_s": round(read_cpu, 2), "read_peak_mb": round(read_mb),
+    out = {"rows": args.rows, "local": args.local, "seed": args.seed, "drawn": drawn, "read_s": round(read_s, 2), "read_cpu_s": round(read_cpu, 2), "read_peak_mb": round(read_mb),
            "discover_s": round(disc_s, 2), "discover_cpu_s": round(disc_cpu, 2), "discover_peak_mb": round(disc_mb),
            "ratio": round(disc_s / read_s, 1), "cpu_ratio": round(disc_cpu / read_cpu, 1),
            "load_average": round(load, 1), "blas_threads": os.environ.get("OPENBLAS_NUM_THREADS", "1 (axiscal's default)"),
            "said": said.splitlines()[:6]}
     RESULTS.mkdir(exist_ok=True)
-    name = "discovery_dense" + ("" if args.local == "none" else f"-{args.local}")
+    name = "discovery_dense" + ("" if args.local == "none" else f"-{args.local}") + (
+        f"-{args.seed}" if args.local == "random" else "")
     (RESULTS / f"{name}.json").write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
     print(json.dumps(out, indent=1))
 
