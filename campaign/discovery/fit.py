@@ -434,6 +434,28 @@ def _gram_scaled(gram: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | Non
     return (gram, scale, float(eig[-1] / eig[0])) if eig[0] > eig[-1] / NORMAL_COND**2 else None
 
 
+def _cholesky(gram: np.ndarray) -> np.ndarray:
+    """The upper Cholesky factor of a positive definite gram (LAPACK's potrf, as scipy's cho_factor
+    calls it, without its checks: the normal matrices here passed _gram_scaled's or _fold_beta's
+    eigenvalue test, so they are finite; a call costs a tenth of cho_factor's on a small matrix)."""
+    from scipy.linalg import lapack
+
+    factor, info = lapack.dpotrf(gram, lower=0, clean=0)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"the normal matrix is not positive definite (potrf info {info})")
+    return np.asarray(factor)
+
+
+def _cholesky_solve(factor: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """gram⁻¹·b from _cholesky's factor (potrs, as scipy's cho_solve)."""
+    from scipy.linalg import lapack
+
+    x, info = lapack.dpotrs(factor, b, lower=0)
+    if info != 0:
+        raise ValueError(f"potrs: illegal value in argument {-info}")
+    return np.asarray(x)
+
+
 REFINE_COND = 1e3
 """Above this condition number of the normalised normal matrix (the design's squared), the normal
 equations' solution gets one step of iterative refinement (below it, its relative error is under
@@ -454,13 +476,11 @@ def _t_times(a: np.ndarray, v: np.ndarray) -> np.ndarray:
 def _solve(a: np.ndarray, y: np.ndarray) -> np.ndarray:
     normal = _normal_scaled(a)
     if normal is not None:
-        from scipy import linalg
-
         gram, scale, cond = normal
-        factor = linalg.cho_factor(gram)
-        beta = scale * linalg.cho_solve(factor, scale * _t_times(a, y))
+        factor = _cholesky(gram)
+        beta = scale * _cholesky_solve(factor, scale * _t_times(a, y))
         if cond > REFINE_COND:  # one step of iterative refinement
-            beta += scale * linalg.cho_solve(factor, scale * _t_times(a, y - _times(a, beta)))
+            beta += scale * _cholesky_solve(factor, scale * _t_times(a, y - _times(a, beta)))
         return np.asarray(beta)
     return np.linalg.lstsq(a, y, rcond=None)[0]
 
@@ -488,11 +508,9 @@ def outside_norms(base: np.ndarray, cols: np.ndarray) -> np.ndarray:
     normal = _normal_scaled(base)
     total = np.einsum("ij,ij->j", cols, cols)
     if normal is not None:
-        from scipy import linalg
-
         gram, scale, _cond = normal
         b = scale[:, None] * (base.T @ cols)
-        inside = np.einsum("ij,ij->j", b, linalg.cho_solve(linalg.cho_factor(gram), b))
+        inside = np.einsum("ij,ij->j", b, _cholesky_solve(_cholesky(gram), b))
         out2 = total - inside
         if np.all(out2 > 1e-6 * total):  # no cancellation to speak of: else the projection below
             return np.asarray(np.sqrt(out2))
@@ -506,17 +524,15 @@ def _solve_blocks(blocks: Blocks, y: np.ndarray, y_key: tuple) -> tuple[np.ndarr
     summed differently), and the weighted RSS from the normal equations, yᵀWy - βᵀ(2AᵀWy - AᵀWAβ):
     stationary at the solution, so accurate to rounding of yᵀWy, without a pass over the rows. Above
     NORMAL_COND the stacked design's SVD, as there (RSS None: from the residual)."""
-    from scipy import linalg
-
     normal = _gram_scaled(blocks.gram()) if len(y) > blocks.width else None
     if normal is None:
         return _solve(weighted(blocks.data, blocks.stacked()), weighted(blocks.data, y)), None
     gram, scale, cond = normal
-    factor = linalg.cho_factor(gram)
+    factor = _cholesky(gram)
     aty = blocks.t_times(y, y_key)
-    beta = scale * linalg.cho_solve(factor, scale * aty)
+    beta = scale * _cholesky_solve(factor, scale * aty)
     if cond > REFINE_COND:  # one step of iterative refinement
-        beta += scale * linalg.cho_solve(factor, scale * blocks.t_times(y - blocks.times(beta)))
+        beta += scale * _cholesky_solve(factor, scale * blocks.t_times(y - blocks.times(beta)))
     yty = float(remembered(blocks.data, ("yWy", blocks.w is not None, y_key),
                            lambda: np.array([np.sum(blocks._weighted(y) * y)]))[0])
     unscaled = beta / scale  # the normal matrix is held column-normalised: AᵀWA = D⁻¹·gram·D⁻¹
@@ -548,8 +564,6 @@ def solve_normal(normal: np.ndarray, rhs: np.ndarray) -> np.ndarray:
 def _outside_norms_blocks(blocks: Blocks) -> tuple[np.ndarray, np.ndarray]:
     """outside_norms of the last block's columns beside the others' (from the normal matrix the blocks
     assemble; the stacked columns when outside_norms would project), and the columns' norms."""
-    from scipy import linalg
-
     gram = blocks.gram()
     held = int(blocks.starts[-2])
     total = np.diag(gram)[held:].copy()
@@ -557,7 +571,7 @@ def _outside_norms_blocks(blocks: Blocks) -> tuple[np.ndarray, np.ndarray]:
     if normal is not None:
         base_gram, scale, _ = normal
         b = scale[:, None] * gram[:held, held:]
-        inside = np.einsum("ij,ij->j", b, linalg.cho_solve(linalg.cho_factor(base_gram), b))
+        inside = np.einsum("ij,ij->j", b, _cholesky_solve(_cholesky(base_gram), b))
         out2 = total - inside
         if np.all(out2 > 1e-6 * total):  # no cancellation to speak of: else the projection
             return np.sqrt(out2), np.sqrt(total)
@@ -930,36 +944,45 @@ def _fold_solve(fold_gram: np.ndarray, fold_aty: np.ndarray) -> np.ndarray:
 def _fold_beta(fold_gram: np.ndarray, fold_aty: np.ndarray) -> np.ndarray:
     """A fold's coefficients: Cholesky of its column-normalised normal matrix when no direction is near
     CV_RCOND (a margin of 10 in the singular values) and no column is empty; _fold_solve otherwise."""
-    from scipy import linalg
-
     diag = np.diag(fold_gram)
     if len(diag) and np.all(diag > 0):
         scale = 1 / np.sqrt(diag)
         scaled = fold_gram * np.outer(scale, scale)
         eig = np.linalg.eigvalsh(scaled)
         if eig[0] > eig[-1] * CV_RCOND**2 * 100:
-            return np.asarray(scale * linalg.cho_solve(linalg.cho_factor(scaled), scale * fold_aty))
+            return np.asarray(scale * _cholesky_solve(_cholesky(scaled), scale * fold_aty))
     return _fold_solve(fold_gram, fold_aty)
 
 
 def _cv_refitted(blocks: Blocks, y: np.ndarray, index: np.ndarray, groups_hash: int) -> np.ndarray:
     """Each group's leave-out sum of squares (cv_group_errors), each fold refitted from its normal equations: the whole design's
     less its group's (G - A_gᵀWA_g, each group's remembered per pair of blocks: time linear in the
-    rows, and only a new term's products computed for a model that differs from a known one by it)."""
+    rows, and only a new term's products computed for a model that differs from a known one by it).
+    The design's rows are gathered once, group after group (ROWS_GATHERED_CELLS), not once per fold."""
     data = blocks.data
     count = int(index.max()) + 1 if len(index) else 0
     gram, aty = blocks.gram(), blocks.t_times(y)
-    members = [np.flatnonzero(index == g) for g in range(count)]
+    order = np.argsort(index, kind="stable")  # each group's rows in ascending order, the groups one after another
+    bounds = np.searchsorted(index[order], np.arange(count + 1))
+    members = [order[bounds[g]:bounds[g + 1]] for g in range(count)]
     per_group = blocks.gram((groups_hash, members))
     w = data.row_scale**2 if data.row_scale is not None else np.ones(len(y))
-    return np.array([_fold_ss(blocks, y, w, np.flatnonzero(index == g), gram, aty, per_group[g]) for g in range(count)])
+    gathered = blocks.rows(order) if len(y) * blocks.width <= ROWS_GATHERED_CELLS else None
+    return np.array([_fold_ss(blocks, y, w, members[g], gram, aty, per_group[g],
+                              None if gathered is None else gathered[bounds[g]:bounds[g + 1]])
+                     for g in range(count)])
+
+
+ROWS_GATHERED_CELLS = 4_000_000
+"""Up to this many numbers (32 MB) _cv_refitted gathers the design's rows in one go; beyond, fold by fold."""
 
 
 def _fold_ss(blocks: Blocks, y: np.ndarray, w: np.ndarray, out: np.ndarray, gram: np.ndarray,
-                 aty: np.ndarray, out_gram: np.ndarray | None = None) -> float:
+             aty: np.ndarray, out_gram: np.ndarray | None = None, out_rows: np.ndarray | None = None) -> float:
     """The weighted sum of squares of the rows `out` predicted by the fit without them, from the whole
-    design's normal equations (`gram`, `aty`) less theirs (`out_gram`: their AᵀWA when known)."""
-    ag, yg, wg = blocks.rows(out), y[out], w[out]
+    design's normal equations (`gram`, `aty`) less theirs (`out_gram`: their AᵀWA when known; `out_rows`:
+    the design's rows `out` when gathered)."""
+    ag, yg, wg = blocks.rows(out) if out_rows is None else out_rows, y[out], w[out]
     beta = _fold_beta(gram - (ag.T @ (wg[:, None] * ag) if out_gram is None else out_gram), aty - ag.T @ (wg * yg))
     return float(np.sum(wg * (yg - ag @ beta) ** 2))
 
