@@ -117,12 +117,17 @@ def held_columns(data: CampaignData, term: Term) -> np.ndarray | sparse.csc_matr
     fraction of the memory), else the array."""
     def make() -> np.ndarray | sparse.csc_matrix:
         cols = form_of(term.name).columns(data, term.shape, term.held)
-        return _sparse().csc_matrix(cols) if np.count_nonzero(cols) <= SPARSE_SHARE * cols.size else cols
+        mostly_zero = cols.size >= SPARSE_NUMBERS and np.count_nonzero(cols) <= SPARSE_SHARE * cols.size
+        return _sparse().csc_matrix(cols) if mostly_zero else cols
     return remembered(data, _key(term), make)
 
 
 SPARSE_SHARE = 0.25
 """A term's columns with at most this share of their numbers not zero are held as a sparse matrix."""
+SPARSE_NUMBERS = 100_000
+"""... and only when they hold at least this many numbers (800 kB): on a smaller table a sparse
+matrix's own bookkeeping costs more than its products save (a product of a few hundred rows takes
+microseconds as an array, tens of them as a sparse matrix)."""
 
 
 def weighted(data: CampaignData, rows: np.ndarray) -> np.ndarray:
