@@ -115,13 +115,14 @@ def campaign_dir_of(path: str | Path) -> Path | None:
     return None
 
 
-def incomplete(path: str | Path) -> list[str]:
+def incomplete(path: str | Path, table: PointTable | None = None) -> list[str]:
     """Why the campaign whose directory or points.csv `path` is was not measured completely (its
     plan's points and runs); for a bare point table, the points its own grid lacks (targets ×
-    directions × runs)."""
+    directions × runs), of `table` when the caller has read it already (a dense table takes a
+    second or so to read)."""
     directory = campaign_dir_of(path)
     if directory is None:
-        return completeness(read_points(path, partial=True), None)
+        return completeness(read_points(path, partial=True) if table is None else table, None)
     a = assess_path(directory)
     return completeness(a.table, a.planned)
 

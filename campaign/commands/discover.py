@@ -35,7 +35,7 @@ from campaign.model import ErrorModel
 from campaign.outliers import Outliers, find_outliers
 from campaign.plan import build_plan
 from campaign.plot import check_plot_path
-from campaign.pointtable import read_points
+from campaign.pointtable import PointTable, read_points
 from campaign.views import make_console, print_json
 from protocols.units import UNITS, unit_label
 
@@ -208,12 +208,12 @@ def outlier_notes(outliers: Outliers, kind: str) -> list[str]:
             "them. Measure those points again if the cause is not known.")]
 
 
-def incomplete_notes(path: str) -> list[str]:
-    """What the campaign lacks (its plan's points and runs, or its own grid's), said first: what is
-    named rests on the points measured."""
+def incomplete_notes(path: str, table: PointTable | None = None) -> list[str]:
+    """What the campaign lacks (its plan's points and runs, or its own grid's: of `table`, the file as
+    read, when given), said first: what is named rests on the points measured."""
     from campaign.assess import incomplete
 
-    problems = incomplete(path)
+    problems = incomplete(path, table)
     if not problems:
         return []
     return [(f"incomplete campaign: {'; '.join(problems)}. What follows rests on the points measured: a run cut "
@@ -571,7 +571,7 @@ def read_tables(files: list[str]) -> tuple[CampaignData, list[Outliers], list[st
             data = keep_rows(data, ~outliers.mask(table))
         parts.append(data)
         found.append(outliers)
-        notes = [] if profile else incomplete_notes(name)  # a profile has no plan to be short of
+        notes = [] if profile else incomplete_notes(name, table)  # a profile has no plan to be short of
         incomplete += [f"incomplete campaign: {name}: {n.split(': ', 1)[1]}" if len(files) > 1 else n for n in notes]
     return join_campaigns(parts, files), found, incomplete, read
 

@@ -744,8 +744,11 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     routes = [vocabulary]
     hidden = ((found, False) for found in locals_beside_unnamed(data, vocabulary, beside, periodic))
     own = ((found, True) for found in itertools.chain((beside, first), locals_beside_all_but(data, vocabulary)))
+    tried: list[tuple[list[LocalError], bool]] = []
     for found, rivals_said in itertools.chain(own, hidden):
-        if found and not any(_same_places(found, r.local_errors) for r in routes[1:]):
+        if found and not any(_same_places(found, r.local_errors) for r in routes[1:]) and not any(
+                said == rivals_said and _same_found(found, earlier) for earlier, said in tried):
+            tried.append((found, rivals_said))
             route = with_locals(data, model, given, vocabulary, found, periodic, rivals_said=rivals_said)
             if route is not None:
                 routes.append(route)
@@ -1074,6 +1077,23 @@ def _same_places(a: list[LocalError], b: list[LocalError]) -> bool:
     """The same local errors in the same places (a departure at one target and at it and the next are not)."""
     return len(a) == len(b) and all(x.kind == y.kind and x.params.get("last_mm") == y.params.get("last_mm")
                                     and abs(x.params["centre_mm"] - y.params["centre_mm"]) < 1e-6 for x, y in zip(a, b))
+
+
+SAME_FOUND = 1e-4
+"""Two local errors found by different routes are the same start for with_locals when their kinds and
+targets agree and their centres and widths differ by at most this share of the width (a route
+found again beside another effect left out, to rounding of its refinement: its with_locals would
+refine it to the same result, at the cost of a vocabulary search)."""
+
+
+def _same_found(a: list[LocalError], b: list[LocalError]) -> bool:
+    """The same local errors found, each's centre and width within SAME_FOUND of its width."""
+    def near(x: LocalError, y: LocalError) -> bool:
+        width = max(x.params.get("width_mm", 0.0), y.params.get("width_mm", 0.0))
+        return (x.kind == y.kind and x.directions == y.directions and x.params.get("last_mm") == y.params.get("last_mm")
+                and abs(x.params["centre_mm"] - y.params["centre_mm"]) <= SAME_FOUND * width
+                and abs(x.params.get("width_mm", 0.0) - y.params.get("width_mm", 0.0)) <= SAME_FOUND * width)
+    return len(a) == len(b) and all(near(x, y) for x, y in zip(a, b))
 
 
 def route_score(data: CampaignData, result: Discovery, held: Fit | None = None) -> float:
