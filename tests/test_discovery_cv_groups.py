@@ -62,3 +62,23 @@ def test_a_departure_at_the_target_left_out_is_not_predicted_by_it(targets):
     terms = [Term("linear_scale"), Term("backlash"), target_term(data.targets_mm, at)]
     expected = brute_force(data, terms, data.target_index)
     assert cv_group_errors(data, terms, data.target_index) == pytest.approx(expected, rel=1e-7, abs=1e-12)
+
+
+def test_a_departure_tried_beside_a_growing_fit_is_not_predicted_at_its_target():
+    """GrowingFit (region terms tried one at a time on a dense table, without refits) gives the CV of the
+    model plus the term tried: with a departure at one target, that target's fold cannot say it, as above."""
+    from campaign.discovery.fit import GrowingFit, linear_fit
+
+    targets = CV_FOLDS_REFITTED + 37
+    data = campaign(targets, 5, extra_runs_at=targets // 3)
+    base = [Term("linear_scale"), Term("backlash")]
+    growing = GrowingFit.start(data, linear_fit(data, base), data.target_index)
+    assert growing is not None
+    departure = target_term(data.targets_mm, float(data.targets_mm[targets // 2]))
+    _, _, cv, kept = growing.trial(departure)
+    expected = brute_force(data, [*base, departure], data.target_index)
+    assert cv == pytest.approx(np.sqrt(expected.sum() / len(data)), rel=1e-7)
+    growing.add(kept)  # and kept: a bump tried beside it
+    bump = local_term(230.0, 60.0)
+    assert growing.trial(bump)[2] == pytest.approx(
+        np.sqrt(brute_force(data, [*base, departure, bump], data.target_index).sum() / len(data)), rel=1e-7)

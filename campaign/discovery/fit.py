@@ -1261,7 +1261,7 @@ class GrowingFit:
                 qg = self.q[rows[lo:lo + step]]
                 hats[lo:lo + step] = qg @ np.swapaxes(qg, 1, 2)
             self.buckets.append((rows, hats))
-        self.cv_um = self._cv(self.residual, [h for _, h in self.buckets])
+        self.cv_um = self._cv(self.residual, [h for _, h in self.buckets], None)
 
     @classmethod
     def start(cls, data: CampaignData, fit: Fit, groups: np.ndarray) -> GrowingFit | None:
@@ -1270,13 +1270,25 @@ class GrowingFit:
             return None
         return cls(data, fit, groups)
 
-    def _cv(self, residual: np.ndarray, hats: list[np.ndarray]) -> float:
-        total = 0.0
+    def _cv(self, residual: np.ndarray, hats: list[np.ndarray], trying: Term | None) -> float:
+        """The leave-one-group-out CV RMS (µm) of the model, plus the term `trying` when given: from each
+        group's hat block where it is well conditioned; a group whose fold may not determine a direction
+        (a departure at it alone) refitted from the design's blocks (_refitted_ss), as _cv_from_hat does:
+        a pseudo-inverse of its block drops the residual's part there."""
+        total, refit = 0.0, []
         for (rows, _), hat in zip(self.buckets, hats):
             size = rows.shape[1]
             block = np.eye(size) - hat
             plain = np.trace(hat, axis1=1, axis2=2) < 1 - CV_RCOND
-            total += float(_left_out_ss(block, plain, residual[rows][..., None]).sum())
+            total += float(_left_out_ss(block[plain], plain[plain], residual[rows[plain]][..., None]).sum())
+            refit += list(rows[~plain])
+        if refit:
+            terms = self.terms if trying is None else [*self.terms, trying]
+            blocks = Blocks(self.data, terms)
+            y = self.data.y - fixed_deviation(self.data, terms)
+            root = self.data.row_scale if self.data.row_scale is not None else np.ones(len(y))
+            gram, aty = blocks.gram(), blocks.t_times(y)
+            total += sum(_refitted_ss(blocks, gram, aty, y, root, np.sort(out)) for out in refit)
         return float(np.sqrt(total / len(residual)))
 
     def trial(self, term: Term) -> tuple[float, int, float, tuple]:
@@ -1297,7 +1309,7 @@ class GrowingFit:
             tg = qt[rows]
             hats.append(hat + tg @ np.swapaxes(tg, 1, 2))
         rss = float(residual @ residual)
-        n_params, cv = self.n_params + cols.shape[1], self._cv(residual, hats)
+        n_params, cv = self.n_params + cols.shape[1], self._cv(residual, hats, term)
         return rss, n_params, cv, (term, qt, residual, rss, n_params, cv, hats)
 
     def add(self, kept: tuple) -> None:
