@@ -1027,7 +1027,7 @@ HAT_CELLS = 1_000_000
 
 def _cv_from_hat(blocks: Blocks, y: np.ndarray, index: np.ndarray, groups_hash: int) -> np.ndarray:
     """Each group's leave-out sum of squares (cv_group_errors) from the hat matrix of the whole fit (column-normalised, directions
-    below CV_RCOND left out): e_g = (I - H_gg)⁻¹ r_g (a pseudo-inverse with CV_RCOND), the groups of
+    below CV_RCOND left out): e_g = (I - H_gg)⁻¹ r_g where that block is well conditioned, the groups of
     one size at once. The basis of the fit's span, Q = A·T, comes from the eigenvectors of the p × p
     normal matrix (singular values above CV_RCOND of the largest only, so accurate to about 1e-10);
     Q's rows are formed a few groups at a time from the design's blocks (never n × p at once), a block
@@ -1057,7 +1057,7 @@ def _cv_from_hat(blocks: Blocks, y: np.ndarray, index: np.ndarray, groups_hash: 
         chosen = np.flatnonzero(sizes == size)
         if size > CV_BLOCK_MAX:
             for g in chosen:
-                sums[g] = _refitted_ss(blocks, gram, aty, y, root, np.flatnonzero(index == g))
+                sums[g] = _fold_ss(blocks, y, root**2, np.flatnonzero(index == g), gram, aty)
             continue
         cells = len(chosen) * int(size) * max(int(size), blocks.width)  # the blocks' and their rows' of A
         for part in np.array_split(chosen, max(1, cells // HAT_CELLS + 1)):
@@ -1071,31 +1071,17 @@ def _cv_from_hat(blocks: Blocks, y: np.ndarray, index: np.ndarray, groups_hash: 
             # the block's eigenvalues are 1 - σ²(Q_g) >= 1 - Σ leverages: above CV_RCOND (of at most 1)
             # its pseudo-inverse is its inverse, and a solve does
             plain = (qg**2).sum(axis=(1, 2)) < 1 - CV_RCOND
-            sums[part[plain]] = _left_out_ss(block[plain], plain[plain], r[rows[plain]][..., None])
+            sums[part[plain]] = _left_out_ss(block[plain], r[rows[plain]][..., None])
             for g, out in zip(part[~plain], rows[~plain]):
-                sums[g] = _refitted_ss(blocks, gram, aty, y, root, out)
+                sums[g] = _fold_ss(blocks, y, root**2, out, gram, aty)
     return sums
 
 
-def _refitted_ss(blocks: Blocks, gram: np.ndarray, aty: np.ndarray, y: np.ndarray, root: np.ndarray,
-                 out: np.ndarray) -> float:
-    """The weighted sum of squares of the rows `out` predicted by the fold without them, refitted from
-    the whole design's normal equations (`gram`, `aty`) less theirs (_fold_solve)."""
-    ag, wg = blocks.rows(out), root[out] ** 2
-    beta = _fold_solve(gram - ag.T @ (wg[:, None] * ag), aty - ag.T @ (wg * y[out]))
-    return float(np.sum(wg * (y[out] - ag @ beta) ** 2))
-
-
-def _left_out_ss(block: np.ndarray, plain: np.ndarray, rg: np.ndarray) -> np.ndarray:
-    """Each group's sum of squared left-out residuals, for groups of one size: (I - H_g)⁻¹ r_g for each
-    group's block I - H_g and residual r_g (µm): by a solve where the block is well conditioned
-    (`plain`), by a pseudo-inverse cut at CV_RCOND where a fold cannot determine a direction."""
-    sums = np.zeros(len(block))
-    if plain.any():
-        sums[plain] = np.sum(np.linalg.solve(block[plain], rg[plain]) ** 2, axis=(1, 2))
-    if not plain.all():
-        sums[~plain] = np.sum((np.linalg.pinv(block[~plain], rcond=CV_RCOND) @ rg[~plain]) ** 2, axis=(1, 2))
-    return sums
+def _left_out_ss(block: np.ndarray, rg: np.ndarray) -> np.ndarray:
+    """Each group's sum of squared left-out residuals, for groups of one size whose blocks are well
+    conditioned (a group whose fold may not determine a direction is refitted instead, _fold_ss):
+    (I - H_g)⁻¹ r_g for each group's block I - H_g and residual r_g (µm)."""
+    return np.sum(np.linalg.solve(block, rg) ** 2, axis=(1, 2)) if len(block) else np.zeros(0)
 
 
 def bic(fit: Fit, n: int) -> float:
@@ -1273,14 +1259,14 @@ class GrowingFit:
     def _cv(self, residual: np.ndarray, hats: list[np.ndarray], trying: Term | None) -> float:
         """The leave-one-group-out CV RMS (µm) of the model, plus the term `trying` when given: from each
         group's hat block where it is well conditioned; a group whose fold may not determine a direction
-        (a departure at it alone) refitted from the design's blocks (_refitted_ss), as _cv_from_hat does:
+        (a departure at it alone) refitted from the design's blocks (_fold_ss), as _cv_from_hat does:
         a pseudo-inverse of its block drops the residual's part there."""
         total, refit = 0.0, []
         for (rows, _), hat in zip(self.buckets, hats):
             size = rows.shape[1]
             block = np.eye(size) - hat
             plain = np.trace(hat, axis1=1, axis2=2) < 1 - CV_RCOND
-            total += float(_left_out_ss(block[plain], plain[plain], residual[rows[plain]][..., None]).sum())
+            total += float(_left_out_ss(block[plain], residual[rows[plain]][..., None]).sum())
             refit += list(rows[~plain])
         if refit:
             terms = self.terms if trying is None else [*self.terms, trying]
@@ -1288,7 +1274,7 @@ class GrowingFit:
             y = self.data.y - fixed_deviation(self.data, terms)
             root = self.data.row_scale if self.data.row_scale is not None else np.ones(len(y))
             gram, aty = blocks.gram(), blocks.t_times(y)
-            total += sum(_refitted_ss(blocks, gram, aty, y, root, np.sort(out)) for out in refit)
+            total += sum(_fold_ss(blocks, y, root**2, np.sort(out), gram, aty) for out in refit)
         return float(np.sqrt(total / len(residual)))
 
     def trial(self, term: Term) -> tuple[float, int, float, tuple]:
