@@ -82,3 +82,38 @@ def test_a_departure_tried_beside_a_growing_fit_is_not_predicted_at_its_target()
     bump = local_term(230.0, 60.0)
     assert growing.trial(bump)[2] == pytest.approx(
         np.sqrt(brute_force(data, [*base, departure, bump], data.target_index).sum() / len(data)), rel=1e-7)
+
+
+@pytest.mark.parametrize("shelf", [3, 48])
+def test_terms_kept_one_after_another_in_a_growing_fit_give_a_refits_numbers(shelf, monkeypatch):
+    """Terms kept one after another (on shelves of `shelf` columns: a term wider than one, and terms
+    on several; smooth bumps not zero anywhere, and region terms zero outside their region, whose
+    products GrowingFit takes over those rows alone): the next term tried gives the RSS of linear_fit
+    on them all and the CV of a brute-force refit of every fold."""
+    from campaign.discovery import fit
+    from campaign.discovery.fit import GrowingFit, linear_fit
+
+    monkeypatch.setattr(fit, "ADDED_SHELF", shelf)
+    from campaign.discovery.locate import Region
+    from campaign.discovery.unexplained import region_term
+
+    targets = CV_FOLDS_REFITTED + 11
+    data = campaign(targets, 7)
+    base = [Term("linear_scale"), Term("backlash")]
+    growing = GrowingFit.start(data, linear_fit(data, base), data.target_index)
+    assert growing is not None
+    kept: list[Term] = []
+    for i, (centre, shape) in enumerate(((60.0, "smooth"), (140.0, "bump"), (230.0, "smooth"), (320.0, "step"),
+                                         (410.0, "smooth"), (470.0, "bump"), (250.0, "wave"))):
+        if shape == "smooth":
+            term = local_term(centre, 35.0, by_direction=True, index=i + 1)  # two columns
+        else:
+            region = Region("position", "deviation", centre - 20.0, centre + 20.0, 1.0, centre, "both", shape)
+            term = region_term(data, region, i + 1)
+            assert term is not None
+        rss, _, cv, trial = growing.trial(term)
+        assert rss == pytest.approx(linear_fit(data, [*base, *kept, term]).rss, rel=1e-9)
+        assert cv == pytest.approx(
+            np.sqrt(brute_force(data, [*base, *kept, term], data.target_index).sum() / len(data)), rel=1e-7)
+        growing.add(trial)
+        kept.append(term)

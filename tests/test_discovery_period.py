@@ -119,3 +119,20 @@ def test_a_bow_beside_an_unresolved_period_is_not_named_on_the_error_of_one_cand
             assert abs(values[key]) >= SIZE_SIGMAS * step["standard_errors"][key], step
     assert "nonlinear_lead" not in [s["effect"] for s in out["steps"]]
     assert any(n.startswith("nonlinear_lead is not named: beside the candidate periods") for n in out["notes"])
+
+
+@pytest.mark.parametrize("positions", [50, 3000])
+def test_the_periodograms_sines_match_sin_and_cos_on_uneven_positions(positions):
+    """Above RECURRENCE_POSITIONS the periodogram's sines are stepped from one frequency to the next:
+    over a whole block of frequencies they stay those of sin and cos (to 1e-10 of a unit sine)."""
+    import numpy as np
+
+    from campaign.discovery.fit import PERIODOGRAM_CELLS, sines_cosines
+
+    x = np.sort(np.random.default_rng(positions).uniform(-20.0, 1200.0, positions))
+    f = np.arange(1 / 100, 1 / 2, 1 / 9600)[:max(2, PERIODOGRAM_CELLS // positions)]
+    s, c = sines_cosines(x, f)
+    angle = 2 * np.pi * np.outer(f, x)
+    assert s.shape == c.shape == (len(f), positions)
+    assert np.abs(s - np.sin(angle)).max() < 1e-10
+    assert np.abs(c - np.cos(angle)).max() < 1e-10

@@ -850,14 +850,13 @@ def periodogram_periods(data: CampaignData, fit: Fit, top: int = 3) -> list[floa
     block = max(1, PERIODOGRAM_CELLS // max(len(xs), 1))  # frequencies at a time: memory linear in the rows
     for lo in range(0, len(freqs), block):
         f = freqs[lo:lo + block]
-        angle = 2 * np.pi * np.outer(xs, f)
-        s, c = np.sin(angle), np.cos(angle)
+        s, c = sines_cosines(xs, f)
         # Q'·(column): the part in the model's span (as (columnᵀ·Q)ᵀ: BLAS is many times faster so)
-        qs, qc = (s.T @ q_at).T, (c.T @ q_at).T
-        ss = np.einsum("k,kf,kf->f", count, s, s) - (qs * qs).sum(0)
-        cc = np.einsum("k,kf,kf->f", count, c, c) - (qc * qc).sum(0)
-        sc = np.einsum("k,kf,kf->f", count, s, c) - (qs * qc).sum(0)
-        rs, rc = s.T @ r_at - qr @ qs, c.T @ r_at - qr @ qc
+        qs, qc = (s @ q_at).T, (c @ q_at).T
+        ss = np.einsum("k,fk,fk->f", count, s, s) - (qs * qs).sum(0)
+        cc = np.einsum("k,fk,fk->f", count, c, c) - (qc * qc).sum(0)
+        sc = np.einsum("k,fk,fk->f", count, s, c) - (qs * qc).sum(0)
+        rs, rc = s @ r_at - qr @ qs, c @ r_at - qr @ qc
         det = ss * cc - sc * sc
         ok = det > 1e-9 * np.maximum(ss * cc, 1e-300)
         power[lo:lo + block][ok] = (cc * rs**2 - 2 * sc * rs * rc + ss * rc**2)[ok] / det[ok]
@@ -865,6 +864,34 @@ def periodogram_periods(data: CampaignData, fit: Fit, top: int = 3) -> list[floa
              and (i == len(power) - 1 or power[i] >= power[i + 1])]
     peaks.sort(key=lambda i: -power[i])
     return [float(1 / freqs[i]) for i in peaks[:top]]
+
+
+RECURRENCE_POSITIONS = 1000
+"""From this many positions on, sines_cosines steps from one frequency to the next (see there)."""
+
+
+def sines_cosines(x: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """sin(2π·f·x) and cos(2π·f·x) (frequencies × positions) for positions x (mm) and evenly spaced
+    frequencies f (1/mm): the first row from sin and cos, each next by the angle-addition rule with
+    the step's sine and cosine (a multiply-add per cell: a sine and a cosine of every cell cost three
+    times as much; the rounding grows by about 1e-13 per row, nothing beside a periodogram's power).
+    Below RECURRENCE_POSITIONS positions a row is too short to pay for its four calls: sin and cos
+    of every cell there."""
+    if len(x) < RECURRENCE_POSITIONS:
+        angle = 2 * np.pi * np.outer(f, x)
+        return np.sin(angle), np.cos(angle)
+    s, c = np.empty((len(f), len(x))), np.empty((len(f), len(x)))
+    np.sin(2 * np.pi * f[0] * x, out=s[0])
+    np.cos(2 * np.pi * f[0] * x, out=c[0])
+    if len(f) > 1:
+        step = 2 * np.pi * (f[1] - f[0]) * x
+        sin_step, cos_step, part = np.sin(step), np.cos(step), np.empty(len(x))
+        for k in range(1, len(f)):
+            np.multiply(s[k - 1], cos_step, out=s[k])
+            s[k] += np.multiply(c[k - 1], sin_step, out=part)
+            np.multiply(c[k - 1], cos_step, out=c[k])
+            c[k] -= np.multiply(s[k - 1], sin_step, out=part)
+    return s, c
 
 
 def span_at_positions(data: CampaignData, fit: Fit, where: np.ndarray, positions: int) -> tuple[np.ndarray, np.ndarray]:
@@ -1210,6 +1237,10 @@ def _span(scaled: np.ndarray, largest: float | None = None) -> tuple[np.ndarray,
     return scaled @ (vectors[:, keep] / sv[keep]), top
 
 
+ADDED_SHELF = 48
+"""Columns of the terms GrowingFit keeps held in one array (38 MB at 100,000 rows)."""
+
+
 class GrowingFit:
     """Terms added one at a time beside a fit, each tried without refitting the model: the residual,
     the RSS and the leave-one-group-out CV of the model plus one term come from the current model's
@@ -1228,7 +1259,10 @@ class GrowingFit:
         norms[norms == 0] = 1.0
         self.q, self.largest = _span(a / norms)
         del a
-        self.added: list[np.ndarray] = []  # the kept terms' bases (not stacked onto q: each would copy it)
+        # the kept terms' bases side by side in shelves of ADDED_SHELF columns, each filled as far as its
+        # `used` (not stacked onto q: each would copy it; a product per shelf, not per term: each pass
+        # reads n rows; never grown by copying, at most one shelf's columns unused)
+        self.shelves: list[tuple[np.ndarray, int]] = []
         self.residual = self.y - self.q @ (self.q.T @ self.y)
         self.rss = float(self.residual @ self.residual)
         self.n_params = fit.n_params
@@ -1284,9 +1318,15 @@ class GrowingFit:
         norms = np.linalg.norm(cols, axis=0)
         norms[norms == 0] = 1.0
         scaled = cols / norms
-        outside = scaled - self.q @ (self.q.T @ scaled)
-        for part in self.added:
-            outside -= part @ (part.T @ outside)
+        # the parts along Q and along the kept bases (orthogonal to Q and to each other), from the rows
+        # where the term is not zero alone (a local term's few): their products with the others are zero
+        support = np.flatnonzero(scaled.any(axis=1))
+        few = 2 * len(support) < len(scaled)
+        bases = [self.q, *(shelf[:, :used] for shelf, used in self.shelves)]
+        alongs = [b[support].T @ scaled[support] if few else b.T @ scaled for b in bases]
+        outside = scaled.copy()
+        for b, along_b in zip(bases, alongs):
+            outside -= b @ along_b
         qt, _ = _span(outside, self.largest)
         along = qt.T @ self.residual
         residual = self.residual - qt @ along
@@ -1301,7 +1341,11 @@ class GrowingFit:
     def add(self, kept: tuple) -> None:
         """Keep a term tried (`trial`'s last value) in the model."""
         term, qt, residual, rss, n_params, cv, hats = kept
-        self.added.append(qt)
+        if not self.shelves or self.shelves[-1][1] + qt.shape[1] > self.shelves[-1][0].shape[1]:
+            self.shelves.append((np.empty((len(qt), max(ADDED_SHELF, qt.shape[1]))), 0))
+        shelf, used = self.shelves[-1]
+        shelf[:, used:used + qt.shape[1]] = qt
+        self.shelves[-1] = (shelf, used + qt.shape[1])
         self.residual, self.rss, self.n_params, self.cv_um = residual, rss, n_params, cv
         self.buckets = [(rows, hat) for (rows, _), hat in zip(self.buckets, hats)]
         self.terms.append(term)
