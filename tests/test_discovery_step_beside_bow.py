@@ -176,3 +176,21 @@ def test_errors_found_with_an_unnamed_effect_put_in_are_not_a_period_rival_witho
         assert with_locals(data, *START, alone, found, periodic=True, rivals_said=rivals_said) is None
         rivals = [r for u in alone.unresolved for r in u.local_rivals]
         assert bool(rivals) == rivals_said, rivals
+
+
+@pytest.mark.machine  # one simulated campaign and discovery
+def test_a_step_whose_route_loses_to_the_period_held_is_that_periods_rival():
+    """A 3.1 µm step at 169 mm rising over 73 mm beside a 1.1 µm bow and a 1.7 µm backlash, 11 golden targets,
+    noise 0.5 µm (bench seed 97, draw 8358). Three routes find the step between the targets at 105.8 and
+    199.2 mm and leave no period unresolved, but the vocabulary's route, an unresolved screw lead holding
+    58 % of the residual, is chosen (the step's place is charged for its search). The step fits as well:
+    it is the period's rival, with what its route names beside it. Before, nothing was said of it."""
+    truth, data = drawn("step", 11, "golden", 8358)
+    result = discover(data, *START)
+    (position, _), = truth.regions
+    group = next(u for u in result.unresolved if "periodic_lead" in u.effects)
+    rival = next(r for r in group.local_rivals if r.sentence.startswith("a step"))
+    assert rival.between_mm is not None and rival.between_mm[0] <= position <= rival.between_mm[1], rival
+    assert "beside it" in rival.sentence and "105.8–199.2 mm" in group.how_to_tell
+    judged = judge(result, truth)
+    assert judged.stated and not judged.false_names, judged.said
