@@ -1128,10 +1128,13 @@ def rivals_beside_hidden(data: CampaignData, model: ErrorModel, given: dict[str,
     BIC, neither side charged for its search: the period's candidates, the local errors' places), its
     local errors become the period's rivals, said with what is named beside them. The route is not
     chosen by this (its place and shape count against it in route_score): the follow-up measures
-    densely over the rivals, which tells them apart."""
+    densely over the rivals, which tells them apart. A route already found that fits as well comes
+    first (rivals_from_routes)."""
     held = held_fit(data, vocabulary, periods=True)
-    if held is None or rivals_from_routes(data, vocabulary, routes, held):
+    if held is None:
         return
+    if rivals_from_routes(data, vocabulary, routes, held):
+        return  # a route already found says them, with what it names beside them
     for _, term in unnamed_forms(data, vocabulary):
         name = term.name
         found = find_locals(data, linear_fit(data, [*vocabulary.final.terms, term]))
