@@ -12,8 +12,12 @@ products and multiply the CPU time). Writes bench/results/discovery_dense.json. 
 shape rivals; it writes discovery_dense-bump.json or …-step.json. `--local random --seed S` draws
 one at random (random_local: a bump or a step, 2–4 µm of either sign, 5–150 mm wide, centred in
 50–550 mm) on the table with noise of that seed; it writes discovery_dense-random-S.json.
+`--runs R --travel L` change the table's shape (R runs over L mm: with the rows fixed, fewer runs and a
+longer travel give more distinct positions, as a long scan binned finely does; a random local error is
+then centred within 50 mm of the ends); the file name gets -runsR-travelL.
 
     .venv/bin/python bench/discovery_dense.py [--rows N] [--local none|bump|step|random] [--seed S]
+                                              [--runs R] [--travel L]
 """
 
 from __future__ import annotations
@@ -43,12 +47,13 @@ LOCAL_ERRORS = {
 """The local error added to the table (µm, of position in mm), by --local."""
 
 
-def random_local(seed: int) -> tuple[str, Callable[[np.ndarray], np.ndarray]]:
-    """A local error drawn at random (`seed`): a Gaussian bump `width` wide at half its height, or a
-    logistic step rising over `width` (10 to 90 %); its description and its deviation (µm) of position."""
+def random_local(seed: int, travel_mm: float = 600.0) -> tuple[str, Callable[[np.ndarray], np.ndarray]]:
+    """A local error drawn at random (`seed`) on a travel of `travel_mm`: a Gaussian bump `width` wide at
+    half its height, or a logistic step rising over `width` (10 to 90 %); its description and its
+    deviation (µm) of position."""
     rng = np.random.default_rng(seed)
     kind = str(rng.choice(["bump", "step"]))
-    at, width = rng.uniform(50, 550), float(np.exp(rng.uniform(np.log(5), np.log(150))))
+    at, width = rng.uniform(50, travel_mm - 50), float(np.exp(rng.uniform(np.log(5), np.log(150))))
     height = rng.uniform(2, 4) * rng.choice([-1, 1])
     said = f"{kind} of {height:+.2f} µm at {at:.1f} mm, {width:.1f} mm wide"
     if kind == "bump":
@@ -56,19 +61,19 @@ def random_local(seed: int) -> tuple[str, Callable[[np.ndarray], np.ndarray]]:
     return said, lambda x: height / (1 + np.exp(-(x - at) * 2 * np.log(9) / width))
 
 
-def dense_table(rows: int, seed: int = 1, local: str | Callable[[np.ndarray], np.ndarray] = "none") -> PointTable:
-    """`rows` points: targets over 600 mm, both directions, 5 runs, in campaign order; with the local
-    error `local` (a name of LOCAL_ERRORS, or a deviation of position) added."""
-    runs = 5
-    targets = np.linspace(0.0, 600.0, max(rows // (2 * runs), 2))
+def dense_table(rows: int, seed: int = 1, local: str | Callable[[np.ndarray], np.ndarray] = "none",
+                runs: int = 5, travel_mm: float = 600.0) -> PointTable:
+    """`rows` points: targets over `travel_mm`, both directions, `runs` runs, in campaign order; with the
+    local error `local` (a name of LOCAL_ERRORS, or a deviation of position) added."""
+    targets = np.linspace(0.0, travel_mm, max(rows // (2 * runs), 2))
     run, direction, target = [], [], []
     for r in range(1, runs + 1):
-        for d, order in ((1, targets), (-1, targets[::-1])):
+        for sign, order in ((1, targets), (-1, targets[::-1])):
             run += [r] * len(order)
-            direction += [d] * len(order)
+            direction += [sign] * len(order)
             target += list(order)
     x, d = np.array(target), np.array(direction)
-    u = 2 * x / 600.0 - 1
+    u = 2 * x / travel_mm - 1
     rng = np.random.default_rng(seed)
     y = (np.sin(2 * np.pi * x / 10.0 + 0.3) + 0.5 * (3 * u**2 - 1) / 2 - d * 0.75 + rng.normal(0, 0.3, len(x))
          + (LOCAL_ERRORS[local] if isinstance(local, str) else local)(x))
@@ -94,22 +99,25 @@ def main() -> None:
     parser.add_argument("--rows", type=int, default=100_000)
     parser.add_argument("--local", choices=[*sorted(LOCAL_ERRORS), "random"], default="none")
     parser.add_argument("--seed", type=int, default=1, help="the table's noise, and with --local random the draw")
+    parser.add_argument("--runs", type=int, default=5)
+    parser.add_argument("--travel", type=float, default=600.0, help="mm")
     args = parser.parse_args()
-    drawn, local = random_local(args.seed) if args.local == "random" else ("", args.local)
+    drawn, local = random_local(args.seed, args.travel) if args.local == "random" else ("", args.local)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "dense.csv"
-        write_points(path, dense_table(args.rows, seed=args.seed, local=local))
+        write_points(path, dense_table(args.rows, seed=args.seed, local=local, runs=args.runs, travel_mm=args.travel))
         read_s, read_cpu, read_mb, _ = timed(f"from campaign.pointtable import read_points; read_points({str(path)!r})")
         disc_s, disc_cpu, disc_mb, said = timed(f"from campaign.cli import main; main(['discover', {str(path)!r}])")
     load = os.getloadavg()[0]
-    out = {"rows": args.rows, "local": args.local, "seed": args.seed, "drawn": drawn, "read_s": round(read_s, 2), "read_cpu_s": round(read_cpu, 2), "read_peak_mb": round(read_mb),
+    out = {"rows": args.rows, "runs": args.runs, "travel_mm": args.travel, "local": args.local, "seed": args.seed, "drawn": drawn, "read_s": round(read_s, 2), "read_cpu_s": round(read_cpu, 2), "read_peak_mb": round(read_mb),
            "discover_s": round(disc_s, 2), "discover_cpu_s": round(disc_cpu, 2), "discover_peak_mb": round(disc_mb),
            "ratio": round(disc_s / read_s, 1), "cpu_ratio": round(disc_cpu / read_cpu, 1),
            "load_average": round(load, 1), "blas_threads": os.environ.get("OPENBLAS_NUM_THREADS", "1 (axiscal's default)"),
            "said": said.splitlines()[:6]}
     RESULTS.mkdir(exist_ok=True)
     name = "discovery_dense" + ("" if args.local == "none" else f"-{args.local}") + (
-        f"-{args.seed}" if args.local == "random" else "")
+        f"-{args.seed}" if args.local == "random" else "") + (
+        "" if (args.runs, args.travel) == (5, 600.0) else f"-runs{args.runs}-travel{args.travel:g}")
     (RESULTS / f"{name}.json").write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
     print(json.dumps(out, indent=1))
 

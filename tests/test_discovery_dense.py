@@ -5,6 +5,7 @@ not taken for them (campaign.discovery.search.over_the_travel). The bench is ben
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from campaign.discovery.data import campaign_data
 from campaign.discovery.locate import Located, Region
@@ -48,3 +49,54 @@ def test_overlapping_regions_count_once():
     assert not over_the_travel(data, Located(both))  # 224 mm of 600 (the sum would be 448)
     wider = lobes(np.arange(0.0, 400.0, 10.0), 8.0, "+") + lobes(np.arange(0.0, 400.0, 10.0), 8.0, "-")
     assert over_the_travel(data, Located(wider))  # 320 mm of 600
+
+
+def dense_axis(seed: int, targets: int = 6000):
+    """`targets` positions over 600 mm, both directions, one run: a bump or step drawn at random, a
+    reversal and 0.3 µm noise."""
+    rng = np.random.default_rng(seed)
+    x = np.linspace(0.0, 600.0, targets)
+    target = np.concatenate([x, x[::-1]])
+    direction = np.repeat([1, -1], targets)
+    centre, width, size = rng.uniform(100.0, 500.0), rng.uniform(5.0, 120.0), rng.choice([-1.0, 1.0]) * rng.uniform(1, 3)
+    if rng.random() < 0.5:
+        shape = np.exp(-4 * np.log(2) * ((target - centre) / width) ** 2)
+    else:
+        shape = 1 / (1 + np.exp(-(target - centre) * 4.39 / width))
+    deviation = size * shape - 0.7 * direction + rng.normal(0.0, 0.3, len(target))
+    return campaign_data(PointTable(kind="linear", run=np.ones(len(target), dtype=int), direction=direction,
+                                    target=target, deviation=deviation, optional={}, meta={}, source="<test>"))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_grid_binned_finds_the_best_of_the_grid_unbinned(seed, monkeypatch):
+    """On a dense table the grid evaluates wide shapes once per bin (local.GRID_BINS_PER_WIDTH): it picks
+    the shape, side and width the grid picks over every distinct position, its centre within one step
+    of the grid."""
+    from campaign.discovery import local
+    from campaign.discovery.fit import Term, linear_fit
+
+    data = dense_axis(seed)
+    fit = linear_fit(data, [Term("backlash")])
+    binned = local._grid_best(data, fit)
+    monkeypatch.setattr(local, "GRID_BINS_PER_WIDTH", 1e12)  # bins never hold two positions
+    whole = local._grid_best(data, fit)
+    assert binned is not None and whole is not None
+    assert (binned[0], binned[2], binned[3]) == (whole[0], whole[2], whole[3])
+    assert abs(binned[1] - whole[1]) <= 600.0 / local.MAX_CENTRES + 1e-9
+
+
+def test_bins_hold_the_sums_of_their_positions():
+    from campaign.discovery.local import _binned, _Side
+
+    rng = np.random.default_rng(3)
+    xs = np.sort(rng.uniform(0.0, 100.0, 500))
+    side = _Side(0, rng.uniform(0.5, 2.0, 500), rng.normal(size=(500, 4)), rng.normal(size=3))
+    at, ((count, sums, above, count_above),) = _binned(xs, [side], 1.0)
+    assert len(at) < len(xs) and np.all(np.diff(at) > 0)
+    assert count.sum() == pytest.approx(side.count.sum()) and sums.sum(0) == pytest.approx(side.sums.sum(0))
+    # from each bin on: the sums of that bin and those after it; nothing after the last
+    assert above[:-1] == pytest.approx(np.cumsum(sums[::-1], axis=0)[::-1])
+    assert count_above[:-1] == pytest.approx(np.cumsum(count[::-1])[::-1]) and above[-1] == pytest.approx(0.0)
+    # positions too sparse for the bins: the distinct positions themselves
+    assert _binned(xs, [side], 0.01)[0] is xs
