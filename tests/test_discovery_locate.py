@@ -230,3 +230,22 @@ def test_single_targets_beside_a_period_in_part_of_the_travel_are_one_region():
     assert beside_period(spread, 600.0) == []
     reversal = Region("position", "deviation", 0.0, 600.0, -1.0, 0.0, "opposite", "level")
     assert beside_period([reversal, single(200.0, 30.0, 2.0)], 600.0) == [reversal, single(200.0, 30.0, 2.0)]
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_smoothers_leverages_from_its_band_are_those_of_the_whole_matrix(seed):
+    """The leave-one-out CV's leverages bᵢᵀ M diag(shrink) Mᵀ bᵢ taken from the band of M diag(shrink) Mᵀ
+    the points' four neighbouring basis functions reach (locate._Band) are those of every column:
+    points drawn at random and on the knots (fewer nonzeros), M and the shrink drawn too."""
+    from campaign.discovery.locate import _Band, _Smoother
+
+    rng = np.random.default_rng(seed)
+    smoother = _Smoother(-20.0, 480.0, int(rng.integers(6, 60)))
+    u = np.concatenate([rng.uniform(-20.0, 480.0, 400), smoother.knots[3:-3]])
+    values, cols = smoother.rows(u)
+    m = rng.normal(size=(smoother.k, smoother.k))
+    shrink = rng.uniform(0.0, 1.0, smoother.k)
+    z = np.zeros((len(u), smoother.k))
+    for a in range(values.shape[1]):
+        z += values[:, a, None] * m[cols[:, a], :]
+    assert _Band(values, cols, m).leverage(shrink) == pytest.approx((z * z) @ shrink, rel=1e-12, abs=1e-12)

@@ -853,9 +853,9 @@ def periodogram_periods(data: CampaignData, fit: Fit, top: int = 3) -> list[floa
         s, c = sines_cosines(xs, f)
         # Q'·(column): the part in the model's span (as (columnᵀ·Q)ᵀ: BLAS is many times faster so)
         qs, qc = (s @ q_at).T, (c @ q_at).T
-        ss = np.einsum("k,fk,fk->f", count, s, s) - (qs * qs).sum(0)
-        cc = np.einsum("k,fk,fk->f", count, c, c) - (qc * qc).sum(0)
-        sc = np.einsum("k,fk,fk->f", count, s, c) - (qs * qc).sum(0)
+        ss = (s * s) @ count - (qs * qs).sum(0)
+        cc = (c * c) @ count - (qc * qc).sum(0)
+        sc = (s * c) @ count - (qs * qc).sum(0)
         rs, rc = s @ r_at - qr @ qs, c @ r_at - qr @ qc
         det = ss * cc - sc * sc
         ok = det > 1e-9 * np.maximum(ss * cc, 1e-300)
