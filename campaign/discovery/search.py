@@ -903,7 +903,6 @@ def shape_rivals(data: CampaignData, result: Discovery) -> None:
     as a bump at 270 mm, width 117 mm, with no bow; the step and bow have a BIC 4.7 higher and a CV 0.736
     against 0.733 µm, bench seed 11, draw 24296). Its effect beside it is said, not named. The
     follow-up measures over both (regions_to_measure)."""
-    n = len(data)
     final = result.final
     in_model = {t.name.removeprefix(HELD_PREFIX) for t in final.terms}
     forms = [term for _, term in unnamed_forms(data, result) if term.name not in in_model]
@@ -923,7 +922,7 @@ def shape_rivals(data: CampaignData, result: Discovery) -> None:
                 continue
             if beside is not None and not passes_beside(data, rival, beside.name):
                 continue  # the effect adds nothing beside it: the rival is the one without it
-            if not (as_good(data, rival, final) or bic(rival, n) < bic(final, n)):
+            if not fits_as_well(data, rival, final):
                 continue
             said = found.sentence() + (f", with {beside.name} beside it, named only with this shape"
                                        if beside is not None else "")
@@ -1144,8 +1143,7 @@ def rivals_beside_hidden(data: CampaignData, model: ErrorModel, given: dict[str,
         forced = route is None or period_unresolved(route.unresolved)
         if forced:  # the search took the period first: the effect put in beside them, kept if it passes there
             route = with_locals(data, model, given, vocabulary, found, periodic=False, beside=term)
-        if route is None or period_unresolved(route.unresolved) or not (
-                as_good(data, route.final, held) or bic(route.final, len(data)) < bic(held, len(data))):
+        if route is None or period_unresolved(route.unresolved) or not fits_as_well(data, route.final, held):
             continue
         named = [n for n in route.added if n not in vocabulary.added] + ([name] if forced else [])
         add_local_rivals(vocabulary, route.local_errors, beside=named)
@@ -1162,7 +1160,7 @@ def rivals_from_routes(data: CampaignData, vocabulary: Discovery, routes: list[D
     there was one."""
     n = len(data)
     fitting = [r for r in routes[1:] if r.local_errors and not period_unresolved(r.unresolved)
-               and (as_good(data, r.final, held) or bic(r.final, n) < bic(held, n))]
+               and fits_as_well(data, r.final, held)]
     if not fitting:
         return False
     route = min(fitting, key=lambda r: bic(r.final, n))
@@ -1173,6 +1171,12 @@ def rivals_from_routes(data: CampaignData, vocabulary: Discovery, routes: list[D
 RIVAL_SE = 1.0
 """A model predicts left-out targets as well as another when it is worse by at most this many standard errors
 of the paired difference of their targets' errors (as_good)."""
+
+
+def fits_as_well(data: CampaignData, fit: Fit, other: Fit) -> bool:
+    """A rival's test: `fit` predicts left-out targets as well as `other` (as_good), or explains the
+    campaign better by BIC, neither charged for its search."""
+    return as_good(data, fit, other) or bic(fit, len(data)) < bic(other, len(data))
 
 
 def as_good(data: CampaignData, fit: Fit, other: Fit) -> bool:
