@@ -3,7 +3,7 @@
 A CSV file with a header row (UTF-8, BOM allowed, LF or CRLF). Lines starting with `#` are
 comments; a comment of the form `# key: value` is kept as metadata. Columns:
 
-- `run`: integer >= 1;
+- `run`: integer from 1 to MAX_RUN;
 - `direction`: `+` (approach in increasing position) or `-` (decreasing);
 - `target_mm` with `deviation_um` (linear axis) or `target_deg` with `deviation_arcsec` (rotary);
   deviation = measured position - target, the ISO 230-2 sign;
@@ -35,6 +35,9 @@ AXIS_KINDS = {
 
 OPTIONAL_COLUMNS = ("time_s", "air_temp_c", "air_pressure_hpa", "humidity_pct", "material_temp_c")
 
+MAX_RUN = 1_000_000
+"""The largest run number a table may hold (a campaign has a few runs; a number such as 1E100 is not one,
+and would not fit an integer array)."""
 MINUS_SIGNS = str.maketrans({"\u2212": "-", "\u2013": "-"})
 
 
@@ -172,8 +175,9 @@ def _build(header: list[str], rows: list[tuple[int, list[str]]], kind: str, meta
         if len(cells) != len(header):
             raise _fail(path, f"expected {len(header)} fields, found {len(cells)}", number)
         run_value = _number(cells[index["run"]], path, number, "run")
-        if run_value < 1 or run_value != int(run_value):
-            raise _fail(path, f"run must be an integer >= 1, found '{cells[index['run']]}'", number, "run")
+        if not 1 <= run_value <= MAX_RUN or run_value != int(run_value):
+            raise _fail(path, f"run must be an integer from 1 to {MAX_RUN:,}, found '{cells[index['run']][:20]}'",
+                        number, "run")
         sign = cells[index["direction"]].translate(MINUS_SIGNS)
         if sign not in ("+", "-"):
             raise _fail(path, f"unknown direction '{cells[index['direction']][:20]}' (use + or -)",

@@ -41,6 +41,17 @@ def test_point_table_rows(rows):
         assert "\n" not in str(exc)
 
 
+def test_a_run_number_too_large_for_an_integer_is_bad_input(cli, tmp_path):
+    """Found by test_point_table_rows on a fresh clone: a run of 1E100 is a finite number, whole, and
+    at least 1, but no integer array holds it: it was an internal error, not one `error:` line."""
+    path = tmp_path / "p.csv"
+    for run in ("1E100", "1000001"):
+        path.write_text(HEADER + f"{run},+,0,0\n", encoding="utf-8")
+        result = cli("analyze", path)
+        assert result.code == 2
+        assert_one_line_error(result, str(path))
+
+
 def test_point_table_binary_through_cli(cli, tmp_path):
     @settings(max_examples=60, deadline=4000, suppress_health_check=[HealthCheck.function_scoped_fixture])
     @given(st.binary(min_size=1, max_size=300))
