@@ -220,6 +220,10 @@ BAD_RTL = [
     ("bad line", HEAD + "Run Target Data:\n1 1 0.5\n1 2\n", "line 11: expected 'run target_number deviation'"),
     ("missing", HEAD + "Run Target Data:\n1 1 0.5\n1 2 0.1\n2 2 0.3\n", "lacks run 2, target 1"),
     ("odd runs", HEAD.replace("Run-count: 2", "Run-count: 3"), "even Run-count"),
+    # a Run-count of 10²⁰ with two values: the missing ones are counted, not listed (listed, memory ran out)
+    ("huge run count", HEAD.replace("Run-count: 2", "Run-count: 99999999999999999998")
+     + "Run Target Data:\n99999999999999999998 1 0.5\n99999999999999999998 2 0.5\n",
+     "lacks run 1, target 1 (199999999999999999994 values missing)"),
 ]
 
 

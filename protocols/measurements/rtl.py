@@ -203,10 +203,10 @@ def _deviations(lines: list[tuple[int, str]], name: str, n_targets: int, run_cou
             rows.append(Row((run + 1) // 2, 1 if run % 2 else -1, target - 1, deviation))
         else:
             rows.append(Row(run, 1, target - 1, deviation))
-    missing = [(r, t) for r in range(1, run_count + 1) for t in range(1, n_targets + 1) if (r, t) not in seen]
-    if missing:
-        r, t = missing[0]
-        raise FormatError(f"{name}: DEVIATIONS:: lacks run {r}, target {t} ({len(missing)} values missing)")
+    expected = run_count * n_targets  # every (run, target) seen lies within these: the rest are missing
+    if len(seen) < expected:  # the first missing one lies within the first len(seen) + 1 pairs: no list of them all
+        r, t = next((r, t) for r in range(1, run_count + 1) for t in range(1, n_targets + 1) if (r, t) not in seen)
+        raise FormatError(f"{name}: DEVIATIONS:: lacks run {r}, target {t} ({expected - len(seen)} values missing)")
     return rows
 
 
