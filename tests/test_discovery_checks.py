@@ -12,8 +12,9 @@ import pytest
 
 from campaign.config import parse_config
 from campaign.discovery.data import campaign_data, join_campaigns
-from campaign.discovery.fit import Term, independent_periods, linear_fit, weighted
+from campaign.discovery.fit import Term, linear_fit, weighted
 from campaign.discovery.local import gap_um
+from campaign.discovery.periodogram import independent_periods
 from campaign.discovery.search import discover, one_target_p, pooled_scatter_um, zero_at_targets
 from campaign.discovery.simulate import simulate_campaign
 from campaign.model import ErrorModel

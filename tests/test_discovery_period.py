@@ -127,7 +127,7 @@ def test_the_periodograms_sines_match_sin_and_cos_on_uneven_positions(positions)
     over a whole block of frequencies they stay those of sin and cos (to 1e-10 of a unit sine)."""
     import numpy as np
 
-    from campaign.discovery.fit import PERIODOGRAM_CELLS, sines_cosines
+    from campaign.discovery.periodogram import PERIODOGRAM_CELLS, sines_cosines
 
     x = np.sort(np.random.default_rng(positions).uniform(-20.0, 1200.0, positions))
     f = np.arange(1 / 100, 1 / 2, 1 / 9600)[:max(2, PERIODOGRAM_CELLS // positions)]

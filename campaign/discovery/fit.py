@@ -824,76 +824,6 @@ def confounders(data: CampaignData, terms: list[Term], term: Term) -> list[str]:
     return names
 
 
-PERIODOGRAM_CELLS = 1_000_000
-"""Rows × frequencies evaluated at a time by the periodogram (8 MB per array: blocks
-of that size are reused by the allocator, where 32 MB ones were mapped and zeroed afresh each time,
-about 1.3 s of system time and 125 MB of peak at 100,000 rows)."""
-
-
-def periodogram_periods(data: CampaignData, fit: Fit, top: int = 3) -> list[float]:
-    """Periods (mm) where a sine of the residual, fitted beside the model, explains most: a
-    Lomb-Scargle-like periodogram over the plausible screw leads with the model projected out."""
-    low, high = period_limits(data)
-    travel = float(np.ptp(data.x)) or 1.0
-    freqs = np.arange(1 / high, 1 / low, 1 / (8 * travel))
-    r = weighted(data, data.y - fit.prediction)
-    # a sine of x takes one value per distinct position: every sum below is over those, with the
-    # residual's and the basis's sums there (exactly the sums over the weighted rows: a row's sine
-    # is its weight's square root, `root`, times the sine at its position)
-    first, where = distinct_rows(data)
-    xs = data.x[first]
-    root = data.row_scale if data.row_scale is not None else np.ones(len(data))
-    count = np.bincount(where, root**2)
-    r_at = np.bincount(where, root * r)
-    q_at, qr = span_at_positions(data, fit, where, len(xs))
-    power = np.zeros(len(freqs))
-    block = max(1, PERIODOGRAM_CELLS // max(len(xs), 1))  # frequencies at a time: memory linear in the rows
-    for lo in range(0, len(freqs), block):
-        f = freqs[lo:lo + block]
-        s, c = sines_cosines(xs, f)
-        # Q'·(column): the part in the model's span (as (columnᵀ·Q)ᵀ: BLAS is many times faster so)
-        qs, qc = (s @ q_at).T, (c @ q_at).T
-        ss = (s * s) @ count - (qs * qs).sum(0)
-        cc = (c * c) @ count - (qc * qc).sum(0)
-        sc = (s * c) @ count - (qs * qc).sum(0)
-        rs, rc = s @ r_at - qr @ qs, c @ r_at - qr @ qc
-        det = ss * cc - sc * sc
-        ok = det > 1e-9 * np.maximum(ss * cc, 1e-300)
-        power[lo:lo + block][ok] = (cc * rs**2 - 2 * sc * rs * rc + ss * rc**2)[ok] / det[ok]
-    peaks = [i for i in range(len(power)) if power[i] > 0 and (i == 0 or power[i] >= power[i - 1])
-             and (i == len(power) - 1 or power[i] >= power[i + 1])]
-    peaks.sort(key=lambda i: -power[i])
-    return [float(1 / freqs[i]) for i in peaks[:top]]
-
-
-RECURRENCE_POSITIONS = 1000
-"""From this many positions on, sines_cosines steps from one frequency to the next (see there)."""
-
-
-def sines_cosines(x: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """sin(2π·f·x) and cos(2π·f·x) (frequencies × positions) for positions x (mm) and evenly spaced
-    frequencies f (1/mm): the first row from sin and cos, each next by the angle-addition rule with
-    the step's sine and cosine (a multiply-add per cell: a sine and a cosine of every cell cost three
-    times as much; the rounding grows by about 1e-13 per row, nothing beside a periodogram's power).
-    Below RECURRENCE_POSITIONS positions a row is too short to pay for its four calls: sin and cos
-    of every cell there."""
-    if len(x) < RECURRENCE_POSITIONS:
-        angle = 2 * np.pi * np.outer(f, x)
-        return np.sin(angle), np.cos(angle)
-    s, c = np.empty((len(f), len(x))), np.empty((len(f), len(x)))
-    np.sin(2 * np.pi * f[0] * x, out=s[0])
-    np.cos(2 * np.pi * f[0] * x, out=c[0])
-    if len(f) > 1:
-        step = 2 * np.pi * (f[1] - f[0]) * x
-        sin_step, cos_step, part = np.sin(step), np.cos(step), np.empty(len(x))
-        for k in range(1, len(f)):
-            np.multiply(s[k - 1], cos_step, out=s[k])
-            s[k] += np.multiply(c[k - 1], sin_step, out=part)
-            np.multiply(c[k - 1], cos_step, out=c[k])
-            c[k] -= np.multiply(s[k - 1], sin_step, out=part)
-    return s, c
-
-
 def span_at_positions(data: CampaignData, fit: Fit, where: np.ndarray, positions: int) -> tuple[np.ndarray, np.ndarray]:
     """For an orthonormal basis Q of the span of the fit's design on weighted rows: the sums at each
     distinct position (`where`: each row's, of `positions`) of its weighted rows times the rows' weight's
@@ -906,12 +836,6 @@ def span_at_positions(data: CampaignData, fit: Fit, where: np.ndarray, positions
     a_at = np.column_stack([np.bincount(where, w * col, minlength=positions)
                             for i in range(len(blocks.keys)) for col in blocks.block(i).T])
     return a_at @ to_q, to_q.T @ blocks.t_times(data.y - fit.prediction)
-
-
-def independent_periods(data: CampaignData) -> float:
-    """About how many independent periods the periodogram tries (for the look-elsewhere effect)."""
-    low, high = period_limits(data)
-    return max(1.0, float(np.ptp(data.x)) * (1 / low - 1 / high))
 
 
 CV_RCOND = COLLINEAR
@@ -1049,7 +973,7 @@ def cv_searched_errors(data: CampaignData, terms: list[Term], groups: np.ndarray
 
 
 HAT_CELLS = 1_000_000
-"""Numbers gathered at a time by the hat route's blocks (8 MB per array, as PERIODOGRAM_CELLS)."""
+"""Numbers gathered at a time by the hat route's blocks (8 MB per array, as periodogram.PERIODOGRAM_CELLS)."""
 
 
 def _cv_from_hat(blocks: Blocks, y: np.ndarray, index: np.ndarray, groups_hash: int) -> np.ndarray:

@@ -62,7 +62,7 @@ STEP_MIN_SPACINGS = 0.2
 MAX_CENTRES = 600
 """The most centres on the grid (a quarter of the target spacing apart, or the travel over this)."""
 GRID_CELLS = 1_000_000
-"""Rows × centres evaluated at a time by the grid (8 MB per array, as fit.PERIODOGRAM_CELLS)."""
+"""Rows × centres evaluated at a time by the grid (8 MB per array, as periodogram.PERIODOGRAM_CELLS)."""
 GRID_MIN_BLOCK = 32
 """The fewest centres the grid evaluates at a time."""
 BUMP_MAX_SHARE = 4.0

@@ -57,9 +57,7 @@ from campaign.discovery.fit import (
     drop_collinear,
     f_test_p,
     full_columns,
-    independent_periods,
     linear_fit,
-    periodogram_periods,
     refine,
     shape_bounds,
     shapes_held,
@@ -87,6 +85,7 @@ from campaign.discovery.local import (
 )
 from campaign.discovery.local import MAX_REGIONS as MAX_LOCALS
 from campaign.discovery.locate import Located, beside_period, locate
+from campaign.discovery.periodogram import independent_periods, periodogram_periods
 from campaign.discovery.records import (
     Choice,
     Held,
@@ -341,7 +340,7 @@ def disagreement(data: CampaignData, residual: np.ndarray) -> dict:
     by_dir = {("+" if d > 0 else "-"): round(float(residual[data.d == d].mean()), 4) for d in (1, -1)
               if np.any(data.d == d)}
     out = {"by_position_rms_um": round(float(np.sqrt(np.mean(np.square(by_target)))), 4),
-           "by_target_um": {f"{t:g}": round(m, 4) for t, m in zip(targets, by_target)},
+           "by_target_um": dict(zip([f"{t:g}" for t in targets.tolist()], np.round(by_target, 4).tolist())),
            "by_direction_um": by_dir, "by_run": by_run}
     if data.campaigns > 1:
         out["by_campaign_um"] = [round(float(residual[data.campaign_index == c].mean()), 4)
@@ -532,7 +531,7 @@ class NamingTests:
 def naming_tests(data: CampaignData, without: Fit, fit: Fit, name: str, look_elsewhere: float) -> NamingTests:
     """`fit` (`without` and the effect `name`'s term) against `without`: ΔBIC lower by BIC_MARGIN and the
     F-test's p under ALPHA, each with the look-elsewhere factor of the term's search (a searched period:
-    fit.independent_periods; 1 otherwise), and a lower RMS cross-validated by the form's group (a target
+    periodogram.independent_periods; 1 otherwise), and a lower RMS cross-validated by the form's group (a target
     left out, or a run for an effect of time)."""
     n = len(data)
     delta_bic = bic(fit, n) - bic(without, n) + 2 * math.log(look_elsewhere)  # a search costs, as in the p-value
