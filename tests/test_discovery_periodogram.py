@@ -74,6 +74,18 @@ def test_positions_off_a_common_step_take_the_direct_sums(seed):
     assert on_grid(sparse, 0.5) is None  # a grid mostly of empty nodes
 
 
+def test_a_long_fine_grid_held_to_a_micrometre_is_a_grid():
+    """50,000 positions 0.04 mm apart over 2 m, as a point table holds them (to 1e-6 mm): the smallest
+    gap errs the step by a part in 10⁵, which counted from the first position misplaces the last
+    nodes; each gap counted on its own places every one."""
+    x = np.round(np.linspace(0.0, 2000.0, 50_000), 6)
+    grid = on_grid(x, 0.5)
+    assert grid is not None
+    nodes, step = grid
+    assert np.array_equal(nodes, np.arange(50_000))
+    assert step == pytest.approx(2000.0 / 49_999, rel=1e-12)
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_the_chirp_transform_is_the_fourier_sum_at_its_frequencies(seed):
     """chirp_dft against its definition, Σₙ v[n]·exp(−2πi·n·(start + k·stride/length)), on drawn

@@ -127,8 +127,11 @@ def on_grid(xs: np.ndarray, top_frequency: float) -> tuple[np.ndarray, float] | 
     and for a grid with more than GRID_SPARSENESS nodes per position."""
     if len(xs) < GRID_POSITIONS:
         return None
-    whole = np.round((xs - xs[0]) / float(np.min(np.diff(xs))))
-    step = float(xs[-1] - xs[0]) / float(whole[-1])  # from the whole travel: the nodes' rounding kept out
+    gaps = np.diff(xs)
+    # each gap in whole steps (the smallest gap's: a position's rounding errs it by a part in 10⁵,
+    # too much to count 50,000 steps from the first position at once), then the step from the travel
+    whole = np.concatenate([[0.0], np.cumsum(np.round(gaps / float(np.min(gaps))))])
+    step = float(xs[-1] - xs[0]) / float(whole[-1])
     off = float(np.max(np.abs(xs - xs[0] - step * whole)))  # mm
     if 2 * np.pi * top_frequency * off > GRID_PHASE_RAD or whole[-1] > GRID_SPARSENESS * len(xs):
         return None
