@@ -249,3 +249,45 @@ def test_the_smoothers_leverages_from_its_band_are_those_of_the_whole_matrix(see
     for a in range(values.shape[1]):
         z += values[:, a, None] * m[cols[:, a], :]
     assert _Band(values, cols, m).leverage(shrink) == pytest.approx((z * z) @ shrink, rel=1e-12, abs=1e-12)
+
+
+def _dense_lead_table(rng: np.random.Generator) -> tuple[CampaignData, float, float]:
+    """2,000 positions over 1,000 mm, both directions, 2 runs: a 1 µm lead of a period drawn in 6-14 mm
+    (finer than 150 basis functions follow over a metre), a reversal and a 3 µm bump at a drawn place;
+    the table, the period and the bump's centre (mm)."""
+    from campaign.discovery.data import campaign_data
+    from campaign.pointtable import PointTable
+
+    x = np.tile(np.concatenate([np.linspace(0, 1000, 2000), np.linspace(1000, 0, 2000)]), 2)
+    d = np.tile(np.repeat([1.0, -1.0], 2000), 2)
+    run = np.repeat([1, 2], 4000)
+    period, at = rng.uniform(6, 14), rng.uniform(200, 800)
+    y = (np.sin(2 * np.pi * x / period + rng.uniform(0, 6)) - 0.7 * d + 3 * np.exp(-0.5 * ((x - at) / 20) ** 2)
+         + rng.normal(0, 0.3, len(x)))
+    return campaign_data(PointTable(kind="linear", run=run, direction=d, target=x, deviation=y)), period, at
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_row_of_single_targets_over_the_travel_is_said_as_one(seed):
+    """On a dense table a lead the smoother cannot follow departs at hundreds of single targets before
+    anything is named: the summary says them as one row over the travel, beside the bump it lists
+    first; with the lead in the model there is no row and the bump is said alone."""
+    from campaign.commands.discover import regions_said
+    from campaign.discovery.fit import Term, linear_fit
+    from campaign.discovery.locate import ROW, row_of_singles
+
+    data, period, at = _dense_lead_table(np.random.default_rng(8800 + seed))
+    bare = linear_fit(data, [Term("backlash")])
+    located = locate(data, data.y - bare.prediction)
+    row, rest = row_of_singles(located)
+    assert len(row) > 10 * ROW and all(r.one_target for r in row) and not any(r.one_target for r in rest)
+    said = regions_said(located)
+    assert said.startswith("bump +") and f"{len(row)} single targets depart over" in said
+    first = said.split(";")[0]
+    low, high = (float(v) for v in first.split(" at ")[1].removesuffix(" mm").split("–"))
+    assert low < at < high
+    lead = Term("periodic_lead", {"period_mm": period}, False, {"period_mm": period})
+    with_lead = linear_fit(data, [Term("backlash"), lead])
+    located = locate(data, data.y - with_lead.prediction)
+    assert row_of_singles(located)[0] == []
+    assert "single targets depart" not in regions_said(located) and regions_said(located).startswith("bump +")

@@ -26,7 +26,7 @@ from campaign.discovery.data import (
 from campaign.discovery.fit import derived
 from campaign.discovery.followup import FollowUp, is_drift_shape_group, plan_follow_up, regions_to_measure
 from campaign.discovery.local import LocalError, Zone, zones
-from campaign.discovery.locate import Located, short
+from campaign.discovery.locate import Located, row_of_singles, short
 from campaign.discovery.records import Unresolved
 from campaign.discovery.search import Candidate, Discovery, discover
 from campaign.effects import effect as registered
@@ -376,12 +376,21 @@ first; --verbose gives all)."""
 
 
 def regions_said(located: Located | None) -> str:
-    """The largest regions in a few words each, and how many more there are."""
+    """The largest regions in a few words each, and how many more there are; one-target departures
+    in a row over the travel (row_of_singles) said together, as one."""
     if located is None or not located.regions:
         return "nothing beyond the noise"
-    ordered = sorted(located.regions, key=lambda r: -abs(r.peak_um))
-    said = "; ".join(short(r) for r in ordered[:SUMMARY_REGIONS])
-    more = len(ordered) - SUMMARY_REGIONS
+    row, rest = row_of_singles(located)
+    items = [(abs(r.peak_um), short(r)) for r in rest]
+    if row:
+        peak = max(row, key=lambda r: abs(r.peak_um))
+        text = (f"{len(row)} single targets depart over {min(r.start for r in row):.4g}–{max(r.end for r in row):.4g} "
+                f"{peak.unit}, up to {peak.peak_um:+.1f} {peak.deviation_unit} (structure finer than the located "
+                "curve follows)")
+        items.append((abs(peak.peak_um), text))
+    items.sort(key=lambda item: -item[0])
+    said = "; ".join(text for _, text in items[:SUMMARY_REGIONS])
+    more = len(items) - SUMMARY_REGIONS
     return said + (f"; {more} more (--verbose)" if more > 0 else "")
 
 

@@ -604,6 +604,26 @@ def odd_targets(data: CampaignData, residual: np.ndarray, noise_um: float, curve
     return out
 
 
+ROW = 10
+"""More one-target departures than this, spread over more than WIDE of the travel, are a row (row_of_singles)."""
+
+
+def row_of_singles(located: Located) -> tuple[list[Region], list[Region]]:
+    """The one-target departures along the axis when they are a row over the travel (more than ROW of
+    them spread over more than WIDE of the span of the curves), and the other regions; no row: ([], all).
+    Such a row is structure finer than the smoother follows, seen target by target: on a dense table,
+    a wave of a few millimetres that MAX_BASIS basis functions over a metre cannot hold (a 10 mm lead
+    over 1,000 mm at 12,500 positions departs at some 2,800 of them before anything is named). Said as
+    one row; each one stays a region of its own (the routes and --json see them all)."""
+    singles = [r for r in located.regions if r.over == "position" and r.one_target]
+    spans = [float(np.ptp(c.at)) for c in located.curves if c.over == "position"]
+    if len(singles) <= ROW or not spans:
+        return [], located.regions
+    if max(r.end for r in singles) - min(r.start for r in singles) <= WIDE * max(spans):
+        return [], located.regions
+    return singles, [r for r in located.regions if not (r.over == "position" and r.one_target)]
+
+
 def beside_period(regions: list[Region], travel: float) -> list[Region]:
     """The regions left beside an unresolved period. One target's departures are that period seen at few
     targets (said by its unresolved group) when they spread over more than WIDE of the travel; in part
