@@ -30,6 +30,28 @@ def test_the_region_term_is_zero_before_its_region_and_holds_its_level_after():
     assert np.linalg.matrix_rank(cols[inside]) == 5
 
 
+@pytest.mark.parametrize("pieces", [1, 2, 5])
+def test_a_region_open_at_both_sides_spans_with_the_offset_what_its_whole_basis_spans(pieces):
+    """A region from the first target whose level goes on after it: its whole clamped basis sums to one,
+    the offset's column. One column fewer, full rank beside the offset, the same span with it."""
+    x = np.linspace(0.0, 600.0, 301)
+    cols = region_basis(x, 0.0, 250.0, pieces, True, True)
+    assert cols.shape == (301, pieces + 2)
+    assert np.all(cols[x <= 0.0] == 0.0) and np.allclose(cols[x >= 250.0], cols[-1])
+    with_offset = np.column_stack([np.ones_like(x), cols])
+    assert np.linalg.matrix_rank(with_offset) == pieces + 3
+    open_start = region_basis(x, 0.0, 250.0, pieces, False, True)  # closed at the end: nothing sums to one
+    assert np.linalg.matrix_rank(np.column_stack([np.ones_like(x), open_start])) == open_start.shape[1] + 1
+    inner = np.linspace(0.0, 250.0, pieces + 1)  # the whole basis: every cubic B-spline of those knots, clamped
+    from scipy.interpolate import BSpline
+
+    knots = np.r_[[0.0] * 3, inner, [250.0] * 3]
+    whole = BSpline.design_matrix(np.clip(x, 0.0, 250.0), knots, 3).toarray()
+    assert np.allclose(whole.sum(1), 1.0)
+    projected = with_offset @ np.linalg.lstsq(with_offset, whole, rcond=None)[0]
+    assert np.abs(projected - whole).max() < 1e-9
+
+
 @pytest.mark.parametrize("seed", range(12))
 def test_a_region_step_is_said_between_the_targets_it_changes_most_between(seed):
     """A region term whose level goes on after it, fitted to a sharp step between two drawn neighbouring

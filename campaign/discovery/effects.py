@@ -116,7 +116,10 @@ def region_basis(x: np.ndarray, start_mm: float, end_mm: float, pieces: int, ope
     goes on); otherwise the two not flat at the end go too, and the term is zero after it (a bump of
     any shape). open_start: the two at the start stay (a region that begins at the first target, where
     nothing is measured before it). pieces + 3 columns less two for each closed side (pieces at least
-    2 when both are closed)."""
+    2 when both are closed), less the first when both are open: all of them sum to one everywhere, the
+    offset's column (a rank lost, charged as a parameter, and on a dense table a fit through the SVD of
+    the whole design each time); without the first, the term is zero at and before the start, where the
+    offset holds the level (in one direction only, a reversal's: the vocabulary's, not a local term's)."""
     pieces = max(int(pieces), 1 if open_end or open_start else 2)
     inner = np.linspace(start_mm, end_mm, pieces + 1)
     knots = np.r_[[start_mm] * 3, inner, [end_mm] * 3]
@@ -133,6 +136,8 @@ def region_basis(x: np.ndarray, start_mm: float, end_mm: float, pieces: int, ope
     if not open_start:
         cols = cols[:, 2:]
         cols[np.asarray(x) < start_mm] = 0.0
+    elif open_end:
+        cols = cols[:, 1:]
     return cols if open_end else cols[:, :-2]
 
 
