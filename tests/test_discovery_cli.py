@@ -249,3 +249,49 @@ def test_a_step_between_two_targets_is_said_between_them_not_at_a_fitted_place(c
     assert steps and all(e["between_targets_mm"][1] - e["between_targets_mm"][0] == pytest.approx(60.0)
                          for e in steps)
     assert all("between the targets at" in e["sentence"] and "rising over" not in e["sentence"] for e in steps)
+
+
+def test_discover_tells_its_stages_in_order_and_they_change_nothing():
+    """discover's `stage` hears each stage as it begins (the vocabulary first, the final model's
+    residual located last, the routes counted in between), and the result is the one without it."""
+    from campaign.discovery.data import campaign_data
+    from campaign.discovery.search import discover
+    from campaign.model import ErrorModel
+    from tests.test_discovery_period import FINE_PLAN
+
+    config = parse_config(FINE_PLAN.format(count=21, cycles=3), source="fine")
+    truth = ErrorModel({"linear_scale": {"ppm": 4.0}, "backlash": {"b_um": 1.5},
+                        "local_defect": {"amplitude_um": 3.0, "centre_mm": 31.0, "width_mm": 8.0, "skew": 0.0},
+                        "noise": {"sigma_um": 0.3}})
+    data = campaign_data(simulate_campaign(config, truth, seed=5))
+    start = ErrorModel({"linear_scale": {}})
+    stages: list[str] = []
+    told = discover(data, start, {"linear_scale": set()}, stage=stages.append)
+    plain = discover(data, start, {"linear_scale": set()})
+    assert stages[0] == "searching the vocabulary" and stages[-1] == "locating what the final model leaves"
+    assert any(s.startswith("choosing between ") and s.endswith(" routes") for s in stages)
+    routes = [s for s in stages if s.startswith("route ")]
+    assert routes  # the defect is found beside the vocabulary: a route at least
+    assert [int(s.split()[1].rstrip(":")) for s in routes] == list(range(1, len(routes) + 1))
+    assert told.added == plain.added and told.gap_after_um == plain.gap_after_um
+    assert [e.sentence() for e in told.local_errors] == [e.sentence() for e in plain.local_errors]
+
+
+@pytest.mark.machine  # a terminal (pty) and two subprocesses, about 6 s
+def test_discover_shows_what_it_is_doing_on_a_terminal_and_nothing_in_a_pipe():
+    import os
+
+    import pexpect
+
+    table = ROOT / "tests" / "recorded" / "backlash-settling-bump-350mm.csv"
+    env = dict(os.environ, TERM="xterm")
+    child = pexpect.spawn(sys.executable, ["-m", "campaign", "discover", str(table)], cwd=str(ROOT), env=env,
+                          dimensions=(40, 160), encoding="utf-8", timeout=60)
+    child.expect("discovering")
+    child.expect(pexpect.EOF)
+    child.close()
+    assert child.exitstatus == 0
+    piped = subprocess.run([sys.executable, "-m", "campaign", "discover", str(table)], cwd=str(ROOT),
+                           capture_output=True, text=True, timeout=60, check=False)
+    assert piped.returncode == 0 and "discovering" not in piped.stderr + piped.stdout
+    assert "gap " in piped.stdout

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import argparse
 import re
+import sys
+import time
 from collections.abc import Collection, Iterator
 from pathlib import Path
 from typing import Any
@@ -611,6 +613,17 @@ def reversal_um(result: Discovery) -> float | None:
     return None
 
 
+def discover_shown(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) -> Discovery:
+    """discover, its stages shown on the terminal (stderr, when it is one) while it works: a dense
+    table takes tens of seconds. Nothing is shown in a pipe or a file, and the line goes when done."""
+    if not sys.stderr.isatty():
+        return discover(data, model, given)
+    started = time.monotonic()
+    with make_console(stderr=True).status("discovering") as status:
+        return discover(data, model, given, stage=lambda text: status.update(
+            f"discovering ({time.monotonic() - started:.0f} s): {text}"))
+
+
 def run(args: argparse.Namespace) -> int:
     plot_path = check_plot_path(args.plot) if args.plot else None
     if args.save and Path(args.save).suffix.lower() != ".toml":
@@ -629,7 +642,7 @@ def run(args: argparse.Namespace) -> int:
     if len(data) < 4:
         raise InputError(f"{args.files[0]}: {len(data)} points are too few to fit a model")
     kind = data.kind
-    result = discover(data, model, given)
+    result = discover_shown(data, model, given)
     result.notes[:0] = incomplete + read + [n for o in outliers for n in outlier_notes(o, kind)]
     follow, failed = None, None
     if config is not None:

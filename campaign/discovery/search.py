@@ -716,7 +716,8 @@ def prefer_simpler(best: Candidate, accepted: list[Candidate], n: int, notes: li
     return simpler
 
 
-def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) -> Discovery:
+def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]],
+             stage: Callable[[str], None] | None = None) -> Discovery:
     """Run discovery on a campaign from a starting model (`given`: the parameters the user gave
     per effect; the others are fitted). Routes, the one that explains the campaign best
     (route_score) kept: the vocabulary alone; the vocabulary, then errors outside it located
@@ -727,7 +728,10 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     steps located beside that vocabulary, then the vocabulary beside them. A vocabulary effect is thus named only when
     it explains the campaign better than local terms over the regions located: an effect that merely
     soaked up a local error (a bow, a short period, a reversal) is not named. A bump or step of the
-    route kept is said with the other shape when that fits as well (shape_rivals)."""
+    route kept is said with the other shape when that fits as well (shape_rivals). `stage` is told, in a
+    few words, each stage as it begins (the command line shows it while a dense table takes seconds)."""
+    said = stage or (lambda _: None)
+    said("searching the vocabulary")
     vocabulary = search_vocabulary(data, model, given)
     periodic = period_unresolved(vocabulary.unresolved)
     soakers = [n for n in reversed(vocabulary.added) if may_soak(n)]
@@ -744,16 +748,20 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     hidden = ((found, False) for found in locals_beside_unnamed(data, vocabulary, beside, periodic))
     own = ((found, True) for found in itertools.chain((beside, first), locals_beside_all_but(data, vocabulary)))
     tried: list[tuple[list[LocalError], bool]] = []
+    said("looking for local errors beside what it named")
     for found, rivals_said in itertools.chain(own, hidden):
         if found and not any(_same_places(found, r.local_errors) for r in routes[1:]) and not any(
-                said == rivals_said and _same_found(found, earlier) for earlier, said in tried):
+                was == rivals_said and _same_found(found, earlier) for earlier, was in tried):
             tried.append((found, rivals_said))
+            said(f"route {len(tried)}: the vocabulary again beside local errors in {places(found)} place(s)")
             route = with_locals(data, model, given, vocabulary, found, periodic, rivals_said=rivals_said)
             if route is not None:
                 routes.append(route)
     if periodic:
         rivals_beside_hidden(data, model, given, vocabulary, routes)
+    said("locating where the campaign departs from the starting model")
     start_located = locate(data, data.y - vocabulary.start.prediction)
+    said("local terms over the regions located, and the vocabulary beside them")
     regions = with_regions(data, model, given, vocabulary, start_located, periodic)
     if regions is not None and (cv_rms_um(data, regions.final.terms, data.target_index)
                                 < cv_rms_um(data, vocabulary.final.terms, data.target_index)):
@@ -767,6 +775,7 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
                 route = with_locals(data, model, given, vocabulary, found, periodic)
                 if route is not None:
                     routes.append(route)
+    said(f"choosing between {len(routes)} routes")
     scores = [route_score(data, r, held_vocabulary if r is vocabulary and not periodic else None) for r in routes]
     best = min(range(len(routes)), key=lambda i: scores[i] + (0.0 if i == 0 else BIC_MARGIN))
     if best == 0 and (closer := [i for i in range(1, len(routes)) if scores[i] < scores[0]]):
@@ -778,6 +787,7 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
         for name in dropped:
             _note(routes[best].notes, f"{name} explained part of the residual before the local errors were located; "
                                       "beside them it is not significant: not named (it soaked up a local error)")
+    said("testing what the route kept against its rivals")
     result = unnamed_beside_regions(data, routes[best])
     result = hold_what_is_left(data, result)
     result = hold_unresolved(data, result, periods=False)
@@ -785,6 +795,7 @@ def discover(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) 
     result = hold_unresolved(data, result, periods=True)
     rivals_not_excluded(data, result)
     shape_rivals(data, result)
+    said("locating what the final model leaves")
     result.located_before = start_located if result.start is vocabulary.start else locate(
         data, data.y - result.start.prediction)
     result.located_after = locate(data, data.y - model_prediction(data, result.final))
