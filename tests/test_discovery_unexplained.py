@@ -35,7 +35,7 @@ def test_a_region_open_at_both_sides_spans_with_the_offset_what_its_whole_basis_
     """A region from the first target whose level goes on after it: its whole clamped basis sums to one,
     the offset's column. One column fewer, full rank beside the offset, the same span with it."""
     x = np.linspace(0.0, 600.0, 301)
-    cols = region_basis(x, 0.0, 250.0, pieces, True, True)
+    cols = region_basis(x, 0.0, 250.0, pieces, True, True, offset_level=True)
     assert cols.shape == (301, pieces + 2)
     assert np.all(cols[x <= 0.0] == 0.0) and np.allclose(cols[x >= 250.0], cols[-1])
     with_offset = np.column_stack([np.ones_like(x), cols])
@@ -50,6 +50,29 @@ def test_a_region_open_at_both_sides_spans_with_the_offset_what_its_whole_basis_
     assert np.allclose(whole.sum(1), 1.0)
     projected = with_offset @ np.linalg.lstsq(with_offset, whole, rcond=None)[0]
     assert np.abs(projected - whole).max() < 1e-9
+    assert np.allclose(region_basis(x, 0.0, 250.0, pieces, True, True), whole)  # one direction's: all stay
+
+
+def test_only_a_region_in_both_directions_from_the_first_target_leaves_its_level_to_the_offset():
+    """region_term marks the offset's level only where the whole basis sums to the offset's column: a
+    region in both directions, from the first target, its level going on; a one-direction region keeps
+    every column (beside the offset alone its basis sums to that direction's indicator, a level the
+    offset does not hold)."""
+    from campaign.discovery.effects import form_of
+    from campaign.discovery.locate import Region
+    from campaign.discovery.unexplained import region_term
+
+    data = table(np.random.default_rng(3), 11, lambda x, d, t: 0.0 * x, 0.3, golden=False)
+    for direction, side in (("both", 0), ("+", 1), ("-", -1)):
+        for shape, start in (("step", 0.0), ("bump", 0.0), ("step", 200.0)):
+            region = Region("position", "deviation", start, start + 150.0, 2.0, start + 60.0, direction, shape)
+            term = region_term(data, region, 1)
+            assert term is not None
+            marked = side == 0 and shape == "step" and start == 0.0
+            assert term.shape["offset_level"] == float(marked), (direction, shape, start)
+            cols = form_of(term.name).columns(data, term.shape, {})
+            rank = np.linalg.matrix_rank(np.column_stack([np.ones(len(data)), cols]))
+            assert rank == cols.shape[1] + 1, (direction, shape, start)  # none is the offset's
 
 
 @pytest.mark.parametrize("seed", range(12))

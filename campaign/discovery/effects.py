@@ -109,17 +109,19 @@ def _cubic_basis(x: np.ndarray, knots: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 
 def region_basis(x: np.ndarray, start_mm: float, end_mm: float, pieces: int, open_end: bool = True,
-                 open_start: bool = False) -> np.ndarray:
+                 open_start: bool = False, offset_level: bool = False) -> np.ndarray:
     """A local term whose shape follows the data over [start_mm, end_mm]: cubic B-splines on `pieces`
     equal intervals, without the two that are not flat at the start (so the term and its slope are
     zero there and before it). open_end: each is held at its end value beyond the end (a step's level
     goes on); otherwise the two not flat at the end go too, and the term is zero after it (a bump of
     any shape). open_start: the two at the start stay (a region that begins at the first target, where
     nothing is measured before it). pieces + 3 columns less two for each closed side (pieces at least
-    2 when both are closed), less the first when both are open: all of them sum to one everywhere, the
-    offset's column (a rank lost, charged as a parameter, and on a dense table a fit through the SVD of
-    the whole design each time); without the first, the term is zero at and before the start, where the
-    offset holds the level (in one direction only, a reversal's: the vocabulary's, not a local term's)."""
+    2 when both are closed), less the first when both are open and `offset_level`: in both directions
+    they then sum to one everywhere, the offset's column (a rank lost, charged as a parameter, and on a
+    dense table a fit through the SVD of the whole design each time); without the first the term is
+    zero at and before the start, where the offset holds the level, so its peak and level after are
+    measured from the level at the first target. (In one direction they sum to that direction's
+    indicator, which the offset does not span: all stay.)"""
     pieces = max(int(pieces), 1 if open_end or open_start else 2)
     inner = np.linspace(start_mm, end_mm, pieces + 1)
     knots = np.r_[[start_mm] * 3, inner, [end_mm] * 3]
@@ -136,23 +138,28 @@ def region_basis(x: np.ndarray, start_mm: float, end_mm: float, pieces: int, ope
     if not open_start:
         cols = cols[:, 2:]
         cols[np.asarray(x) < start_mm] = 0.0
-    elif open_end:
+    elif open_end and offset_level:
         cols = cols[:, 1:]
     return cols if open_end else cols[:, :-2]
 
 
+def region_basis_of(x: np.ndarray, shape: Shape) -> np.ndarray:
+    """region_basis at positions x (mm) with a region term's shape: start_mm, end_mm, pieces, open_end,
+    open_start and offset_level (1.0 or 0.0; the last two may be absent: 0)."""
+    return region_basis(x, shape["start_mm"], shape["end_mm"], int(shape["pieces"]), shape["open_end"] > 0,
+                        shape.get("open_start", 0.0) > 0, shape.get("offset_level", 0.0) > 0)
+
+
 def _region_columns(side: int) -> Callable[[Samples, Shape, Shape], np.ndarray]:
     def columns(data: Samples, shape: Shape, held: Shape) -> np.ndarray:
-        g = region_basis(data.x, shape["start_mm"], shape["end_mm"], int(shape["pieces"]), shape["open_end"] > 0,
-                         shape.get("open_start", 0.0) > 0)
+        g = region_basis_of(data.x, shape)
         return g if side == 0 else g * (data.d * side > 0)[:, None]
     return columns
 
 
 def _region_params(c: np.ndarray, shape: Shape, held: Shape) -> dict[str, float]:
     grid = np.linspace(shape["start_mm"], shape["end_mm"], 201)
-    values = region_basis(grid, shape["start_mm"], shape["end_mm"], int(shape["pieces"]), shape["open_end"] > 0,
-                         shape.get("open_start", 0.0) > 0) @ c
+    values = region_basis_of(grid, shape) @ c
     k = int(np.argmax(np.abs(values)))
     return {"peak_um": float(values[k]), "peak_at_mm": float(grid[k]), "level_after_um": float(values[-1]),
             **shape}

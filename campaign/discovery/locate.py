@@ -613,7 +613,7 @@ def row_of_singles(located: Located) -> tuple[list[Region], list[Region]]:
     them spread over more than WIDE of the span of the curves), and the other regions; no row: ([], all).
     Such a row is structure finer than the smoother follows, seen target by target: on a dense table,
     a wave of a few millimetres that MAX_BASIS basis functions over a metre cannot hold (a 10 mm lead
-    over 1,000 mm at 12,500 positions departs at some 2,800 of them before anything is named). Said as
+    over 1,000 mm at 25,000 positions departs at 2,800 to 3,800 of them before anything is named). Said as
     one row; each one stays a region of its own (the routes and --json see them all)."""
     singles = [r for r in located.regions if r.over == "position" and r.one_target]
     spans = [float(np.ptp(c.at)) for c in located.curves if c.over == "position"]

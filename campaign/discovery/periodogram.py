@@ -7,9 +7,11 @@ frequencies at a time. When the positions lie on a regular grid (a dense plan, a
 bins; to the 1e-6 mm a point table holds), each sum over positions of a value times a sine is a
 discrete Fourier transform of the values on the grid, and the frequencies searched are evenly spaced:
 a chirp z-transform gives them all in FFTs about as long as the grid. The two ways give the same
-power (to 1e-9 of the highest; a test holds them to each other); the second costs n·log n in the
-positions once per column of the model, not positions × frequencies × columns (at 12,500 positions
-and 3,920 frequencies, 0.04 s for a model of 5 columns against 0.9 s).
+power: to about 1e-13 of the highest on an exact grid (a test holds them to 1e-9 of each other); a
+position held to 1e-6 mm is moved to its node, which changes the power by up to about 1e-6 of the
+highest (GRID_PHASE_RAD). The second costs n·log n in the positions once per column of the model, not
+positions × frequencies × columns (at 25,000 positions and 3,920 frequencies, about 0.03 s for a model
+of 5 columns against 0.9 s).
 
 Units: positions and periods mm, frequencies 1/mm, power µm² (weighted).
 """
@@ -23,9 +25,10 @@ from campaign.discovery.effects import period_limits
 from campaign.discovery.fit import Fit, distinct_rows, span_at_positions, weighted
 
 PERIODOGRAM_CELLS = 1_000_000
-"""Rows × frequencies evaluated at a time by the direct sums, and grid points × columns by the FFT
-(8 MB per array: blocks of that size are reused by the allocator, where 32 MB ones were mapped and
-zeroed afresh each time, about 1.3 s of system time and 125 MB of peak at 100,000 rows)."""
+"""Rows × frequencies evaluated at a time by the direct sums (8 MB per array: blocks of that size
+are reused by the allocator, where 32 MB ones were mapped and zeroed afresh each time, about 1.3 s of
+system time and 125 MB of peak at 100,000 rows), and (grid nodes + frequencies) × columns by the chirp
+transform (its arrays complex, of about twice that length: some 16 MB each)."""
 
 def independent_periods(data: CampaignData) -> float:
     """About how many independent periods the periodogram tries (for the look-elsewhere effect)."""
@@ -40,9 +43,10 @@ GRID_POSITIONS = 1000
 """From this many distinct positions on, positions on a regular grid take the FFT's sums."""
 
 GRID_PHASE_RAD = 1e-5
-"""Positions lie on a grid when moving each to its node turns no sine searched by more than this
-(radians; a relative change of the power of that order). A point table holds its targets to 1e-6 mm:
-at the shortest period searched, 2 mm, that is 1.6e-6 rad."""
+"""Positions lie on a grid when moving each to its node turns no sine it sums by more than this
+(radians; a relative change of the power of that order), at twice the highest frequency searched
+(sin² and cos² are sums at twice it). A point table holds its targets to 1e-6 mm: at the shortest
+period searched, 2 mm, that is 3.1e-6 rad."""
 
 GRID_SPARSENESS = 4
 """The grid is used only when it has at most this many nodes per distinct position (a few positions
@@ -80,12 +84,12 @@ def periodogram_power(data: CampaignData, fit: Fit) -> tuple[np.ndarray, np.ndar
     count = np.bincount(where, root**2)
     r_at = np.bincount(where, root * r)
     q_at, qr = span_at_positions(data, fit, where, len(xs))
-    grid = on_grid(xs, float(freqs[-1]) if len(freqs) else 0.0)
+    grid = on_grid(xs, 2 * float(freqs[-1]) if len(freqs) else 0.0)
     if grid is not None and len(freqs):
         nodes, step = grid
-        length = FREQUENCIES_PER_TRAVEL * int(nodes[-1])  # the grid's length, 8 travels
-        freqs = freqs[0] + np.arange(len(freqs)) / (length * step)  # the same, to rounding
-        sums = _grid_sums(nodes, step, length, freqs[0], len(freqs), count, r_at, q_at, qr)
+        dft_length = FREQUENCIES_PER_TRAVEL * int(nodes[-1])  # nodes: 8 travels give the frequency step
+        freqs = freqs[0] + np.arange(len(freqs)) / (dft_length * step)  # the same, to rounding
+        sums = _grid_sums(nodes, step, dft_length, freqs[0], len(freqs), count, r_at, q_at, qr)
     else:
         sums = _direct_sums(xs, freqs, count, r_at, q_at, qr)
     ss, cc, sc, rs, rc = sums
@@ -124,7 +128,10 @@ def on_grid(xs: np.ndarray, top_frequency: float) -> tuple[np.ndarray, float] | 
     """For sorted distinct positions (mm) on a regular grid: each one's node (an integer, the first
     at 0) and the grid's step (mm). None for fewer than GRID_POSITIONS positions, for positions that
     a node is too far from (its sine at `top_frequency`, 1/mm, would turn by more than GRID_PHASE_RAD)
-    and for a grid with more than GRID_SPARSENESS nodes per position."""
+    and for a grid with more than GRID_SPARSENESS nodes per position. The step is the smallest gap's:
+    positions at a common step whose gaps are all two steps or more (2 and 3 steps, say) take the
+    direct sums, as do gaps so long that a gap's rounding errs by half a step (about 20,000 steps at
+    1e-6 mm in 0.04 mm): correct either way, only slower."""
     if len(xs) < GRID_POSITIONS:
         return None
     gaps = np.diff(xs)
@@ -138,18 +145,18 @@ def on_grid(xs: np.ndarray, top_frequency: float) -> tuple[np.ndarray, float] | 
     return whole.astype(np.int64), step
 
 
-def _grid_sums(nodes: np.ndarray, step: float, length: int, f0: float, count_f: int, count: np.ndarray,
+def _grid_sums(nodes: np.ndarray, step: float, dft_length: int, f0: float, frequencies: int, count: np.ndarray,
                r_at: np.ndarray, q_at: np.ndarray, qr: np.ndarray) -> Sums:
-    """The sums at frequencies f0 + k / (length · step), k < count_f (chirp_dft of the values on the
-    grid). Positions are measured from the first: the power does not depend on the origin (a shift
+    """The sums at the frequencies f0 + k / (dft_length · step), k < `frequencies` (1/mm; `step` mm, the
+    grid's; chirp_dft of the values on the grid). Positions are measured from the first: the power does not depend on the origin (a shift
     only turns each frequency's sine and cosine into each other). sin² and cos² and sin·cos are
     halves of 1 and of the cosine and sine at twice the frequency."""
-    def transform(values: np.ndarray, times: int) -> np.ndarray:
-        """Σ values · exp(−2πi · times · f_k · x) over the positions, for every k (values: positions ×
-        columns; the result count_f × columns)."""
+    def transform(values: np.ndarray, multiple: int) -> np.ndarray:
+        """Σ values · exp(−2πi · multiple · f_k · x) over the positions, for every k (values: positions ×
+        columns; the result frequencies × columns)."""
         placed = np.zeros((int(nodes[-1]) + 1, values.shape[1]))
         placed[nodes] = values
-        return chirp_dft(placed, count_f, times * f0 * step, times, length)
+        return chirp_dft(placed, frequencies, multiple * f0 * step, multiple, dft_length)
 
     # Σ v·exp(−iθ) = Σ v·cos θ − i Σ v·sin θ
     doubled = transform(count[:, None], 2)[:, 0]
@@ -157,7 +164,7 @@ def _grid_sums(nodes: np.ndarray, step: float, length: int, f0: float, count_f: 
     ss, cc, sc = (total - doubled.real) / 2, (total + doubled.real) / 2, -doubled.imag / 2
     at_r = transform(r_at[:, None], 1)[:, 0]
     rs, rc = -at_r.imag, at_r.real.copy()
-    block = max(1, PERIODOGRAM_CELLS // (int(nodes[-1]) + 1 + count_f))
+    block = max(1, PERIODOGRAM_CELLS // (int(nodes[-1]) + 1 + frequencies))
     for lo in range(0, q_at.shape[1], block):
         at_q = transform(q_at[:, lo:lo + block], 1)
         qs, qc = -at_q.imag, at_q.real

@@ -18,7 +18,7 @@ from dataclasses import replace
 import numpy as np
 
 from campaign.discovery.data import CampaignData
-from campaign.discovery.effects import region_basis
+from campaign.discovery.effects import region_basis_of
 from campaign.discovery.fit import (
     Blocks,
     Fit,
@@ -71,9 +71,11 @@ def region_term(data: CampaignData, region: Region, index: int) -> Term | None:
     pieces = int(np.clip(inside // 2, 1 if step else 2, MAX_PIECES))
     name = "local_region" + SIDES.get(region.direction, "") + (f"#{index}" if index > 1 else "")
     at_end = end >= float(targets[-1])  # nothing is measured beyond the travel: no side to close there
+    open_end, open_start = step or at_end, start <= float(targets[0])
+    both = not SIDES.get(region.direction, "")  # local_region, in both directions: the offset's level
     return Term(name, {}, False, {"start_mm": start, "end_mm": end, "pieces": float(pieces),
-                                  "open_end": 1.0 if step or at_end else 0.0,
-                                  "open_start": 1.0 if start <= float(targets[0]) else 0.0})
+                                  "open_end": float(open_end), "open_start": float(open_start),
+                                  "offset_level": float(both and open_end and open_start)})
 
 
 def is_region(term: Term) -> bool:
@@ -121,8 +123,7 @@ def describe_region(data: CampaignData, fit: Fit, name: str, without: Fit) -> Lo
     mine = blocks.slice_of(fit.terms, i)
     block = cov[mine, mine]
     at = np.array([params["peak_at_mm"]])
-    b = region_basis(at, shape["start_mm"], shape["end_mm"], int(shape["pieces"]), shape["open_end"] > 0,
-                     shape.get("open_start", 0.0) > 0)[0]
+    b = region_basis_of(at, shape)[0]
     peak_error = float(math.sqrt(max(float(b @ block @ b), 0.0)))
     stepped = abs(params["level_after_um"]) >= STEPPED_SHARE * abs(params["peak_um"])
     where, between = params["peak_at_mm"], None
@@ -183,8 +184,7 @@ def steepest_between(targets: np.ndarray, shape: dict[str, float], coefs: np.nda
     at = targets[max(lo, 0):min(hi, len(targets))]
     if len(at) < 2:
         return None
-    values = region_basis(at, shape["start_mm"], shape["end_mm"], int(shape["pieces"]), shape["open_end"] > 0,
-                          shape.get("open_start", 0.0) > 0) @ coefs
+    values = region_basis_of(at, shape) @ coefs
     k = int(np.argmax(np.abs(np.diff(values))))
     return float(at[k]), float(at[k + 1])
 
