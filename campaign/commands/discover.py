@@ -7,7 +7,6 @@ from __future__ import annotations
 import argparse
 import re
 import sys
-import time
 from collections.abc import Collection, Iterator
 from pathlib import Path
 from typing import Any
@@ -614,14 +613,17 @@ def reversal_um(result: Discovery) -> float | None:
 
 
 def discover_shown(data: CampaignData, model: ErrorModel, given: dict[str, set[str]]) -> Discovery:
-    """discover, its stages shown on the terminal (stderr, when it is one) while it works: a dense
-    table takes tens of seconds. Nothing is shown in a pipe or a file, and the line goes when done."""
+    """discover, its stage and the time so far shown on the terminal (stderr, when it is one) while it
+    works: a dense table takes tens of seconds. Nothing is shown in a pipe or a file, and the line goes
+    when done."""
     if not sys.stderr.isatty():
         return discover(data, model, given)
-    started = time.monotonic()
-    with make_console(stderr=True).status("discovering") as status:
-        return discover(data, model, given, stage=lambda text: status.update(
-            f"discovering ({time.monotonic() - started:.0f} s): {text}"))
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    with Progress(SpinnerColumn(), TextColumn("discovering:"), TimeElapsedColumn(), TextColumn("{task.description}"),
+                  console=make_console(stderr=True), transient=True) as shown:
+        task = shown.add_task("", total=None)
+        return discover(data, model, given, stage=lambda text: shown.update(task, description=text))
 
 
 def run(args: argparse.Namespace) -> int:
