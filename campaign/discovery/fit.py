@@ -619,12 +619,18 @@ def linear_fit(data: CampaignData, terms: list[Term]) -> Fit:
     return Fit(terms, coefs, float(beta[0]), prediction, rss, n_params, offsets)
 
 
+def searched_periods(data: CampaignData) -> tuple[float, float]:
+    """The range of periods searched on this data, mm (period_limits; the same for every period term,
+    remembered: the searches and the periodogram ask often, and each asking sorts the positions)."""
+    low, high = remembered(data, ("period_limits",), lambda: np.array(period_limits(data)))
+    return float(low), float(high)
+
+
 def shape_bounds(data: CampaignData, name: str, key: str) -> tuple[float, float]:
     """The bounds of a searched shape parameter: the period's range, or a third of the lowest and
     three times the highest value of its grid (a time constant's; a grid runs upwards)."""
-    if key == period_key(name):  # the same for every period term of the data (remembered: a search asks often)
-        low, high = remembered(data, ("period_limits",), lambda: np.array(period_limits(data)))
-        return float(low), float(high)
+    if key == period_key(name):
+        return searched_periods(data)
     grid = form_of(name).grid(data, {})
     return grid[0][key] / 3, grid[-1][key] * 3
 

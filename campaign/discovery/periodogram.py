@@ -18,23 +18,18 @@ Units: positions and periods mm, frequencies 1/mm, power µm² (weighted).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from campaign.discovery.data import CampaignData
-from campaign.discovery.effects import period_limits
-from campaign.discovery.fit import Fit, distinct_rows, span_at_positions, weighted
+from campaign.discovery.fit import Fit, distinct_rows, searched_periods, span_at_positions, weighted
 
 PERIODOGRAM_CELLS = 1_000_000
 """Rows × frequencies evaluated at a time by the direct sums (8 MB per array: blocks of that size
 are reused by the allocator, where 32 MB ones were mapped and zeroed afresh each time, about 1.3 s of
 system time and 125 MB of peak at 100,000 rows), and (grid nodes + frequencies) × columns by the chirp
 transform (its arrays complex, of about twice that length: some 16 MB each)."""
-
-def independent_periods(data: CampaignData) -> float:
-    """About how many independent periods the periodogram tries (for the look-elsewhere effect)."""
-    low, high = period_limits(data)
-    return max(1.0, float(np.ptp(data.x)) * (1 / low - 1 / high))
-
 
 RECURRENCE_POSITIONS = 1000
 """From this many positions on, sines_cosines steps from one frequency to the next (see there)."""
@@ -56,6 +51,12 @@ FREQUENCIES_PER_TRAVEL = 8
 """The frequency step is 1 / (this × the travel): a peak's width is 1 / travel."""
 
 
+def independent_periods(data: CampaignData) -> float:
+    """About how many independent periods the periodogram tries (for the look-elsewhere effect)."""
+    low, high = searched_periods(data)
+    return max(1.0, float(np.ptp(data.x)) * (1 / low - 1 / high))
+
+
 def periodogram_periods(data: CampaignData, fit: Fit, top: int = 3) -> list[float]:
     """Periods (mm) where a sine of the residual, fitted beside the model, explains most: the `top`
     highest local maxima of the power over the plausible screw leads (periodogram_power)."""
@@ -71,7 +72,7 @@ def periodogram_power(data: CampaignData, fit: Fit) -> tuple[np.ndarray, np.ndar
     each, the decrease of the weighted residual sum of squares (µm²) when a sine and a cosine of that
     frequency are fitted beside the model: a Lomb-Scargle-like periodogram with the model projected
     out."""
-    low, high = period_limits(data)
+    low, high = searched_periods(data)
     travel = float(np.ptp(data.x)) or 1.0
     freqs = np.arange(1 / high, 1 / low, 1 / (FREQUENCIES_PER_TRAVEL * travel))
     r = weighted(data, data.y - fit.prediction)
@@ -92,17 +93,22 @@ def periodogram_power(data: CampaignData, fit: Fit) -> tuple[np.ndarray, np.ndar
         sums = _grid_sums(nodes, step, dft_length, freqs[0], len(freqs), count, r_at, q_at, qr)
     else:
         sums = _direct_sums(xs, freqs, count, r_at, q_at, qr)
-    ss, cc, sc, rs, rc = sums
     power = np.zeros(len(freqs))
-    det = ss * cc - sc * sc
-    ok = det > 1e-9 * np.maximum(ss * cc, 1e-300)
-    power[ok] = (cc * rs**2 - 2 * sc * rs * rc + ss * rc**2)[ok] / det[ok]
+    det = sums.ss * sums.cc - sums.sc**2
+    ok = det > 1e-9 * np.maximum(sums.ss * sums.cc, 1e-300)
+    power[ok] = (sums.cc * sums.rs**2 - 2 * sums.sc * sums.rs * sums.rc + sums.ss * sums.rc**2)[ok] / det[ok]
     return freqs, power
 
 
-Sums = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
-"""Per frequency, with s and c the sine and cosine columns and Q the model's orthonormal basis:
-sᵀs, cᵀc, sᵀc and sᵀr, cᵀr, each with its part in the model's span taken away (of s, c and r)."""
+class Sums(NamedTuple):
+    """Per frequency, with s and c the sine and cosine columns, r the weighted residual and Q the
+    model's orthonormal basis: each product with its part in the model's span taken away."""
+
+    ss: np.ndarray  # sᵀs − (Qᵀs)ᵀ(Qᵀs)
+    cc: np.ndarray  # cᵀc − (Qᵀc)ᵀ(Qᵀc)
+    sc: np.ndarray  # sᵀc − (Qᵀs)ᵀ(Qᵀc)
+    rs: np.ndarray  # sᵀr − (Qᵀr)ᵀ(Qᵀs)
+    rc: np.ndarray  # cᵀr − (Qᵀr)ᵀ(Qᵀc)
 
 
 def _direct_sums(xs: np.ndarray, freqs: np.ndarray, count: np.ndarray, r_at: np.ndarray, q_at: np.ndarray,
@@ -121,7 +127,7 @@ def _direct_sums(xs: np.ndarray, freqs: np.ndarray, count: np.ndarray, r_at: np.
         part[2] = (s * c) @ count - (qs * qc).sum(0)
         part[3] = s @ r_at - qr @ qs
         part[4] = c @ r_at - qr @ qc
-    return out[0], out[1], out[2], out[3], out[4]
+    return Sums(*out)
 
 
 def on_grid(xs: np.ndarray, top_frequency: float) -> tuple[np.ndarray, float] | None:
@@ -173,7 +179,7 @@ def _grid_sums(nodes: np.ndarray, step: float, dft_length: int, f0: float, frequ
         sc -= (qs * qc).sum(1)
         rs -= qs @ qr[lo:lo + block]
         rc -= qc @ qr[lo:lo + block]
-    return ss, cc, sc, rs, rc
+    return Sums(ss, cc, sc, rs, rc)
 
 
 def chirp_dft(values: np.ndarray, outputs: int, start: float, stride: int, length: int) -> np.ndarray:
@@ -184,33 +190,21 @@ def chirp_dft(values: np.ndarray, outputs: int, start: float, stride: int, lengt
     `length` points to reach the frequency step). The chirp's phases are reduced modulo 2π in
     integers, so they stay exact however long the grid (a chirp of float k² loses about 1e-9 of the
     sums at 100,000 nodes)."""
+    from scipy import fft  # (loaded already by scipy.optimize: no import time of its own)
+
     nodes = values.shape[0]
-    size = _smooth_length(nodes + outputs - 1)
+    size = fft.next_fast_len(nodes + outputs - 1)
 
     def chirp(m: np.ndarray) -> np.ndarray:  # exp(−πi · stride · m² / length), m whole
         return np.exp(-1j * np.pi * ((stride * m * m) % (2 * length)) / length)
 
     n = np.arange(nodes, dtype=np.int64)
-    taken = np.fft.fft(values * (np.exp(-2j * np.pi * start * n) * chirp(n))[:, None], size, axis=0)
+    taken = fft.fft(values * (np.exp(-2j * np.pi * start * n) * chirp(n))[:, None], size, axis=0)
     spread = np.zeros(size, complex)
     spread[:outputs] = np.conj(chirp(np.arange(outputs, dtype=np.int64)))
     spread[size - nodes + 1:] = np.conj(chirp(np.arange(-(nodes - 1), 0, dtype=np.int64)))
-    convolved = np.fft.ifft(taken * np.fft.fft(spread)[:, None], axis=0)[:outputs]
+    convolved = fft.ifft(taken * fft.fft(spread)[:, None], axis=0)[:outputs]
     return np.asarray(chirp(np.arange(outputs, dtype=np.int64))[:, None] * convolved)
-
-
-def _smooth_length(least: int) -> int:
-    """The smallest number of the form 2^a·3^b·5^c at least `least` (an FFT's fast length)."""
-    best = 1 << max(0, (least - 1).bit_length())
-    fives = 1
-    while fives < best:
-        threes = fives
-        while threes < best:
-            twos = threes << max(0, (-(-least // threes) - 1).bit_length())
-            best = min(best, twos)
-            threes *= 3
-        fives *= 5
-    return best
 
 
 def sines_cosines(x: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
