@@ -35,6 +35,10 @@ def _grid_table(rng: np.random.Generator, weighted: bool) -> tuple[PointTable, f
                       extra=extra), period
 
 
+def _refused(*args, **kwargs):
+    raise AssertionError("the other way to the sums was taken")
+
+
 @pytest.mark.parametrize("seed", range(6))
 def test_the_grids_ffts_give_the_direct_sums_power(seed, monkeypatch):
     rng = np.random.default_rng(7100 + seed)
@@ -42,7 +46,9 @@ def test_the_grids_ffts_give_the_direct_sums_power(seed, monkeypatch):
     data = campaign_data(table)
     assert on_grid(np.unique(data.x), 0.5) is not None
     fit = linear_fit(data, [Term("linear_scale"), Term("nonlinear_lead"), Term("backlash")])
-    freqs, power = periodogram_power(data, fit)
+    with monkeypatch.context() as only_the_grid:
+        only_the_grid.setattr(periodogram, "_direct_sums", _refused)
+        freqs, power = periodogram_power(data, fit)
     monkeypatch.setattr(periodogram, "GRID_POSITIONS", 10**9)  # every sine evaluated
     direct_freqs, direct = periodogram_power(data, fit)
     assert len(freqs) == len(direct_freqs) > 100
@@ -59,9 +65,14 @@ def test_the_grids_ffts_give_the_direct_sums_power(seed, monkeypatch):
 
 
 @pytest.mark.parametrize("seed", range(3))
-def test_positions_off_a_common_step_take_the_direct_sums(seed):
+def test_positions_off_a_common_step_take_the_direct_sums(seed, monkeypatch):
     rng = np.random.default_rng(7200 + seed)
     table, _ = _grid_table(rng, weighted=False)
+    off = replace(table, target=table.target + 1e-3 * np.sin(table.target))  # each a different distance off
+    data = campaign_data(off)
+    monkeypatch.setattr(periodogram, "_grid_sums", _refused)
+    freqs, power = periodogram_power(data, linear_fit(data, [Term("linear_scale")]))
+    assert len(freqs) > 100 and power.max() > 0
     x = np.unique(table.target)
     assert on_grid(x, 0.5) is not None
     step = float(np.min(np.diff(x)))
