@@ -40,8 +40,10 @@ STREAM = "axiscal_point_"
 MOVE_GAP_S = 0.05
 """A pause after a move that is not followed by a capture (a turning point), s. Without it the next move
 was asked for while ophyd was still handling the last one's DMOV: the new move's status was finished at
-once, then again when it really ended, and the RunEngine waited forever (tests/test_epics.py, a bluesky
-run over the simulated IOC: 3 hangs in 49 runs without the pause, none in 40 with it)."""
+once, then again when it really ended, and the RunEngine waited forever (the bluesky run of
+tests/test_epics.py over the simulated IOC, its client started again and again by a throwaway script
+not kept: 3 hangs in 49 runs without the pause, none in 40 with it; the cause on ophyd's side is
+inferred from its error and the IOC's clean DMOV log, not proven)."""
 
 CONFIG_KEY = "axiscal_config"
 """The start document's key that holds the campaign config's text."""
