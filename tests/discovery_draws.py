@@ -22,7 +22,7 @@ from campaign.discovery.data import CampaignData
 from campaign.discovery.followup import is_drift_shape_group
 from campaign.discovery.local import zones
 from campaign.discovery.records import LocalRival
-from campaign.discovery.search import Discovery
+from campaign.discovery.result import Discovery
 from campaign.plan import build_plan
 
 SHAPES = ("step", "bump", "skewed_bump", "two_regions", "partial_wave", "linear_growth")
@@ -228,8 +228,8 @@ def judge(result: Discovery, truth: Truth) -> Judged:
 
 def named_out_of_gates(data: CampaignData, result: Discovery) -> list[str]:
     """The named effects of the final model whose size is under 2σ or a parameter outside its physical
-    range (campaign.discovery.search.gate_failures), each with why."""
-    from campaign.discovery.search import gate_failures
+    range (campaign.discovery.naming.gate_failures), each with why."""
+    from campaign.discovery.naming import gate_failures
 
     return [f"{name}: {'; '.join(why)}" for name in result.added if name in {t.name for t in result.final.terms}
             and (why := gate_failures(data, result.final, name))]
@@ -252,7 +252,7 @@ def oracle_p(data: CampaignData, truth: Truth) -> float:
         solve_normal,
         weighted,
     )
-    from campaign.discovery.search import try_candidate
+    from campaign.discovery.naming import try_candidate
     from campaign.model import EFFECTS, effect_um
 
     hidden = [(name, p) for name, p in truth.model.items()

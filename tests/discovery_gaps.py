@@ -13,7 +13,7 @@ import numpy as np
 
 from campaign.discovery.data import CampaignData
 from campaign.discovery.fit import design, fixed_deviation, weighted
-from campaign.discovery.search import Discovery
+from campaign.discovery.result import Discovery
 from campaign.model import EFFECTS, effect_um
 from tests.discovery_draws import Truth
 

@@ -14,9 +14,11 @@ from campaign.config import parse_config
 from campaign.discovery.data import campaign_data, join_campaigns
 from campaign.discovery.fit import Term, linear_fit, weighted
 from campaign.discovery.local import gap_um
+from campaign.discovery.naming import one_target_p, zero_at_targets
 from campaign.discovery.periodogram import independent_periods
-from campaign.discovery.search import discover, one_target_p, pooled_scatter_um, zero_at_targets
+from campaign.discovery.search import discover
 from campaign.discovery.simulate import simulate_campaign
+from campaign.discovery.vocabulary import pooled_scatter_um
 from campaign.model import ErrorModel
 from tests.discovery_draws import plan_config
 from tests.test_discovery_period import FINE_PLAN
@@ -136,7 +138,9 @@ def test_a_registered_periodic_effect_is_searched_by_its_own_period_key(seed):
     effect's word (`Effect.period`), not a name written into discovery. A new effect registered with
     its period under another key (a gear's pitch) is searched over the periodogram as periodic_lead is:
     its candidate lists its optima and finds the lead's period; its unresolved entry carries its name."""
-    from campaign.discovery.search import PERIOD_KEY, period_entry, try_candidate
+    from campaign.discovery.effects import PERIOD_KEY
+    from campaign.discovery.naming import try_candidate
+    from campaign.discovery.vocabulary import period_entry
     from campaign.effects import register, unregister
     from campaign.effects.base import SIZE_UM, Effect, EffectForm, period_limits
 
@@ -196,7 +200,7 @@ def test_no_local_error_is_larger_than_anything_the_campaign_shows():
     second found beside the first where nothing checked its size (only the routes did). No local term
     of the final model, nor any local error said, is larger than twice the campaign's largest deviation
     from the starting model."""
-    from campaign.discovery.search import LOCAL_LARGEST, beyond_the_campaign
+    from campaign.discovery.rivals import LOCAL_LARGEST, beyond_the_campaign
     from tests.discovery_draws import draw
 
     config = plan_config(17, "golden")

@@ -12,8 +12,9 @@ import pytest
 
 from campaign.config import parse_config
 from campaign.discovery.data import campaign_data
-from campaign.discovery.search import discover, how_to_tell, said_list
+from campaign.discovery.search import discover
 from campaign.discovery.simulate import simulate_campaign
+from campaign.discovery.vocabulary import how_to_tell, said_list
 from campaign.model import ErrorModel, read_model
 from campaign.pointtable import write_points
 from tests.conftest import DATA

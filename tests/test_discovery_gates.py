@@ -9,7 +9,7 @@ import pytest
 
 from campaign.discovery.effects import FORMS, SIZE_SIGMAS
 from campaign.discovery.fit import derived
-from campaign.discovery.search import Discovery
+from campaign.discovery.result import Discovery
 from campaign.discovery.simulate import Environment
 from tests.conftest import sweep
 from tests.test_discovery import BASE, run_discovery

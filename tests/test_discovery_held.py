@@ -3,7 +3,7 @@ drawn at random with an error discovery has no name for (tests/discovery_draws.p
 show it so that a local term can hold it (tests/discovery_gaps.py: a step, or every region seen at two
 targets or more, and the final model beside the true deviation within 1.3 × the noise), the gap
 after is within 1.3 × the noise; and what the final model leaves holds no local term that passes
-the tests (campaign.discovery.search.hold_what_is_left)."""
+the tests (campaign.discovery.unnamed.hold_what_is_left)."""
 
 from __future__ import annotations
 
@@ -15,8 +15,9 @@ import pytest
 from campaign.discovery.data import campaign_data
 from campaign.discovery.local import find_local, is_local
 from campaign.discovery.locate import locate
-from campaign.discovery.search import discover, held_regions, within_targets
+from campaign.discovery.search import discover
 from campaign.discovery.simulate import simulate_campaign
+from campaign.discovery.unnamed import held_regions, within_targets
 from campaign.model import ErrorModel
 from tests.discovery_draws import SHAPES, draw, judge, plan_config
 from tests.discovery_gaps import holdable, oracle_ratio, out_of_vocabulary_um

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from campaign.commands.discover import unit_of
-from campaign.discovery.search import period_spread_mm
+from campaign.discovery.naming import period_spread_mm
 from campaign.discovery.simulate import simulate_campaign
 from campaign.model import ErrorModel
 from campaign.pointtable import write_points

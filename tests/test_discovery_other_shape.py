@@ -1,4 +1,4 @@
-"""A local error's other shape (campaign.discovery.local.other_shape, for search.shape_rivals) is fitted
+"""A local error's other shape (campaign.discovery.local.other_shape, for rivals.shape_rivals) is fitted
 as a local error found is: the grid's best in both directions, its shape the grid's own when refinement
 takes it past what the targets can tell. Draw 16233 of bench seed 53 (a 3.7 µm wave of period 37 mm
 over 137-280 mm beside a bow and a 3.2 µm backlash, 11 golden targets), simulated as the bench simulates

@@ -10,7 +10,8 @@ import pytest
 from campaign.discovery.data import campaign_data
 from campaign.discovery.fit import Term, linear_fit
 from campaign.discovery.local import find_locals
-from campaign.discovery.search import ALPHA, discover, outside_p, try_candidate
+from campaign.discovery.naming import ALPHA, try_candidate
+from campaign.discovery.search import discover, outside_p
 from campaign.discovery.simulate import simulate_campaign
 from campaign.model import ErrorModel
 from tests.discovery_draws import draw, judge, plan_config

@@ -1,6 +1,6 @@
 """A named effect against region terms in its place (issue 34 item 2 (a)) is judged by a CV whose folds
 locate the regions again without the left-out target, and region terms with more parameters must win by
-two standard errors (search.REPLACE_SE): the locator chose their places on every target, so held they
+two standard errors (unnamed.REPLACE_SE): the locator chose their places on every target, so held they
 predict the one left out too well, and a small bow on a null machine was replaced by a region over most
 of the travel.
 Null draws of the bench (bench/discovery_draws.py), simulated as it simulates them."""

@@ -95,8 +95,9 @@ def test_no_stand_in_where_the_waits_vary(seed):
 def test_the_stand_in_is_the_backlash_even_when_settling_is_tried_beside():
     """A wait column that does not vary (the fixed dwell, recorded): the stand-in is the backlash."""
     from campaign.discovery.data import campaign_data
-    from campaign.discovery.search import discover, waits_vary
+    from campaign.discovery.search import discover
     from campaign.discovery.simulate import simulate_campaign
+    from campaign.discovery.vocabulary import waits_vary
     from campaign.model import ErrorModel
     from tests.test_discovery_loop import BOW, user_config
 
@@ -117,8 +118,8 @@ def test_one_short_capture_in_a_fixed_dwell_campaign_does_not_make_the_waits_var
     import dataclasses
 
     from campaign.discovery.data import campaign_data
-    from campaign.discovery.search import VARIED_WAIT_POINTS, waits_vary
     from campaign.discovery.simulate import simulate_campaign
+    from campaign.discovery.vocabulary import VARIED_WAIT_POINTS, waits_vary
     from campaign.model import ErrorModel
     from tests.test_discovery_loop import BOW, user_config
 
@@ -142,7 +143,8 @@ def test_a_drift_beside_an_unresolved_reversal_is_gated_beside_what_holds_it(see
     reversal left in the residual (a draw said 10.5 ± 16 µm/m per h for 26), and not named. Gated beside
     the stand-in (held in the final model), it is named, within 3σ of the truth, and passes the gates."""
     from campaign.discovery.data import campaign_data
-    from campaign.discovery.search import discover, gate_failures
+    from campaign.discovery.naming import gate_failures
+    from campaign.discovery.search import discover
     from campaign.discovery.simulate import simulate_campaign
     from campaign.model import ErrorModel
     from tests.discovery_draws import plan_config

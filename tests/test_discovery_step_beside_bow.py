@@ -158,12 +158,9 @@ def test_errors_found_with_an_unnamed_effect_put_in_are_not_a_period_rival_witho
     alone (rivals_beside_hidden says it, with the bow beside it)."""
     from dataclasses import replace
 
-    from campaign.discovery.search import (
-        locals_beside_unnamed,
-        period_unresolved,
-        search_vocabulary,
-        with_locals,
-    )
+    from campaign.discovery.result import period_unresolved
+    from campaign.discovery.search import locals_beside_unnamed, with_locals
+    from campaign.discovery.vocabulary import search_vocabulary
 
     _, data = drawn("step", 11, "golden", 8314)
     vocabulary = search_vocabulary(data, *START)

@@ -1,7 +1,7 @@
 """Issue 34 items 2 and 3: an error no effect of the vocabulary has the shape of stays an unexplained
 local error (a local term whose shape follows the data over the located region: a spline, not the
 simulator's formula, not one fixed profile), and no vocabulary effect is named for it unless it
-predicts left-out targets better (campaign/discovery/unexplained.py, search.unnamed_beside_regions)."""
+predicts left-out targets better (campaign/discovery/unexplained.py, unnamed.unnamed_beside_regions)."""
 
 from __future__ import annotations
 

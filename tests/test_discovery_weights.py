@@ -80,8 +80,8 @@ def test_a_scan_profile_beside_tables_keeps_their_waits_and_counts_as_settled(tm
     settled (an infinite wait); whether the waits vary is decided by the points captured at a stop."""
     import dataclasses
 
-    from campaign.discovery.search import candidate_names, waits_vary
     from campaign.discovery.simulate import simulate_campaign
+    from campaign.discovery.vocabulary import candidate_names, waits_vary
 
     rng = np.random.default_rng(43)
     machine = _machine(rng, lead=False) | {"settling": {"e0_um": 3.0, "tau_s": 2.0}}

@@ -24,7 +24,7 @@ from campaign.discovery.fit import linear_fit
 from campaign.discovery.followup import part_of, plan_follow_up
 from campaign.discovery.local import reversal_name
 from campaign.discovery.records import Unresolved
-from campaign.discovery.search import how_to_tell_pairs, may_soak
+from campaign.discovery.vocabulary import how_to_tell_pairs, may_soak
 from campaign.effects import effect, effects, register, unregister
 from campaign.effects.base import SIZE_UM, Effect, EffectForm, Ranges, Samples, Shape, span_ends
 from campaign.errors import InputError

@@ -29,7 +29,8 @@ from campaign.discovery.followup import FollowUp, is_drift_shape_group, plan_fol
 from campaign.discovery.local import LocalError, Zone, zones
 from campaign.discovery.locate import Located, row_of_singles, short
 from campaign.discovery.records import Unresolved
-from campaign.discovery.search import Candidate, Discovery, discover
+from campaign.discovery.result import Candidate, Discovery
+from campaign.discovery.search import discover
 from campaign.effects import effect as registered
 from campaign.errors import InputError
 from campaign.model import ErrorModel

@@ -189,7 +189,7 @@ the saved model."""
 
 
 HELD_PREFIX = "held_"
-"""The name of a term that holds what an unresolved group shows (campaign.discovery.search.hold_unresolved)
+"""The name of a term that holds what an unresolved group shows (campaign.discovery.held.hold_unresolved)
 is this and the name of the group's effect whose form it has: in the fit, never named, never saved."""
 
 

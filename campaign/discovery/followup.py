@@ -43,8 +43,9 @@ from campaign.discovery.data import CampaignData
 from campaign.discovery.effects import HELD_PREFIX
 from campaign.discovery.fit import Fit, Term, linear_fit
 from campaign.discovery.local import Zone, zones
+from campaign.discovery.naming import RIVAL_MARGIN
 from campaign.discovery.records import LocalRival, Unresolved
-from campaign.discovery.search import RIVAL_MARGIN, Discovery
+from campaign.discovery.result import Discovery
 from campaign.effects import REGISTRY
 from campaign.effects.base import stop_waits
 from campaign.model import is_model_name

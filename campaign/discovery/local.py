@@ -74,7 +74,7 @@ MIN_WIDTH_SPACINGS = 2.0
 """The narrowest bump looked for, in target spacings (width at half height): three targets see it."""
 HOPELESS = 10.0
 """A local term whose ΔBIC on the grid (with the look-elsewhere factor) is above this is not refined; nor
-is a vocabulary candidate whose best start is (campaign.discovery.search.try_candidate)."""
+is a vocabulary candidate whose best start is (campaign.discovery.naming.try_candidate)."""
 WINDOW_WIDTHS = 5.0
 """The grid evaluates a bump within this many widths of its centre (beyond, exp(-4·ln 2·25) ≈ 1e-30)."""
 STEP_FLAT_Z = 40.0
@@ -131,7 +131,7 @@ class LocalError:
     """The first and last position measured: what the data show of it lies between them."""
     shape_rival: LocalRival | None = None
     """A local error of the other shape (a step for a bump, a bump for a step) that fits the campaign as
-    well, perhaps with an effect beside it (campaign.discovery.search.shape_rivals): which shape it is, the
+    well, perhaps with an effect beside it (campaign.discovery.rivals.shape_rivals): which shape it is, the
     campaign does not say."""
 
     @property
