@@ -1,4 +1,4 @@
-"""Each target's leave-one-target-out sum of squares (campaign.discovery.fit.cv_group_errors), which
+"""Each target's leave-one-target-out sum of squares (campaign.discovery.cv.cv_group_errors), which
 cv_rms_um sums and as_good compares target by target, against a brute-force refit of every fold by
 numpy's least squares: by refitting each fold (up to CV_FOLDS_REFITTED targets) and from the hat
 matrix beyond (a dense table: linear in the rows)."""
@@ -8,8 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from campaign.discovery.cv import CV_FOLDS_REFITTED, cv_group_errors, cv_rms_um
 from campaign.discovery.data import campaign_data
-from campaign.discovery.fit import CV_FOLDS_REFITTED, Term, cv_group_errors, cv_rms_um, design, weighted
+from campaign.discovery.fit import Term, design, weighted
 from campaign.discovery.local import local_term, target_term
 from campaign.pointtable import PointTable
 
@@ -67,7 +68,8 @@ def test_a_departure_at_the_target_left_out_is_not_predicted_by_it(targets):
 def test_a_departure_tried_beside_a_growing_fit_is_not_predicted_at_its_target():
     """GrowingFit (region terms tried one at a time on a dense table, without refits) gives the CV of the
     model plus the term tried: with a departure at one target, that target's fold cannot say it, as above."""
-    from campaign.discovery.fit import GrowingFit, linear_fit
+    from campaign.discovery.cv import GrowingFit
+    from campaign.discovery.fit import linear_fit
 
     targets = CV_FOLDS_REFITTED + 37
     data = campaign(targets, 5, extra_runs_at=targets // 3)
@@ -90,10 +92,11 @@ def test_terms_kept_one_after_another_in_a_growing_fit_give_a_refits_numbers(she
     on several; smooth bumps not zero anywhere, and region terms zero outside their region, whose
     products GrowingFit takes over those rows alone): the next term tried gives the RSS of linear_fit
     on them all and the CV of a brute-force refit of every fold."""
-    from campaign.discovery import fit
-    from campaign.discovery.fit import GrowingFit, linear_fit
+    from campaign.discovery import cv
+    from campaign.discovery.cv import GrowingFit
+    from campaign.discovery.fit import linear_fit
 
-    monkeypatch.setattr(fit, "ADDED_SHELF", shelf)
+    monkeypatch.setattr(cv, "ADDED_SHELF", shelf)
     from campaign.discovery.locate import Region
     from campaign.discovery.unexplained import region_term
 

@@ -25,13 +25,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from campaign.discovery.cv import cv_rms_um
 from campaign.discovery.data import CampaignData
 from campaign.discovery.effects import STEP_RISE, local_shape
 from campaign.discovery.fit import (
     Fit,
     Term,
     bic,
-    cv_rms_um,
     distinct_rows,
     f_test_p,
     fixed_deviation,
@@ -724,7 +724,7 @@ def passes(data: CampaignData, without: Fit, with_local: Fit,
     """Does the local term in `with_local` pass the tests against the same model without it (BIC
     and F-test with the look-elsewhere factor of its search, leave-one-target-out CV)? `sides`: the
     grid's len(SIDES) for a term it found, 1 for a region term (its side is the locator's). `cv_um`: the
-    two models' CV RMS (without, with) when already known (campaign.discovery.fit.GrowingFit)."""
+    two models' CV RMS (without, with) when already known (campaign.discovery.cv.GrowingFit)."""
     n, factor = len(data), look_elsewhere(data, sides)
     delta_bic = bic(with_local, n) - bic(without, n) + 2 * math.log(factor)
     p_value = min(1.0, f_test_p(without, with_local, n) * factor)

@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from campaign.discovery.cv import cv_rms_um
 from campaign.discovery.data import CampaignData, keep_rows
 from campaign.discovery.effects import (
     ENVIRONMENT_RANGES,
@@ -28,7 +29,6 @@ from campaign.discovery.fit import (
     Term,
     bic,
     confounders,
-    cv_rms_um,
     derived,
     drop_collinear,
     f_test_p,

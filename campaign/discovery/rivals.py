@@ -14,19 +14,10 @@ from dataclasses import replace
 
 import numpy as np
 
+from campaign.discovery.cv import cv_group_errors, cv_rms_um
 from campaign.discovery.data import CampaignData
 from campaign.discovery.effects import FORMS, HELD_PREFIX, PERIOD_KEY, SIZE_SIGMAS, fixed_shape
-from campaign.discovery.fit import (
-    Fit,
-    Term,
-    bic,
-    cv_group_errors,
-    cv_rms_um,
-    f_test_p,
-    linear_fit,
-    refine,
-    standard_errors,
-)
+from campaign.discovery.fit import Fit, Term, bic, f_test_p, linear_fit, refine, standard_errors
 from campaign.discovery.local import TARGET, LocalError, describe, is_local, other_shape, passes, term_index
 from campaign.discovery.naming import ALPHA, BIC_MARGIN, gate_failures
 from campaign.discovery.records import LocalRival, NotExcluded

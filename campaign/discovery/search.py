@@ -19,18 +19,10 @@ from dataclasses import replace
 
 import numpy as np
 
+from campaign.discovery.cv import cv_rms_um
 from campaign.discovery.data import CampaignData, keep_rows
 from campaign.discovery.effects import HELD_PREFIX, PERIOD_KEY, SIZE_SIGMAS
-from campaign.discovery.fit import (
-    Fit,
-    Term,
-    bic,
-    cv_rms_um,
-    drop_collinear,
-    f_test_p,
-    full_columns,
-    linear_fit,
-)
+from campaign.discovery.fit import Fit, Term, bic, drop_collinear, f_test_p, full_columns, linear_fit
 from campaign.discovery.held import (
     beside_unresolved_period,
     held_fit,

@@ -17,15 +17,14 @@ from dataclasses import replace
 
 import numpy as np
 
+from campaign.discovery.cv import GrowingFit, cv_rms_um
 from campaign.discovery.data import CampaignData
 from campaign.discovery.effects import region_basis_of
 from campaign.discovery.fit import (
     Blocks,
     Fit,
-    GrowingFit,
     Term,
     bic,
-    cv_rms_um,
     design,
     f_test_p,
     fixed_deviation,

@@ -14,9 +14,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from campaign.discovery.cv import cv_rms_um, cv_searched_errors, shapes_held
 from campaign.discovery.data import CampaignData
 from campaign.discovery.effects import HELD_PREFIX
-from campaign.discovery.fit import Fit, Term, cv_rms_um, cv_searched_errors, linear_fit, shapes_held
+from campaign.discovery.fit import Fit, Term, linear_fit
 from campaign.discovery.held import after_final, held_said
 from campaign.discovery.local import MAX_REGIONS as MAX_LOCALS
 from campaign.discovery.local import (
