@@ -296,9 +296,9 @@ DRIFT_SPANS = 3.0
 
 
 def _drift_shape_unplanned(group: Unresolved, remaining: list[Any], data: CampaignData) -> str:
-    """Why a group of drifts in time of different shapes (linear, exponential) is not planned, and what
-    would tell them: one campaign DRIFT_SPANS of the fitted time constant long (the first `tau_s` fitted
-    among the group's candidates)."""
+    """Why a group of drifts in time of different shapes (linear, exponential), or a drift the campaign
+    does not pin down (Unresolved.not_pinned_down), is not planned, and what would tell them: one campaign
+    DRIFT_SPANS of the fitted time constant long (the first `tau_s` fitted among the group's candidates)."""
     taus = [float(p["tau_s"]) for c in remaining if c.name in group.effects and c.fit is not None
             and "tau_s" in (p := c.fit.params()[c.name])]
     tau = taus[0] if taus else math.nan
@@ -310,9 +310,13 @@ def _drift_shape_unplanned(group: Unresolved, remaining: list[Any], data: Campai
     lasted = f"{'the longest of these campaigns' if data.campaign is not None else 'this campaign'} lasted {said(span)}"
     long = (f"about {said(DRIFT_SPANS * tau)} ({DRIFT_SPANS:g} times the time constant of {said(tau)} fitted; {lasted})"
             if math.isfinite(tau) and tau > 0 else f"several of the drift's time constants ({lasted})")
-    return (f"{' or '.join(group.effects)}: an exponential growth levels off and a linear one does not, "
-            f"which only one campaign lasting {long} shows, runs at {FEW_TARGETS} targets over the travel repeated "
-            "throughout; a follow-up fitted with this one starts its time again, so it cannot tell them")
+    what, cannot = ("an exponential growth levels off and a linear one does not", "tell them")
+    if group.not_pinned_down:
+        what = "a drift in time that this campaign shows and does not pin down (how fast its slope changes and where it pivots)"
+        cannot = "pin down this one's"
+    return (f"{' or '.join(group.effects)}: {what}, which only one campaign lasting {long} shows, runs at "
+            f"{FEW_TARGETS} targets over the travel repeated throughout; a follow-up fitted with this one starts "
+            f"its time again, so it cannot {cannot}")
 
 
 def _duration(seconds: float) -> str:

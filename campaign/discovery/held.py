@@ -86,9 +86,11 @@ def hold_unresolved(data: CampaignData, result: Discovery, periods: bool) -> Dis
         after_final(data, result)
         result.held.append(Held(best.name, tuple(entry.effects), held_said(data, trial, term.name, entry.effects),
                                 trial.params()[term.name], without))
+        gap = f"gap {without:.3f} -> {result.gap_after_um:.3f} {data.deviation_unit}"
         note_once(result.notes, f"what {said_list(list(entry.effects))} explain alike is held in the model by "
-                            f"{best.name}'s form (gap {without:.3f} -> {result.gap_after_um:.3f} "
-                            f"{data.deviation_unit}), not named: which of them it is stays unresolved")
+                                f"{best.name}'s form ({gap}), not named: which of them it is stays unresolved"
+                  if len(entry.effects) > 1 else f"what {best.name} explains is held in the model by its form ({gap}), "
+                                                 "not named: its values are not pinned down")
     return result
 
 
@@ -121,6 +123,8 @@ def held_said(data: CampaignData, fit: Fit, name: str, rivals: tuple[str, ...], 
     if not places and (entry_periods := [t.shape[key] for t in fit.terms if t.name == name and key in t.shape]):
         return (f"a wave seen at the targets (held by its best candidate period, {entry_periods[0]:.4g} "
                 f"{data.position_unit}): which period it is stays unresolved")
+    if len(rivals) == 1 and not places:  # one effect the campaign shows and does not pin down
+        return f"what {rivals[0]} explains, held by its form: its values are not pinned down"
     return f"what {said} explain alike, held by {name.removeprefix(HELD_PREFIX)}'s form; cannot tell which"
 
 

@@ -52,6 +52,9 @@ class Unresolved:
     not_excluded: bool = False
     """The group is a named effect beside a rival the data do not exclude (NotExcluded, planned as a
     follow-up), not effects none of which is named."""
+    not_pinned_down: bool = False
+    """The group's effects fit (they pass the tests), but the campaign does not pin down their values
+    (a drift in time whose rate and pivot break the gates: vocabulary.drift_entry), not rivals."""
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"effects": list(self.effects), "why": self.why, "how_to_tell": self.how_to_tell}
@@ -61,6 +64,8 @@ class Unresolved:
             out["delta_bic"] = dict(self.delta_bic)
         if self.local_rivals:
             out["local_rivals"] = [r.as_dict() for r in self.local_rivals]
+        if self.not_pinned_down:
+            out["not_pinned_down"] = True
         return out
 
 

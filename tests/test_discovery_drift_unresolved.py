@@ -1,0 +1,112 @@
+"""A drift in time that the campaign shows but does not pin down (issue 34 item 5: what the campaign
+cannot tell goes to `unresolved` with how to tell; item 2: an effect whose values break the gates is
+not named). Before, such a drift was only a note ("fails size under 2σ"), and the located drift in
+time was neither said nor held. Now it is an unresolved group, held in the fit without a name, so the
+gap shrinks (campaign.discovery.vocabulary.undetermined_drifts, held.hold_unresolved)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from campaign.discovery.data import campaign_data
+from campaign.discovery.effects import HELD_PREFIX
+from campaign.discovery.fit import Term, linear_fit
+from campaign.discovery.followup import plan_follow_up
+from campaign.discovery.records import Unresolved
+from campaign.discovery.result import Candidate
+from campaign.discovery.search import discover
+from campaign.discovery.simulate import simulate_campaign
+from campaign.discovery.vocabulary import NEEDS, UNRESOLVED_VERDICTS, drift_entry, undetermined_drifts
+from campaign.model import ErrorModel
+from tests.discovery_draws import draw, judge, plan_config
+from tests.test_discovery import BASE, CONFIG
+
+START = ErrorModel({"linear_scale": {}}), {"linear_scale": set()}
+DRIFTS = sorted(name for name in ("linear_drift", "thermal_drift") if NEEDS.get(name) == "runs")
+
+
+def test_only_a_drift_that_passed_the_tests_and_failed_the_gates_is_not_pinned_down():
+    """Of the candidates of a step, a drift (an effect that needs runs) whose verdict follows passed
+    tests ("not named (...)": its gates) is undetermined; one that failed the tests is not, nor is an
+    effect along the travel with the same verdict, nor a drift already in an unresolved group. The
+    record says each one's tests and gates, and their verdicts name each other (held together)."""
+    data = campaign_data(simulate_campaign(CONFIG, ErrorModel(BASE), seed=2))
+    fit = linear_fit(data, [Term("linear_scale"), Term("backlash")])
+    gates = "not named (size under 2σ: rate_ppm_per_h 2.2 ± 7.4; not physical: pivot_mm = 3312 outside -1200 to 1800)"
+    linear = Candidate("linear_drift", fit, explained_pct=17.6, p_value=4e-5, cv_before_um=0.74, cv_after_um=0.66,
+                       verdict=gates)
+    thermal = Candidate("thermal_drift", fit, explained_pct=17.3, p_value=2e-4, verdict="not named (size under 2σ)")
+    failed = Candidate("thermal_drift", fit, verdict="not significant (BIC, F-test)")
+    bow = Candidate("nonlinear_lead", fit, verdict="not named (size under 2σ: p2_um 0.1 ± 0.2)")
+    unfitted = Candidate("linear_drift", None, verdict="not named (size under 2σ)")
+
+    assert undetermined_drifts([linear, failed, bow, unfitted], []) == [linear]
+    assert undetermined_drifts([linear, thermal, bow], []) == [linear, thermal]
+    grouped = Unresolved(("linear_drift", "environment"), "rivals", "a log")
+    assert undetermined_drifts([linear, thermal], [grouped]) == [thermal]
+
+    entry = drift_entry([linear, thermal], "µm")
+    assert entry.effects == ("linear_drift", "thermal_drift")
+    assert "does not pin it down" in entry.why and "pivot_mm = 3312 outside -1200 to 1800" in entry.why
+    assert "F-test p = 4e-05" in entry.why and "0.74 -> 0.66 µm" in entry.why
+    assert "runs" in entry.how_to_tell
+    assert entry.not_pinned_down and entry.as_dict()["not_pinned_down"] is True
+    assert "not_pinned_down" not in grouped.as_dict()
+    assert linear.verdict.startswith(UNRESOLVED_VERDICTS) and "thermal_drift" in linear.verdict
+    assert thermal.verdict.startswith(UNRESOLVED_VERDICTS) and "linear_drift" in thermal.verdict
+
+
+def _drawn(count: int, offsets: str, seed: int):
+    config = plan_config(count, offsets)
+    truth = draw(np.random.default_rng(seed), "linear_growth", config)
+    data = campaign_data(simulate_campaign(config, ErrorModel(truth.model), seed=seed, dwell_jitter=0.8))
+    return truth, data
+
+
+@pytest.mark.machine  # a simulated campaign and its discovery
+def test_a_drift_whose_rate_and_pivot_the_campaign_cannot_pin_down_is_unresolved_and_held(tmp_path):
+    """A slope growing 23 ppm/h pivoting at 597 mm, beside a bow, on 11 uniform targets, noise 0.66 µm
+    (bench seed 97, draw 16276): the linear drift passes the three tests (F-test p 4e-5, a better CV)
+    but its rate is 2.2 ± 7.4 ppm/h pivoting at 3,312 mm, outside the physical range. It is not named;
+    it is unresolved with how to tell, held in the fit by its form, and the gap is smaller for it."""
+    truth, data = _drawn(11, "none", 16276)
+    result = discover(data, *START)
+    group = next(u for u in result.unresolved if "linear_drift" in u.effects)
+    assert not set(group.effects) & set(result.added)
+    assert "does not pin it down" in group.why and group.how_to_tell
+    held = next(h for h in result.held if set(h.rivals) == set(group.effects))
+    assert any(t.name == HELD_PREFIX + held.effect for t in result.final.terms)
+    assert result.gap_after_um < held.gap_without_um
+    assert judge(result, truth).stated
+    # a follow-up fitted with this campaign starts its time again: not planned, and said why
+    follow = plan_follow_up(result.unresolved, result.remaining, data, result.final, plan_config(11, "none"), None,
+                            result.noise_um, tmp_path / "follow.toml", [])
+    assert follow is not None and not follow.parts
+    assert any("does not pin down" in why for why in follow.unplanned), follow.unplanned
+
+
+WEAK = 0.5
+"""The drawn growth's rate is scaled by this: slopes of 1-2 µm over the campaign, near what it can show."""
+
+
+@pytest.mark.machine  # four simulated campaigns and their discoveries
+def test_no_drift_that_passed_the_tests_is_left_as_a_note():
+    """Weak slopes growing linearly in time (drawn as the bench draws them, any rate and pivot, beside a
+    random bow, backlash and scale, the rate then halved: WEAK), four draws on 17 uniform targets: at the
+    end every drift that passed the three tests is named within its gates or in an unresolved group, never
+    only a note, and no drift is both named and unresolved. (One of the four, draw 30775, has such a drift:
+    before, it was a note.)"""
+    config = plan_config(17, "none")
+    for k in range(4):
+        seed = 7001 + 7919 * k + 17
+        truth = draw(np.random.default_rng(seed), "linear_growth", config)
+        drift = truth.model["linear_drift"]
+        model = {**truth.model, "linear_drift": {**drift, "rate_ppm_per_h": drift["rate_ppm_per_h"] * WEAK}}
+        data = campaign_data(simulate_campaign(config, ErrorModel(model), seed=seed, dwell_jitter=0.8))
+        result = discover(data, *START)
+        unresolved = {name for u in result.unresolved for name in u.effects}
+        for cand in result.remaining:
+            if cand.name in DRIFTS:
+                assert not cand.verdict.startswith("not named ("), (seed, cand.name, cand.verdict, result.added)
+        assert not unresolved & set(result.added) & set(DRIFTS), (seed, result.added, result.unresolved)
