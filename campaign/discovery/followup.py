@@ -313,7 +313,9 @@ def _drift_shape_unplanned(group: Unresolved, remaining: list[Any], data: Campai
     what, cannot = ("an exponential growth levels off and a linear one does not", "tell them")
     if group.not_pinned_down:
         what = "a drift in time that this campaign shows and does not pin down (how fast its slope changes and where it pivots)"
-        cannot = "pin down this one's"
+        cannot = "pin it down"
+        if not (math.isfinite(tau) and tau > 0):  # a linear drift alone: no time constant to count in
+            long = f"longer than this one, with more runs ({lasted})"
     return (f"{' or '.join(group.effects)}: {what}, which only one campaign lasting {long} shows, runs at "
             f"{FEW_TARGETS} targets over the travel repeated throughout; a follow-up fitted with this one starts "
             f"its time again, so it cannot {cannot}")

@@ -84,13 +84,15 @@ def hold_unresolved(data: CampaignData, result: Discovery, periods: bool) -> Dis
         without = result.gap_after_um
         result.final = trial
         after_final(data, result)
-        result.held.append(Held(best.name, tuple(entry.effects), held_said(data, trial, term.name, entry.effects),
+        result.held.append(Held(best.name, tuple(entry.effects),
+                                held_said(data, trial, term.name, entry.effects, not_pinned_down=entry.not_pinned_down),
                                 trial.params()[term.name], without))
         gap = f"gap {without:.3f} -> {result.gap_after_um:.3f} {data.deviation_unit}"
         note_once(result.notes, f"what {said_list(list(entry.effects))} explain alike is held in the model by "
                                 f"{best.name}'s form ({gap}), not named: which of them it is stays unresolved"
-                  if len(entry.effects) > 1 else f"what {best.name} explains is held in the model by its form ({gap}), "
-                                                 "not named: its values are not pinned down")
+                  if not entry.not_pinned_down else
+                  f"the drift in time {said_list(list(entry.effects))} explain{'s' if len(entry.effects) == 1 else ''} "
+                  f"is held in the model by {best.name}'s form ({gap}), not named: its values are not pinned down")
     return result
 
 
@@ -106,11 +108,12 @@ def held_fit(data: CampaignData, vocabulary: Discovery, periods: bool = False) -
     return trial.final if len(trial.held) > len(vocabulary.held) else None
 
 
-def held_said(data: CampaignData, fit: Fit, name: str, rivals: tuple[str, ...], places: str = "") -> str:
+def held_said(data: CampaignData, fit: Fit, name: str, rivals: tuple[str, ...], places: str = "",
+              not_pinned_down: bool = False) -> str:
     """What the term `name` of `fit`, holding an unresolved group, shows in words: a reversal between
     the directions (its mean going up less its mean going down) when the group is backlash against
-    settling, else the rival's form that holds it (with local errors at `places` among the rivals when
-    given)."""
+    settling, a drift in time when the group is one the campaign does not pin down (`not_pinned_down`),
+    else the rival's form that holds it (with local errors at `places` among the rivals when given)."""
     said = said_list(list(rivals)) + (f" or local errors at {places}" if places else "")
     if set(rivals) <= STAND_IN_RIVALS and not places:
         i = next(k for k, t in enumerate(fit.terms) if t.name == name)
@@ -123,8 +126,9 @@ def held_said(data: CampaignData, fit: Fit, name: str, rivals: tuple[str, ...], 
     if not places and (entry_periods := [t.shape[key] for t in fit.terms if t.name == name and key in t.shape]):
         return (f"a wave seen at the targets (held by its best candidate period, {entry_periods[0]:.4g} "
                 f"{data.position_unit}): which period it is stays unresolved")
-    if len(rivals) == 1 and not places:  # one effect the campaign shows and does not pin down
-        return f"what {rivals[0]} explains, held by its form: its values are not pinned down"
+    if not_pinned_down:  # a drift the campaign shows and does not pin down (Unresolved.not_pinned_down)
+        return (f"a drift in time ({said.replace(' and ', ' or ')}), held by {name.removeprefix(HELD_PREFIX)}'s "
+                "form: its values are not pinned down")
     return f"what {said} explain alike, held by {name.removeprefix(HELD_PREFIX)}'s form; cannot tell which"
 
 

@@ -9,7 +9,7 @@ height or more, to a quarter of the travel; a step from a fifth of the spacing t
 with at least two targets on each side), each fitted beside the model with the model projected out; the best is refined
 (scipy.optimize.least_squares on centre and width); each shape is tried in both directions and in the
 + or the − direction alone (SIDES). It is added only when it passes the tests every
-effect passes (campaign.discovery.search: BIC, F-test, leave-one-target-out cross-validation), with
+effect passes (campaign.discovery.naming.naming_tests: BIC, F-test, leave-one-target-out cross-validation), with
 the look-elsewhere factor of its search (look_elsewhere with the sides). Then: one amplitude for both directions, or one per direction when that is significantly better
 (F-test; from a one-direction start, of the two shapes each refined from it); and whether it changes with
 time (an F-test of a term that grows linearly in time, reported, not added). Up to MAX_REGIONS are

@@ -317,7 +317,10 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
         # only at a constant wait do backlash and settling predict the same deviation wherever the
         # axis is used at that wait; where the waits vary they differ, and neither stands in
         without = gap_um(data, data.y - current.prediction)
-        current = refine(data, backlash.fitted.terms)
+        # backlash was fitted beside the stand-in; a stand-in that is not a reversal (a drift not pinned down,
+        # a period) stays unresolved, out of the model, held later without a name (hold_unresolved)
+        current = refine(data, [t for t in backlash.fitted.terms
+                                if t.name == "backlash" or t.name != remaining_beside])
         b_um = current.params()["backlash"]["b_um"]  # in the deviation unit (µm, arcsec)
         dev = data.deviation_unit
         kept = StandIn("backlash", group.effects,
@@ -428,9 +431,10 @@ CONFOUNDED_PAIRS = {frozenset({"environment", "thermal_drift"}), frozenset({"env
 def choose(data: CampaignData, current: Fit, ranking: list[Candidate],
            notes: list[str]) -> tuple[Candidate | None, list[Unresolved]]:
     """The candidate to name at this step, and what cannot be resolved: a periodic error whose
-    period is not identifiable, and groups of candidates that explain the same residual about
-    equally well (rivals). Neither a rival nor an unidentifiable period is named; the other
-    candidates go on."""
+    period is not identifiable, groups of candidates that explain the same residual about equally
+    well (rivals), and, when nothing is named, a drift in time that passes the tests but that the
+    campaign does not pin down (undetermined_drifts). None of these is named; the other candidates go
+    on."""
     n = len(data.y)
     unresolved = [period_entry(c, data) for c in ranking if c.verdict == "period not identifiable"]
     held: list[Candidate] = []
@@ -454,17 +458,21 @@ def choose(data: CampaignData, current: Fit, ranking: list[Candidate],
                 cand.verdict = f"held with {NESTED_IN[cand.name]}, which is unresolved"
                 group.append(cand)
         held += group
-    if drifts := undetermined_drifts(ranking, unresolved):
+    if drifts := undetermined_drifts(ranking, unresolved, current):
         unresolved.append(drift_entry(drifts, data.deviation_unit))
     return None, unresolved
 
 
-def undetermined_drifts(ranking: list[Candidate], unresolved: list[Unresolved]) -> list[Candidate]:
+def undetermined_drifts(ranking: list[Candidate], unresolved: list[Unresolved], current: Fit) -> list[Candidate]:
     """The drifts in time (effects that need runs: a linear or exponential growth) that pass the three
     tests but not the gates (a size under 2σ, a parameter outside its physical range), and are in no
     unresolved group: the campaign shows a drift it cannot pin down (a 23 ppm/h growth pivoting at 597 mm,
     11 uniform targets, noise 0.66 µm: F-test p 4e-5 and a better CV, but a rate of 2.2 ± 7.4 ppm/h
-    pivoting at 3,312 mm, bench seed 97, draw 16276)."""
+    pivoting at 3,312 mm, bench seed 97, draw 16276). None when a drift is in `current` already: the
+    drift is said, and what another shape of it adds beside it is not a drift of its own (its columns
+    all but the named one's: a growth of 1,210 ± 1,700 µm/m beside a named linear drift)."""
+    if any(NEEDS.get(t.name) == "runs" for t in current.terms):
+        return []
     grouped = {name for u in unresolved for name in u.effects}
     return [c for c in ranking if c.fit is not None and NEEDS.get(c.name) == "runs" and c.name not in grouped
             and c.verdict.startswith("not named (")]  # a drift's only verdict that follows passed tests
