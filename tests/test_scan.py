@@ -152,6 +152,18 @@ def test_streams_without_motion_are_refused():
         align(ControllerStream(t, np.zeros_like(t)), InstrumentStream(t, np.zeros_like(t)))
 
 
+def _wound_up_scan(seed: int, passes: int):
+    """A drawn scan of a drive train wound up on the move (settling: -d·e0 while moving, decaying at
+    rest, τ 0.3 s), with 2.5 s rests at the ends: (the draw, e0 µm, the record)."""
+    draw = _draw(seed, speeds=(10.0, 20.0))
+    e0 = float(np.random.default_rng(seed).uniform(0.5, 2.0))
+    draw["model"].effects["settling"] = {"e0_um": e0, "tau_s": 0.3}
+    draw["model"].effects["noise"]["sigma_um"] = 0.05
+    draw["model"].effects["noise"]["reading_sigma_um"] = draw["noise_um"]
+    machine = scan_machine(draw["model"], "mm", 50.0, draw["accel"], -3.0, draw["clock"], draw["rate_hz"], seed=seed)
+    return draw, e0, machine.scan(-3.0, 33.0, draw["speed"], passes, end_dwell_s=2.5)
+
+
 @pytest.mark.parametrize("seed", [51, *(pytest.param(s, marks=pytest.mark.machine) for s in (52, 53, 54))])
 def test_one_end_a_direction_still_has_a_rest_step_uncertainty_from_its_own_samples(seed):
     """One pass: one end a direction, whose scatter about a mean says nothing (before, u was nan). The
@@ -159,13 +171,7 @@ def test_one_end_a_direction_still_has_a_rest_step_uncertainty_from_its_own_samp
     the truth is not asserted: over seeds 51-55 one of ten steps lay 3.6 u from it (see RestStep)."""
     import math
 
-    draw = _draw(seed, speeds=(10.0, 20.0))
-    e0 = float(np.random.default_rng(seed).uniform(0.5, 2.0))
-    draw["model"].effects["settling"] = {"e0_um": e0, "tau_s": 0.3}
-    draw["model"].effects["noise"]["sigma_um"] = 0.05
-    draw["model"].effects["noise"]["reading_sigma_um"] = draw["noise_um"]
-    machine = scan_machine(draw["model"], "mm", 50.0, draw["accel"], -3.0, draw["clock"], draw["rate_hz"], seed=seed)
-    rec = machine.scan(-3.0, 33.0, draw["speed"], 1, end_dwell_s=2.5)
+    draw, _, rec = _wound_up_scan(seed, passes=1)
     res = analyse_scan(*_streams(rec), [0.0, 10.0, 20.0, 30.0], draw["rate_hz"], noise=draw["noise_um"], average_s=0.5)
     for d in (1, -1):
         assert res.rest[d].ends == 1
@@ -176,13 +182,7 @@ def test_one_end_a_direction_still_has_a_rest_step_uncertainty_from_its_own_samp
 def test_what_stopping_changes_is_measured_at_the_ends_and_removed(seed):
     """A drive train wound up on the move (the model's settling effect: -d·e0 while moving, decaying
     at rest) makes a scan differ from stop-and-go by e0 per direction; the rests at the ends show it."""
-    draw = _draw(seed, speeds=(10.0, 20.0))
-    e0 = float(np.random.default_rng(seed).uniform(0.5, 2.0))
-    draw["model"].effects["settling"] = {"e0_um": e0, "tau_s": 0.3}
-    draw["model"].effects["noise"]["sigma_um"] = 0.05
-    draw["model"].effects["noise"]["reading_sigma_um"] = draw["noise_um"]
-    machine = scan_machine(draw["model"], "mm", 50.0, draw["accel"], -3.0, draw["clock"], draw["rate_hz"], seed=seed)
-    rec = machine.scan(-3.0, 33.0, draw["speed"], 3, end_dwell_s=2.5)
+    draw, e0, rec = _wound_up_scan(seed, passes=3)
     targets = [0.0, 10.0, 20.0, 30.0]
     res = analyse_scan(*_streams(rec), targets, draw["rate_hz"], noise=draw["noise_um"], average_s=0.5)
     for d in (1, -1):
