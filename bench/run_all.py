@@ -17,9 +17,9 @@ SCRIPTS = (("demo_wall_time.py",), ("stable_vs_dwell.py",), ("compensation.py",)
            ("compensation.py", "--smooth", "none"), ("compensation.py", "--cycles", "10"), ("import_stream.py",),
            ("smoothing.py",), ("startup.py",), ("history.py",), ("fake_machine.py",), ("scan.py",),
            ("discovery_draws.py",), ("history_drawn.py",), ("history_plant.py",), ("history_seeds.py",),
-           ("scan_run.py",), ("discovery_dense.py",), ("discovery_follow_up.py",))
-"""Each benchmark script with its options, run in turn. The last eight print their figures (scan,
-scan_run, discovery_draws, discovery_dense and discovery_follow_up also write bench/results/*.json; history_drawn and
+           ("scan_run.py",), ("discovery_dense.py",), ("discovery_follow_up.py",), ("scan_rest_step.py",))
+"""Each benchmark script with its options, run in turn. The last nine print their figures (scan,
+scan_run, discovery_draws, discovery_dense, discovery_follow_up and scan_rest_step also write bench/results/*.json; history_drawn and
 history_plant only print); the summary quotes the others."""
 SEPARATE: dict[str, str] = {"discovery_gaps.py": "a diagnosis, run by hand on chosen cells and seeds: which draws of discovery_draws.py end above 1.3 × the noise, and why (it writes no result)"}
 """The benchmark scripts `make bench` does not run, and why."""
