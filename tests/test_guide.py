@@ -355,6 +355,17 @@ def test_a_second_ctrl_c_says_the_stop_is_under_way_and_a_third_quits():
     assert len(calls) == 2
     assert signal.getsignal(signal.SIGINT) is before  # restored
 
+    # with `then`, a Ctrl-C as the campaign ends meets that handler (the guide's: said, ignored while the
+    # summary is written), not the one before: no gap in which it would end the program
+    held = []
+    try:
+        with CtrlC(FakeDashboard(), then=lambda signum, frame: held.append(signum)):
+            pass
+        os.kill(os.getpid(), signal.SIGINT)
+        assert held == [signal.SIGINT]
+    finally:
+        signal.signal(signal.SIGINT, before)
+
 
 @pytest.mark.machine
 def test_a_fault_asks_the_operator_in_a_terminal(tmp_path, small_config):

@@ -115,40 +115,44 @@ def run(args: argparse.Namespace, on_hardware: Callable[[Hardware, Any], None] |
                                    on_change=lambda changed: introduce(changed, args, console))
     config, plan = setup.config, setup.plan
     out = Path(args.out) if args.out else default_out_dir(config)
-    try:
-        lo, hi = plan.ends()
-        unit = config.axis.unit
-        confirm(args, console, interactive, f"alignment check to {hi:g} {unit} and back to {lo:g} {unit}, then the "
-                                            f"campaign ({len(plan.points)} points)")
-        outcome = on_dashboard(config, plan, args, opened, console, interactive, out,
-                               lambda dashboard, control: start_campaign(config, out, speed=args.speed,
-                                                                         observer=dashboard, control=control,
-                                                                         opened=opened),
-                               before=lambda control, keys: check_alignment(opened[0], plan, config, control,
-                                                                           console, keys))
-    finally:
-        opened[0].close()
-    with ctrl_c_held(console):
+    with sigint_restored():
+        try:
+            lo, hi = plan.ends()
+            unit = config.axis.unit
+            confirm(args, console, interactive, f"alignment check to {hi:g} {unit} and back to {lo:g} {unit}, "
+                                                f"then the campaign ({len(plan.points)} points)")
+            outcome = on_dashboard(config, plan, args, opened, console, interactive, out,
+                                   lambda dashboard, control: start_campaign(config, out, speed=args.speed,
+                                                                             observer=dashboard, control=control,
+                                                                             opened=opened),
+                                   before=lambda control, keys: check_alignment(opened[0], plan, config, control,
+                                                                               console, keys),
+                                   then=ctrl_c_held(console))
+        finally:
+            opened[0].close()
         return conclude(outcome, config, args, console)
 
 
 @contextmanager
-def ctrl_c_held(console: Console) -> Iterator[None]:
-    """While the summary is written after the campaign stopped: a Ctrl-C (one pressed too many while
-    stopping) is said and ignored, so the summary and the resume line always come."""
-    def held(signum: int, frame: FrameType | None) -> None:
-        console.print("Ctrl-C: the campaign has stopped and its record is closed; the summary follows.",
-                      markup=False)
-
-    try:
-        previous = signal.signal(signal.SIGINT, held)
-    except ValueError:  # not the main thread: nothing to hold
-        yield
-        return
+def sigint_restored() -> Iterator[None]:
+    """The SIGINT handler as it was, put back at the end (the dashboard's CtrlC leaves ctrl_c_held in place
+    for the summary)."""
+    original = signal.getsignal(signal.SIGINT)
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        if original is not None:
+            signal.signal(signal.SIGINT, original)
+
+
+def ctrl_c_held(console: Console) -> Callable[[int, FrameType | None], None]:
+    """The SIGINT handler from the moment the campaign stops (the dashboard's CtrlC leaves it in place)
+    until the summary is written: a Ctrl-C (one pressed too many while stopping) is said and ignored, so
+    the summary and the resume line always come; the guide restores the handler before it after that."""
+    def held(signum: int, frame: FrameType | None) -> None:
+        console.print("Ctrl-C: the campaign has stopped and its record is closed; the summary follows.",
+                      markup=False)
+    return held
 
 
 def introduce(setup: Setup, args: argparse.Namespace, console: Console) -> None:
@@ -264,10 +268,11 @@ def confirm(args: argparse.Namespace, console: Console, interactive: bool, motio
 
 def on_dashboard(config: Config, plan: Plan, args: argparse.Namespace, opened: Opened, console: Console,
                  interactive: bool, out: Path, campaign: Callable[[Dashboard, Control], Outcome],
-                 before: Callable[[Control, Keys | None], None] | None = None) -> Outcome:
+                 before: Callable[[Control, Keys | None], None] | None = None,
+                 then: Callable[[int, FrameType | None], None] | None = None) -> Outcome:
     """The motion phase on the dashboard: `before(control, keys)` (the alignment check), then
     `campaign(dashboard, control)`. Keys and Ctrl-C are live throughout; an abort at any point ends
-    with the outcome so far; the terminal and SIGINT are restored at the end."""
+    with the outcome so far; the terminal is restored at the end, and SIGINT too, or set to `then`."""
     hw, _ = opened
     asks = args.on_fault is None and interactive  # else the config's policy (--on-fault is in the config)
     control = Control(asks_operator=asks)
@@ -275,7 +280,7 @@ def on_dashboard(config: Config, plan: Plan, args: argparse.Namespace, opened: O
         dashboard = Dashboard(console, config, plan, control, "ask" if asks else None, hw)
         if interactive:
             dashboard.keys = stack.enter_context(Keys(dashboard.on_key))
-        stack.enter_context(CtrlC(dashboard))
+        stack.enter_context(CtrlC(dashboard, then))
         if before is not None:
             try:
                 before(control, dashboard.keys)

@@ -66,7 +66,15 @@ def guided(r: Resumption, args: argparse.Namespace) -> int:
     """The guided resume: checklist, confirmation, dashboard, verdict (campaign/commands/guide.py)."""
     from rich.console import Console
 
-    from campaign.commands.guide import Setup, conclude, confirm, on_dashboard, open_and_check
+    from campaign.commands.guide import (
+        Setup,
+        conclude,
+        confirm,
+        ctrl_c_held,
+        on_dashboard,
+        open_and_check,
+        sigint_restored,
+    )
     from campaign.guide import datum_item, reapproach_item, soft_limit_item
     from campaign.measure import continue_campaign
     from campaign.record import last_reading_offset
@@ -86,17 +94,19 @@ def guided(r: Resumption, args: argparse.Namespace) -> int:
     except BaseException:
         r.close()
         raise
-    try:
-        point = plan.points[r.todo[0]]
-        start = point.target - point.direction * config.plan.overrun
-        unit = config.axis.unit
-        confirm(args, console, True, f"to the overrun at {start:g} {unit}, then {len(r.todo)} points")
-        outcome = on_dashboard(config, plan, args, opened, console, True, r.path,
-                               lambda dashboard, control: continue_campaign(r, opened=opened, speed=args.speed,
-                                                                            observer=dashboard, control=control))
-    except BaseException:
-        r.close()  # not continued: the recorder is still ours (continue_campaign closes it otherwise)
-        raise
-    finally:
-        opened[0].close()
-    return conclude(outcome, config, args, console)
+    with sigint_restored():
+        try:
+            point = plan.points[r.todo[0]]
+            start = point.target - point.direction * config.plan.overrun
+            unit = config.axis.unit
+            confirm(args, console, True, f"to the overrun at {start:g} {unit}, then {len(r.todo)} points")
+            outcome = on_dashboard(config, plan, args, opened, console, True, r.path,
+                                   lambda dashboard, control: continue_campaign(r, opened=opened, speed=args.speed,
+                                                                                observer=dashboard, control=control),
+                                   then=ctrl_c_held(console))
+        except BaseException:
+            r.close()  # not continued: the recorder is still ours (continue_campaign closes it otherwise)
+            raise
+        finally:
+            opened[0].close()
+        return conclude(outcome, config, args, console)

@@ -84,17 +84,21 @@ class CtrlC:
     the main thread in the middle of its own exchange with it, or of the simulated PLC's scan, and
     wait on it: a hang) nor raise in the middle of the stop record. A third is the way out when
     something does not stop: KeyboardInterrupt wherever the program is (the record keeps every point
-    written; `axiscal resume` continues it)."""
+    written; `axiscal resume` continues it). `then`: the handler left in place at the exit, so that a
+    Ctrl-C pressed as the campaign ends meets it, not the one before (the guide's, which says and ignores
+    it while the summary is written; a second Ctrl-C 50 ms after the first came after the campaign had
+    stopped and before the guide held it, and the guide ended with "error: interrupted" and no summary);
+    None: the one before."""
 
-    def __init__(self, dashboard: Dashboard) -> None:
-        self.dashboard, self.count = dashboard, 0
+    def __init__(self, dashboard: Dashboard, then: Callable[[int, FrameType | None], None] | None = None) -> None:
+        self.dashboard, self.count, self.then = dashboard, 0, then
 
     def __enter__(self) -> Self:
         self.previous = signal.signal(signal.SIGINT, self._handle)
         return self
 
     def __exit__(self, *exc: object) -> None:
-        signal.signal(signal.SIGINT, self.previous)
+        signal.signal(signal.SIGINT, self.then or self.previous)
 
     def _handle(self, signum: int, frame: FrameType | None) -> None:
         self.count += 1
