@@ -163,6 +163,31 @@ def test_verify_refuses_another_axis_table_before_writing_to_the_controller(cli,
     assert machine.openings == []
 
 
+def test_verify_refuses_a_table_whose_correction_leaves_the_soft_limits_even_with_force(cli, tmp_path, monkeypatch):
+    """With the table active the motor goes to the command plus the correction: one mistyped reverse
+    value (599.996 mm where a few µm were meant) would take it to 1,200 mm on a 610 mm axis. A new
+    user's trial did so: the old code warned of a spike, wrote the table and drove the simulated axis
+    to 753 mm. Refused with exit 2 before the controller is opened, --force or not."""
+    from tests.fakes import SMALL, FakeMachine
+
+    machine = FakeMachine()
+    monkeypatch.setattr("campaign.commands.verify.hardware_opener", lambda: machine)
+    config = tmp_path / "small.toml"
+    config.write_text(SMALL)
+    good = comp_json(tmp_path / "ok.json", 0.0, 25.0, 5, machine="fake", axis="X")
+    bad = json.loads(good.read_text())
+    bad["mode"], bad["reverse"][-1] = "bi", 599_996.0  # µm: the table's unit
+    (tmp_path / "bad.json").write_text(json.dumps(bad))
+    for force in ((), ("--force",)):
+        result = cli("verify", config, "--comp", tmp_path / "bad.json", "--out", tmp_path / "after", *force)
+        assert_one_line_error(result, "bad.json", "moving - at 100 mm", "outside the soft limits")
+    assert machine.openings == [] and not (tmp_path / "after").exists()
+    # the same table with the value meant loads
+    bad["reverse"][-1] = 3.0
+    (tmp_path / "bad.json").write_text(json.dumps(bad))
+    assert cli("verify", config, "--comp", tmp_path / "bad.json", "--out", tmp_path / "after").code == 0
+
+
 def test_verify_force_loads_another_axis_table_and_says_so(cli, tmp_path, monkeypatch):
     from tests.fakes import SMALL, FakeMachine
 

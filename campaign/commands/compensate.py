@@ -243,11 +243,13 @@ def write_plc(args: argparse.Namespace, ctable: ControllerTable, console: Consol
     """TwinCAT (a): the tables into the PLC's compensation variables over ADS, read back, compared."""
     from campaign.commands import hardware_opener
     from campaign.config import load_config
-    from campaign.measure import correction_limits
+    from campaign.measure import corrected_within_limits, correction_limits
+    from campaign.plan import build_plan
 
     config = load_config(args.write_plc)
     if ctable.kind != config.axis.kind:
         raise InputError(f"--write-plc: a {ctable.kind} table does not fit the {config.axis.kind} axis")
+    corrected_within_limits(ctable, build_plan(config), config, "--write-plc")
     rate, accel = correction_limits(config, args.max_rate, args.max_accel)
     hardware, _ = hardware_opener()(config.driver)
     try:

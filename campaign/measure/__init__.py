@@ -37,6 +37,7 @@ from campaign.measure.session import (
 from campaign.measure.verify import (
     SUMMARY_KEYS,
     baseline_points,
+    corrected_within_limits,
     correction_limits,
     run_verification,
     table_fits,
@@ -68,6 +69,7 @@ __all__ = [
     "baseline_points",
     "capture_point",
     "continue_campaign",
+    "corrected_within_limits",
     "correction_limits",
     "default_out_dir",
     "dry_run",

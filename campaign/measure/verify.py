@@ -17,11 +17,11 @@ from typing import Any
 from campaign.compensation.grid import ControllerTable
 from campaign.compensation.table_file import KEPT_TABLE
 from campaign.config import Config
-from campaign.errors import InputError
+from campaign.errors import InputError, SafetyError
 from campaign.iso230 import Evaluation, evaluate
 from campaign.measure.executor import Observer
 from campaign.measure.session import Opener, Outcome, open_with_comp, start_campaign
-from campaign.plan import Plan
+from campaign.plan import Move, Plan
 from campaign.plot import draw_evaluation, pyplot
 from campaign.pointtable import PointTable, read_points
 from campaign.record import COMP_FILE, open_campaign
@@ -73,11 +73,35 @@ def table_fits(table: ControllerTable, provenance: dict[str, str], config: Confi
     if certain and not force:
         raise InputError(f"{where}: {'; '.join(certain)}: another axis' table? Nothing was written to the "
                          "controller (--force loads it anyway)")
+    corrected_within_limits(table, plan, config, where)
     warnings = [f"{w} (loaded anyway: --force)" for w in certain]
     if not provenance:
         warnings.append("the table does not say which machine and axis it was made for (the linuxcnc, heidenhain "
                         "and fanuc formats have no comments to say it in): check that it is this axis' table")
     return warnings
+
+
+def corrected_within_limits(table: ControllerTable, plan: Plan, config: Config, where: str) -> None:
+    """Refuse (SafetyError, exit 2; --force does not load it) a table whose correction would take
+    the motor outside the soft limits anywhere the plan moves: with the table active the motor goes
+    to the commanded position plus the correction, so a wrong value (a half-written line, a table in
+    µm read as mm) moves it as far as the value says. Checked at every table point within the
+    plan's moves and at their ends, in both directions (between points the correction is linear)."""
+    axis = config.axis
+    moves = [step.position for step in plan.steps if isinstance(step, Move)]
+    if not moves:
+        return
+    lo, hi = min(moves), max(moves)
+    inside = table.positions[(table.positions > lo) & (table.positions < hi)]
+    for position in [lo, *inside.tolist(), hi]:
+        for direction in (1, -1):
+            motor = position + table.correction(position, direction) * table.unit_factor
+            if not axis.soft_limit_min <= motor <= axis.soft_limit_max:
+                raise SafetyError(
+                    f"{where}: moving {'+' if direction > 0 else '-'} at {position:g} {axis.unit} the table's "
+                    f"correction takes the motor to {motor:.6g} {axis.unit}, outside the soft limits "
+                    f"[{axis.soft_limit_min:g}, {axis.soft_limit_max:g}] {axis.unit}: a wrong value in the table? "
+                    "Nothing was written to the controller")
 
 
 def run_verification(config: Config, table: ControllerTable, out: Path, *, opener: Opener,
