@@ -118,6 +118,9 @@ class CaptureMethod:
     step_label(window): (what the plan's step list says it does, how long).
     not_iso_why: why a method that is not iso_230_2 gives only indicative figures (the verdict's
       reason); empty for an ISO 230-2 method.
+    value_at_end: the captured position is the axis' position at the capture's end (a line fitted
+      through its window, taken at the window's end), not the window's mean: a model of what was
+      captured (discovery) evaluates the error there, not over the window's samples.
     """
 
     name: str
@@ -131,6 +134,7 @@ class CaptureMethod:
     describe: Callable[[CaptureSettings, str, str], str]
     step_label: Callable[[Window], tuple[str, str]]
     not_iso_why: str = ""
+    value_at_end: bool = False
 
 
 METHODS: dict[str, CaptureMethod] = {}
@@ -257,6 +261,7 @@ def _stable_capture(spec: CaptureSettings, w: Window, deviation_scale: float, ti
 
 register(CaptureMethod(
     "stable", "capture when the reading is stable", live=True, sweeps=False, iso_230_2=True, fixed_dwell=False,
+    value_at_end=True,
     window=lambda spec, dwell_s: Window(0.0, spec.stable_window_s, spec.stable_timeout_s),
     capture=_stable_capture,
     describe=lambda spec, pos, dev: (f"stability trigger, {spec.stable_tolerance:g} {dev} band and "
