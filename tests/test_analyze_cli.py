@@ -77,6 +77,18 @@ def test_bad_plot_extension(cli, tmp_path):
     assert_one_line_error(cli("analyze", HORIZONTAL, "--plot", tmp_path / "x.jpg"), ".jpg")
 
 
+def test_a_plot_path_that_cannot_be_a_file_is_refused_before_anything_runs(cli, tmp_path):
+    """A directory named x.png, or a folder that does not exist: exit 2 before the work (a new user's
+    trial lost a whole campaign's result to `run --plot DIR`, an internal error at its end). The same
+    check guards run, verify, discover and history trend (campaign.plot.check_plot_path)."""
+    (tmp_path / "x.png").mkdir()
+    assert_one_line_error(cli("analyze", HORIZONTAL, "--plot", tmp_path / "x.png"), "x.png", "is a directory")
+    assert_one_line_error(cli("analyze", HORIZONTAL, "--plot", tmp_path / "none" / "y.png"), "no directory")
+    assert_one_line_error(cli("demo", "--fake", "--out", tmp_path / "c", "--plot", tmp_path / "x.png"),
+                          "is a directory")
+    assert not (tmp_path / "c").exists()
+
+
 def _write(tmp_path, content, name="t.csv", binary=False):
     path = tmp_path / name
     if binary:

@@ -113,6 +113,17 @@ def test_reading_a_missing_store_makes_nothing(cli, tmp_path, monkeypatch):
     assert not (tmp_path / "mistyped").exists()
 
 
+def test_a_file_that_is_no_database_is_said_so(cli, tmp_path, monkeypatch):
+    """`--db` naming a config file (a slip of the shell's completion): exit 2 with one sentence, for
+    reading and writing actions alike (it was an internal error, exit 1, with SQLAlchemy's link)."""
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "xdg"))
+    not_a_store = tmp_path / "x.toml"
+    not_a_store.write_text("[campaign]\nmachine = 'm'\n" * 200)
+    for action in (("list",), ("store",), ("trend", "m", "X")):
+        assert_one_line_error(cli("history", *action, "--db", not_a_store), str(not_a_store), "not a database")
+    assert not_a_store.read_text().startswith("[campaign]")
+
+
 @pytest.mark.machine
 def test_an_empty_server_database_is_no_store_to_read(cli, postgres_server, tmp_path, monkeypatch):
     monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "xdg"))

@@ -122,3 +122,28 @@ def test_one_process_at_a_time(tmp_path, cli):
     again = Recorder.reopen(directory)  # the lock goes with the holder
     assert again.points_written == 2
     again.close()
+
+
+def test_an_out_that_cannot_be_a_directory_is_bad_input(cli, tmp_path):
+    """`--out` naming a file, or a path under one: exit 2 with one line before anything moves (it was an
+    internal error, FileExistsError or NotADirectoryError)."""
+    from tests.conftest import assert_one_line_error
+
+    taken = tmp_path / "points.csv"
+    taken.write_text("not a campaign\n")
+    assert_one_line_error(cli("demo", "--fake", "--out", taken), str(taken), "is a file, not a campaign directory")
+    assert_one_line_error(cli("demo", "--fake", "--out", taken / "sub"), "cannot make the campaign directory")
+    assert taken.read_text() == "not a campaign\n"
+
+
+def test_a_plot_that_fails_at_the_end_loses_nothing_else(cli, tmp_path, monkeypatch):
+    """The plot is checked before the campaign; a disk that fails when it is written after still
+    leaves the summary, the verdict and the campaign's end: a warning says the plot is missing."""
+    def full_disk(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr("campaign.commands.run.plot_evaluation", full_disk)
+    result = cli("demo", "--fake", "--out", tmp_path / "c", "--plot", tmp_path / "p.png")
+    assert result.code == 0, result.err
+    assert "the plot was not written" in result.out and "No space left on device" in result.out
+    assert "campaign completed" in result.out and "accuracy A =" in result.out  # the verdict line

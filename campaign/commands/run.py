@@ -70,6 +70,7 @@ def print_outcome(outcome: Outcome, args: argparse.Namespace, extra: dict | None
     result = {"dir": str(outcome.dir), "status": outcome.status, "points": outcome.points,
               "planned": outcome.planned, "duration_s": round(outcome.duration_s, 3), **(extra or {})}
     # a scan's points.csv is its table, written only once every pass is recorded (its sweeps are not points)
+    plot_error = None
     scan = is_scan(outcome.dir)
     unfinished_scan = scan and not scan_results_written(outcome.dir)
     a = assess_path(outcome.dir) if outcome.points and not unfinished_scan else None
@@ -79,7 +80,11 @@ def print_outcome(outcome: Outcome, args: argparse.Namespace, extra: dict | None
         result.update(unit=ev.unit, verdict=a.verdict.verdict, reasons=a.verdict.reasons,
                       uncertainty=a.uncertainty.as_json(), outliers=[o.as_dict() for o in a.outliers.found])
         if args.plot:
-            plot_evaluation(a.table, ev, args.plot, title=f"{outcome.dir}")
+            try:  # checked before the campaign; a disk that fails now must not lose its result
+                plot_evaluation(a.table, ev, args.plot, title=f"{outcome.dir}")
+            except OSError as exc:
+                plot_error = f"{args.plot}: {exc.strerror or exc}"
+                result["plot_error"] = plot_error
     else:
         result.update(verdict="not judged", reasons=["no point was recorded"])
     missing = outcome.planned - outcome.points
@@ -100,7 +105,9 @@ def print_outcome(outcome: Outcome, args: argparse.Namespace, extra: dict | None
     elif missing:
         console.print(f"[yellow]{missing} {counted_as[:-1]}(s) skipped after faults[/]: measure them with: "
                       f"axiscal resume {outcome.dir}")
-    if args.plot and a is not None:
+    if plot_error is not None:
+        console.print(f"[yellow]warning:[/] the plot was not written ({plot_error})", markup=True)
+    elif args.plot and a is not None:
         console.print(f"plot written to {args.plot}")
     return 0 if outcome.status == "completed" else 3
 

@@ -193,7 +193,7 @@ class Store:
         """Database and OS errors as StoreUnavailable, credentials masked."""
         try:
             yield
-        except (sa.exc.OperationalError, sa.exc.InterfaceError, sa.exc.ProgrammingError) as exc:
+        except (sa.exc.DatabaseError, sa.exc.InterfaceError) as exc:  # operational, programming, not a database
             reason = str(getattr(exc, "orig", None) or exc).strip().splitlines()
             raise StoreUnavailable(scrub(f"{self.place}: {reason[0] if reason else type(exc).__name__}",
                                          self.url)) from None

@@ -188,7 +188,12 @@ class Recorder:
         version, software, host, creation time and the config's `sections`) and plan.jsonl.
         `durable`: see the class (always True for a campaign on a machine)."""
         path = Path(directory)
-        path.mkdir(parents=True, exist_ok=True)
+        try:
+            path.mkdir(parents=True, exist_ok=True)
+        except FileExistsError:
+            raise InputError(f"{path}: is a file, not a campaign directory (give --out a directory)") from None
+        except OSError as exc:
+            raise InputError(f"{path}: cannot make the campaign directory ({exc.strerror or exc})") from None
         runs_fd = lock_directory(path)
         try:
             if (path / "points.csv").exists() and (path / "points.csv").stat().st_size:
