@@ -19,7 +19,7 @@ from campaign.errors import InputError
 from campaign.iso230 import STANDARDS, Evaluation, Standard, evaluate
 from campaign.outliers import Outliers, find_outliers
 from campaign.pointtable import PointTable, read_points
-from campaign.record import META_FILE, open_campaign
+from campaign.record import META_FILE, open_campaign, read_recorded_points, without_torn_line
 from campaign.specs import PURPOSES
 from campaign.uncertainty import Budget, budget
 from campaign.verdict import Planned, Verdict, completeness, judge
@@ -137,9 +137,9 @@ def assess_path(path: str | Path, tolerance: float | None = None,
         return assess(table, tolerance=tolerance, standard=standard, source=str(path))
     campaign = open_campaign(directory)
     points = directory / "points.csv"
-    if not points.is_file() or not any(ln[:1].isdigit() for ln in points.read_text(encoding="utf-8").splitlines()):
+    if not points.is_file() or not any(ln[:1].isdigit() for ln in without_torn_line(points).splitlines()):
         raise InputError(f"{points}: no point recorded yet")
-    table = read_points(points, partial=True)
+    table = read_recorded_points(directory)  # a torn last line, the point in progress at a crash, left out
     config = campaign.config()  # config.toml, or the config plan.jsonl describes
     planned_points = campaign.meta.get("points_planned")
     planned = Planned(int(planned_points), int(config.plan.cycles)) if planned_points else None

@@ -147,3 +147,25 @@ def test_a_plot_that_fails_at_the_end_loses_nothing_else(cli, tmp_path, monkeypa
     assert result.code == 0, result.err
     assert "the plot was not written" in result.out and "No space left on device" in result.out
     assert "campaign completed" in result.out and "accuracy A =" in result.out  # the verdict line
+
+
+def test_a_torn_last_line_is_left_out_by_every_reader_and_kept_in_the_file(cli, tmp_path):
+    """A crash in the middle of writing a point leaves its line without a newline (and its numbers
+    perhaps cut). analyze, report and replay of the directory read what was recorded before it, as
+    the docs promise, and leave the file as it is for `resume` to cut (they refused it before:
+    "expected 15 fields, found 11")."""
+    directory = tmp_path / "c"
+    assert cli("demo", "--fake", "--out", directory).code == 0
+    points, raw = directory / "points.csv", directory / "raw.csv"
+    text = points.read_bytes()
+    last = text.rstrip(b"\n").rfind(b"\n") + 1
+    points.write_bytes(text[:last] + text[last:last + 25])  # the last point's line, cut mid-number
+    raw.write_bytes(raw.read_bytes()[:-17])
+    torn = points.read_bytes()
+    analyzed = cli("analyze", directory)
+    assert analyzed.code == 0, analyzed.err
+    assert "1 of 110 planned points are missing" in " ".join(analyzed.out.split())
+    assert cli("report", directory, "-o", tmp_path / "r.html").code == 0
+    replayed = cli("replay", directory)
+    assert replayed.code == 0, replayed.err
+    assert points.read_bytes() == torn

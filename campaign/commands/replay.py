@@ -18,8 +18,8 @@ from campaign.errors import InputError
 from campaign.iso230 import evaluate
 from campaign.measure import ScanSettings, analyse_recorded_scan, replay_campaign, settings_of
 from campaign.plan import Plan, check_scan_window
-from campaign.pointtable import PointTable, read_points
-from campaign.record import open_campaign
+from campaign.pointtable import PointTable
+from campaign.record import open_campaign, read_recorded_points
 from campaign.views import fmt, make_console, print_json
 from protocols.units import unit_label
 
@@ -129,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
     directory = Path(args.dir)
     if not (directory / "meta.json").is_file():
         raise InputError(f"{directory}: not a campaign directory (no meta.json)")
-    recorded = read_points(directory / "points.csv")
+    recorded = read_recorded_points(directory, partial=False)
     campaign = open_campaign(directory)
     config = campaign.config()
     plan = campaign.plan_for(config)

@@ -24,7 +24,7 @@ from campaign.measure.session import Opener, Outcome, open_with_comp, start_camp
 from campaign.plan import Move, Plan
 from campaign.plot import draw_evaluation, pyplot
 from campaign.pointtable import PointTable, read_points
-from campaign.record import COMP_FILE, open_campaign
+from campaign.record import COMP_FILE, open_campaign, read_recorded_points
 from campaign.views import SUMMARY_ROWS
 from protocols.plc_contract import CompTable
 from protocols.units import DEVIATION_SCALE, unit_label
@@ -155,7 +155,7 @@ def baseline_points(path: Path, config: Config) -> PointTable:
                              f"{what} '{now}': compare like with like")
     if not (path / "points.csv").is_file():
         raise InputError(f"--before {path}: the baseline campaign recorded no points.csv")
-    return read_points(path / "points.csv")
+    return read_recorded_points(path, partial=False)
 
 
 def direction_table(table: PointTable, ev: Evaluation, direction: int) -> list[str]:

@@ -22,9 +22,11 @@ from campaign.record.directory import (
     open_campaign,
     read_events,
     read_json_lines,
+    read_recorded_points,
     read_sweeps,
     recorded_point_indices,
     scan_results_written,
+    without_torn_line,
 )
 from campaign.record.events import (
     KINDS,
@@ -96,7 +98,9 @@ __all__ = [
     "open_campaign",
     "read_events",
     "read_json_lines",
+    "read_recorded_points",
     "read_sweeps",
     "recorded_point_indices",
     "scan_results_written",
+    "without_torn_line",
 ]

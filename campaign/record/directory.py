@@ -19,6 +19,7 @@ rebuilt from config.toml and must give the targets meta.json recorded.
 from __future__ import annotations
 
 import fcntl
+import io
 import json
 import os
 from dataclasses import dataclass
@@ -33,6 +34,8 @@ from campaign.specs import CaptureSpec
 
 if TYPE_CHECKING:
     import pandas as pd
+
+    from campaign.pointtable import PointTable
 from protocols.plc_contract import CompTable
 
 FORMAT_VERSION = 2
@@ -304,17 +307,34 @@ def scan_results_written(directory: Path) -> bool:
     return (Path(directory) / PROFILE_FILE).exists() and points.exists() and points.stat().st_size > 0
 
 
+def without_torn_line(path: Path) -> bytes:
+    """A recorded file's bytes without a torn last line. The recorder ends every line with a newline
+    and fsyncs it: a last line without one is a write a crash cut short (its numbers may be cut too),
+    the point in progress, which is not recorded. Read only: `axiscal resume` cuts it from the file."""
+    from campaign.errors import read_input_bytes
+
+    data = read_input_bytes(path, "a recorded campaign file")
+    return data[:data.rfind(b"\n") + 1]
+
+
+def read_recorded_points(directory: str | Path, partial: bool = True) -> PointTable:
+    """A campaign directory's points.csv as recorded so far, without a torn last line
+    (without_torn_line); `partial`: see campaign.pointtable.parse_points."""
+    from campaign.pointtable import decode_csv, parse_points
+
+    path = Path(directory) / "points.csv"
+    return parse_points(decode_csv(str(path), without_torn_line(path)), str(path), partial)
+
+
 def recorded_point_indices(directory: Path) -> list[int]:
     """The plan indices of the points recorded in points.csv (its `point` column); none while the
     file holds no row yet."""
-    from campaign.pointtable import read_points
-
     if (Path(directory) / SWEEPS_FILE).exists():  # a scan: the sweeps done (points.csv: its table, at the end)
         return [s.point for s in read_sweeps(directory)]
     path = Path(directory) / "points.csv"
-    if not path.exists() or not any(ln[:1].isdigit() for ln in path.read_text(encoding="utf-8").splitlines()):
+    if not path.exists() or not any(ln[:1].isdigit() for ln in without_torn_line(path).splitlines()):
         return []
-    return [int(i) for i in read_points(path, partial=True).extra["point"]]
+    return [int(i) for i in read_recorded_points(directory).extra["point"]]
 
 
 def load_raw(directory: Path) -> pd.DataFrame:
@@ -325,7 +345,7 @@ def load_raw(directory: Path) -> pd.DataFrame:
     if not path.is_file():
         raise InputError(f"{directory}: not a campaign directory (no raw.csv)")
     try:
-        return pd.read_csv(path, dtype={"step": "Int64", "point": "Int64"})
+        return pd.read_csv(io.BytesIO(without_torn_line(path)), dtype={"step": "Int64", "point": "Int64"})
     except (ValueError, pd.errors.ParserError) as exc:
         raise InputError(f"{path}: cannot read the raw stream ({exc})") from None
 
