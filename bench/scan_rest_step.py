@@ -7,7 +7,7 @@ the axis coming to rest exactly: for each direction, the rest step found against
 units of its stated u. Writes bench/results/scan_rest_step.json and prints, per number of passes, how many of the
 steps lie beyond 2u and 3u.
 
-    .venv/bin/python bench/scan_rest_step.py [--first 100] [--seeds 20]
+    .venv/bin/python bench/scan_rest_step.py [--first 100] [--seeds 100]
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ TARGETS = [0.0, 10.0, 20.0, 30.0]
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--first", type=int, default=100, help="the first scan's seed")
-    parser.add_argument("--seeds", type=int, default=20, help="scans drawn for each number of passes")
+    parser.add_argument("--seeds", type=int, default=100, help="scans drawn for each number of passes")
     args = parser.parse_args()
     out = {"first": args.first, "seeds": args.seeds, "passes": {}}
     for passes, positioning_um in ((1, 0.05), (2, 0.05), (3, 0.05), (1, 0.0)):

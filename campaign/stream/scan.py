@@ -165,11 +165,13 @@ class RestStep:
     arrived at in that direction (deviation unit), its standard uncertainty and the ends counted.
     `u` is the larger of the ends' own (each end's deceleration fit and rest mean, from their samples'
     scatter) and of their scatter about the mean: a scan has two or three ends a direction, whose
-    scatter alone is a poor estimate. bench/scan_rest_step.py (20 drawn scans, 40 steps at each number of
-    passes, the axis coming to rest within 0.05 µm RMS of where it should): beyond 2u 5, 3 and 1 of 40 at
-    one, two and three passes. One end a direction (one pass) has only its own, which leaves out where
-    the axis comes to rest each time: with the axis coming to rest exactly, 1 of 40 beyond 2u at one
-    pass. analyse_scan warns of it."""
+    scatter alone is a poor estimate. bench/scan_rest_step.py (100 drawn scans, 200 steps at each number
+    of passes, the axis coming to rest within 0.05 µm RMS of where it should): beyond 2u 20, 9 and 5 of
+    200 at one, two and three passes (a normal error: 9). One end a direction (one pass) has only its
+    own, which leaves out where the axis comes to rest each time: with the axis coming to rest exactly,
+    6 of 200 beyond 2u at one pass. analyse_scan warns of it, and the metadata says so with the step.
+    The samples' noise is taken as independent (the simulator's is); a real interferometer's slow noise
+    would make u too small, at one end and at several."""
 
     direction: int
     step: float
@@ -223,19 +225,33 @@ def rest_steps(ctrl: ControllerStream, inst: InstrumentStream, alignment: Alignm
     return out
 
 
+UNEVEN_CYCLES = 2.0
+"""Neighbouring cycle intervals that differ by more than this factor (a dropped sample) take the
+straight line: a parabola through very uneven nodes amplifies the positions' own rounding."""
+
+
 def position_between_cycles(ctrl: ControllerStream, t: np.ndarray) -> np.ndarray:
     """The controller's position at times `t` (s) between its samples (axis unit), by the parabola
     through the three samples nearest each time. On a ramp the position is a parabola in time: a
     straight line between two samples falls short of it by up to a·h²/8 (0.05 µm at 420 mm/s² and a
-    1 ms cycle), which biased the rest step by a few of its standard uncertainties; the parabola
-    leaves only what the jerk makes (at the ramp's ends)."""
+    1 ms cycle), which biased the rest step by 0.02 µm on average (up to 0.05 µm); the parabola leaves
+    what the jumps in acceleration make where a ramp starts and ends. Outside the samples, and where
+    the intervals either side differ by more than UNEVEN_CYCLES, the straight line (np.interp);
+    InputError with fewer than three samples."""
     times, x = ctrl.time_s, ctrl.position
+    if len(times) < 3:
+        raise InputError("the controller stream has fewer than 3 samples")
+    t = np.asarray(t, dtype=float)
+    line = np.interp(t, times, x)
     nearest = np.rint(np.interp(t, times, np.arange(len(times)))).astype(int)
     i = np.clip(nearest, 1, len(times) - 2)  # the middle of the three, kept one in from the ends
     t0, t1, t2 = times[i - 1], times[i], times[i + 1]
     x0, x1, x2 = x[i - 1], x[i], x[i + 1]
-    return (x0 * (t - t1) * (t - t2) / ((t0 - t1) * (t0 - t2)) + x1 * (t - t0) * (t - t2) / ((t1 - t0) * (t1 - t2))
-            + x2 * (t - t0) * (t - t1) / ((t2 - t0) * (t2 - t1)))
+    parabola = (x0 * (t - t1) * (t - t2) / ((t0 - t1) * (t0 - t2)) + x1 * (t - t0) * (t - t2) / ((t1 - t0) * (t1 - t2))
+                + x2 * (t - t0) * (t - t1) / ((t2 - t0) * (t2 - t1)))
+    even = np.maximum(t1 - t0, t2 - t1) <= UNEVEN_CYCLES * np.minimum(t1 - t0, t2 - t1)
+    inside = (t >= times[0]) & (t <= times[-1])
+    return np.where(even & inside, parabola, line)
 
 
 def _end_u(design: np.ndarray, e: np.ndarray, coef: np.ndarray, rest_readings: np.ndarray) -> float:
@@ -352,12 +368,16 @@ def analyse_scan(ctrl: ControllerStream, inst: InstrumentStream, targets: tuple[
     budget = timing_budget(alignment, moves, jitter, rate_hz, window, kind)
     limit = speed_limit(alignment, moves, jitter, rate_hz, window, wanted_u, kind)
     warnings = scan_warnings(budget, limit, wanted_u, moves, targets, window, kind)
-    if any(st.ends == 1 for st in steps.values()):
-        warnings.append("one end a direction: the rest step's uncertainty leaves out where the axis comes to rest "
-                        "each time (its positioning scatter), which one end cannot show; scan two passes or more")
+    for d, st in steps.items():
+        if st.ends == 1:
+            warnings.append(f"{'+' if d > 0 else '-'} direction: one end only rests long enough ({2 * average_s:g} s "
+                            "or more) to give a rest step: its uncertainty leaves out where the axis comes to rest each "
+                            "time (its positioning scatter), which one end cannot show; scan more passes or rest longer "
+                            "at the ends")
     a = alignment.as_dict()
     pos, dev = UNITS[kind][0], unit_label(UNITS[kind][1])
-    rest = "; ".join(f"{'+' if d > 0 else '-'}: {st.step:.3f} ± {st.u:.3f} {dev} over {st.ends} ends"
+    rest = "; ".join(f"{'+' if d > 0 else '-'}: {st.step:.3f} ± {st.u:.3f} {dev} over "
+                     + (f"{st.ends} ends" if st.ends > 1 else "1 end, u without the positioning scatter")
                      for d, st in steps.items())
     table_meta = {"purpose": "diagnostic", "capture": capture_methods.SCAN.name,
                   "scan": f"{len(moves)} moves at {v:g} {pos}/s, window {window:g} {pos}",
