@@ -118,6 +118,7 @@ class CaptureMethod:
     step_label(window): (what the plan's step list says it does, how long).
     not_iso_why: why a method that is not iso_230_2 gives only indicative figures (the verdict's
       reason); empty for an ISO 230-2 method.
+    options: the `[capture]` keys it reads (what a replay with another setting can change).
     value_at_end: the captured position is the axis' position at the capture's end (a line fitted
       through its window, taken at the window's end), not the window's mean: a model of what was
       captured (discovery) evaluates the error there, not over the window's samples.
@@ -134,6 +135,7 @@ class CaptureMethod:
     describe: Callable[[CaptureSettings, str, str], str]
     step_label: Callable[[Window], tuple[str, str]]
     not_iso_why: str = ""
+    options: tuple[str, ...] = ()
     value_at_end: bool = False
 
 
@@ -193,6 +195,7 @@ def _dwell_capture(spec: CaptureSettings, w: Window, deviation_scale: float, tic
 
 register(CaptureMethod(
     "dwell", "average the end of a fixed dwell", live=True, sweeps=False, iso_230_2=True, fixed_dwell=True,
+    options=("average_s",),
     window=_dwell_window, capture=_dwell_capture,
     describe=lambda spec, pos, dev: f"fixed dwell, mean of the last {spec.average_s:g} s",
     step_label=lambda w: ("capture (average)", f"{w.window_s:g}")))
@@ -261,7 +264,7 @@ def _stable_capture(spec: CaptureSettings, w: Window, deviation_scale: float, ti
 
 register(CaptureMethod(
     "stable", "capture when the reading is stable", live=True, sweeps=False, iso_230_2=True, fixed_dwell=False,
-    value_at_end=True,
+    value_at_end=True, options=("stable_tolerance", "stable_drift", "stable_window_s", "stable_timeout_s"),
     window=lambda spec, dwell_s: Window(0.0, spec.stable_window_s, spec.stable_timeout_s),
     capture=_stable_capture,
     describe=lambda spec, pos, dev: (f"stability trigger, {spec.stable_tolerance:g} {dev} band and "
@@ -282,6 +285,7 @@ SCAN = register(CaptureMethod(
     "scan", "move at scan_velocity through every target while both streams are recorded; a diagnostic, "
     "not an ISO 230-2 test (docs/scan.md)", live=True, sweeps=True, iso_230_2=False, fixed_dwell=False,
     window=lambda spec, dwell_s: Window(0.0, 0.0, 0.0), capture=_not_at_a_stop("scan"),
+    options=("scan_velocity", "scan_window"),
     describe=lambda spec, pos, dev: (f"scan on the move at {spec.scan_velocity or 0:g} {pos}/s, clocks aligned "
                                      f"from the passes, a line through ±{spec.scan_window / 2:g} {pos} about each "
                                      "target (not an ISO 230-2 capture)"),
@@ -291,6 +295,6 @@ SCAN = register(CaptureMethod(
 register(CaptureMethod(
     "stream", "the stream import's own: the last average_s of each dwell found in a position log "
     "(axiscal import-stream)", live=False, sweeps=False, iso_230_2=True, fixed_dwell=True,
-    window=_dwell_window, capture=_not_at_a_stop("stream"),
+    window=_dwell_window, capture=_not_at_a_stop("stream"), options=("average_s",),
     describe=lambda spec, pos, dev: f"imported stream, mean of the last {spec.average_s:g} s of each dwell found",
     step_label=lambda w: ("capture (imported)", f"{w.window_s:g}")))

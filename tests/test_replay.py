@@ -94,3 +94,29 @@ def test_an_average_longer_than_the_dwell_is_refused(cli, tmp_path):
     assert_one_line_error(cli("replay", tmp_path / "c", "--average-s", "100"), "--average-s 100",
                           "recorded dwell of 1 s")
     assert cli("replay", tmp_path / "c", "--average-s", "0.8", "--json").code == 0
+
+
+def test_a_setting_the_capture_does_not_read_is_refused(cli, tmp_path):
+    """--stable-tolerance on a dwell capture (and --average-s on a stable one) changed nothing, and the
+    replay said it reproduced the table: the user believed the setting made no difference."""
+    from campaign.config import parse_config
+    from campaign.measure import start_campaign
+    from tests.fakes import SMALL, FakeMachine
+
+    start_campaign(parse_config(SMALL, "small.toml"), tmp_path / "c", opener=FakeMachine())
+    assert_one_line_error(cli("replay", tmp_path / "c", "--stable-tolerance", "0.1"), "--stable-tolerance",
+                          "not read by the dwell capture", "--capture")
+    assert_one_line_error(cli("replay", tmp_path / "c", "--capture", "stable", "--average-s", "0.5"),
+                          "--average-s", "not read by the stable capture")
+    assert cli("replay", tmp_path / "c", "--capture", "stable", "--stable-tolerance", "5", "--json").code == 0
+
+
+@pytest.mark.machine
+def test_a_band_the_recording_never_meets_is_said_per_point(cli, recorded):
+    """A stable band far below the reading noise: no point is stable within its timeout. Each is
+    said as such, as the live campaign's fault would be (it was an internal error, exit 1)."""
+    result = cli("replay", recorded / "stable", "--stable-tolerance", "0.0001", "--json")
+    assert result.code == 0, result.err
+    data = json.loads(result.out)
+    assert data["points"] < 110
+    assert any("not stable" in d["note"] for d in data["differences"])

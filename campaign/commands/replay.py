@@ -61,15 +61,22 @@ def _overrides(args: argparse.Namespace) -> dict:
 
 
 def check_window(directory: Path, overrides: dict) -> None:
-    """A dwell capture averages within the dwell: an --average-s longer than the recorded dwell
-    would silently average less than asked (the capture takes at most the dwell). InputError."""
+    """Each setting given must be one the replay's capture method reads (an --average-s on a stable
+    capture changed nothing and said it reproduced the table), and a dwell capture averages within
+    the dwell: an --average-s longer than the recorded dwell would silently average less than asked
+    (the capture takes at most the dwell). InputError."""
     from campaign.record import open_campaign
 
+    config = open_campaign(directory).config()
+    method = overrides.get("method", config.capture.method)
+    unread = [key for key in overrides if key != "method" and key not in capture_methods.method(method).options]
+    if unread:
+        options = ", ".join(f"--{key.replace('_', '-')}" for key in unread)
+        raise InputError(f"{options}: not read by the {method} capture this replay uses ({directory}); give "
+                         "--capture with the method that reads it")
     average = overrides.get("average_s")
     if average is None:
         return
-    config = open_campaign(directory).config()
-    method = overrides.get("method", config.capture.method)
     dwell = config.plan.dwell_s
     if capture_methods.method(method).fixed_dwell and average > dwell:
         raise InputError(f"--average-s {average:g}: longer than the recorded dwell of {dwell:g} s at each point "

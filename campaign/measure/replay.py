@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 from campaign import capture_methods
 from campaign.config import capture_spec
-from campaign.measure.capture import BeamLost, Captured, capture_point
+from campaign.measure.capture import BeamLost, Captured, NotStable, capture_point
 from campaign.measure.deviation import point_deviation
 from campaign.measure.env_guard import EnvironmentGuard
 from campaign.plan import Capture, Plan, capture_at
@@ -128,7 +128,7 @@ def replay(directory: str | Path, capture_overrides: dict[str, Any] | None = Non
             last_t = arrival
         try:
             got = _capture(step, scale, after, capture_step, arrival)
-        except BeamLost as exc:
+        except (BeamLost, NotStable) as exc:  # as the live campaign's fault, said for this point
             results.append(ReplayedPoint(point.index, point.run, point.direction, point.target, None, None,
                                          len(after), None, str(exc)))
             continue
