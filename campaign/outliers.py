@@ -13,7 +13,8 @@ with SSE the sum of all squared residuals, N points and G groups: the residual m
 the scatter of every other point, so that the glitch itself does not inflate the yardstick.
 Without outliers, t_k follows Student's t with N - G - 1 degrees of freedom. A point is an
 outlier when |t_k| exceeds the two-sided critical value at significance ALPHA for the whole
-campaign (Bonferroni: ALPHA / N per point). Groups of one point cannot be tested.
+campaign (Bonferroni: ALPHA / N per point). Groups of one point cannot be tested. The deleted
+scatter is never taken below the rounding of the readings' own step (`_resolution_variance`).
 
 Outliers are reported, never removed: ISO 230-2 counts every reading. `Outliers.s_with` and
 `s_without` give the pooled scatter with and without them, so a reader sees what one reading
@@ -89,6 +90,18 @@ def _pooled_s(deviation: np.ndarray, group: np.ndarray) -> float | None:
     return math.sqrt(sse / (len(deviation) - n_groups))
 
 
+def _resolution_variance(deviation: np.ndarray, group: np.ndarray) -> float:
+    """The variance of rounding to the step the readings come in (q²/12): q is the smallest nonzero
+    difference between two readings of one group. A reading is not judged against a scatter below
+    it: readings that repeat exactly (an instrument of coarse resolution, 0.1/0.1 µm) show none, and
+    a group differing by one step (0.2/0.3 µm) was flagged at a score of 7e163. Continuous readings
+    make q tiny, and the floor changes nothing; 1e-300 when no two differ."""
+    steps = [np.diff(np.unique(deviation[group == g])) for g in np.unique(group)]
+    positive = np.concatenate(steps) if steps else np.array([])
+    positive = positive[positive > 0]
+    return float(np.min(positive)) ** 2 / 12 if len(positive) else 1e-300
+
+
 def find_outliers(table: PointTable, alpha: float = ALPHA) -> Outliers:
     """Test every reading of `table` (see the module docstring)."""
     from scipy.special import stdtrit  # Student's t quantile; scipy.stats costs a second more to import
@@ -106,7 +119,7 @@ def find_outliers(table: PointTable, alpha: float = ALPHA) -> Outliers:
     e = x - means[group]
     sse = float(np.sum(e**2))
     scale = np.where(testable, n_g / np.maximum(n_g - 1, 1), 0.0)
-    deleted = np.maximum((sse - e**2 * scale) / dof, 1e-300)
+    deleted = np.maximum((sse - e**2 * scale) / dof, _resolution_variance(x, group))
     t = np.where(testable, np.abs(e) / np.sqrt(deleted / np.where(testable, scale, 1.0)), 0.0)
     tested = int(testable.sum())
     critical = float(stdtrit(dof, 1 - alpha / (2 * tested)))

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from campaign.outliers import ALPHA, find_outliers
-from campaign.pointtable import PointTable, read_points
+from campaign.pointtable import PointTable, parse_points, read_points
 from tests.conftest import PAPER
 
 
@@ -63,3 +63,17 @@ def test_too_few_points_cannot_be_tested():
     table = PointTable("linear", np.array([1, 1]), np.array([1, -1]), np.array([0.0, 0.0]), np.array([1.0, 2.0]))
     result = find_outliers(table)
     assert result.found == () and result.critical is None and result.tested == 0
+
+
+def test_readings_of_a_coarse_resolution_are_not_flagged_for_repeating_exactly():
+    """An instrument reading in 0.1 µm steps: up 0.1/0.1 (no scatter at all), down 0.2/0.3 (one step
+    apart). Deleting one down reading left no scatter, and both were flagged at a score of 7e163 (a new
+    user's trial); against the rounding of a 0.1 µm step they are not outliers."""
+    table = parse_points("run,direction,target_mm,deviation_um\n1,+,0,0.1\n2,+,0,0.1\n1,-,0,0.2\n2,-,0,0.3\n")
+    found = find_outliers(table)
+    assert found.tested == 4 and found.found == ()
+    # a 12 µm glitch among readings in 0.1 µm steps is still one
+    rows = "".join(f"{r},{d},{t},{v}\n" for t in (0, 50, 100) for d in "+-" for r, v in
+                   zip(range(1, 6), (0.1, 0.2, 0.1, 0.3, 0.2)))
+    glitched = parse_points("run,direction,target_mm,deviation_um\n" + rows.replace("5,+,50,0.2", "5,+,50,12.2"))
+    assert [(o.run, o.target) for o in find_outliers(glitched).found] == [(5, 50.0)]
