@@ -60,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv)
         if not getattr(args, "func", None):
             parser.print_help()
-            return 2
+            raise InputError("no command given: axiscal COMMAND (the commands are listed above)")
         return int(args.func(args) or 0)
     except BAD_INPUT as exc:
         print(f"error: {exc}", file=sys.stderr)

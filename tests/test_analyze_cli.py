@@ -265,3 +265,30 @@ def test_80_columns_cut_no_number_and_print_micrometres(cli, tmp_path, monkeypat
                 assert f"{target[key]:.3f}" in result.out
         wide = cli("analyze", HORIZONTAL, "--wide").out
         assert "means and scatter" not in wide and "means and scatter" in result.out
+
+
+def test_no_command_is_one_error_line_after_the_list_of_commands(cli):
+    result = cli()
+    assert_one_line_error(result, "no command given")
+    assert "analyze" in result.out and "discover" in result.out  # the commands, listed
+
+
+def test_no_help_text_shows_a_doubled_percent_sign(cli):
+    """argparse formats `help` with %, not `description`: a '%%' written in a description was shown as
+    it is (history plant's '95 %%')."""
+    import argparse
+
+    from campaign.cli import build_parser
+
+    def every(parser: argparse.ArgumentParser):
+        yield parser
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                for sub in action.choices.values():
+                    yield from every(sub)
+
+    commands = next(a for a in build_parser([])._actions if isinstance(a, argparse._SubParsersAction)).choices
+    parsers = [p for name in commands for p in every(build_parser([name]))]  # each registered in full
+    assert len(parsers) > 30
+    for parser in parsers:
+        assert "%%" not in parser.format_help(), parser.prog

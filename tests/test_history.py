@@ -179,8 +179,14 @@ def test_compare_two_campaigns(cli, db, tmp_path):
     assert c["targets"][0]["U"] > 0 and abs(c["targets"][0]["difference"]) < c["targets"][0]["U"]  # 0 mm: no change
     assert (tmp_path / "cmp.png").stat().st_size > 10_000
     table = cli("history", "compare", dirs[0], dirs[-1])
-    assert "differs beyond its uncertainty" in table.out
+    assert "differs beyond its uncertainty" in table.out and " µm at " in " ".join(table.out.split())
+    assert "other_axis" not in c and "two axes" not in table.out
     assert_one_line_error(cli("history", "compare", "nosuch", dirs[0]), "no such campaign")
+    # a campaign of another machine: compared, and said to be two axes, not one over time
+    assert cli("demo", "--fake", "--out", tmp_path / "other").code == 0
+    other = cli("history", "compare", dirs[0], tmp_path / "other")
+    assert other.code == 0, other.err
+    assert "this compares two axes, not one axis over time" in " ".join(other.out.split())
 
 
 def test_convert_and_compensate_are_recorded(cli, db, tmp_path):

@@ -99,7 +99,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                            description="One row per machine and axis, most urgent first: the last campaign's A ± U "
                                        "and verdict, the drift of A per year, when A + U is predicted to reach the "
                                        "tolerance, and when the next re-check is due (the earliest predicted "
-                                       "crossing at 95 %% less --margin, at most --max-interval after the last "
+                                       "crossing at 95 % less --margin, at most --max-interval after the last "
                                        "campaign).")
     g.add_argument("--machine", help="only this machine's axes")
     g.add_argument("--html", metavar="FILE", help="also write the plant as an HTML page, a small trend plot per axis")
@@ -466,6 +466,8 @@ def run_compare(args: argparse.Namespace) -> int:
     console = make_console()
     console.print(table)
     console.print(f"{result.sentence()}.", markup=False)
+    if (other := result.other_axis()) is not None:
+        console.print(f"note: {other}", markup=False)
     if result.only_one:
         console.print(f"{result.only_one} target(s) measured in one campaign only are not compared", markup=False)
     if args.plot:

@@ -21,6 +21,7 @@ import numpy as np
 from campaign.history.axis import RANDOM_TERMS
 from campaign.iso230 import Evaluation, TargetResult, evaluate
 from campaign.pointtable import PointTable
+from protocols.units import unit_label
 
 
 def table_of(row: dict[str, Any], points: list[tuple[int, int, float, float, float | None]]) -> PointTable:
@@ -71,8 +72,17 @@ class Comparison:
         worst = max(self.rows, key=lambda r: abs(r["difference"]))
         u = "n/a" if worst["U"] is None else f"{worst['U']:.2f}"
         return (f"the mean deviation differs beyond its uncertainty at {len(self.beyond)} of {len(self.rows)} "
-                f"targets; the largest difference is {worst['difference']:+.2f} ± {u} {self.unit} at "
+                f"targets; the largest difference is {worst['difference']:+.2f} ± {u} {unit_label(self.unit)} at "
                 f"{worst['target']:g} {self.position_unit}")
+
+    def other_axis(self) -> str | None:
+        """Why the two are not one axis seen twice, when they are not: they name other machines or axes
+        (the difference then compares two axes, not one over time)."""
+        a, b = self.first, self.second
+        if (a["machine"], a["axis"]) == (b["machine"], b["axis"]):
+            return None
+        return (f"campaign {a['id']} measured machine '{a['machine']}' axis '{a['axis']}', campaign {b['id']} machine "
+                f"'{b['machine']}' axis '{b['axis']}': this compares two axes, not one axis over time")
 
     def as_json(self) -> dict[str, Any]:
         def who(row: dict[str, Any]) -> dict[str, Any]:
@@ -80,6 +90,7 @@ class Comparison:
                     else row["measured_utc"].date().isoformat(), "location": row["location"]}
 
         return {"first": who(self.first), "second": who(self.second), "unit": self.unit,
+                **({"other_axis": other} if (other := self.other_axis()) else {}),
                 "position_unit": self.position_unit, "targets": self.rows, "targets_not_in_both": self.only_one,
                 "beyond_uncertainty": len(self.beyond), "sentence": self.sentence(),
                 "uncertainty": "U (k = 2) of the difference: the runs' scatter of both means and both campaigns' "
