@@ -278,7 +278,9 @@ def assign_dwells(stream: Stream, dwells: Dwells, positions: np.ndarray, plan: P
         missing = plan.points[len(assigned)]
         after = ("" if not assigned else
                  f" after the dwell at {locate(stream.source, int(dwells.end[assigned[-1]]), stream.time)}")
-        raise InputError(f"{stream.source}: the stream has {len(positions)} dwells "
+        none = (" (a dwell is a still stop of at least half of plan.dwell_s: a campaign that captured when the "
+                "reading was stable stops for less)" if not len(positions) else "")
+        raise InputError(f"{stream.source}: the stream has {len(positions)} dwells{none} "
                          f"({len(assigned)} match the plan) for {total} points; "
                          f"{_describe(missing, unit, total)} has no dwell{after}")
     return assigned, overruns, 0

@@ -8,6 +8,7 @@ InputError naming the file and line.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -77,7 +78,8 @@ def read_stream(path: str, unit: str) -> Stream:
     try:
         header = [str(c).strip() for c in pd.read_csv(path, comment="#", encoding="utf-8-sig", nrows=0).columns]
         column = _reading_column(header, path, unit)
-        frame = pd.read_csv(path, comment="#", encoding="utf-8-sig", skipinitialspace=True, low_memory=False)
+        frame = pd.read_csv(path, comment="#", encoding="utf-8-sig", skipinitialspace=True, low_memory=False,
+                            keep_default_na=False, na_values=[""])  # only an empty cell is missing: 'nan' is said as written
     except pd.errors.EmptyDataError:
         raise InputError(f"{path}: the file is empty") from None
     except UnicodeDecodeError as exc:
@@ -109,8 +111,10 @@ def stream_from_frame(frame: pd.DataFrame, path: str, column: str) -> Stream:
     for name in ("time_s", column):
         got = _numeric(frame, name)
         if isinstance(got, int):
-            value = str(frame[name].iloc[got])[:40]
-            raise InputError(f"{locate(path, got)}: column '{name}': {value!r} is not a finite number")
+            cell = frame[name].iloc[got]
+            if isinstance(cell, float) and math.isnan(cell):  # an empty cell (na_values), or none: a short row
+                raise InputError(f"{locate(path, got)}: column '{name}': no value (an empty cell, or a row cut short)")
+            raise InputError(f"{locate(path, got)}: column '{name}': {str(cell)[:40]!r} is not a finite number")
         arrays[name] = got
     time = arrays["time_s"]
     back = np.flatnonzero(np.diff(time) < 0)
