@@ -151,3 +151,28 @@ def test_progress_lines_never_cut_a_number(width):
     assert "0/240" in screen and "0/6" in screen and "-:--:--" in screen, screen
     assert not re.search(r"[\d:]…", screen), screen
     assert all(len(line) <= width for line in screen.splitlines())
+
+
+def test_the_live_line_ends_on_the_last_reading():
+    """The live reading is shown at most every 0.5 s of campaign time; the campaign's end shows the last
+    one (a new user's trial saw -3.8389 mm left on the line while the axis had gone on to -4.9987)."""
+    import io
+    import re
+
+    from rich.console import Console
+
+    from campaign.config import parse_config
+    from campaign.measure.progress import RichProgress
+    from campaign.plan import build_plan
+    from protocols.hardware import Reading
+    from tests.fakes import SMALL
+
+    with RichProgress("mm") as shown:
+        shown.console = Console(file=io.StringIO(), width=120, force_terminal=True, color_system=None)
+        shown.progress.live.console = shown.console
+        plan = build_plan(parse_config(SMALL, "small.toml"))
+        shown.started(plan, list(range(len(plan.points))))
+        shown.reading(10.0, Reading(10.0, -3.8389, True, 90.0, 20.0, 1013.2, 50.0, 20.0), None)
+        shown.reading(10.2, Reading(10.2, -4.9987, True, 90.0, 20.0, 1013.2, 50.0, 20.0), None)
+    screen = re.sub(r"\x1b\[[0-9;?]*[a-zA-Z]", "", shown.console.file.getvalue())
+    assert "-4.9987" in screen.splitlines()[-1] or "-4.9987" in screen.split("\r")[-1], screen[-400:]

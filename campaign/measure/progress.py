@@ -49,12 +49,15 @@ class RichProgress(Observer):
         self.per_run = 0
         self.run_word = "run"
         self._last_reading_t = -1.0
+        self._latest: tuple[float, Reading, float | None] | None = None
 
     def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc: object) -> None:
         if self.overall is not None:
+            if self._latest is not None:  # the last reading, which the throttle may have held back
+                self._show(*self._latest)
             self.progress.stop()
 
     def started(self, plan: Plan, todo: list[int]) -> None:
@@ -75,9 +78,16 @@ class RichProgress(Observer):
         return sum(1 for i in self.done if self.points[i].run == run)
 
     def reading(self, t_s: float, reading: Reading, target: float | None) -> None:
-        if t_s - self._last_reading_t < 0.5 or self.overall is None or self.run_task is None:
+        self._latest = (t_s, reading, target)
+        if t_s - self._last_reading_t < 0.5:
+            return
+        self._show(t_s, reading, target)
+
+    def _show(self, t_s: float, reading: Reading, target: float | None) -> None:
+        if self.overall is None or self.run_task is None:
             return
         self._last_reading_t = t_s
+        self._latest = None
         text = fit(live_text(reading, target, self.unit), self.console.width - FIXED_WIDTH)
         self.progress.update(self.overall, live=f"t={t_s:7.1f} s")
         self.progress.update(self.run_task, live=text)
