@@ -9,6 +9,7 @@ libraries (numpy, pandas, scipy, matplotlib, pyads) are imported when the comman
 import argparse
 import math
 import sys
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # the session module is heavy: not imported for `axiscal --help`
@@ -101,6 +102,15 @@ def hardware_opener(fake: bool = False) -> "Opener":
 
 YES_HELP = ("stop a controller an earlier axiscal started and left running (a LinuxCNC whose axiscal was "
             "killed) without asking; one axiscal did not start is never stopped")
+
+
+def kept_sim_model(directory: Path) -> Path | None:
+    """The simulated machine's error model a campaign kept in its directory (what a resume reopens the
+    machine with), if it kept one."""
+    from drivers.factory import SIM_MODEL_FILE
+
+    kept = Path(directory) / SIM_MODEL_FILE
+    return kept if kept.is_file() else None
 
 
 def stop_leftover_controller(spec: "DriverSpec", yes: bool) -> None:

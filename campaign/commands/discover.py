@@ -8,12 +8,13 @@ import argparse
 import re
 import sys
 from collections.abc import Collection, Iterator
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from campaign.commands import SUMMARY
+from campaign.commands import SUMMARY, kept_sim_model
 from campaign.config import Config, load_config
 from campaign.discovery.data import (
     CampaignData,
@@ -33,7 +34,7 @@ from campaign.discovery.result import Candidate, Discovery
 from campaign.discovery.search import discover
 from campaign.effects import effect as registered
 from campaign.errors import InputError
-from campaign.model import ErrorModel
+from campaign.model import ErrorModel, is_model_name
 from campaign.outliers import Outliers, find_outliers
 from campaign.plan import build_plan
 from campaign.plot import check_plot_path
@@ -597,7 +598,13 @@ def follow_up_config(args: argparse.Namespace) -> Config:
     path = Path(args.config) if args.config else Path(args.files[0]).parent / "config.toml"
     if not path.is_file():
         raise InputError(f"--follow-up: {path}: no such file; give the first campaign's config with --config CONFIG")
-    return load_config(path)
+    config = load_config(path)
+    kept = kept_sim_model(path.parent)
+    if not args.config and config.sim.model and not is_model_name(config.sim.model) and kept is not None:
+        # the model the campaign ran, kept beside its config.toml: the model file the config names lies
+        # beside the config it was run from, not here (the follow-up named a file that is not there)
+        config = replace(config, sim=replace(config.sim, model=str(kept.resolve())))
+    return config
 
 
 def reversal_um(result: Discovery) -> float | None:
