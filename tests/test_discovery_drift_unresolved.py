@@ -177,3 +177,9 @@ def test_a_reversal_unresolved_beside_an_unresolved_drift_stays_in_the_model(see
     assert 3.0 < result.params()["backlash"]["b_um"] < 5.0
     assert result.gap_after_um < 1.3 * result.noise_um
     assert "thermal_drift" in result.added or any("thermal_drift" in u.effects for u in result.unresolved)
+    # saved, the stand-in says what it stands in for (a user's trial: saved as a backlash with no word)
+    from campaign.commands.discover import saved_model
+
+    saved = saved_model(result, START[0], "points.csv", data.time_source)
+    assert "# Not named: [effects.backlash] stands in for backlash or settling" in saved
+    assert "[effects.backlash]\nb_um = " in saved

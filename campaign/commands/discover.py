@@ -512,6 +512,10 @@ def saved_model(result: Discovery, model: ErrorModel, source: str, time_source: 
         lines.append(f"# Left out: environment ({found}), which follows this campaign's air/material log.")
     for local in result.local_errors:
         lines.append(f"# Left out: {local.sentence()}, which no effect of the model has the shape of.")
+    if result.stand_in is not None:
+        rivals = " or ".join(result.stand_in.rivals)
+        lines.append(f"# Not named: [effects.{result.stand_in.effect}] stands in for {rivals}, which this campaign "
+                     "cannot tell apart (at another wait before capture they predict other deviations).")
     text = result.final_model(noise).to_toml()
     in_points = [name for name in params if time_source != "time_s" and "tau_s" in params[name]
                  and (form := registered(name).form) is not None and form.group == "run"]
