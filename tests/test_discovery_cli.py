@@ -295,3 +295,22 @@ def test_discover_shows_what_it_is_doing_on_a_terminal_and_nothing_in_a_pipe():
                            capture_output=True, text=True, timeout=60, check=False)
     assert piped.returncode == 0 and "discovering" not in piped.stderr + piped.stdout
     assert "gap " in piped.stdout
+
+
+def test_noise_on_evenly_spaced_targets_says_which_periods_were_not_looked_for(cli, tmp_path):
+    """11 targets 60 mm apart: a screw lead shorter than 120 mm is not looked for. The summary said
+    only "what is left is noise" (a user's trial: a 2 µm, 5 mm lead was there), the reason being in
+    --verbose alone; the summary now says what was not looked for and how to plan to look."""
+    from campaign.model import ErrorModel
+    from tests.discovery_draws import plan_config
+
+    table = simulate_campaign(plan_config(11, "none"), ErrorModel({"linear_scale": {"ppm": -10.0},
+                                                                   "noise": {"sigma_um": 0.3}}), seed=4)
+    write_points(tmp_path / "points.csv", table)
+    said = " ".join(cli("discover", tmp_path / "points.csv").out.split())
+    assert "what is left is noise" in said
+    assert "not looked for: periodic_lead at periods under 120 mm (the targets are evenly spaced 60 mm apart)" in said
+    golden = simulate_campaign(plan_config(11, "golden"), ErrorModel({"linear_scale": {"ppm": -10.0},
+                                                                      "noise": {"sigma_um": 0.3}}), seed=4)
+    write_points(tmp_path / "golden.csv", golden)
+    assert "not looked for" not in cli("discover", tmp_path / "golden.csv").out
