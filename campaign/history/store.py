@@ -193,6 +193,8 @@ class Store:
         """Database and OS errors as StoreUnavailable, credentials masked."""
         try:
             yield
+        except sa.exc.IntegrityError:
+            raise  # a key two writers both add: put's own retry takes it
         except (sa.exc.DatabaseError, sa.exc.InterfaceError) as exc:  # operational, programming, not a database
             reason = str(getattr(exc, "orig", None) or exc).strip().splitlines()
             raise StoreUnavailable(scrub(f"{self.place}: {reason[0] if reason else type(exc).__name__}",
