@@ -632,11 +632,8 @@ def plan_follow_up(unresolved: list[Unresolved], remaining: list[Any], data: Cam
             targets = _thinned(targets, 1e-3)
         plan.update(targets=targets, cycles=cycles, length=None, count=None)
         said = "; ".join(" or ".join(a.part.effects) for a in chosen)
-        moved = _moved_paths(config, path.parent)
-        if config.instrument.type == "sim":  # the same simulated machine measured again: new noise, one
-            # seed on for each campaign it follows (the k-th approach drew the first campaign's scatter)
-            moved["sim"] = {**moved.get("sim", {}), "seed": config.sim.seed + max(len(sources), 1)}
-        changed = config_with(config, {"plan": plan, "capture": capture, "instrument": instrument, **moved,
+        changed = config_with(config, {"plan": plan, "capture": capture, "instrument": instrument,
+                                       **_moved_paths(config, path.parent),
                                        "campaign": {"description": f"follow-up of {', '.join(sources)}: to tell {said}",
                                                     "purpose": "follow-up", "follows": follows}})
         followed = parse_config(config_toml(changed.data), str(path))  # as it will be read from where it is written
