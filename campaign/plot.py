@@ -28,16 +28,18 @@ def pyplot() -> Any:
 
 
 def check_plot_path(path: str | Path) -> Path:
-    """The plot path, if its extension is one we write (PNG or SVG) and it can be a file in an existing
-    directory (checked before a campaign runs, so that its end is not lost to the plot); InputError
+    """The plot path, if its extension is one we write (PNG or SVG) and it can be a file: not a directory,
+    and under no file (checked before a campaign runs, so that its end is not lost to the plot; a folder
+    that does not exist yet, such as the campaign's own, is made when the plot is written); InputError
     otherwise."""
     out = Path(path)
     if out.suffix.lower() not in FORMATS:
         raise InputError(f"--plot: {path}: unsupported plot format '{out.suffix}' (use .png or .svg)")
     if out.is_dir():
         raise InputError(f"--plot: {path}: is a directory, not a plot file")
-    if not out.parent.is_dir():
-        raise InputError(f"--plot: {path}: no directory {out.parent} to write it in")
+    existing = next((p for p in out.parents if p.exists()), None)
+    if existing is not None and not existing.is_dir():
+        raise InputError(f"--plot: {path}: {existing} is a file, not a directory to write it in")
     return out
 
 

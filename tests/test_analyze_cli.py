@@ -78,12 +78,20 @@ def test_bad_plot_extension(cli, tmp_path):
 
 
 def test_a_plot_path_that_cannot_be_a_file_is_refused_before_anything_runs(cli, tmp_path):
-    """A directory named x.png, or a folder that does not exist: exit 2 before the work (a new user's
+    """A directory named x.png, or a path under a file: exit 2 before the work (a new user's
     trial lost a whole campaign's result to `run --plot DIR`, an internal error at its end). The same
     check guards run, verify, discover and history trend (campaign.plot.check_plot_path)."""
     (tmp_path / "x.png").mkdir()
     assert_one_line_error(cli("analyze", HORIZONTAL, "--plot", tmp_path / "x.png"), "x.png", "is a directory")
-    assert_one_line_error(cli("analyze", HORIZONTAL, "--plot", tmp_path / "none" / "y.png"), "no directory")
+    (tmp_path / "f.txt").write_text("a file\n")
+    assert_one_line_error(cli("analyze", HORIZONTAL, "--plot", tmp_path / "f.txt" / "y.png"), "is a file, not a directory")
+    # a folder that does not exist yet is made (make demo writes its plot into the campaign's own)
+    assert cli("analyze", HORIZONTAL, "--plot", tmp_path / "new" / "y.png").code == 0
+    assert (tmp_path / "new" / "y.png").stat().st_size > 1000
+    # as `make demo` asks: the plot inside the campaign directory the run makes (the first version of this
+    # check refused it, and make demo failed on a fresh clone)
+    assert cli("demo", "--fake", "--out", tmp_path / "d", "--plot", tmp_path / "d" / "iso230.png").code == 0
+    assert (tmp_path / "d" / "iso230.png").is_file()
     assert_one_line_error(cli("demo", "--fake", "--out", tmp_path / "c", "--plot", tmp_path / "x.png"),
                           "is a directory")
     assert not (tmp_path / "c").exists()
