@@ -42,7 +42,7 @@ from campaign.discovery.local import HOPELESS
 from campaign.discovery.periodogram import independent_periods, periodogram_periods
 from campaign.discovery.result import Candidate, note_once
 from campaign.discovery.unexplained import wave_over_part
-from campaign.effects import RegistryView
+from campaign.effects import RegistryView, effects
 
 ALPHA = 0.001
 """Largest p-value of the F-test (after the look-elsewhere factor) for an effect to be named."""
@@ -104,6 +104,12 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
         best, periods = period_optima(data, fits, name)
     elif FORMS[name].shape:
         best = refine(data, best.terms)
+    elif rivals_in_model := [t.name for t in current.terms if t.searched and PERIOD_KEY.get(t.name) is None
+                             and rival_pair(t.name, name)]:
+        # an effect it is a rival of, in the model with a shape (a settling's time constant): refitted
+        # beside it, else what it would take is held by the other's shape as fitted without it
+        best = refine(data, [t if t.name in rivals_in_model or t.name == name else replace(t, held={**t.held, **t.shape})
+                             for t in best.terms])
     cand = Candidate(name, best, explained_pct=100 * (1 - best.rss / current.rss) if current.rss > 0 else 0.0,
                      periods=periods)
     tests = naming_tests(data, current, best, name, look_elsewhere)
@@ -127,6 +133,12 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
     if env_note and not failed:  # which log it follows matters only when it explains something
         note_once(notes, *env_note)
     return cand
+
+
+def rival_pair(a: str, b: str) -> bool:
+    """Are `a` and `b` rivals (either's `rivals` names the other: they can explain the same residual)?"""
+    found = [e for e in effects() if e.name in (a, b)]
+    return any((e.name == a and b in e.rivals) or (e.name == b and a in e.rivals) for e in found)
 
 
 def search_factor(data: CampaignData, name: str) -> float:
