@@ -14,6 +14,7 @@ import re
 import numpy as np
 import pytest
 
+from campaign.commands.discover import config_beside
 from campaign.discovery.data import CAPTURE_COLUMNS, campaign_data, read_campaign
 from campaign.discovery.simulate import capture_average_um
 from campaign.model import ErrorModel
@@ -44,7 +45,7 @@ def test_a_stable_capture_is_modelled_at_its_window_end(cli, tmp_path):
     points = tmp_path / "m" / "points.csv"
     model = ErrorModel({"settling": dict(SETTLING)})
 
-    data = read_campaign(points)
+    data = read_campaign(points, None, config_beside(str(points)))
     assert np.all(np.sum(np.isfinite(data.t), axis=1) == 1)  # one instant a capture: its end
     at_end = reversal_left_um(data, model)
 

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from campaign.cli import main
+from campaign.commands.discover import config_beside
 from campaign.discovery.data import campaign_data, join_campaigns, read_campaign, read_profile
 from campaign.discovery.fit import design
 from campaign.discovery.simulate import simulate_campaign
@@ -62,7 +63,7 @@ def test_each_table_is_weighed_by_its_own_uncertainty(tmp_path):
     first, profile = _tables(tmp_path, 41, _machine(rng, lead=True), rng)
     table, _ = read_profile(profile)
     scan = read_campaign(profile, table)
-    stops = read_campaign(first)
+    stops = read_campaign(first, None, config_beside(str(first)))
     both = join_campaigns([stops, scan], [first, profile])
     assert scan.u is not None and scan.sloped is not None and scan.sloped.all()
     assert 0.005 < float(np.median(scan.u)) < 0.1  # a bin's mean of a few samples of 0.02-0.1 µm noise
@@ -87,7 +88,7 @@ def test_a_scan_profile_beside_tables_keeps_their_waits_and_counts_as_settled(tm
     machine = _machine(rng, lead=False) | {"settling": {"e0_um": 3.0, "tau_s": 2.0}}
     first, profile = _tables(tmp_path, 43, machine, rng)
     scan = read_campaign(profile, read_profile(profile)[0])
-    fixed = read_campaign(first)
+    fixed = read_campaign(first, None, config_beside(str(first)))
     ladder = campaign_data(simulate_campaign(user_config(seed=44), ErrorModel(machine), seed=44, dwell_jitter=0.8))
     for stops in (fixed, ladder):
         for parts in ([stops, scan], [scan, stops]):

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 import campaign.effects
+from campaign.commands.discover import config_beside
 from campaign.config import load_config
 from campaign.discovery.data import read_campaign
 from campaign.discovery.effects import FORMS
@@ -258,7 +259,7 @@ def test_a_new_effect_is_simulated_from_a_model_file_and_named_by_discovery(midd
     assert how_to_tell_pairs()[frozenset({"middle_wear", "backlash"})] == EFFECT.rivals["backlash"]
     # its part of a follow-up, from its module: a group with it is planned as its part says
     assert part_of("middle_wear") == "travel"
-    data = read_campaign(tmp_path / "run" / "points.csv")
+    data = read_campaign(tmp_path / "run" / "points.csv", None, config_beside(str(tmp_path / "run" / "points.csv")))
     follow = plan_follow_up([Unresolved(("backlash", "middle_wear"), "", "")], [], data, linear_fit(data, []), config,
                             None, found["noise_um"], tmp_path / "follow.toml", ["run/points.csv"])
     assert follow is not None and [p.effects for p in follow.parts] == [["backlash", "middle_wear"]], follow

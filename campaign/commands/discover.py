@@ -578,6 +578,18 @@ def plot_steps(result: Discovery, x: np.ndarray, d: np.ndarray, y: np.ndarray, o
     plt.close(fig)
 
 
+def config_beside(table: str) -> Config | None:
+    """The config of the campaign a table was recorded by (config.toml next to it), typed; None when
+    there is none or it does not read (the table is then read without its sample period)."""
+    path = Path(table).parent / "config.toml"
+    if not path.is_file():
+        return None
+    try:
+        return load_config(path)
+    except InputError:
+        return None
+
+
 def read_tables(files: list[str]) -> tuple[CampaignData, list[Outliers], list[str], list[str]]:
     """The campaigns, each with its outliers left out, joined for one fit; the outliers of each;
     the notes on an incomplete campaign (named by its file when there are several); the notes on
@@ -591,7 +603,7 @@ def read_tables(files: list[str]) -> tuple[CampaignData, list[Outliers], list[st
             read.append(said)
         else:
             table = read_points(name)
-        data = read_campaign(name, table)
+        data = read_campaign(name, table, config_beside(name))
         outliers = find_outliers(table)
         if outliers.found:
             data = keep_rows(data, ~outliers.mask(table))

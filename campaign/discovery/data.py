@@ -8,7 +8,6 @@ point order (one unit per point).
 from __future__ import annotations
 
 import math
-import tomllib
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -17,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from campaign import capture_methods
+from campaign.config import Config
 from campaign.discovery.simulate import SAMPLE_PERIOD_META, sample_times
 from campaign.edlen import refractive_index
 from campaign.errors import InputError, read_input_bytes, read_toml
@@ -305,28 +305,20 @@ def air_index_change(env: dict[str, np.ndarray], n: int) -> np.ndarray | None:
     return index / index[0] - 1
 
 
-def read_campaign(path: str | Path, table: PointTable | None = None) -> CampaignData:
+def read_campaign(path: str | Path, table: PointTable | None = None, recorded: Config | None = None) -> CampaignData:
     """Read a point table for discovery: the table itself (`table` when it was read already), its
-    capture columns, and from the campaign's config.toml next to it (when there is one) the sample
-    period (1/instrument.rate_hz) and the capture method: a method that captures the position at
-    its window's end (capture_methods.CaptureMethod.value_at_end: the stability trigger's fitted
-    line) is modelled there, not as its window's mean (a settling that decays through the window
-    would otherwise differ between the directions like a backlash: -0.26 µm on the shipped
-    horizontal axis, given its own model)."""
-    path = Path(path)
+    capture columns and, from the campaign's config it was `recorded` with (read by the command line),
+    the sample period (1/instrument.rate_hz) and the capture method: a method that captures the position
+    at its window's end (capture_methods.CaptureMethod.value_at_end: the stability trigger's fitted line)
+    is modelled there, not as its window's mean (a settling that decays through the window would
+    otherwise differ between the directions like a backlash: -0.26 µm on the shipped horizontal axis,
+    given its own model)."""
     table = read_points(path) if table is None else table
     capture = {name: table.extra[name] for name in CAPTURE_COLUMNS if name in table.extra}
     period = None
-    config = path.parent / "config.toml"
-    if "samples" in capture and config.is_file() and SAMPLE_PERIOD_META not in table.meta:
-        try:
-            settings = tomllib.loads(config.read_text(encoding="utf-8"))
-            period = 1.0 / float(settings.get("instrument", {}).get("rate_hz", 10.0))
-            how = capture_methods.METHODS.get(str(settings.get("capture", {}).get("method", "dwell")))
-        except (tomllib.TOMLDecodeError, UnicodeDecodeError, ValueError, TypeError, ZeroDivisionError,
-                AttributeError):
-            period, how = None, None
-        if how is not None and how.value_at_end:
+    if "samples" in capture and recorded is not None and SAMPLE_PERIOD_META not in table.meta:
+        period = 1.0 / recorded.instrument.rate_hz
+        if capture_methods.method(recorded.capture.method).value_at_end:
             capture["samples"] = np.ones(len(table))  # the position at the capture's end
     return campaign_data(table, capture, period)
 
