@@ -96,9 +96,10 @@ def _resolution_variance(deviation: np.ndarray, group: np.ndarray) -> float:
     it: readings that repeat exactly (an instrument of coarse resolution, 0.1/0.1 µm) show none, and
     a group differing by one step (0.2/0.3 µm) was flagged at a score of 7e163. Continuous readings
     make q tiny, and the floor changes nothing; 1e-300 when no two differ."""
-    steps = [np.diff(np.unique(deviation[group == g])) for g in np.unique(group)]
-    positive = np.concatenate(steps) if steps else np.array([])
-    positive = positive[positive > 0]
+    order = np.lexsort((deviation, group))  # by group, then by reading: neighbours within a group
+    same = group[order][1:] == group[order][:-1]
+    steps = np.diff(deviation[order])[same]
+    positive = steps[steps > 0]
     return float(np.min(positive)) ** 2 / 12 if len(positive) else 1e-300
 
 
