@@ -370,17 +370,11 @@ def summary_lines(result: Discovery, incomplete: list[str], time_unit: str = "s"
     noise = f"noise {result.noise_um:.2f} {dev}" if result.noise_measured else "noise not measured"
     lines.append(f"gap {result.gap_before_um:.2f} -> {result.gap_after_um:.2f} {dev} RMS, {noise}: "
                  f"what is left is {verdict}")
-    for note in result.notes:  # "noise" says nothing of an effect the plan kept from being looked for
-        if found_not := NOT_LOOKED_FOR.match(note):
-            name, spacing, twice = found_not.groups()
-            lines.append(f"[yellow]not looked for:[/] {name} at periods under {twice} (the targets are evenly spaced "
-                         f"{spacing} apart); to look: plan with offsets = \"golden\" or closer targets")
+    for aliased in result.aliased:  # "noise" says nothing of an effect the plan kept from being looked for
+        lines.append(f"[yellow]not looked for:[/] {aliased.effect} at periods under {aliased.shortest:.4g} "
+                     f"{aliased.unit} (the targets are evenly spaced {aliased.spacing:.4g} {aliased.unit} apart); to "
+                     "look: plan with offsets = \"golden\" or closer targets")
     return lines
-
-
-NOT_LOOKED_FOR = re.compile(r"^(\w+) is not looked for: the targets are evenly spaced ([^ ]+ \w+) apart, so a period "
-                            r"shorter than twice that \(([^)]+)\)")
-"""vocabulary.candidate_names' note on a period the plan's even spacing aliases (said on the summary)."""
 
 
 SUMMARY_REGIONS = 3

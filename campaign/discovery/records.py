@@ -15,6 +15,18 @@ from typing import Any
 
 
 @dataclass(frozen=True)
+class Aliased:
+    """A periodic effect the plan kept from being looked for: on targets evenly spaced `spacing` apart
+    (position unit) a period shorter than `shortest` (twice the spacing) aliases, and the screw leads
+    looked for end below it."""
+
+    effect: str
+    spacing: float
+    shortest: float
+    unit: str
+
+
+@dataclass(frozen=True)
 class LocalRival:
     """A local error that would fit as well as an unresolved effect (its `local_rivals`) or as a located
     local error of the other shape (LocalError.shape_rival): what it is, in words, and where (from, to); `between_mm`: for a step placed only between two targets, those targets (as

@@ -17,6 +17,7 @@ from campaign.discovery.fit import Fit
 from campaign.discovery.local import LocalError
 from campaign.discovery.locate import Located
 from campaign.discovery.records import (
+    Aliased,
     Choice,
     Held,
     NotExcluded,
@@ -156,6 +157,8 @@ class Discovery:
     shrinks (hold_unresolved): the group stays unresolved, nothing is named or saved for it."""
     not_excluded: list[NotExcluded] = field(default_factory=list)
     """Rivals of named effects the data leave room for (rivals_not_excluded)."""
+    aliased: list[Aliased] = field(default_factory=list)
+    """Periodic effects the plan's even spacing kept from being looked for (said on the summary)."""
 
     @property
     def local(self) -> LocalError | None:

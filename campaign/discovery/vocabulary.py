@@ -61,7 +61,7 @@ from campaign.discovery.naming import (
     prefer_simpler,
     try_candidate,
 )
-from campaign.discovery.records import Choice, StandIn, StartingEffect, TableGap, Unresolved
+from campaign.discovery.records import Aliased, Choice, StandIn, StartingEffect, TableGap, Unresolved
 from campaign.discovery.result import STAND_IN_RIVALS, Candidate, Discovery, Step, note_once
 from campaign.effects import RegistryView, effect, effects
 from campaign.effects.base import stop_waits
@@ -184,8 +184,10 @@ def by_table(data: CampaignData, residual: np.ndarray) -> list[TableGap]:
     return out
 
 
-def candidate_names(data: CampaignData, terms: list[Term], notes: list[str]) -> list[str]:
-    """Effects not in the model that this data can show; notes say why others are not tried."""
+def candidate_names(data: CampaignData, terms: list[Term], notes: list[str],
+                    aliased: list[Aliased] | None = None) -> list[str]:
+    """Effects not in the model that this data can show; notes say why others are not tried, and
+    `aliased` gets the periodic effects the plan's even spacing keeps from being looked for."""
     present = {t.name for t in terms}
     names = [n for n in FORMS if n not in present]
     for name in [n for n in names if NEEDS.get(n) == "wait"]:
@@ -206,6 +208,8 @@ def candidate_names(data: CampaignData, terms: list[Term], notes: list[str]) -> 
             continue
         names.remove(name)
         spacing = even_spacing(data)
+        if aliased is not None and spacing is not None and all(a.effect != name for a in aliased):
+            aliased.append(Aliased(name, spacing, 2 * spacing, data.position_unit))
         note_once(notes, f"{name} is not looked for: the targets are evenly spaced {spacing:.4g} "
                      f"{data.position_unit} apart, so a period shorter than twice that ({2 * (spacing or 0):.4g} "
                      f"{data.position_unit}) aliases into a smooth bow or vanishes, and the screw leads looked for "
@@ -258,9 +262,10 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
     remaining: list[Candidate] = []
     remaining_beside = None
     spreads: dict[str, float] = {}
+    aliased: list[Aliased] = []
     for _ in range(MAX_STEPS):
         ranking = [try_candidate(data, current, name, notes)
-                   for name in candidate_names(data, current.terms, notes) if name not in left_out]
+                   for name in candidate_names(data, current.terms, notes, aliased) if name not in left_out]
         ranking.sort(key=lambda c: (c.fit is None, c.delta_bic))
         chosen, unresolved = choose(data, current, ranking, notes)
         held = [c for c in ranking if c.verdict.startswith(UNRESOLVED_VERDICTS)]
@@ -274,7 +279,7 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
             # seen beside an aliased period may tell its shape once the period's residual is held)
             own = stand_in_group(stand_in, held, unresolved)
             others = [try_candidate(data, stand_in.fitted, name, notes)
-                      for name in candidate_names(data, stand_in.fitted.terms, notes)
+                      for name in candidate_names(data, stand_in.fitted.terms, notes, aliased)
                       if name not in own and name not in left_out]
             held = [c for c in held if c.name in own]
             others.sort(key=lambda c: (c.fit is None, c.delta_bic))
@@ -345,7 +350,8 @@ def search_vocabulary(data: CampaignData, model: ErrorModel, given: dict[str, se
                      pooled_scatter_um(data, residual), data.time_source, notes,
                      disagreement(data, data.y - start.prediction), disagreement(data, residual), choices,
                      unresolved, errors=all_errors, remaining=remaining, remaining_beside=remaining_beside,
-                     stand_in=kept, starting=starting_report(data, start, current, all_errors, given))
+                     stand_in=kept, starting=starting_report(data, start, current, all_errors, given),
+                     aliased=aliased)
 
 
 def stand_in_group(stand_in: Candidate, held: list[Candidate], unresolved: list[Unresolved]) -> set[str]:
