@@ -19,7 +19,7 @@ from campaign.discovery.search import discover
 from campaign.discovery.simulate import simulate_campaign
 from campaign.discovery.vocabulary import NEEDS, UNRESOLVED_VERDICTS, drift_entry, undetermined_drifts
 from campaign.model import ErrorModel
-from tests.discovery_draws import draw, judge, plan_config
+from tests.discovery_draws import PLAN, draw, judge, plan_config
 from tests.test_discovery import BASE, CONFIG
 
 START = ErrorModel({"linear_scale": {}}), {"linear_scale": set()}
@@ -136,27 +136,10 @@ def test_no_drift_that_passed_the_tests_is_left_as_a_note():
             seed, result.added, result.unresolved)
 
 
-M16 = """
-[campaign]
-machine = "m16"
-tolerance = 20.0
-[axis]
-soft_limit_min = -10.0
-soft_limit_max = 610.0
-max_velocity = 50.0
-max_acceleration = 200.0
-[plan]
-length = 600.0
-count = 13
-overrun = 5.0
-cycles = 4
-dwell_s = 4.0
-velocity = 10.0
-offsets = "golden"
-seed = 3
-[capture]
-method = "dwell"
-"""
+M16 = (PLAN.format(count=13, offsets="golden").replace("cycles = 5", "cycles = 4").replace("dwell_s = 2.0", "dwell_s = 4.0")
+       .replace("velocity = 20.0", "velocity = 10.0").replace("offset_fraction = 0.45\n", "")
+       .replace("[plan]\n", "[plan]\nseed = 3\n"))
+"""The user's trial's plan (13 golden targets, 4 cycles, a fixed 4 s dwell) on the draws' 600 mm axis."""
 
 
 @pytest.mark.parametrize("seed", [6, *(pytest.param(s, marks=pytest.mark.machine) for s in (9, 11, 13))])
