@@ -151,7 +151,7 @@ def test_a_plot_that_fails_at_the_end_loses_nothing_else(cli, tmp_path, monkeypa
 
 def test_a_torn_last_line_is_left_out_by_every_reader_and_kept_in_the_file(cli, tmp_path):
     """A crash in the middle of writing a point leaves its line without a newline (and its numbers
-    perhaps cut). analyze, report and replay of the directory read what was recorded before it, as
+    perhaps cut). analyze, report and replay of the directory, and discover of its points.csv, read what was recorded before it, as
     the docs promise, and leave the file as it is for `resume` to cut (they refused it before:
     "expected 15 fields, found 11")."""
     directory = tmp_path / "c"
@@ -168,4 +168,7 @@ def test_a_torn_last_line_is_left_out_by_every_reader_and_kept_in_the_file(cli, 
     assert cli("report", directory, "-o", tmp_path / "r.html").code == 0
     replayed = cli("replay", directory)
     assert replayed.code == 0, replayed.err
+    discovered = cli("discover", points)  # a campaign's points.csv: read as recorded, incomplete said
+    assert discovered.code == 0, discovered.err
+    assert "incomplete campaign: 1 of 110 planned points are missing" in " ".join(discovered.out.split())
     assert points.read_bytes() == torn

@@ -39,6 +39,7 @@ from campaign.outliers import Outliers, find_outliers
 from campaign.plan import build_plan
 from campaign.plot import check_plot_path
 from campaign.pointtable import PointTable, read_points
+from campaign.record import META_FILE, read_recorded_points
 from campaign.views import make_console, print_json
 from protocols.units import UNITS, unit_label
 
@@ -595,6 +596,8 @@ def read_tables(files: list[str]) -> tuple[CampaignData, list[Outliers], list[st
         if profile:
             table, said = read_profile(name)
             read.append(said)
+        elif Path(name).name == "points.csv" and (Path(name).parent / META_FILE).is_file():
+            table = read_recorded_points(Path(name).parent, partial=False)  # a torn last line left out, as analyze does
         else:
             table = read_points(name)
         data = read_campaign(name, table, config_beside(name))
