@@ -21,7 +21,7 @@ from campaign.errors import InputError, SafetyError
 from campaign.iso230 import Evaluation, evaluate
 from campaign.measure.executor import Observer
 from campaign.measure.session import Opener, Outcome, open_with_comp, start_campaign
-from campaign.plan import Move, Plan
+from campaign.plan import Move, Plan, check_motion
 from campaign.plot import draw_evaluation, pyplot
 from campaign.pointtable import PointTable, read_points
 from campaign.record import COMP_FILE, open_campaign, read_recorded_points
@@ -96,12 +96,12 @@ def corrected_within_limits(table: ControllerTable, plan: Plan, config: Config, 
     for position in [lo, *inside.tolist(), hi]:
         for direction in (1, -1):
             motor = position + table.correction(position, direction) * table.unit_factor
-            if not axis.soft_limit_min <= motor <= axis.soft_limit_max:
-                raise SafetyError(
-                    f"{where}: moving {'+' if direction > 0 else '-'} at {position:g} {axis.unit} the table's "
-                    f"correction takes the motor to {motor:.6g} {axis.unit}, outside the soft limits "
-                    f"[{axis.soft_limit_min:g}, {axis.soft_limit_max:g}] {axis.unit}: a wrong value in the table? "
-                    "Nothing was written to the controller")
+            try:
+                check_motion(motor, axis.max_velocity, axis)  # the limits every motion is checked against
+            except SafetyError as exc:
+                raise SafetyError(f"{where}: moving {'+' if direction > 0 else '-'} at {position:g} {axis.unit} the "
+                                  f"table's correction takes the motor there: {exc}; a wrong value in the table? "
+                                  "Nothing was written to the controller") from None
 
 
 def run_verification(config: Config, table: ControllerTable, out: Path, *, opener: Opener,
