@@ -11,9 +11,11 @@ import io
 import json
 import re
 
+import numpy as np
 import pytest
 
 from campaign.cli import main
+from campaign.commands.discover import read_tables
 from tests.conftest import DATA, CliResult
 
 BASE = (DATA / "configs" / "horizontal-sim.toml").read_text()
@@ -93,6 +95,16 @@ def test_the_follow_up_scans_a_10_mm_lead(cli, tmp_path, seed):
     assert set(both["added"]) <= {"periodic_lead", "nonlinear_lead", "linear_scale"}, both["added"]
     assert not both["located"]["after"]["regions"], both["located"]["after"]["regions"]
     assert not both["local_errors"], both["local_errors"]
+    # before naming, the lead is located where it was measured, and nothing past the scan's end where the
+    # curve ran on alone (a bump of -3.3 µm peaking 6.8 mm past it, where nothing was measured)
+    data = read_tables([str(first / "points.csv"), str(tmp_path / "second" / "profile.csv")])[0]
+    scanned = data.x[data.campaign_index == 1]
+    targets = np.unique(data.x[data.campaign_index == 0])
+    knot = float(np.ptp(data.x)) / 147  # the position curve's knot spacing (MAX_BASIS basis functions)
+    gaps = [(float(targets[targets < scanned.min()].max(initial=data.x.min())) + 2 * knot, scanned.min() - 0.4),
+            (scanned.max() + 0.4, float(targets[targets > scanned.max()].min(initial=data.x.max())) - 2 * knot)]
+    for region in both["located"]["before"]["regions"]:
+        assert region["over"] != "position" or not any(lo < region["peak_at"] < hi for lo, hi in gaps), region
 
 
 BUMP = "[effects.local_defect]\namplitude_um = 3.0\ncentre_mm = 250.0\nwidth_mm = 100.0\n"

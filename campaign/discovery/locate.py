@@ -94,7 +94,8 @@ def _article(shape: str) -> str:
 class Curve:
     """One smoother: over "position" (direction "+", "-") or "time" (what "level" or "slope"),
     evaluated at `at`: value and band half-width (µm); the effective number of parameters, the
-    penalty chosen and its cross-validated RMS (µm)."""
+    penalty chosen and its cross-validated RMS (µm); where it is measured (`measured`, None: everywhere;
+    see measured_at)."""
 
     over: str
     what: str
@@ -105,6 +106,7 @@ class Curve:
     dof: float
     penalty: float
     cv_rms_um: float
+    measured: np.ndarray | None = None
 
     def as_dict(self, every: int = 8) -> dict:
         pick = slice(None, None, every)
@@ -144,7 +146,7 @@ class _Smoother:
     def __init__(self, lo: float, hi: float, basis: int):
         self.lo, self.hi = lo, hi if hi > lo else lo + 1.0
         self.k = max(basis, 4)
-        h = (self.hi - self.lo) / (self.k - 3)
+        h = self.spacing = (self.hi - self.lo) / (self.k - 3)
         self.knots = self.lo + h * np.arange(-3, self.k + 1)
         self.penalties = {}
         for order in (2, 1):
@@ -309,8 +311,40 @@ def position_curves(data: CampaignData, residual: np.ndarray, noise_um: float) -
         grid_values, grid_cols = smoother.rows(at)
         se = noise_um * np.sqrt(np.maximum(_quad(grid_values, grid_cols, inverse), 0.0))
         curves.append(Curve("position", "deviation", name, at, _apply(grid_values, grid_cols, coef),
-                            _quantile(dof) * se, dof, lam, cv))
+                            _quantile(dof) * se, dof, lam, cv, measured_at(at, where, smoother.spacing)))
     return curves
+
+
+def measured_at(at: np.ndarray, positions: np.ndarray, spacing: float) -> np.ndarray:
+    """Which of the points `at` the measured positions (`positions`: the targets' mean positions) reach:
+    within REACH_KNOTS knot spacings (`spacing`) of the nearest, the half-width of the cubic B-splines
+    that position pins, and within REACH_GAPS times that position's spacing to its neighbour on the other
+    side (the data's own spacing there). Elsewhere the curve has more freedom than data: between a dense
+    scan's profile and the next target of a table fitted with it (a 10 mm lead scanned to 323.6 mm, bins
+    0.1 mm apart, the next target at 362.5 mm, knots 4 mm apart), the curve carried the wave's slope on
+    into the gap and dived to −3.9 ± 0.7 µm where nothing was measured, a bump the axis does not have.
+    A table alone has a knot spacing about its targets' (MAX_BASIS bounds it on dense tables, whose
+    targets are closer still), so it reaches everywhere along it, offsets and a target left out by a
+    cross-validation fold included."""
+    known = np.unique(positions)
+    if len(known) < 2:
+        return np.ones(len(at), bool)
+    gaps = np.diff(known)
+    after = np.clip(np.searchsorted(known, at), 1, len(known) - 1)
+    nearer_after = np.abs(known[after] - at) < np.abs(at - known[after - 1])
+    nearest = np.where(nearer_after, after, after - 1)
+    distance = np.abs(at - known[nearest])
+    # the nearest position's gap on the side away from the point (none past an end: the knot spacing)
+    beyond = np.where(at < known[nearest], np.r_[gaps, spacing][nearest], np.r_[spacing, gaps][nearest])
+    return distance <= np.minimum(REACH_KNOTS * spacing, REACH_GAPS * beyond)
+
+
+REACH_KNOTS = 2.0
+"""measured_at: how many knot spacings a measured position reaches (a cubic B-spline spans four)."""
+REACH_GAPS = 4.0
+"""measured_at: how many times its own spacing on the other side a measured position reaches (a gap
+twice its neighbour's, uneven targets with one left out, stays measured; the end of a dense scan's
+profile, bins 0.1 mm apart, reaches 0.4 mm into the gap after it)."""
 
 
 def time_curves(data: CampaignData, residual: np.ndarray, noise_um: float) -> list[Curve]:
@@ -361,14 +395,16 @@ that a smoother's own ringing beside a sharp feature would pass it."""
 
 def _lobes(curve: Curve, smallest_um: float = 0.0) -> list[tuple[int, int]]:
     """Index ranges [i, j) of `curve.at` of each departure: where the curve is beyond its band, reaching
-    on while it keeps its sign and EXTENT of its peak; departures of one sign that meet are one."""
+    on while it keeps its sign and EXTENT of its peak; departures of one sign that meet are one. Only
+    where the curve is measured (Curve.measured)."""
     value = curve.value_um
-    out_of_band = np.abs(value) > np.maximum(curve.band_um, smallest_um)
+    measured = np.ones(len(value), bool) if curve.measured is None else curve.measured
+    out_of_band = (np.abs(value) > np.maximum(curve.band_um, smallest_um)) & measured
     edges = np.flatnonzero(np.diff(np.r_[0, out_of_band.astype(int), 0]))
     spans: list[tuple[int, int]] = []
     for i, j in zip(edges[::2], edges[1::2]):
         k = i + int(np.argmax(np.abs(value[i:j])))
-        keep = (np.sign(value) == np.sign(value[k])) & (np.abs(value) >= EXTENT * abs(value[k]))
+        keep = (np.sign(value) == np.sign(value[k])) & (np.abs(value) >= EXTENT * abs(value[k])) & measured
         while i > 0 and keep[i - 1]:
             i -= 1
         while j < len(value) and keep[j]:
@@ -442,10 +478,11 @@ def _combined(curves: list[Curve]) -> list[Curve]:
     plus, minus = curves
     band = np.sqrt(plus.band_um**2 + minus.band_um**2) / 2
     dof, cv = plus.dof + minus.dof, math.hypot(plus.cv_rms_um, minus.cv_rms_um) / 2
+    measured = None if plus.measured is None or minus.measured is None else plus.measured & minus.measured
     return [Curve("position", "deviation", "both", plus.at, (plus.value_um + minus.value_um) / 2, band, dof,
-                  plus.penalty, cv),
+                  plus.penalty, cv, measured),
             Curve("position", "deviation", "opposite", plus.at, (plus.value_um - minus.value_um) / 2, band, dof,
-                  plus.penalty, cv)]
+                  plus.penalty, cv, measured)]
 
 
 ONE_SIDE = 0.5
