@@ -589,6 +589,14 @@ def _thinned(targets: list[float], gap: float) -> list[float]:
     return kept
 
 
+def next_noise_seed(seed: int, followed: int, index: int) -> int:
+    """The simulated machine's noise seed for campaign `index` (0, 1, ...) of a follow-up of `followed`
+    tables first measured at `seed`: one on for every campaign before it, so that no two campaigns of
+    the loop draw the same scatter (with the first's seed, the k-th approach of both drew the same,
+    and the tables fitted together were not independent)."""
+    return seed + max(followed, 1) + index
+
+
 def plan_follow_up(unresolved: list[Unresolved], remaining: list[Any], data: CampaignData, final: Fit,
                    config: Config, reversal_um: float | None, noise_um: float, out: Path,
                    sources: list[str], regions: list[tuple[float, float]] | None = None,
@@ -619,7 +627,7 @@ def plan_follow_up(unresolved: list[Unresolved], remaining: list[Any], data: Cam
     budget = first if budget_s is None else budget_s
     follows = str(Path(sources[0]).parent) if sources else ""
 
-    def build(chosen: list[_Ask], path: Path = out) -> tuple[Config, float]:
+    def build(chosen: list[_Ask], path: Path = out, index: int = 0) -> tuple[Config, float]:
         targets, cycles, plan, capture, instrument = _merged(chosen, data)
         if "scan_velocity" in capture:  # a target's window never takes its neighbour's samples, and
             # holds at least two of the laser's samples
@@ -632,8 +640,10 @@ def plan_follow_up(unresolved: list[Unresolved], remaining: list[Any], data: Cam
             targets = _thinned(targets, 1e-3)
         plan.update(targets=targets, cycles=cycles, length=None, count=None)
         said = "; ".join(" or ".join(a.part.effects) for a in chosen)
-        changed = config_with(config, {"plan": plan, "capture": capture, "instrument": instrument,
-                                       **_moved_paths(config, path.parent),
+        moved = _moved_paths(config, path.parent)
+        if config.instrument.type == "sim":  # the same simulated machine measured again, on new noise
+            moved["sim"] = {**moved.get("sim", {}), "seed": next_noise_seed(config.sim.seed, len(sources), index)}
+        changed = config_with(config, {"plan": plan, "capture": capture, "instrument": instrument, **moved,
                                        "campaign": {"description": f"follow-up of {', '.join(sources)}: to tell {said}",
                                                     "purpose": "follow-up", "follows": follows}})
         followed = parse_config(config_toml(changed.data), str(path))  # as it will be read from where it is written
@@ -659,7 +669,7 @@ def plan_follow_up(unresolved: list[Unresolved], remaining: list[Any], data: Cam
     chosen.sort(key=asks.index)
     groups = _campaigns(chosen)
     paths = [_path(out, i) for i in range(len(groups))]
-    built = [build(group, path) for group, path in zip(groups, paths)]
+    built = [build(group, path, index) for index, (group, path) in enumerate(zip(groups, paths))]
     tables = [f"NEW{i + 1 if len(groups) > 1 else ''}/{'profile.csv' if c.capture.method == 'scan' else 'points.csv'}"
               for i, (c, _) in enumerate(built)]  # a scan's dense profile
     duration = sum(d for _, d in built)
