@@ -83,7 +83,7 @@ def test_the_follow_up_scans_a_10_mm_lead(cli, tmp_path, seed):
     names the lead, period within 1 %, nothing unresolved, nothing the machine lacks and no region
     left after the fit (each table weighed by its own uncertainty, each sweep its own offset and slope).
     Not seed 2: its follow-up runs on noise seed 3, whose reading noise holds six draws in a row at
-    −2.2 to −2.6σ (numpy's stream for [3, 2], draw 20451), a 12 ms dip of −0.12 µm in one sweep at
+    −1.9 to −2.6σ, −2.3σ on average (numpy's stream for [3, 2] from draw 20451), a 12 ms dip of −0.12 µm in one sweep at
     294.5 mm that the locator rightly leaves as one bin's departure, about 6σ of that bin."""
     first = first_campaign(cli, tmp_path, "[effects.periodic_lead]\namplitude_um = 1.0\nperiod_mm = 10.0\n"
                                           "phase_rad = 0.3\n", seed=seed)
@@ -210,6 +210,6 @@ def test_a_follow_up_of_a_machine_given_by_a_relative_model_path_runs(cli, tmp_p
     written = (tmp_path / "next" / "f.toml").read_text()
     assert 'model = "../runs/first/sim-model.toml"' in written
     seed = int(re.search(r"\[sim\]\nseed = (\d+)", BASE).group(1))
-    assert f"seed = {seed + 1}\n" in written
+    assert int(re.search(r"\[sim\]\nseed = (\d+)", written).group(1)) == seed + 1
     assert cli("run", tmp_path / "next" / "f.toml", "--out", tmp_path / "runs" / "second").code == 0
     assert machine_time_s(tmp_path / "runs" / "second") > 0

@@ -311,40 +311,44 @@ def position_curves(data: CampaignData, residual: np.ndarray, noise_um: float) -
         grid_values, grid_cols = smoother.rows(at)
         se = noise_um * np.sqrt(np.maximum(_quad(grid_values, grid_cols, inverse), 0.0))
         curves.append(Curve("position", "deviation", name, at, _apply(grid_values, grid_cols, coef),
-                            _quantile(dof) * se, dof, lam, cv, measured_at(at, where, smoother.spacing)))
+                            _quantile(dof) * se, dof, lam, cv, measured_at(data, at, smoother.spacing)))
     return curves
 
 
-def measured_at(at: np.ndarray, positions: np.ndarray, spacing: float) -> np.ndarray:
-    """Which of the points `at` the measured positions (`positions`: the targets' mean positions) reach:
-    within REACH_KNOTS knot spacings (`spacing`) of the nearest, the half-width of the cubic B-splines
-    that position pins, and within REACH_GAPS times that position's spacing to its neighbour on the other
-    side (the data's own spacing there). Elsewhere the curve has more freedom than data: between a dense
-    scan's profile and the next target of a table fitted with it (a 10 mm lead scanned to 323.6 mm, bins
-    0.1 mm apart, the next target at 362.5 mm, knots 4 mm apart), the curve carried the wave's slope on
-    into the gap and dived to −3.9 ± 0.7 µm where nothing was measured, a bump the axis does not have.
-    A table alone has a knot spacing about its targets' (MAX_BASIS bounds it on dense tables, whose
-    targets are closer still), so it reaches everywhere along it, offsets and a target left out by a
-    cross-validation fold included."""
-    known = np.unique(positions)
-    if len(known) < 2:
-        return np.ones(len(at), bool)
-    gaps = np.diff(known)
-    after = np.clip(np.searchsorted(known, at), 1, len(known) - 1)
-    nearer_after = np.abs(known[after] - at) < np.abs(at - known[after - 1])
-    nearest = np.where(nearer_after, after, after - 1)
-    distance = np.abs(at - known[nearest])
-    # the nearest position's gap on the side away from the point (none past an end: the knot spacing)
-    beyond = np.where(at < known[nearest], np.r_[gaps, spacing][nearest], np.r_[spacing, gaps][nearest])
-    return distance <= np.minimum(REACH_KNOTS * spacing, REACH_GAPS * beyond)
+def measured_at(data: CampaignData, at: np.ndarray, spacing: float) -> np.ndarray:
+    """Which of the points `at` the curve over position is measured at: everywhere but in the gap
+    between a scan profile's end and the next position another table measures (the profile's rows:
+    `data.sloped`), beyond REACH_BINS of the profile's bin spacing from its end and REACH_KNOTS knot
+    spacings (`spacing`) from that position. One penalty for the whole curve, chosen where the
+    profile's bins are dense and weigh most, leaves the curve as flexible in that gap as over the
+    bins, with nothing to hold it: a 10 mm lead scanned to 323.6 mm, the table's next target at
+    362.5 mm, knots 4 mm apart, and the curve carried the wave's slope on into the gap and dived to
+    −3.9 ± 0.7 µm where nothing was measured, a bump the axis does not have. Tables of stopped
+    targets, alone or together, are measured everywhere (their curve reads the gaps between targets as
+    before)."""
+    measured = np.ones(len(at), dtype=bool)
+    if data.sloped is None or not np.any(data.sloped):
+        return measured
+    campaign = data.campaign_index
+    for c in np.unique(campaign[data.sloped]):
+        mine = data.sloped & (campaign == c)
+        bins = np.unique(data.x[mine])
+        others = data.x[~mine]
+        if len(bins) < 2 or not len(others):
+            continue
+        reach = REACH_BINS * float(np.median(np.diff(bins)))
+        above, below = others[others > bins[-1]], others[others < bins[0]]
+        if len(above):
+            measured &= ~((at > bins[-1] + reach) & (at < float(above.min()) - REACH_KNOTS * spacing))
+        if len(below):
+            measured &= ~((at < bins[0] - reach) & (at > float(below.max()) + REACH_KNOTS * spacing))
+    return measured
 
 
+REACH_BINS = 4.0
+"""measured_at: how many of its bin spacings past its end a scan profile reaches (0.4 mm at 0.1 mm bins)."""
 REACH_KNOTS = 2.0
-"""measured_at: how many knot spacings a measured position reaches (a cubic B-spline spans four)."""
-REACH_GAPS = 4.0
-"""measured_at: how many times its own spacing on the other side a measured position reaches (a gap
-twice its neighbour's, uneven targets with one left out, stays measured; the end of a dense scan's
-profile, bins 0.1 mm apart, reaches 0.4 mm into the gap after it)."""
+"""measured_at: how many knot spacings a table's target reaches into that gap (a cubic B-spline spans four)."""
 
 
 def time_curves(data: CampaignData, residual: np.ndarray, noise_um: float) -> list[Curve]:
@@ -530,7 +534,8 @@ def _regions_of(curves: list[Curve], travel: float, unit: str, dev: str, smalles
         shape = shape_of(curve.at, value, start, end, travel)
         out.append((Region("position", "deviation", start, end, peak, peak_at, direction, shape, unit, dev), value))
     out.sort(key=lambda r: r[0].start)
-    return _steps_joined(out, curves[0].at, travel)
+    measured = _combined(curves)[0].measured
+    return _steps_joined(out, curves[0].at, travel, np.ones(len(curves[0].at), bool) if measured is None else measured)
 
 
 STEEP = 2.0
@@ -538,10 +543,12 @@ STEEP = 2.0
 this many times faster than on their outer sides (a wave changes as fast on both)."""
 
 
-def _steps_joined(regions: list[tuple[Region, np.ndarray]], at: np.ndarray, travel: float) -> list[Region]:
+def _steps_joined(regions: list[tuple[Region, np.ndarray]], at: np.ndarray, travel: float,
+                  measured: np.ndarray) -> list[Region]:
     """Two neighbouring departures of opposite sign in the same direction that meet in a steep change are
     one step (a jump beside a straight line leaves a saw tooth: one side below the line, the other
-    above): from one peak to the other, its size the jump, placed where the curve changes most."""
+    above): from one peak to the other, its size the jump, placed where the curve changes most; not
+    across a stretch the curve is not measured at (`measured`: measured_at), where its change is its own."""
     out: list[Region] = []
     i = 0
     while i < len(regions):
@@ -550,6 +557,10 @@ def _steps_joined(regions: list[tuple[Region, np.ndarray]], at: np.ndarray, trav
         if b is not None and a.peak_um * b.peak_um < 0 and b.start - a.end < 0.5 * (b.peak_at - a.peak_at):
             lo, hi = sorted((a.peak_at, b.peak_at))
             pick = (at >= lo) & (at <= hi)
+            if not measured[pick].all():
+                out.append(a)
+                i += 1
+                continue
             outer = ((at >= a.start) & (at < lo)) | ((at > hi) & (at <= b.end))
             slope = np.abs(np.diff(value)) / np.diff(at)
             inner = slope[pick[1:] & pick[:-1]]
