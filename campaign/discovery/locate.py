@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from campaign.discovery.data import CampaignData
+from campaign.discovery.data import CampaignData, keep_rows
 
 MAX_BASIS = 150
 """The most B-spline basis functions of one smoother (resolution: the travel over about this)."""
@@ -94,8 +94,7 @@ def _article(shape: str) -> str:
 class Curve:
     """One smoother: over "position" (direction "+", "-") or "time" (what "level" or "slope"),
     evaluated at `at`: value and band half-width (µm); the effective number of parameters, the
-    penalty chosen and its cross-validated RMS (µm); where it is measured (`measured`, None: everywhere;
-    see measured_at)."""
+    penalty chosen and its cross-validated RMS (µm)."""
 
     over: str
     what: str
@@ -106,7 +105,6 @@ class Curve:
     dof: float
     penalty: float
     cv_rms_um: float
-    measured: np.ndarray | None = None
 
     def as_dict(self, every: int = 8) -> dict:
         pick = slice(None, None, every)
@@ -146,7 +144,7 @@ class _Smoother:
     def __init__(self, lo: float, hi: float, basis: int):
         self.lo, self.hi = lo, hi if hi > lo else lo + 1.0
         self.k = max(basis, 4)
-        h = self.spacing = (self.hi - self.lo) / (self.k - 3)
+        h = (self.hi - self.lo) / (self.k - 3)
         self.knots = self.lo + h * np.arange(-3, self.k + 1)
         self.penalties = {}
         for order in (2, 1):
@@ -287,8 +285,10 @@ def pooled_noise_um(data: CampaignData, residual: np.ndarray) -> float:
     return float(np.sqrt(np.sum((residual - mean[group]) ** 2) / dof))
 
 
-def position_curves(data: CampaignData, residual: np.ndarray, noise_um: float) -> list[Curve]:
-    """One smoother of the residual's target means over position per direction."""
+def position_curves(data: CampaignData, residual: np.ndarray, noise_um: float,
+                    scale: np.ndarray | None) -> list[Curve]:
+    """One smoother of the residual's target means over position per direction (`scale`: each point's
+    weight's square root, data.row_scale of the tables fitted together; None: all alike)."""
     lo, hi = float(np.min(data.x)), float(np.max(data.x))
     at = np.linspace(lo, hi, GRID)
     curves = []
@@ -298,7 +298,7 @@ def position_curves(data: CampaignData, residual: np.ndarray, noise_um: float) -
             continue
         keys = data.campaign_index[pick] * (data.target_index.max() + 1) + data.target_index[pick]
         _, group = np.unique(keys, return_inverse=True)
-        weight = np.ones(int(pick.sum())) if data.row_scale is None else data.row_scale[pick] ** 2
+        weight = np.ones(int(pick.sum())) if scale is None else scale[pick] ** 2
         count = np.bincount(group, weight)  # the points in each, each weighed by 1/u² (data.row_scale)
         means = np.bincount(group, weight * residual[pick]) / count
         where = np.bincount(group, weight * data.x[pick]) / count
@@ -311,44 +311,8 @@ def position_curves(data: CampaignData, residual: np.ndarray, noise_um: float) -
         grid_values, grid_cols = smoother.rows(at)
         se = noise_um * np.sqrt(np.maximum(_quad(grid_values, grid_cols, inverse), 0.0))
         curves.append(Curve("position", "deviation", name, at, _apply(grid_values, grid_cols, coef),
-                            _quantile(dof) * se, dof, lam, cv, measured_at(data, at, smoother.spacing)))
+                            _quantile(dof) * se, dof, lam, cv))
     return curves
-
-
-def measured_at(data: CampaignData, at: np.ndarray, spacing: float) -> np.ndarray:
-    """Which of the points `at` the curve over position is measured at: everywhere but in the gap
-    between a scan profile's end and the next position another table measures (the profile's rows:
-    `data.sloped`), beyond REACH_BINS of the profile's bin spacing from its end and REACH_KNOTS knot
-    spacings (`spacing`) from that position. One penalty for the whole curve, chosen where the
-    profile's bins are dense and weigh most, leaves the curve as flexible in that gap as over the
-    bins, with nothing to hold it: a 10 mm lead scanned to 323.6 mm, the table's next target at
-    362.5 mm, knots 4 mm apart, and the curve carried the wave's slope on into the gap and dived to
-    −3.9 ± 0.7 µm where nothing was measured, a bump the axis does not have. Tables of stopped
-    targets, alone or together, are measured everywhere (their curve reads the gaps between targets as
-    before)."""
-    measured = np.ones(len(at), dtype=bool)
-    if data.sloped is None or not np.any(data.sloped):
-        return measured
-    campaign = data.campaign_index
-    for c in np.unique(campaign[data.sloped]):
-        mine = data.sloped & (campaign == c)
-        bins = np.unique(data.x[mine])
-        others = data.x[~mine]
-        if len(bins) < 2 or not len(others):
-            continue
-        reach = REACH_BINS * float(np.median(np.diff(bins)))
-        above, below = others[others > bins[-1]], others[others < bins[0]]
-        if len(above):
-            measured &= ~((at > bins[-1] + reach) & (at < float(above.min()) - REACH_KNOTS * spacing))
-        if len(below):
-            measured &= ~((at < bins[0] - reach) & (at > float(below.max()) + REACH_KNOTS * spacing))
-    return measured
-
-
-REACH_BINS = 4.0
-"""measured_at: how many of its bin spacings past its end a scan profile reaches (0.4 mm at 0.1 mm bins)."""
-REACH_KNOTS = 2.0
-"""measured_at: how many knot spacings a table's target reaches into that gap (a cubic B-spline spans four)."""
 
 
 def time_curves(data: CampaignData, residual: np.ndarray, noise_um: float) -> list[Curve]:
@@ -399,16 +363,14 @@ that a smoother's own ringing beside a sharp feature would pass it."""
 
 def _lobes(curve: Curve, smallest_um: float = 0.0) -> list[tuple[int, int]]:
     """Index ranges [i, j) of `curve.at` of each departure: where the curve is beyond its band, reaching
-    on while it keeps its sign and EXTENT of its peak; departures of one sign that meet are one. Only
-    where the curve is measured (Curve.measured)."""
+    on while it keeps its sign and EXTENT of its peak; departures of one sign that meet are one."""
     value = curve.value_um
-    measured = np.ones(len(value), bool) if curve.measured is None else curve.measured
-    out_of_band = (np.abs(value) > np.maximum(curve.band_um, smallest_um)) & measured
+    out_of_band = np.abs(value) > np.maximum(curve.band_um, smallest_um)
     edges = np.flatnonzero(np.diff(np.r_[0, out_of_band.astype(int), 0]))
     spans: list[tuple[int, int]] = []
     for i, j in zip(edges[::2], edges[1::2]):
         k = i + int(np.argmax(np.abs(value[i:j])))
-        keep = (np.sign(value) == np.sign(value[k])) & (np.abs(value) >= EXTENT * abs(value[k])) & measured
+        keep = (np.sign(value) == np.sign(value[k])) & (np.abs(value) >= EXTENT * abs(value[k]))
         while i > 0 and keep[i - 1]:
             i -= 1
         while j < len(value) and keep[j]:
@@ -482,11 +444,10 @@ def _combined(curves: list[Curve]) -> list[Curve]:
     plus, minus = curves
     band = np.sqrt(plus.band_um**2 + minus.band_um**2) / 2
     dof, cv = plus.dof + minus.dof, math.hypot(plus.cv_rms_um, minus.cv_rms_um) / 2
-    measured = None if plus.measured is None or minus.measured is None else plus.measured & minus.measured
     return [Curve("position", "deviation", "both", plus.at, (plus.value_um + minus.value_um) / 2, band, dof,
-                  plus.penalty, cv, measured),
+                  plus.penalty, cv),
             Curve("position", "deviation", "opposite", plus.at, (plus.value_um - minus.value_um) / 2, band, dof,
-                  plus.penalty, cv, measured)]
+                  plus.penalty, cv)]
 
 
 ONE_SIDE = 0.5
@@ -534,8 +495,7 @@ def _regions_of(curves: list[Curve], travel: float, unit: str, dev: str, smalles
         shape = shape_of(curve.at, value, start, end, travel)
         out.append((Region("position", "deviation", start, end, peak, peak_at, direction, shape, unit, dev), value))
     out.sort(key=lambda r: r[0].start)
-    measured = _combined(curves)[0].measured
-    return _steps_joined(out, curves[0].at, travel, np.ones(len(curves[0].at), bool) if measured is None else measured)
+    return _steps_joined(out, curves[0].at, travel)
 
 
 STEEP = 2.0
@@ -543,12 +503,10 @@ STEEP = 2.0
 this many times faster than on their outer sides (a wave changes as fast on both)."""
 
 
-def _steps_joined(regions: list[tuple[Region, np.ndarray]], at: np.ndarray, travel: float,
-                  measured: np.ndarray) -> list[Region]:
+def _steps_joined(regions: list[tuple[Region, np.ndarray]], at: np.ndarray, travel: float) -> list[Region]:
     """Two neighbouring departures of opposite sign in the same direction that meet in a steep change are
     one step (a jump beside a straight line leaves a saw tooth: one side below the line, the other
-    above): from one peak to the other, its size the jump, placed where the curve changes most; not
-    across a stretch the curve is not measured at (`measured`: measured_at), where its change is its own."""
+    above): from one peak to the other, its size the jump, placed where the curve changes most."""
     out: list[Region] = []
     i = 0
     while i < len(regions):
@@ -557,10 +515,6 @@ def _steps_joined(regions: list[tuple[Region, np.ndarray]], at: np.ndarray, trav
         if b is not None and a.peak_um * b.peak_um < 0 and b.start - a.end < 0.5 * (b.peak_at - a.peak_at):
             lo, hi = sorted((a.peak_at, b.peak_at))
             pick = (at >= lo) & (at <= hi)
-            if not measured[pick].all():
-                out.append(a)
-                i += 1
-                continue
             outer = ((at >= a.start) & (at < lo)) | ((at > hi) & (at <= b.end))
             slope = np.abs(np.diff(value)) / np.diff(at)
             inner = slope[pick[1:] & pick[:-1]]
@@ -594,7 +548,7 @@ beside a departure both share, does not say it."""
 
 
 def odd_targets(data: CampaignData, residual: np.ndarray, noise_um: float, curves: list[Curve],
-                regions: list[Region]) -> list[Region]:
+                regions: list[Region], scale: np.ndarray | None) -> list[Region]:
     """Targets whose mean residual departs from the smoothed curve of its direction beyond their own
     noise (noise / √points, the normal quantile of BAND_ALPHA over every target and direction), unless a
     region already found says it (SAID_SHARE; not one over most of the travel, WIDE): an error narrower than the
@@ -616,7 +570,7 @@ def odd_targets(data: CampaignData, residual: np.ndarray, noise_um: float, curve
             continue
         pick = data.d == sign
         where = np.searchsorted(targets, np.round(data.x[pick], 6))
-        weight = np.ones(int(pick.sum())) if data.row_scale is None else data.row_scale[pick] ** 2
+        weight = np.ones(int(pick.sum())) if scale is None else scale[pick] ** 2
         count = np.bincount(where, weight, minlength=len(targets))  # points weighed by 1/u² (row_scale), as the curves
         seen = count > 0
         means = np.bincount(where, weight * residual[pick], minlength=len(targets))[seen] / count[seen]
@@ -704,6 +658,24 @@ def beside_period(regions: list[Region], travel: float) -> list[Region]:
     return sorted(rest, key=lambda r: r.start)
 
 
+def kinds_of_rows(data: CampaignData) -> list[np.ndarray | None]:
+    """The rows each curve over position smooths: all of them ([None]), or, when a scan's profile is
+    fitted with tables of stopped targets, the stopped targets' rows and each profile's rows apart
+    (its rows: `data.sloped`, per table). One penalty cannot serve both: chosen where the profile's
+    bins, 0.1 mm apart, are dense and weigh most, it left the curve as flexible in the 39 mm gap
+    between the scan's end and the table's next target as over the bins, and the curve carried a
+    10 mm lead's slope on and dived to −3.9 ± 0.7 µm where nothing was measured (a bump of −3.3 µm
+    said before naming on an axis that has none; a user's trial saw −6.7 µm). Each curve is over
+    its own rows' span, with the weights and the noise of the tables fitted together."""
+    if data.sloped is None or not np.any(data.sloped):
+        return [None]
+    stopped = ~data.sloped
+    kinds: list[np.ndarray | None] = [stopped] if np.count_nonzero(stopped) else []
+    for table in np.unique(data.campaign_index[data.sloped]):
+        kinds.append(data.sloped & (data.campaign_index == table))
+    return kinds
+
+
 def locate(data: CampaignData, residual: np.ndarray) -> Located:
     """The regions where `residual` (µm per point: measured - model) departs from zero beyond the
     noise, along the axis per direction and in time, and the curves they come from."""
@@ -711,10 +683,19 @@ def locate(data: CampaignData, residual: np.ndarray) -> Located:
     noise = pooled_noise_um(data, residual)
     if len(data) < 8 or noise <= 0:
         return Located([], [], noise)
-    curves = position_curves(data, residual, noise)
     travel = float(np.ptp(data.x)) or 1.0
-    regions = _regions_of(curves, travel, data.position_unit, data.deviation_unit, SMALLEST * noise)
-    regions = sorted(regions + odd_targets(data, residual, noise, curves, regions), key=lambda r: r.start)
+    scale = data.row_scale
+    curves, regions = [], []
+    for rows in kinds_of_rows(data):
+        part = data if rows is None else keep_rows(data, rows)
+        left, weights = (residual, scale) if rows is None else (residual[rows], None if scale is None else scale[rows])
+        along = position_curves(part, left, noise, weights)
+        if not along:  # fewer than four targets in each direction: no curve to read
+            continue
+        found = _regions_of(along, travel, data.position_unit, data.deviation_unit, SMALLEST * noise)
+        regions += found + odd_targets(part, left, noise, along, found, weights)
+        curves += along
+    regions.sort(key=lambda r: r.start)
     timed = time_curves(data, residual, noise)
     time_unit = "s" if data.time_source == "time_s" else "points"
     for curve in timed:
