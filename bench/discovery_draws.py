@@ -84,7 +84,7 @@ def main() -> None:
                 print(shape, count, offsets, {k: v for k, v in tally.items() if k != "false"}, flush=True)
     args.out.parent.mkdir(exist_ok=True)
     out = {"draws_per_cell": args.draws, "seed": args.seed, "seconds": round(time.perf_counter() - started, 1),
-           "totals": totals(rows), "rows": rows}
+           "versions": versions(), "totals": totals(rows), "rows": rows}
     args.out.write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
     print("| shape | targets | golden: visible · seen · located · stated (of which bracketed) · false names · gap ≤ 1.3σ "
           "| uniform: the same |")
@@ -99,6 +99,14 @@ def main() -> None:
                              f"{r['false_names']} · {r['gap_within_1_3']}")
             print(f"| {shape} | {count} | {cells[0]} | {cells[1]} |")
     print(json.dumps(out["totals"]))
+
+
+def versions() -> dict[str, str]:
+    """The numerical packages the rows were computed with: a draw at the edge of a test (a region just
+    beyond its band, a gap ratio at 1.3) can change with their rounding, so rows are compared on the same."""
+    import scipy
+
+    return {"python": sys.version.split()[0], "numpy": np.__version__, "scipy": scipy.__version__}
 
 
 def draw_seeds(seed: int, draws: int, count: int, offsets: str) -> list[int]:
