@@ -486,8 +486,12 @@ def print_text(result: Discovery, time_unit: str, incomplete: list[str], verbose
                           ("left by the final model", result.located_after)):
         if located is None:
             continue
-        curves = ", ".join(f"{c.over} {c.direction if c.over == 'position' else c.what}: {c.dof:.1f} parameters, "
-                           f"CV {c.cv_rms_um:.3f} {dev}" for c in located.curves)
+        # a scan's profile fitted with tables has a curve of its own (locate.kinds_of_rows): each said with its span
+        several = sum(c.over == "position" for c in located.curves) > len({c.direction for c in located.curves
+                                                                             if c.over == "position"})
+        curves = ", ".join(f"{c.over} {c.direction if c.over == 'position' else c.what}"
+                           + (f" over {c.at[0]:.4g}–{c.at[-1]:.4g} {UNITS[kind][0]}" if several and c.over == "position" else "")
+                           + f": {c.dof:.1f} parameters, CV {c.cv_rms_um:.3f} {dev}" for c in located.curves)
         console.print(f"located {when} (a smoother of the residual chosen by cross-validation, its band from a "
                       f"noise of {located.noise_um:.3f} {dev}; {curves}): "
                       + ("; ".join(r.sentence() for r in located.regions) or "nothing beyond the noise"))
