@@ -135,10 +135,15 @@ def try_candidate(data: CampaignData, current: Fit, name: str, notes: list[str])
     return cand
 
 
+def how_to_tell_pairs() -> dict[frozenset[str], str]:
+    """What campaign separates two effects that explain the same residual: every effect's `rivals`
+    (campaign/effects/), one entry a pair."""
+    return {frozenset({e.name, other}): text for e in effects() for other, text in e.rivals.items()}
+
+
 def rival_pair(a: str, b: str) -> bool:
     """Are `a` and `b` rivals (either's `rivals` names the other: they can explain the same residual)?"""
-    found = [e for e in effects() if e.name in (a, b)]
-    return any((e.name == a and b in e.rivals) or (e.name == b and a in e.rivals) for e in found)
+    return frozenset({a, b}) in how_to_tell_pairs()
 
 
 def search_factor(data: CampaignData, name: str) -> float:

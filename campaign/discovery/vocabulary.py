@@ -57,13 +57,14 @@ from campaign.discovery.naming import (
     NESTED_IN,
     RIVAL_MARGIN,
     gate_failures,
+    how_to_tell_pairs,
     period_spread_mm,
     prefer_simpler,
     try_candidate,
 )
 from campaign.discovery.records import Aliased, Choice, StandIn, StartingEffect, TableGap, Unresolved
 from campaign.discovery.result import STAND_IN_RIVALS, Candidate, Discovery, Step, note_once
-from campaign.effects import RegistryView, effect, effects
+from campaign.effects import RegistryView, effect
 from campaign.effects.base import stop_waits
 from campaign.errors import InputError
 from campaign.model import DEFAULTS, EFFECT_PARAMS, ErrorModel
@@ -434,12 +435,6 @@ def starting_report(data: CampaignData, start: Fit, final: Fit, errors: dict[str
 
 
 DWELLS_HOW_TO_TELL = effect("settling").rivals["backlash"]
-
-
-def how_to_tell_pairs() -> dict[frozenset[str], str]:
-    """What campaign separates two effects that explain the same residual: every effect's `rivals`
-    (campaign/effects/), one entry a pair."""
-    return {frozenset({e.name, other}): text for e in effects() for other, text in e.rivals.items()}
 
 
 HOW_TO_TELL_DEFAULT = ("a campaign that varies what separates them: more runs over a longer time for time "
