@@ -794,3 +794,16 @@ def test_settling_or_backlash_alone_gets_no_rival_named_beside_it(alone):
     for seed in (1, 2):
         data = campaign_data(simulate_campaign(plan_config(13, "golden"), ErrorModel(truth), seed=seed, dwell_jitter=0.8))
         assert discover(data, ErrorModel({"linear_scale": {}}), {"linear_scale": set()}).added == [alone]
+
+
+def test_a_config_beside_the_table_that_does_not_read_is_said(cli, tmp_path):
+    """A config.toml beside a table gives discovery the campaign's sample period and capture method;
+    one that does not read is said, with what is wrong, not silently passed over."""
+    write_points(tmp_path / "points.csv", simulate_campaign(user_config(), ErrorModel(BOW), seed=2))
+    plain = json.loads(cli("discover", tmp_path / "points.csv", "--json").out)
+    assert not any("config.toml" in n for n in plain["notes"])
+    (tmp_path / "config.toml").write_text("[plan]\ncount = 'eleven'\n")
+    said = cli("discover", tmp_path / "points.csv", "--json")
+    notes = [n for n in json.loads(said.out)["notes"] if "config.toml" in n]
+    assert said.code == 0 and len(notes) == 1 and "does not read" in notes[0] and "sample period" in notes[0]
+    assert json.loads(said.out)["added"] == plain["added"]  # the table itself is read as before

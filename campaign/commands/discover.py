@@ -580,13 +580,20 @@ def plot_steps(result: Discovery, x: np.ndarray, d: np.ndarray, y: np.ndarray, o
 def config_beside(table: str) -> Config | None:
     """The config of the campaign a table was recorded by (config.toml next to it), typed; None when
     there is none or it does not read (the table is then read without its sample period)."""
+    return config_beside_said(table)[0]
+
+
+def config_beside_said(table: str) -> tuple[Config | None, str | None]:
+    """`config_beside`, and a note when a config.toml is there but does not read: what is wrong with
+    it and what the table is read without."""
     path = Path(table).parent / "config.toml"
     if not path.is_file():
-        return None
+        return None, None
     try:
-        return load_config(path)
-    except InputError:
-        return None
+        return load_config(path), None
+    except InputError as e:
+        return None, (f"{path} beside {table} does not read ({e}); the table is read without it: without its "
+                      "sample period and capture method")
 
 
 def read_tables(files: list[str]) -> tuple[CampaignData, list[Outliers], list[str], list[str]]:
@@ -604,7 +611,9 @@ def read_tables(files: list[str]) -> tuple[CampaignData, list[Outliers], list[st
             table = read_recorded_points(Path(name).parent, partial=False)  # a torn last line left out, as analyze does
         else:
             table = read_points(name)
-        data = read_campaign(name, table, config_beside(name))
+        config, unread = config_beside_said(name)
+        read += [unread] if unread else []
+        data = read_campaign(name, table, config)
         outliers = find_outliers(table)
         if outliers.found:
             data = keep_rows(data, ~outliers.mask(table))
