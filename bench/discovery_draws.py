@@ -13,7 +13,9 @@ two neighbouring targets, as finely as the plan lets them be placed when that is
 machine lacks, how many end within 1.3 × the noise, of the draws not stated how many are beyond
 what the campaign shows ("beyond": even the error's exact deviation at its true place, only its size
 fitted, is not significant at p 0.001 beside the machine's vocabulary), and on the nulls how many leave a region along the
-axis (not a reversal) in what the final model leaves. Writes bench/results/discovery_draws.json and the table quoted in docs/discovery.md.
+axis (not a reversal) in what the final model leaves. Each cell lists its draws that name an effect the machine
+lacks ("false") and those neither located nor stated ("missed": the draw's generator seed, whether beyond
+what the campaign shows, what was said). Writes bench/results/discovery_draws.json and the table quoted in docs/discovery.md.
 
     .venv/bin/python bench/discovery_draws.py [--draws N] [--seed S] [--out FILE]
 """
@@ -57,7 +59,7 @@ def main() -> None:
                 config = plan_config(count, offsets)
                 tally = {"shape": shape, "targets": count, "offsets": offsets, "draws": 0, "visible": 0,
                          "located": 0, "stated": 0, "bracketed": 0, "seen": 0, "false_names": 0, "gap_within_1_3": 0,
-                         "bad_names": 0, "regions_after": 0, "beyond": 0, "false": []}
+                         "bad_names": 0, "regions_after": 0, "beyond": 0, "false": [], "missed": []}
                 for seed in draw_seeds(args.seed, args.draws, count, offsets):
                     truth = draw(np.random.default_rng(seed), shape, config)
                     table = simulate_campaign(config, ErrorModel(truth.model), seed=seed, dwell_jitter=0.8)
@@ -74,14 +76,16 @@ def main() -> None:
                     tally["bracketed"] += truth.visible and judged.bracketed  # counted in stated too
                     tally["seen"] += truth.visible and judged.seen
                     if truth.visible and not judged.stated:  # could any method have shown it? (its exact shape known)
-                        tally["beyond"] += oracle_p(data, truth) > ORACLE_ALPHA
+                        beyond = oracle_p(data, truth) > ORACLE_ALPHA
+                        tally["beyond"] += beyond
+                        tally["missed"].append({"seed": seed, "beyond": bool(beyond), "said": judged.said})
                     tally["bad_names"] += bool(named_out_of_gates(data, result))
                     tally["false_names"] += bool(judged.false_names) or found_local
                     tally["gap_within_1_3"] += judged.gap_ratio <= 1.3
                     if judged.false_names or found_local:
                         tally["false"].append({"seed": seed, "said": judged.said})
                 rows.append(tally)
-                print(shape, count, offsets, {k: v for k, v in tally.items() if k != "false"}, flush=True)
+                print(shape, count, offsets, {k: v for k, v in tally.items() if k not in ("false", "missed")}, flush=True)
     args.out.parent.mkdir(exist_ok=True)
     out = {"draws_per_cell": args.draws, "seed": args.seed, "seconds": round(time.perf_counter() - started, 1),
            "versions": versions(), "totals": totals(rows), "rows": rows}
