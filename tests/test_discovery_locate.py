@@ -236,7 +236,7 @@ def test_single_targets_beside_a_period_in_part_of_the_travel_are_one_region():
 def test_the_smoothers_leverages_from_its_band_are_those_of_the_whole_matrix(seed):
     """The leave-one-out CV's leverages bᵢᵀ M diag(shrink) Mᵀ bᵢ taken from the band of M diag(shrink) Mᵀ
     the points' four neighbouring basis functions reach (locate._Band) are those of every column:
-    points drawn at random and on the knots (fewer nonzeros), M and the shrink drawn too."""
+    points drawn at random and on the knots (fewer nonzeros), M and three weights' shrinks drawn too."""
     from campaign.discovery.locate import _Band, _Smoother
 
     rng = np.random.default_rng(seed)
@@ -244,11 +244,11 @@ def test_the_smoothers_leverages_from_its_band_are_those_of_the_whole_matrix(see
     u = np.concatenate([rng.uniform(-20.0, 480.0, 400), smoother.knots[3:-3]])
     values, cols = smoother.rows(u)
     m = rng.normal(size=(smoother.k, smoother.k))
-    shrink = rng.uniform(0.0, 1.0, smoother.k)
+    shrinks = rng.uniform(0.0, 1.0, (3, smoother.k))  # three penalty weights' shrinks at once
     z = np.zeros((len(u), smoother.k))
     for a in range(values.shape[1]):
         z += values[:, a, None] * m[cols[:, a], :]
-    assert _Band(values, cols, m).leverage(shrink) == pytest.approx((z * z) @ shrink, rel=1e-12, abs=1e-12)
+    assert _Band(values, cols, m).leverage(shrinks) == pytest.approx((z * z) @ shrinks.T, rel=1e-12, abs=1e-12)
 
 
 def _dense_lead_table(rng: np.random.Generator) -> tuple[CampaignData, float, float]:

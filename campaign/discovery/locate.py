@@ -208,7 +208,14 @@ class _Band:
         self.products = (values[:, :, None] * values[:, None, :]).reshape(len(values), -1)
 
     def leverage(self, shrink: np.ndarray) -> np.ndarray:
-        return np.sum(self.products * (self.pairs @ shrink)[self.at], axis=1)
+        """Each point's leverage for each shrink (`shrink`: weights × k): points × weights."""
+        band = (self.pairs @ shrink.T)[self.at]  # points × 16 × weights
+        return np.einsum("ne,new->nw", self.products, band)
+
+
+LEVERAGE_BLOCK = 4_000_000
+"""_fit: the most numbers of the points' leverages held at once (points × 16 × weights), so that a curve
+over thousands of bins is scored a block of penalty weights at a time, in bounded memory."""
 
 
 def _fit(values: np.ndarray, cols: np.ndarray, y: np.ndarray, w: np.ndarray, penalty_matrix: np.ndarray,
@@ -238,22 +245,28 @@ def _fit(values: np.ndarray, cols: np.ndarray, y: np.ndarray, w: np.ndarray, pen
         if criterion == "loo":
             band = _Band(values, cols, m)
         scale = max(float(np.trace(gram)), 1e-300) / max(float(np.trace(matrix)), 1e-300)
-        for rel in PENALTIES:
-            lam = rel * scale
-            shrink = 1.0 / (1.0 + lam * s)
-            coef = m @ (shrink * proj)
-            dof = float(np.sum(shrink))
-            if band is not None:
-                hat = w * band.leverage(shrink)
-                if float(np.max(hat)) > 1.0 - 1e-3:  # a point the fit passes through: its fold cannot be predicted
-                    continue
-                loo = (y - _apply(values, cols, coef)) / (1.0 - hat)
-                score = float(np.sum(w * loo**2) / max(float(np.sum(w)), 1e-300))
-            else:
-                rss = max(yy - 2 * float(coef @ rhs) + float(coef @ gram @ coef), 0.0)
-                score = n * rss / max(n - dof, 1e-6) ** 2 / max(float(np.mean(w)), 1e-300)
-            if best is None or score < best[0]:
-                best = (score, coef, (m * shrink) @ m.T, dof, lam)
+        lams = PENALTIES * scale
+        shrinks = 1.0 / (1.0 + lams[:, None] * s[None, :])  # weights × k
+        coefs = (shrinks * proj) @ m.T  # each weight's coefficients, a row
+        dofs = np.sum(shrinks, axis=1)
+        if band is not None:
+            scores = np.full(len(lams), np.inf)
+            step = max(1, LEVERAGE_BLOCK // max(16 * n, 1))
+            for i in range(0, len(lams), step):
+                block = slice(i, i + step)
+                hat = w[:, None] * band.leverage(shrinks[block])
+                fitted = np.einsum("nc,ncw->nw", values, coefs[block].T[cols])
+                loo = (y[:, None] - fitted) / (1.0 - hat)
+                score = np.sum(w[:, None] * loo**2, axis=0) / max(float(np.sum(w)), 1e-300)
+                # a point the fit passes through: its fold cannot be predicted
+                scores[block] = np.where(np.max(hat, axis=0) > 1.0 - 1e-3, np.inf, score)
+        else:
+            rss = np.maximum(yy - 2 * coefs @ rhs + np.einsum("wi,ij,wj->w", coefs, gram, coefs), 0.0)
+            scores = n * rss / np.maximum(n - dofs, 1e-6) ** 2 / max(float(np.mean(w)), 1e-300)
+        scores = np.where(np.isnan(scores), np.inf, scores)
+        j = int(np.argmin(scores))
+        if np.isfinite(scores[j]) and (best is None or scores[j] < best[0]):
+            best = (float(scores[j]), coefs[j], (m * shrinks[j]) @ m.T, float(dofs[j]), float(lams[j]))
     if best is None:  # every weight passes through some point: the stiffest
         lam = PENALTIES[-1] * max(float(np.trace(gram)), 1e-300) / max(float(np.trace(penalty_matrix)), 1e-300)
         inverse = np.linalg.pinv(gram + lam * penalty_matrix, hermitian=True)
