@@ -213,7 +213,7 @@ class _Band:
         return np.einsum("ne,new->nw", self.products, band)
 
 
-LEVERAGE_BLOCK = 4_000_000
+LEVERAGE_BLOCK = 500_000
 """_fit: the most numbers of the points' leverages held at once (points × 16 × weights), so that a curve
 over thousands of bins is scored a block of penalty weights at a time, in bounded memory."""
 
@@ -517,8 +517,9 @@ def _regions_of(curves: list[Curve], travel: float, unit: str, dev: str, smalles
     directions), of half their difference (opposite in the two directions: a reversal), and where one
     of each meets with about the same size, of one direction only; and the departures of the `paired`
     mean (the directions' target means averaged, then smoothed: paired_curves) where the directions'
-    curves show none: an error both directions share, which each direction's curve, on half the points,
-    passes by (in one direction when the paired half difference says so: _one_side_of)."""
+    curves show none in both directions (a reversal's departure there, opposite in the two, does not say
+    it): an error both directions share, which each direction's curve, on half the points, passes by (in
+    one direction when the paired half difference says so: _one_side_of)."""
     mean, half = paired if paired else (None, None)
     lobes = []
     combined = _combined(curves)
@@ -528,7 +529,7 @@ def _regions_of(curves: list[Curve], travel: float, unit: str, dev: str, smalles
             lobes.append((curve, i, j, float(curve.value_um[k]), float(curve.at[k])))
     if mean is not None:
         for i, j in _lobes(mean, smallest_um):
-            if all(j <= i2 or j2 <= i for _, i2, j2, _, _ in lobes):
+            if all(j <= i2 or j2 <= i for other, i2, j2, _, _ in lobes if other.direction != "opposite"):
                 k = i + int(np.argmax(np.abs(mean.value_um[i:j])))
                 lobes.append((mean, i, j, float(mean.value_um[k]), float(mean.at[k])))
     used = [False] * len(lobes)
