@@ -350,23 +350,24 @@ def position_curves(data: CampaignData, residual: np.ndarray, noise_um: float,
 
 
 def paired_curves(data: CampaignData, residual: np.ndarray, noise_um: float,
-                  scale: np.ndarray | None) -> list[Curve]:
+                  scale: np.ndarray | None) -> tuple[Curve, Curve] | None:
     """The mean of the two directions' target means smoothed as a curve of its own (direction "both"),
     its penalty chosen on it, and half their difference (+ minus −; "opposite") by the same smoother, when
-    every target is measured in both directions (a table of stopped targets); [] otherwise. An error
+    every target is measured in both directions (a table of stopped targets); None otherwise. An error
     both directions share is held by twice the points there: smoothing each direction apart let each
     one's cross-validation, on half the points, choose a straight line through a dip that two targets
     of eleven show (−0.8 µm at a noise of 0.73 µm: 4σ in the mean of both directions, 2.6σ in one)."""
     lo, hi = float(np.min(data.x)), float(np.max(data.x))
     sides = [_target_means(data, residual, scale, sign) for sign in DIRECTIONS if np.any(data.d == sign)]
     if len(sides) < 2 or len(sides[0][0]) < 4 or not np.array_equal(sides[0][0], sides[1][0]):
-        return []
+        return None
     (_, plus, where_plus, n_plus), (_, minus, where_minus, n_minus) = sides
     if not np.allclose(where_plus, where_minus, rtol=0.0, atol=1e-6 * max(hi - lo, 1.0)):
-        return []
+        return None
     count = 4.0 / (1.0 / n_plus + 1.0 / n_minus)  # half the sum or the difference of two means: its points
-    return _smoothed("position", "both", lo, hi, (where_plus + where_minus) / 2, (plus + minus) / 2, count,
-                     noise_um, np.linspace(lo, hi, GRID), (plus - minus) / 2)
+    mean, half = _smoothed("position", "both", lo, hi, (where_plus + where_minus) / 2, (plus + minus) / 2, count,
+                           noise_um, np.linspace(lo, hi, GRID), (plus - minus) / 2)
+    return mean, half
 
 
 def time_curves(data: CampaignData, residual: np.ndarray, noise_um: float) -> list[Curve]:
@@ -512,7 +513,7 @@ SHARED = 0.7
 
 
 def _regions_of(curves: list[Curve], travel: float, unit: str, dev: str, smallest_um: float,
-                paired: list[Curve] | tuple = ()) -> list[Region]:
+                paired: tuple[Curve, Curve] | None = None) -> list[Region]:
     """Regions along the axis from the two directions' curves: departures of their mean (both
     directions), of half their difference (opposite in the two directions: a reversal), and where one
     of each meets with about the same size, of one direction only; and the departures of the `paired`
@@ -520,10 +521,9 @@ def _regions_of(curves: list[Curve], travel: float, unit: str, dev: str, smalles
     curves show none in both directions (a reversal's departure there, opposite in the two, does not say
     it): an error both directions share, which each direction's curve, on half the points, passes by (in
     one direction when the paired half difference says so: _one_side_of)."""
-    mean, half = paired if paired else (None, None)
+    mean, half = paired if paired is not None else (None, None)
     lobes = []
-    combined = _combined(curves)
-    for curve in combined:
+    for curve in _combined(curves):
         for i, j in _lobes(curve, smallest_um):
             k = i + int(np.argmax(np.abs(curve.value_um[i:j])))
             lobes.append((curve, i, j, float(curve.value_um[k]), float(curve.at[k])))
@@ -779,7 +779,7 @@ def locate(data: CampaignData, residual: np.ndarray) -> Located:
         paired = paired_curves(part, left, noise, weights)
         found = _regions_of(along, travel, data.position_unit, data.deviation_unit, SMALLEST * noise, paired)
         regions += found + odd_targets(part, left, noise, along, found, weights)
-        curves += along + paired[:1]
+        curves += along + ([paired[0]] if paired is not None else [])  # its half difference only tells a direction
     regions.sort(key=lambda r: r.start)
     timed = time_curves(data, residual, noise)
     time_unit = "s" if data.time_source == "time_s" else "points"
