@@ -592,8 +592,8 @@ def config_beside_said(table: str) -> tuple[Config | None, str | None]:
     try:
         return load_config(path), None
     except InputError as e:
-        return None, (f"{path} beside {table} does not read ({e}); the table is read without it: without its "
-                      "sample period and capture method")
+        return None, (f"{table}: the config.toml beside it does not read ({e}); the table is read without its "
+                      "sample period and capture method")  # e names the file
 
 
 def read_tables(files: list[str]) -> tuple[CampaignData, list[Outliers], list[str], list[str]]:
